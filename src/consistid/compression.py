@@ -1,0 +1,88 @@
+r"""Compression of a least-squares problem to per-joint R factors, so that solvers never see N rows.
+
+For joint ``j`` let ``A_j = [Y_j | τ_j]`` (one row per sample, ``p + 1`` columns). Its R factor
+``A_j = Q_j R̄_j`` with
+
+.. math::  \bar R_j = \begin{bmatrix} R_j & z_j \\ 0 & \rho_j \end{bmatrix}
+
+gives every quantity a least-squares fit needs, exactly:
+``‖Y_j θ − τ_j‖² = ‖R_j θ − z_j‖² + ρ_j²``. The factors are accumulated chunk by chunk
+(``R̄ ← qr([R̄; A_chunk])``), so memory is ``O(nv·p²)`` whatever the number of samples, and a
+weighted problem with per-joint noise ``σ_j`` is ``qr([R̄_1/σ_1; …; R̄_nv/σ_nv])``.
+This is the "compression" that makes the SDP size independent of N (Golub & Van Loan,
+*Matrix Computations*, §6.5 on updating QR).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .dataset import Dataset
+from .model import RobotModel
+from .regressor import RegressorSpec, iter_regressor
+
+
+def _r_factor(a: np.ndarray, size: int) -> np.ndarray:
+    r = np.linalg.qr(a, mode="r")
+    if r.shape[0] < size:
+        r = np.vstack([r, np.zeros((size - r.shape[0], size))])
+    return r
+
+
+@dataclass(frozen=True)
+class CompressedProblem:
+    """Per-joint R factors ``R̄_j`` of ``[Y_j | τ_j]``, shape ``(nv, p + 1, p + 1)``."""
+
+    factors: np.ndarray
+    n_samples: int
+    tau_sum_squares: np.ndarray
+
+    @property
+    def nv(self) -> int:
+        return int(self.factors.shape[0])
+
+    @property
+    def n_columns(self) -> int:
+        return int(self.factors.shape[1] - 1)
+
+    def stacked(self, sigma: np.ndarray | None = None, columns: np.ndarray | None = None
+                ) -> tuple[np.ndarray, np.ndarray, float]:
+        """``(R, z, ρ²)`` of the whole (optionally σ-weighted, column-restricted) problem.
+
+        ``‖Σ^{-1/2}(Y[:, columns] θ − τ)‖² = ‖R θ − z‖² + ρ²``.
+        """
+        sigma = np.ones(self.nv) if sigma is None else np.asarray(sigma, dtype=float)
+        cols = np.arange(self.n_columns) if columns is None else np.asarray(columns)
+        keep = np.append(cols, self.n_columns)
+        a = np.vstack([self.factors[j][:, keep] / sigma[j] for j in range(self.nv)])
+        r = _r_factor(a, keep.size)
+        return r[:-1, :-1], r[:-1, -1], float(r[-1, -1] ** 2)
+
+    def sum_squares(self, theta: np.ndarray, columns: np.ndarray | None = None) -> np.ndarray:
+        """Per-joint residual sum of squares ``‖Y_j[:, columns] θ − τ_j‖²``, shape (nv,)."""
+        cols = np.arange(self.n_columns) if columns is None else np.asarray(columns)
+        out = np.empty(self.nv)
+        for j in range(self.nv):
+            r = self.factors[j]
+            # Only the full-column factor gives the exact residual: ‖R θ − z‖² + ρ² with θ padded.
+            full = np.zeros(self.n_columns)
+            full[cols] = theta
+            out[j] = np.sum((r[:-1, :-1] @ full - r[:-1, -1]) ** 2) + r[-1, -1] ** 2
+        return out
+
+
+def compress(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
+             chunk: int = 4096) -> CompressedProblem:
+    """Accumulate the per-joint R factors of ``[Y_j | τ_j]`` over a dataset (O(p²) memory)."""
+    tau = dataset.require_torque()
+    factors = None
+    for s, y in iter_regressor(model, dataset, spec, chunk):
+        p = y.shape[2]
+        if factors is None:
+            factors = np.zeros((model.nv, p + 1, p + 1))
+        for j in range(model.nv):
+            block = np.column_stack([y[:, j, :], tau[s, j]])
+            factors[j] = _r_factor(np.vstack([factors[j], block]), p + 1)
+    return CompressedProblem(factors, dataset.n_samples, np.sum(tau ** 2, axis=0))

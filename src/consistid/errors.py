@@ -1,0 +1,63 @@
+"""Exceptions raised by consistid.
+
+Every error names what is wrong (field, index, joint, body, solver status) so that a user can fix
+the input without reading the source. Bad *values* are ``ValueError`` subclasses; failures of a
+numerical method are :class:`IdentificationError` subclasses.
+"""
+
+from __future__ import annotations
+
+
+class ConsistidError(Exception):
+    """Base class of every consistid exception."""
+
+
+class DatasetError(ConsistidError, ValueError):
+    """A dataset field has the wrong shape, a non-finite value or non-increasing time."""
+
+
+class JointCountError(DatasetError):
+    """A dataset (or array) has a different joint count than the robot model."""
+
+
+class MissingColumnsError(DatasetError):
+    """A CSV/NPZ file lacks columns that a :class:`~consistid.Dataset` needs."""
+
+
+class OptionError(ConsistidError, ValueError):
+    """An option takes a value outside its allowed set; the message lists the allowed values."""
+
+
+class ModelError(ConsistidError, ValueError):
+    """A robot model cannot be built or does not fit the request (unknown joint, robot, file)."""
+
+
+class IdentificationError(ConsistidError, RuntimeError):
+    """A numerical identification step failed (solver status, rank deficiency)."""
+
+
+class InfeasibleError(IdentificationError):
+    """The constraints admit no solution (the solver proved infeasibility)."""
+
+
+class PoorExcitationError(IdentificationError):
+    """The data do not excite the base parameters: the base regressor is rank deficient."""
+
+
+class InconsistentParametersError(ConsistidError, ValueError):
+    """Parameters that must be physically consistent are not (names the body and the violation)."""
+
+
+def check_option(name: str, value: object, allowed: tuple | list | set) -> None:
+    """Raise :class:`OptionError` unless ``value`` is one of ``allowed``."""
+    if value not in allowed:
+        listed = ", ".join(repr(a) for a in allowed)
+        raise OptionError(f"{name}={value!r} is not supported; allowed: {listed}")
+
+
+class PoorExcitationWarning(UserWarning):
+    """The data excite the base parameters poorly (large condition number)."""
+
+
+class InaccurateSolutionWarning(UserWarning):
+    """The solver stopped at reduced accuracy (status ``optimal_inaccurate``)."""

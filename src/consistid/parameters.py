@@ -1,0 +1,199 @@
+r"""The standard inertial parameters of a rigid body and their physical consistency.
+
+Layout (Pinocchio's ``Inertia.toDynamicParameters`` order), inertia about the body-frame origin:
+
+.. math:: \pi = [m,\; m c_x,\; m c_y,\; m c_z,\; I_{xx},\; I_{xy},\; I_{yy},\; I_{xz},\; I_{yz},\; I_{zz}]
+
+Equivalent representations, converted by Pinocchio where it can:
+
+* ``(m, c, I_c)``: mass, centre of mass, rotational inertia about the CoM
+  (:func:`to_mass_com_inertia`, :func:`from_mass_com_inertia`; ``I = I_c + m [c]_×ᵀ[c]_×``);
+* the 4×4 pseudo-inertia ``J = [[Σ, h], [hᵀ, m]]`` with ``Σ = ½ tr(I) 1 − I`` and ``h = m c``
+  (:func:`pseudo_inertia`, :func:`from_pseudo_inertia`; ``pinocchio.PseudoInertia``).
+
+Physical consistency, from weakest to strongest (each implies the ones before):
+
+``"mass-inertia"``
+    ``m > 0`` and ``I_c ≻ 0``.
+``"triangle"``
+    additionally, the principal moments satisfy ``I_k ≤ I_l + I_m`` (Traversaro et al. 2016,
+    "Identification of fully physical consistent inertial parameters using optimization on
+    manifolds", IROS, doi:10.1109/IROS.2016.7759801).
+``"pseudo-inertia"``
+    ``J ≻ 0``: the parameters are realised by a positive mass density (Wensing, Kim, Slotine
+    2017, "Linear matrix inequalities for physically consistent inertial parameter
+    identification", IEEE RA-L 3(1), doi:10.1109/LRA.2017.2729659). For a single body this is
+    equivalent to ``m > 0`` and the triangle inequalities on ``I_c``; it is the form that becomes
+    a linear matrix inequality.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+import pinocchio as pin
+
+from .errors import check_option
+
+INERTIAL_NAMES: tuple[str, ...] = ("m", "mx", "my", "mz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
+CONSISTENCY_LEVELS: tuple[str, ...] = ("mass-inertia", "triangle", "pseudo-inertia")
+
+
+def _body(p: np.ndarray) -> np.ndarray:
+    p = np.asarray(p, dtype=float)
+    if p.shape != (10,):
+        raise ValueError(f"a body's standard parameters have shape (10,), got {p.shape}")
+    return p
+
+
+def inertia_about_origin(p: np.ndarray) -> np.ndarray:
+    """The 3×3 rotational inertia about the body-frame origin from a 10-vector."""
+    _, _, _, _, ixx, ixy, iyy, ixz, iyz, izz = _body(p)
+    return np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+
+
+def to_mass_com_inertia(p: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """``(m, c, I_c)`` from a 10-vector; ``I_c = I − m [c]_×ᵀ[c]_×`` (parallel axes).
+
+    Raises ``ValueError`` for a non-positive mass, where the centre of mass is undefined.
+    """
+    p = _body(p)
+    m = p[0]
+    if not m > 0:
+        raise ValueError(f"mass {m:.6g} ≤ 0: the centre of mass is undefined")
+    c = p[1:4] / m
+    cx = pin.skew(c)
+    return float(m), c, inertia_about_origin(p) + m * cx @ cx
+
+
+def from_mass_com_inertia(m: float, c: Sequence[float], inertia_com: np.ndarray) -> np.ndarray:
+    """10-vector from mass, CoM and inertia about the CoM (``pinocchio.Inertia``)."""
+    return np.array(pin.Inertia(float(m), np.asarray(c, float), np.asarray(inertia_com, float))
+                    .toDynamicParameters())
+
+
+def pseudo_inertia(p: np.ndarray) -> np.ndarray:
+    """The 4×4 pseudo-inertia ``J`` of one body (``pinocchio.PseudoInertia``)."""
+    return np.array(pin.PseudoInertia.FromDynamicParameters(_body(p)).toMatrix())
+
+
+def from_pseudo_inertia(J: np.ndarray) -> np.ndarray:
+    """The 10-vector of a 4×4 pseudo-inertia (inverse of :func:`pseudo_inertia`)."""
+    J = np.asarray(J, dtype=float)
+    if J.shape != (4, 4):
+        raise ValueError(f"a pseudo-inertia is 4×4, got {J.shape}")
+    return np.array(pin.PseudoInertia.FromMatrix(0.5 * (J + J.T)).toDynamicParameters())
+
+
+def inertias_from_vector(parameters: np.ndarray) -> list[pin.Inertia]:
+    """``pinocchio.Inertia`` objects from a stacked standard vector (10 per body)."""
+    parameters = np.asarray(parameters, dtype=float)
+    if parameters.ndim != 1 or parameters.size % 10:
+        raise ValueError(f"stacked standard parameters need 10 per body, got {parameters.shape}")
+    return [pin.Inertia.FromDynamicParameters(parameters[i:i + 10])
+            for i in range(0, parameters.size, 10)]
+
+
+@dataclass(frozen=True)
+class BodyConsistency:
+    """The verdict for one body: ``ok``, the first violated condition, and the margins."""
+
+    body: str
+    ok: bool
+    reason: str
+    mass: float
+    min_pseudo_inertia_eigenvalue: float
+    principal_moments: np.ndarray | None
+
+
+def check_body(p: np.ndarray, level: str = "pseudo-inertia", body: str = "body",
+               tol: float = 0.0) -> BodyConsistency:
+    """Check one body's 10-vector against a consistency level.
+
+    ``tol`` is an absolute tolerance on the margins (eigenvalues in kg·m², mass in kg); the
+    verdict is ``m > tol``, ``eig(I_c) > tol``, triangle slack ``≥ −tol``, ``λ_min(J) ≥ −tol``.
+    """
+    check_option("level", level, CONSISTENCY_LEVELS)
+    p = _body(p)
+    lam_j = float(np.linalg.eigvalsh(pseudo_inertia(p))[0])
+    if not p[0] > tol:
+        return BodyConsistency(body, False, f"{body}: mass {p[0]:.6g} kg ≤ 0", p[0], lam_j, None)
+    _, _, inertia_com = to_mass_com_inertia(p)
+    moments = np.linalg.eigvalsh(inertia_com)
+    if moments[0] <= tol:
+        return BodyConsistency(body, False,
+                               f"{body}: inertia about the CoM not positive definite "
+                               f"(smallest principal moment {moments[0]:.3g} kg·m²)",
+                               p[0], lam_j, moments)
+    if level in ("triangle", "pseudo-inertia"):
+        slack = moments[0] + moments[1] - moments[2]
+        if slack < -tol:
+            return BodyConsistency(body, False,
+                                   f"{body}: triangle inequality violated "
+                                   f"(I1 + I2 − I3 = {slack:.3g} kg·m²)", p[0], lam_j, moments)
+    if level == "pseudo-inertia" and lam_j < -tol:
+        return BodyConsistency(body, False,
+                               f"{body}: pseudo-inertia min eigenvalue {lam_j:.3g}",
+                               p[0], lam_j, moments)
+    return BodyConsistency(body, True, "", p[0], lam_j, moments)
+
+
+@dataclass(frozen=True)
+class ConsistencyReport:
+    """Per-body consistency of a stacked parameter vector; truthy when every body passes."""
+
+    level: str
+    bodies: tuple[BodyConsistency, ...]
+
+    @property
+    def ok(self) -> bool:
+        return all(b.ok for b in self.bodies)
+
+    @property
+    def violations(self) -> list[str]:
+        return [b.reason for b in self.bodies if not b.ok]
+
+    @property
+    def min_eigenvalues(self) -> np.ndarray:
+        return np.array([b.min_pseudo_inertia_eigenvalue for b in self.bodies])
+
+    def __bool__(self) -> bool:
+        return self.ok
+
+    def __str__(self) -> str:
+        if self.ok:
+            return f"all {len(self.bodies)} bodies consistent ({self.level})"
+        return "; ".join(self.violations)
+
+
+def is_physically_consistent(parameters: np.ndarray, level: str = "pseudo-inertia",
+                             body_names: Sequence[str] | None = None,
+                             tol: float = 0.0) -> ConsistencyReport:
+    """Check every body of a stacked standard vector (extra trailing entries are ignored).
+
+    Returns a :class:`ConsistencyReport` that is truthy when all bodies pass and names the first
+    violated condition of each failing body otherwise.
+    """
+    parameters = np.asarray(parameters, dtype=float)
+    n = parameters.size // 10
+    names = list(body_names) if body_names is not None else [f"body{i + 1}" for i in range(n)]
+    return ConsistencyReport(level, tuple(
+        check_body(parameters[10 * i:10 * i + 10], level, names[i], tol) for i in range(n)))
+
+
+def perturb(parameters: np.ndarray, relative: float, rng: np.random.Generator) -> np.ndarray:
+    """A physically consistent random perturbation of a stacked standard vector.
+
+    Each body's mass, each CoM coordinate and the inertia about the CoM (one common factor, so
+    the triangle inequalities are kept) are multiplied by independent factors drawn uniformly
+    from ``[1 − relative, 1 + relative]``. Used to make "true" robots that differ from the CAD
+    prior in simulation.
+    """
+    out = np.array(parameters, dtype=float)
+    for i in range(out.size // 10):
+        m, c, inertia_com = to_mass_com_inertia(out[10 * i:10 * i + 10])
+        f = rng.uniform(1 - relative, 1 + relative, size=5)
+        out[10 * i:10 * i + 10] = from_mass_com_inertia(m * f[0], c * f[1:4], inertia_com * f[4])
+    return out

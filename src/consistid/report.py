@@ -1,0 +1,58 @@
+"""Plain-text tables for results (plots live beside the code that owns the figure)."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Sequence
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from .result import IdentificationResult
+
+
+def table(header: Sequence[str], rows: Sequence[Sequence[object]], floatfmt: str = ".4g") -> str:
+    """A fixed-width text table; floats formatted with ``floatfmt``."""
+    def cell(v: object) -> str:
+        if isinstance(v, (float, np.floating)):
+            return format(float(v), floatfmt)
+        return str(v)
+
+    cells = [[cell(v) for v in row] for row in rows]
+    widths = [max(len(h), *(len(r[i]) for r in cells)) if cells else len(h)
+              for i, h in enumerate(header)]
+    line = "  ".join(h.ljust(w) for h, w in zip(header, widths))
+    out = [line, "  ".join("-" * w for w in widths)]
+    out += ["  ".join(c.rjust(w) if i else c.ljust(w) for i, (c, w) in enumerate(zip(r, widths)))
+            for r in cells]
+    return "\n".join(out)
+
+
+def identification_summary(res: "IdentificationResult", max_rows: int | None = None) -> str:
+    """Base parameters (prior, estimate, ±σ, %σ), per-joint fit, consistency and notes."""
+    prior_beta = res.base.project(res.prior)
+    order = range(res.base.n_base)
+    rows = [(res.base.names[i], prior_beta[i], res.base_parameters[i], res.base_std[i],
+             f"{res.relative_std[i]:.1f}" if np.isfinite(res.relative_std[i]) else "inf")
+            for i in order]
+    shown = rows if max_rows is None else rows[:max_rows]
+    lines = [f"consistid identification of {res.model.name!r}: method={res.method}, "
+             f"{res.n_samples} samples × {res.model.nv} joints, {res.spec.describe()}",
+             f"solver        {res.solver}",
+             f"base params   {res.base.n_base} of {res.base.n_standard} "
+             f"(cond(W_b) = {res.condition_number:.4g})", "",
+             table(["base parameter", "prior", "estimate", "± std", "std %"], shown)]
+    if len(shown) < len(rows):
+        lines.append(f"… {len(rows) - len(shown)} more rows (summary(max_rows=None) shows all)")
+    lines += ["", table(["joint", "train RMS [N·m]", "noise σ [N·m]"],
+                        [(n, r, s) for n, r, s in zip(res.model.joint_names, res.train_rms,
+                                                      res.sigma)])]
+    notes = []
+    cons = res.consistency
+    notes.append(f"physical consistency: {cons}")
+    for key, value in res.details.items():
+        if np.isscalar(value) or isinstance(value, str):
+            notes.append(f"{key}: {value}")
+    if res.condition_number > 1e4:
+        notes.append("the condition number is large: some base parameters are poorly excited")
+    lines += ["", "Notes:"] + [f"  - {n}" for n in notes]
+    return "\n".join(lines)
