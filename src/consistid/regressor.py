@@ -34,7 +34,7 @@ import numpy as np
 import pinocchio as pin
 
 from .dataset import Dataset
-from .errors import check_option
+from .errors import JointCountError, check_option
 from .model import RobotModel
 
 JOINT_TERMS: tuple[str, ...] = ("coulomb", "viscous", "offset", "armature")
@@ -133,15 +133,16 @@ def joint_columns(dq: np.ndarray, ddq: np.ndarray, spec: RegressorSpec) -> np.nd
     return out
 
 
-def rigid_body_regressor(model: RobotModel, q: np.ndarray, dq: np.ndarray,
-                         ddq: np.ndarray) -> np.ndarray:
+def rigid_body_regressor(model: RobotModel, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray,
+                         out: np.ndarray | None = None) -> np.ndarray:
     """Pinocchio's joint-torque regressor for each sample, shape ``(N, nv, 10·nbodies)``.
 
-    Satisfies ``Y[k] @ π = rnea(q_k, dq_k, ddq_k)`` for a model without armature.
+    Satisfies ``Y[k] @ π = rnea(q_k, dq_k, ddq_k)`` for a model without armature. ``out`` may be
+    a preallocated array (or a view) of that shape to write into.
     """
     m, data = model.pin_model, model.pin_model.createData()
     n = q.shape[0]
-    out = np.empty((n, model.nv, model.n_inertial))
+    out = np.empty((n, model.nv, model.n_inertial)) if out is None else out
     same = m.nq == m.nv
     for k in range(n):
         qk = q[k] if same else model.configuration(q[k])
@@ -150,25 +151,25 @@ def rigid_body_regressor(model: RobotModel, q: np.ndarray, dq: np.ndarray,
 
 
 def regressor(model: RobotModel, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray,
-              spec: RegressorSpec | None = None) -> np.ndarray:
+              spec: RegressorSpec | None = None, out: np.ndarray | None = None) -> np.ndarray:
     """The stacked regressor ``Y``, shape ``(N·nv, p)``, rows sample-major.
 
     Parameters
     ----------
     q, dq, ddq : (N, nv) joint angles, velocities, accelerations (one sample may be 1-D).
     spec : which friction/armature columns to append; default rigid body only.
+    out : optional preallocated ``(N, nv, p)`` array to fill (avoids a copy for large N).
     """
     q, dq, ddq = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (q, dq, ddq))
     if q.shape[1] != model.nv:
-        from .errors import JointCountError
-
         raise JointCountError(f"q has {q.shape[1]} joints but {model.name} has {model.nv}")
     spec = spec or RegressorSpec.make(model, friction=None)
-    blocks = [rigid_body_regressor(model, q, dq, ddq)]
+    n, p = q.shape[0], model.n_inertial + spec.n_joint_columns
+    y = np.empty((n, model.nv, p)) if out is None else out
+    rigid_body_regressor(model, q, dq, ddq, out=y[:, :, :model.n_inertial])
     if spec.n_joint_columns:
-        blocks.append(joint_columns(dq, ddq, spec))
-    y = np.concatenate(blocks, axis=2) if len(blocks) > 1 else blocks[0]
-    return y.reshape(q.shape[0] * model.nv, -1)
+        y[:, :, model.n_inertial:] = joint_columns(dq, ddq, spec)
+    return y.reshape(n * model.nv, p)
 
 
 def dataset_regressor(model: RobotModel, dataset: Dataset,
@@ -180,9 +181,15 @@ def dataset_regressor(model: RobotModel, dataset: Dataset,
 
 def iter_regressor(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
                    chunk: int = 4096) -> Iterator[tuple[slice, np.ndarray]]:
-    """Yield ``(sample slice, Y_chunk)`` with ``Y_chunk`` of shape ``(n, nv, p)``: O(chunk) memory."""
+    """Yield ``(sample slice, Y_chunk)`` with ``Y_chunk`` of shape ``(n, nv, p)``: O(chunk) memory.
+
+    The chunks share one buffer: each yielded array is overwritten by the next one.
+    """
     dataset.check_joints(model.nv, model.joint_names)
+    buffer = np.empty((min(chunk, dataset.n_samples), model.nv,
+                       model.n_inertial + spec.n_joint_columns))
     for start in range(0, dataset.n_samples, chunk):
         s = slice(start, min(start + chunk, dataset.n_samples))
-        y = regressor(model, dataset.q[s], dataset.dq[s], dataset.ddq[s], spec)
-        yield s, y.reshape(s.stop - s.start, model.nv, -1)
+        y = buffer[: s.stop - s.start]
+        regressor(model, dataset.q[s], dataset.dq[s], dataset.ddq[s], spec, out=y)
+        yield s, y

@@ -1,0 +1,59 @@
+"""Shared fixtures: robots built once per session, a planar 2R arm with a closed form."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import consistid as ci
+
+SHARED = Path(__file__).resolve().parents[1].parent / "shared"
+
+PLANAR_2R = """<?xml version="1.0"?>
+<robot name="planar2r">
+  <link name="base"/>
+  <link name="link1">
+    <inertial><origin xyz="{d1} 0 0"/><mass value="{m1}"/>
+      <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.05" iyz="0" izz="{i1}"/></inertial>
+  </link>
+  <link name="link2">
+    <inertial><origin xyz="{d2} 0 0"/><mass value="{m2}"/>
+      <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.03" iyz="0" izz="{i2}"/></inertial>
+  </link>
+  <joint name="joint1" type="revolute"><parent link="base"/><child link="link1"/>
+    <axis xyz="0 0 1"/><limit lower="-3" upper="3" velocity="5" effort="100"/></joint>
+  <joint name="joint2" type="revolute"><parent link="link1"/><child link="link2"/>
+    <origin xyz="{l1} 0 0"/><axis xyz="0 0 1"/>
+    <limit lower="-3" upper="3" velocity="5" effort="100"/></joint>
+</robot>
+"""
+
+PLANAR_2R_VALUES = dict(m1=2.0, d1=0.4, i1=0.08, m2=1.5, d2=0.3, i2=0.04, l1=0.8)
+
+
+@pytest.fixture(scope="session")
+def panda() -> ci.RobotModel:
+    return ci.RobotModel.example("panda")
+
+
+@pytest.fixture(scope="session")
+def planar_2r(tmp_path_factory) -> ci.RobotModel:
+    """A planar 2R arm moving in the x-y plane, gravity along −y, CoM on the link axes."""
+    path = tmp_path_factory.mktemp("urdf") / "planar2r.urdf"
+    path.write_text(PLANAR_2R.format(**PLANAR_2R_VALUES))
+    return ci.RobotModel.from_urdf(path, gravity=(0.0, -9.81, 0.0))
+
+
+@pytest.fixture(scope="session")
+def kuka_dir() -> Path:
+    folder = SHARED / "data" / "kuka_lwr4"
+    if not folder.is_dir():
+        pytest.skip(f"real KUKA data not found at {folder} (shared/ is not beside the checkout)")
+    return folder
+
+
+def random_states(model: ci.RobotModel, n: int, seed: int):
+    rng = np.random.default_rng(seed)
+    return ci.base.random_states(model, n, rng)

@@ -1,0 +1,76 @@
+import numpy as np
+import pytest
+
+import consistid as ci
+from consistid.errors import DatasetError, JointCountError, MissingColumnsError
+
+
+def make(n=50, nv=3, seed=0, **over):
+    rng = np.random.default_rng(seed)
+    fields = dict(t=np.arange(n) * 0.01, q=rng.normal(size=(n, nv)), dq=rng.normal(size=(n, nv)),
+                  ddq=rng.normal(size=(n, nv)), tau=rng.normal(size=(n, nv)))
+    fields.update(over)
+    return ci.Dataset(**fields)
+
+
+def test_nan_is_named_by_field_index_and_joint():
+    tau = np.zeros((50, 3))
+    tau[12, 1] = np.nan
+    with pytest.raises(DatasetError, match=r"dataset\.tau\[12, 'j2'\] is NaN"):
+        make(tau=tau, joint_names=("j1", "j2", "j3"))
+    q = np.zeros((50, 3))
+    q[7, 2] = np.inf
+    with pytest.raises(DatasetError, match=r"dataset\.q\[7, 2\] is infinite"):
+        make(q=q)
+
+
+def test_shape_errors_name_the_field():
+    with pytest.raises(DatasetError, match=r"dataset\.dq has shape \(49, 3\)"):
+        make(dq=np.zeros((49, 3)))
+    with pytest.raises(DatasetError, match=r"dataset\.tau has 2 joints"):
+        make(tau=np.zeros((50, 2)))
+    with pytest.raises(DatasetError, match="1-D"):
+        make(t=np.zeros((50, 2)))
+
+
+def test_time_must_increase():
+    t = np.arange(50) * 0.01
+    t[20] = t[19]
+    with pytest.raises(DatasetError, match=r"t\[20\].*strictly increasing"):
+        make(t=t)
+
+
+def test_joint_count_mismatch_is_named(panda):
+    with pytest.raises(JointCountError, match="3 joints but the model has 7"):
+        ci.identify(panda, make(), method="ols")
+
+
+@pytest.mark.parametrize("suffix", [".npz", ".csv"])
+def test_save_load_round_trip(tmp_path, suffix):
+    d = make(seed=3)
+    d.save(tmp_path / f"run{suffix}")
+    back = ci.Dataset.load(tmp_path / f"run{suffix}")
+    for f in ("t", "q", "dq", "ddq", "tau", "segment"):
+        assert np.array_equal(getattr(d, f), getattr(back, f)), f
+
+
+def test_csv_missing_columns_are_listed(tmp_path):
+    path = tmp_path / "bad.csv"
+    path.write_text("t,q1,q2,dq1,dq2,ddq1\n0,0,0,0,0,0\n1,0,0,0,0,0\n")
+    with pytest.raises(MissingColumnsError, match=r"\['ddq2'\]"):
+        ci.Dataset.load(path)
+
+
+def test_split_by_time_and_by_segment():
+    a, b = make(n=100, seed=1), make(n=60, seed=2)
+    both = ci.Dataset.concatenate([a, b])
+    assert both.n_samples == 160 and set(both.segment) == {0, 1}
+    assert np.all(np.diff(both.t) > 0)
+    train, held = both.split(0.75)
+    assert train.n_samples + held.n_samples == 160
+    # each segment contributes its first 75 % to training
+    assert np.sum(train.segment == 0) == 75 and np.sum(train.segment == 1) == 45
+    train, held = both.split_segments([1])
+    assert np.array_equal(held.q, b.q) and np.array_equal(train.q, a.q)
+    with pytest.raises(DatasetError):
+        both.split(1.5)

@@ -1,0 +1,89 @@
+import numpy as np
+import pytest
+
+import consistid as ci
+from consistid.errors import PoorExcitationWarning
+from consistid.parameters import perturb
+from consistid.regressor import RegressorSpec, dataset_regressor
+
+
+@pytest.fixture(scope="module")
+def truth(panda):
+    return perturb(panda.prior_parameters, 0.2, np.random.default_rng(7))
+
+
+@pytest.fixture(scope="module")
+def runs(panda, truth):
+    train = ci.simulate.excitation_run(panda, truth, duration=30.0, rate=500.0,
+                                       torque_noise=0.1, seed=1)
+    held = ci.simulate.excitation_run(panda, truth, duration=10.0, rate=500.0,
+                                      torque_noise=0.1, seed=2)
+    return train.dataset, held.dataset
+
+
+def test_ols_acceptance_on_simulated_panda(panda, truth, runs):
+    train, held = runs
+    res = ci.identify(panda, train, method="ols", friction=None)
+    z = (res.base_parameters - res.base.project(truth)) / res.base_std
+    assert np.mean(np.abs(z) < 3) >= 0.95
+    assert np.all(res.rms(held) / 0.1 <= 1.05)
+    assert res.sigma[0] == pytest.approx(0.1, rel=0.03)
+    assert res.base.n_base == 43 and res.condition_number < 1e3
+    text = res.summary()
+    assert "panda_link3.mz*" in text and "cond(W_b)" in text and "Notes:" in text
+
+
+def test_compressed_solution_equals_lstsq_on_all_rows(panda, runs):
+    train, _ = runs
+    res = ci.identify(panda, train, method="ols", friction=None)
+    y = res.base.base_columns(dataset_regressor(panda, train))
+    beta = np.linalg.lstsq(y, train.tau.ravel(), rcond=None)[0]
+    assert np.allclose(res.base_parameters, beta, rtol=1e-9, atol=1e-12)
+    # the standard vector predicts exactly what the base parameters predict
+    assert np.allclose(res.predict(train).ravel(), y @ beta, atol=1e-9)
+
+
+def test_wls_estimates_per_joint_noise_and_friction(panda, truth):
+    spec = RegressorSpec.make(panda, ("coulomb", "viscous", "offset"))
+    rng = np.random.default_rng(3)
+    friction = np.concatenate([rng.uniform(0.2, 1.0, 7), rng.uniform(0.05, 0.3, 7),
+                               rng.uniform(-0.5, 0.5, 7)])
+    run = ci.simulate.excitation_run(panda, np.concatenate([truth, friction]), duration=20.0,
+                                     friction=("coulomb", "viscous", "offset"), seed=4,
+                                     torque_noise=0.0)
+    sigma = np.array([0.3, 0.3, 0.2, 0.2, 0.05, 0.05, 0.02])
+    tau = run.dataset.tau + sigma * rng.standard_normal(run.dataset.tau.shape)
+    res = ci.identify(panda, run.dataset.with_torque(tau), method="wls")
+    assert np.allclose(res.sigma, sigma, rtol=0.05)
+    names = list(res.base.names)
+    for j, joint in enumerate(panda.joint_names):
+        k = names.index(f"{joint}.fc")
+        assert abs(res.base_parameters[k] - friction[j]) < 4 * res.base_std[k]
+    ols = ci.identify(panda, run.dataset.with_torque(tau), method="ols")
+    # weighting helps the low-noise wrist: its parameters get smaller standard deviations
+    k = names.index("panda_joint7.fv")
+    assert res.base_std[k] < ols.base_std[k]
+
+
+def test_no_motion_raises_with_the_unexcited_directions(panda):
+    n = 200
+    q = np.tile(np.array([0, -0.5, 0, -2.0, 0, 1.5, 0.5]), (n, 1))
+    still = ci.Dataset(t=np.arange(n) / 100, q=q, dq=np.zeros((n, 7)), ddq=np.zeros((n, 7)),
+                       tau=panda.rnea(q, 0 * q, 0 * q))
+    with pytest.raises(ci.PoorExcitationError, match="condition number") as err:
+        ci.identify(panda, still, method="ols", friction=None)
+    assert "panda_link" in str(err.value)
+
+
+def test_small_motion_warns_with_condition_number(panda, truth):
+    traj = ci.FourierTrajectory.random(panda, 5, 10.0, seed=5, amplitude=0.05)
+    run = ci.simulate.excitation_run(panda, truth, duration=2.0, trajectory=traj, seed=5)
+    with pytest.warns(PoorExcitationWarning, match="condition number"):
+        ci.identify(panda, run.dataset, method="ols", friction=None)
+
+
+def test_unknown_options_are_refused(panda, runs):
+    with pytest.raises(ci.OptionError, match="allowed: 'ols', 'wls', 'sdp'"):
+        ci.identify(panda, runs[0], method="ridge")
+    with pytest.raises(ci.OptionError, match="apply to method='sdp' only"):
+        ci.identify(panda, runs[0], method="ols", prior="euclidean")

@@ -1,0 +1,67 @@
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import consistid as ci
+from consistid.model import EXAMPLE_ROBOTS
+
+
+@pytest.mark.parametrize("name", sorted(EXAMPLE_ROBOTS))
+def test_example_robots_load_with_names_and_prior(name):
+    model = ci.RobotModel.example(name)
+    assert len(model.joint_names) == model.nv == model.n_bodies
+    assert len(model.parameter_names) == model.prior_parameters.size == 10 * model.n_bodies
+    assert len(set(model.parameter_names)) == len(model.parameter_names)
+    # every prior mass is the URDF's: positive for a real arm
+    assert np.all(model.prior_parameters[0::10] > 0)
+
+
+def test_panda_fingers_locked_and_merged_into_link7(panda):
+    full = pin.buildModelFromUrdf(str(panda.source))
+    assert full.nv == 9 and panda.nv == 7
+    assert panda.body_names[-1] == "panda_link7"
+    assert panda.parameter_names[66] == "panda_link7.Iyy"
+    # link7 carries the hand and both fingers: total mass is conserved by locking
+    total_full = sum(full.inertias[j].mass for j in range(1, full.njoints))
+    assert panda.prior_parameters[0::10].sum() == pytest.approx(total_full, rel=1e-12)
+
+
+def test_limits_read_from_urdf(panda):
+    assert panda.limits.upper[3] == pytest.approx(-0.0698)
+    assert panda.limits.velocity[4] == pytest.approx(2.61)
+    assert panda.limits.effort[0] == pytest.approx(87.0)
+    assert np.allclose(panda.gravity, [0, 0, -9.81])
+
+
+def test_continuous_joints_use_angles():
+    kinova = ci.RobotModel.example("kinova")
+    assert kinova.pin_model.nq == 9 and kinova.nv == 6
+    assert np.isinf(kinova.limits.upper[0])
+    q = np.linspace(-2.0, 2.0, 6)
+    qp = kinova.configuration(q)
+    # Pinocchio's own integrate from neutral gives the same configuration
+    assert np.allclose(qp, pin.integrate(kinova.pin_model, pin.neutral(kinova.pin_model), q))
+
+
+def test_with_parameters_changes_inertias_only(panda):
+    pi = panda.prior_parameters.copy()
+    pi[30] *= 2.0
+    changed = panda.with_parameters(pi)
+    assert np.allclose(changed.prior_parameters, pi)
+    assert changed.joint_names == panda.joint_names
+    assert np.allclose(panda.prior_parameters[30] * 2, changed.prior_parameters[30])
+
+
+def test_bad_inputs_raise_named_errors(tmp_path, panda):
+    with pytest.raises(ci.OptionError, match="allowed: 'panda'"):
+        ci.RobotModel.example("iiwa")
+    with pytest.raises(ci.ModelError, match="does not exist"):
+        ci.RobotModel.from_urdf(tmp_path / "missing.urdf")
+    with pytest.raises(ci.ModelError, match="unknown joint"):
+        ci.RobotModel.from_urdf(panda.source, locked_joints=["finger"])
+    bad = tmp_path / "bad.urdf"
+    bad.write_text("<robot name='x'><link name='a'/><joint/></robot>")
+    with pytest.raises(ci.ModelError, match="could not read"):
+        ci.RobotModel.from_urdf(bad)
+    with pytest.raises(ci.ModelError, match="10 per body"):
+        panda.with_parameters(np.ones(5))
