@@ -1,0 +1,342 @@
+r"""A MuJoCo model of a :class:`~consistid.model.RobotModel`: the simulated "real robot".
+
+The MJCF is written from the Pinocchio model itself, so that MuJoCo and Pinocchio share joint
+order, joint axes, kinematics, gravity and inertial parameters exactly (locked joints are already
+merged into their parent by :meth:`RobotModel.from_urdf`, and no meshes are involved):
+
+* one MuJoCo body per Pinocchio joint, placed by ``model.jointPlacements`` (the body frame is the
+  joint frame), with a ``hinge`` or ``slide`` joint along the axis read from the joint's motion
+  subspace;
+* its ``<inertial>`` is mass, CoM and the full inertia about the CoM of ``model.inertias``
+  (MuJoCo diagonalises it into ``body_ipos``/``body_iquat``);
+* ``dof_armature`` is Pinocchio's ``model.armature`` (which ``pinocchio.rnea`` includes) plus the
+  armature effect.
+
+With no effects, ``mj_inverse`` equals ``pinocchio.rnea`` to rounding (:meth:`MujocoRobot.inverse`).
+The effects of :class:`~consistid.robot_effects.Effects` enter as MuJoCo elements: ``damping``,
+``frictionloss`` and ``armature`` on the drive's joint, a jointless child body for the payload,
+and for an elastic joint a *rotor* body (a sibling of the link, same joint placement and axis,
+negligible mass, the motor inertia as ``armature`` so that it only adds to its own diagonal of the
+mass matrix, as in Spong's reduced model) coupled to the link joint by a fixed tendon
+``θ − q`` with the joint stiffness and damping. The smooth (``tanh``) Coulomb model and the
+controller torque are applied through ``qfrc_applied``, held over each physics step.
+
+MuJoCo conventions (Todorov, Erez, Tassa 2012, "MuJoCo: a physics engine for model-based
+control", IROS, doi:10.1109/IROS.2012.6386109): ``qfrc_inverse`` is the generalised force that
+produces a given ``qacc``; integrator ``RK4`` by default, so that the logged ``qacc`` is the
+continuous-time acceleration at the logged state (``mj_forward`` is called before each logged step).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+from xml.sax.saxutils import quoteattr
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+
+from .robot_effects import Effects
+from .errors import ModelError, check_option
+from .model import RobotModel
+
+INTEGRATORS = ("RK4", "Euler", "implicitfast")
+#: Mass (kg) and principal moments (kg·m²) of a rotor body: MuJoCo needs a positive mass; the
+#: rotor's inertia about its axis is its joint's armature.
+ROTOR_MASS, ROTOR_INERTIA = 1e-9, 1e-12
+
+
+def _num(values) -> str:
+    return " ".join(f"{float(x):.17g}" for x in np.ravel(values))
+
+
+def joint_axes(model: RobotModel) -> tuple[list[str], np.ndarray]:
+    """MuJoCo joint type (``"hinge"``/``"slide"``) and unit axis in the joint frame, per joint.
+
+    Read from the joint's motion subspace (the joint's column of the ``LOCAL`` Jacobian at the
+    neutral configuration): ``[0; a]`` for a revolute joint, ``[a; 0]`` for a prismatic one.
+    """
+    pm = model.pin_model
+    data = pm.createData()
+    pin.computeJointJacobians(pm, data, pin.neutral(pm))
+    kinds, axes = [], np.zeros((model.nv, 3))
+    for j in range(1, pm.njoints):
+        s = pin.getJointJacobian(pm, data, j, pin.LOCAL)[:, pm.joints[j].idx_v]
+        lin, ang = s[:3], s[3:]
+        if np.linalg.norm(lin) < 1e-12 and abs(np.linalg.norm(ang) - 1) < 1e-9:
+            kinds.append("hinge")
+            axes[j - 1] = ang
+        elif np.linalg.norm(ang) < 1e-12 and abs(np.linalg.norm(lin) - 1) < 1e-9:
+            kinds.append("slide")
+            axes[j - 1] = lin
+        else:
+            raise ModelError(f"joint {pm.names[j]!r} ({pm.joints[j].shortname()}) is neither a "
+                             "revolute nor a prismatic joint about a fixed axis")
+    return kinds, axes
+
+
+def _inertial(inertia: pin.Inertia, name: str) -> str:
+    if not inertia.mass > 0:
+        raise ModelError(f"body {name!r} has mass {inertia.mass:g} kg; MuJoCo needs a positive "
+                         "mass for every moving body (give the link an <inertial> in the URDF)")
+    i = np.asarray(inertia.inertia)
+    full = [i[0, 0], i[1, 1], i[2, 2], i[0, 1], i[0, 2], i[1, 2]]
+    return (f'<inertial pos="{_num(inertia.lever)}" mass="{inertia.mass:.17g}" '
+            f'fullinertia="{_num(full)}"/>')
+
+
+def to_mjcf(model: RobotModel, effects: Effects, timestep: float = 1e-3,
+            integrator: str = "RK4") -> str:
+    """The MJCF text of ``model`` (its current inertias) with ``effects`` (resolved or not)."""
+    check_option("integrator", integrator, INTEGRATORS)
+    eff = effects.for_model(model)
+    pm = model.pin_model
+    kinds, axes = joint_axes(model)
+    elastic = eff.elastic
+    frictionloss = eff.coulomb if eff.coulomb_model == "frictionloss" else np.zeros(model.nv)
+    armature = np.asarray(pm.armature, dtype=float)
+    payload = eff.payload.parameters(model) if eff.payload is not None else None
+    children: dict[int, list[int]] = {j: [] for j in range(pm.njoints)}
+    for j in range(1, pm.njoints):
+        children[pm.parents[j]].append(j)
+
+    def drive_attrs(i: int, inertia: float) -> str:
+        """Drive-side effects; ``inertia`` is the drive's own (Pinocchio's armature, or the
+        motor inertia of an elastic joint), to which the armature effect adds."""
+        return (f'damping="{eff.viscous[i]:.17g}" frictionloss="{frictionloss[i]:.17g}" '
+                f'armature="{inertia + eff.armature[i]:.17g}"')
+
+    def body(j: int, indent: str) -> list[str]:
+        i = j - 1
+        placement = pm.jointPlacements[j]
+        quat = pin.Quaternion(placement.rotation)
+        frame = (f'pos="{_num(placement.translation)}" '
+                 f'quat="{_num([quat.w, quat.x, quat.y, quat.z])}"')
+        joint_name, body_name = model.joint_names[i], model.body_names[i]
+        lines = []
+        if elastic[i]:
+            lines += [
+                f"{indent}<body name={quoteattr(joint_name + '__rotor')} {frame}>",
+                f"{indent}  <joint name={quoteattr(joint_name + '__motor')} type=\"{kinds[i]}\" "
+                f'axis="{_num(axes[i])}" {drive_attrs(i, eff.motor_inertia[i])}/>',
+                f'{indent}  <inertial pos="0 0 0" mass="{ROTOR_MASS}" '
+                f'diaginertia="{_num([ROTOR_INERTIA] * 3)}"/>',
+                f"{indent}</body>"]
+            joint_attrs = f'armature="{armature[i]:.17g}"'
+        else:
+            joint_attrs = drive_attrs(i, armature[i])
+        lines += [f"{indent}<body name={quoteattr(body_name)} {frame}>",
+                  f"{indent}  <joint name={quoteattr(joint_name)} type=\"{kinds[i]}\" "
+                  f'axis="{_num(axes[i])}" {joint_attrs}/>',
+                  f"{indent}  {_inertial(pm.inertias[j], body_name)}"]
+        if payload is not None and payload[0] == i:
+            p = pin.Inertia.FromDynamicParameters(payload[1])
+            moments = np.linalg.eigvalsh(np.asarray(p.inertia))
+            inertial = (_inertial(p, "payload") if moments[0] > 0 else
+                        f'<inertial pos="{_num(p.lever)}" mass="{p.mass:.17g}" '
+                        f'diaginertia="0 0 0"/>')
+            lines += [f'{indent}  <body name="payload">', f"{indent}    {inertial}",
+                      f"{indent}  </body>"]
+        for c in children[j]:
+            lines += body(c, indent + "  ")
+        lines.append(f"{indent}</body>")
+        return lines
+
+    tree = [line for c in children[0] for line in body(c, "    ")]
+    springs = [
+        f"    <fixed name={quoteattr(model.joint_names[i] + '__spring')} "
+        f'stiffness="{eff.stiffness[i]:.17g}" damping="{eff.spring_damping[i]:.17g}" '
+        f'springlength="0 0">'
+        f"<joint joint={quoteattr(model.joint_names[i] + '__motor')} coef=\"1\"/>"
+        f"<joint joint={quoteattr(model.joint_names[i])} coef=\"-1\"/></fixed>"
+        for i in np.flatnonzero(elastic)]
+    tendon = ["  <tendon>", *springs, "  </tendon>"] if springs else []
+    return "\n".join([
+        f"<mujoco model={quoteattr(model.name)}>",
+        '  <compiler angle="radian" autolimits="true"/>',
+        f'  <option gravity="{_num(model.gravity)}" timestep="{timestep:.17g}" '
+        f'integrator="{integrator}">',
+        '    <flag contact="disable" eulerdamp="disable"/>',
+        "  </option>",
+        "  <worldbody>", *tree, "  </worldbody>", *tendon,
+        "</mujoco>", ""])
+
+
+@dataclass(frozen=True)
+class Trace:
+    """Raw output of :meth:`MujocoRobot.run`: logged and per-physics-step arrays.
+
+    Attributes
+    ----------
+    t : (N,) times of the logged steps.
+    q, dq, ddq : (N, nv) link coordinates and MuJoCo's accelerations at the logged steps.
+    motor_q, motor_dq : (N, nv) drive-side coordinates (equal to the link's on rigid joints).
+    sensed_q : (N, nv) the angle each position sensor reads (noise free).
+    t_fine, tau_fine : (S,) and (S, nv): every physics step's time and the torque at the torque
+        sensor (drive torque on a rigid joint, spring torque on an elastic one).
+    control : (N, nv) the controller torque at the logged steps.
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    dq: np.ndarray
+    ddq: np.ndarray
+    motor_q: np.ndarray
+    motor_dq: np.ndarray
+    sensed_q: np.ndarray
+    t_fine: np.ndarray
+    tau_fine: np.ndarray
+    control: np.ndarray
+
+
+class MujocoRobot:
+    """A MuJoCo simulation of a robot with the given true inertias and effects.
+
+    Parameters
+    ----------
+    model : the robot; its kinematics, gravity and (unless ``parameters`` is given) inertias.
+    effects : :class:`Effects`; default none.
+    parameters : true standard parameters (10 per body), default ``model.prior_parameters``.
+    timestep : physics step (s).
+    integrator : MuJoCo integrator, ``"RK4"`` (default), ``"Euler"`` or ``"implicitfast"``.
+
+    Attributes
+    ----------
+    xml : the MJCF text; ``mj_model`` : ``mujoco.MjModel``.
+    link_dof, motor_dof : (nv,) MuJoCo dof index of each link joint and of its drive (the rotor
+        dof of an elastic joint, else the link dof).
+    """
+
+    def __init__(self, model: RobotModel, effects: Effects | None = None,
+                 parameters: np.ndarray | None = None, timestep: float = 1e-3,
+                 integrator: str = "RK4") -> None:
+        if not (np.isfinite(timestep) and timestep > 0):
+            raise ModelError(f"timestep = {timestep!r}; it must be a positive number of seconds")
+        self.model = model if parameters is None else model.with_parameters(parameters)
+        self.effects = (effects or Effects()).for_model(model)
+        self.timestep = float(timestep)
+        self.xml = to_mjcf(self.model, self.effects, timestep, integrator)
+        try:
+            self.mj_model = mujoco.MjModel.from_xml_string(self.xml)
+        except ValueError as exc:  # MuJoCo's compiler errors name the element
+            raise ModelError(f"MuJoCo could not compile {model.name}: {exc}") from exc
+        mj = self.mj_model
+        self.link_dof = np.array([mj.jnt_dofadr[mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_JOINT, n)]
+                                  for n in model.joint_names])
+        self.motor_dof = self.link_dof.copy()
+        for i in np.flatnonzero(self.effects.elastic):
+            jid = mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_JOINT, model.joint_names[i] + "__motor")
+            self.motor_dof[i] = mj.jnt_dofadr[jid]
+
+    @property
+    def nv(self) -> int:
+        return self.model.nv
+
+    def spring_torque(self, data: mujoco.MjData) -> np.ndarray:
+        """τ_J = K(θ − q) + D(θ̇ − q̇) per joint (0 on rigid joints)."""
+        e = self.effects
+        return (np.asarray(e.stiffness) * (data.qpos[self.motor_dof] - data.qpos[self.link_dof])
+                + np.asarray(e.spring_damping)
+                * (data.qvel[self.motor_dof] - data.qvel[self.link_dof]))
+
+    def inverse(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> np.ndarray:
+        """``mj_inverse``: the drive torque for each sample, (N, nv), rigid robots only.
+
+        Includes MuJoCo's passive forces (damping) and ``armature``; friction loss is a
+        constraint force and depends on the solver state, so it is not included here.
+        """
+        if self.effects.elastic.any():
+            raise ModelError("inverse dynamics of an elastic robot is not a function of (q, q̇, q̈) "
+                             "alone; switch elasticity off")
+        q, dq, ddq = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (q, dq, ddq))
+        data = mujoco.MjData(self.mj_model)
+        out = np.empty_like(q)
+        for k in range(q.shape[0]):
+            data.qpos[self.link_dof], data.qvel[self.link_dof] = q[k], dq[k]
+            data.qacc[self.link_dof] = ddq[k]
+            mujoco.mj_inverse(self.mj_model, data)
+            out[k] = data.qfrc_inverse[self.link_dof]
+        return out
+
+    def _check_tanh_step(self, data: mujoco.MjData) -> None:
+        """The tanh friction is applied explicitly, once per step: it is stable only while
+        ``h·f_c / (v_s·M_jj) < 1`` (its linearisation about 0 must not overshoot)."""
+        e = self.effects
+        if e.coulomb_model != "tanh" or not np.any(e.coulomb):
+            return
+        full = np.zeros((self.mj_model.nv, self.mj_model.nv))
+        mujoco.mj_fullM(self.mj_model, full, data.qM)
+        diag = np.diag(full)[self.motor_dof]
+        ratio = self.timestep * np.asarray(e.coulomb) / (e.coulomb_speed * diag)
+        worst = int(np.argmax(ratio))
+        if ratio[worst] >= 1.0:
+            raise ModelError(
+                f"tanh Coulomb friction on {self.model.joint_names[worst]!r} is too stiff for the "
+                f"physics step: h·fc/(v_s·M_jj) = {ratio[worst]:.3g} ≥ 1 (M_jj = "
+                f"{diag[worst]:.3g} kg·m²); raise effects.coulomb_speed above "
+                f"{e.coulomb_speed * ratio[worst]:.3g} rad/s, add armature, or shorten the step")
+
+    def run(self, gains: tuple[float, float], nominal: RobotModel, t0: float,
+            desired: tuple[np.ndarray, np.ndarray, np.ndarray], log_every: int,
+            log_from: int = 0, progress: Callable[[float], None] | None = None) -> Trace:
+        """Track ``desired = (q_d, dq_d, ddq_d)``, one row per physics step from time ``t0``,
+        with the computed-torque law of :class:`consistid.simulate.TrackingController` on the
+        ``nominal`` model, ``gains = (K_p, K_d)``.
+
+        The robot starts on the desired state (an elastic joint's motor pre-deflected by the
+        true static torque). Every ``log_every``-th step from ``log_from`` is logged; the
+        acceleration is MuJoCo's at the logged state (``mj_forward`` with the step's torques).
+        ``progress`` (if given) is called with the fraction done every 1000 steps.
+        """
+        qd, dqd, ddqd = desired
+        steps = qd.shape[0]
+        mj, data = self.mj_model, mujoco.MjData(self.mj_model)
+        eff, nv = self.effects, self.nv
+        elastic = eff.elastic
+        sense_motor = elastic & (eff.position_sensor == "motor")
+        sense_dof = np.where(sense_motor, self.motor_dof, self.link_dof)
+        drive, link = self.motor_dof, self.link_dof
+        data.qpos[link], data.qvel[link] = qd[0], dqd[0]
+        if elastic.any():
+            static = self.model.rnea(qd[0], dqd[0], ddqd[0])[0]
+            data.qpos[drive[elastic]] = qd[0, elastic] + static[elastic] / np.asarray(
+                eff.stiffness)[elastic]
+            data.qvel[drive[elastic]] = dqd[0, elastic]
+        mujoco.mj_forward(mj, data)
+        self._check_tanh_step(data)
+        kp, kd = gains
+        pm = nominal.pin_model
+        pdata = pm.createData()
+        to_config = (lambda q: q) if pm.nq == pm.nv else nominal.configuration
+        tanh_fc = np.asarray(eff.coulomb) if eff.coulomb_model == "tanh" else np.zeros(nv)
+        use_tanh = bool(np.any(tanh_fc))
+        logged = np.arange(log_from, steps, log_every)
+        n = logged.size
+        out = {k: np.empty((n, nv)) for k in ("q", "dq", "ddq", "motor_q", "motor_dq",
+                                             "sensed_q", "control")}
+        tau_fine = np.empty((steps, nv))
+        applied = np.zeros(mj.nv)
+        row = 0
+        for k in range(steps):
+            qs, vs = data.qpos[sense_dof], data.qvel[sense_dof]
+            u = pin.rnea(pm, pdata, to_config(qs), vs,
+                         ddqd[k] + kp * (qd[k] - qs) + kd * (dqd[k] - vs))
+            applied[drive] = u
+            if use_tanh:
+                applied[drive] -= tanh_fc * np.tanh(data.qvel[drive] / eff.coulomb_speed)
+            data.qfrc_applied[:] = applied
+            tau_fine[k] = np.where(elastic, self.spring_torque(data), u)
+            if row < n and k == logged[row]:
+                mujoco.mj_forward(mj, data)
+                for key, value in (("q", data.qpos[link]), ("dq", data.qvel[link]),
+                                   ("ddq", data.qacc[link]), ("motor_q", data.qpos[drive]),
+                                   ("motor_dq", data.qvel[drive]), ("sensed_q", qs),
+                                   ("control", u)):
+                    out[key][row] = value
+                row += 1
+            mujoco.mj_step(mj, data)
+            if progress is not None and k % 1000 == 0:
+                progress(k / steps)
+        t_fine = t0 + np.arange(steps) * self.timestep
+        return Trace(t=t_fine[logged], t_fine=t_fine, tau_fine=tau_fine, **out)
