@@ -1,0 +1,385 @@
+r"""Candidate effects that may explain a sim-to-real torque gap, each a named model extension.
+
+The nominal (simulator) model predicts ``τ_nom = Y(q, q̇, q̈) π₀``. An effect adds a correction
+that is linear in its parameters ``θ`` once its *setting* (a harmonic order) is fixed:
+
+.. math::  \tau \approx \tau_\text{nom} + \Phi_e(q, \dot q, \ddot q, \tau_\text{nom})\,\theta_e
+
+Each effect offers *atoms*: the effect on one joint (``coulomb`` on joint 3) or on the whole arm
+(``inertia``, ``payload``, a ``delay`` common to all channels). :mod:`consistid.diagnose` selects
+atoms greedily by their held-out residual reduction. The linearisations (delay, elasticity) are
+first-order Taylor expansions; :mod:`consistid.diagnose` refines the delay exactly afterwards.
+
+Effects and their signatures (what each looks like in the residual ``r = τ − τ_nom``):
+
+``inertia``
+    Rigid-body parameter mismatch: ``r = W_b δβ`` with ``W_b`` the base regressor (Gautier 1991,
+    doi:10.1002/rob.4620080405). Couples joints, scales with q̈ and with gravity-loaded poses.
+``coulomb``
+    ``r_j = f_c sign(q̇_j)``: a step at ``q̇_j = 0`` in residual-versus-velocity.
+``viscous``
+    ``r_j = f_v q̇_j``: a straight line through the origin in residual-versus-velocity.
+``offset``
+    ``r_j = f_o``: a constant bias, the same at rest and moving either way (torque-sensor offset).
+``gain``
+    ``τ_meas,j = (1 + g_j) τ_j``: ``r_j = g_j τ_nom,j``, proportional to the joint's own torque.
+``armature``
+    Rotor inertia reflected through the gear, ``r_j = I_a q̈_j`` on joint ``j`` alone (Pinocchio's
+    ``model.armature``).
+``payload``
+    A rigid load on the last body: ``r = Y_n δπ_n``, the regressor block of the last body; acts on
+    every joint, following the flange pose. A subset of ``inertia``.
+``delay``
+    The torque channel lags the position channel by ``d``: ``τ_meas(t) = τ(t − d)``, so
+    ``r ≈ −d τ̇_nom`` (first order), in quadrature with the torque and growing with frequency.
+    Offered per joint and as one delay common to all channels.
+``elasticity``
+    A spring of compliance ``c_j = 1/k_j`` between the measured (motor-side) position and the
+    link, with the torque measured at the spring (the two-mass model; Spong 1987,
+    doi:10.1115/1.3143884): the link is at ``q − c_j τ_j e_j``, so to first order
+    ``r = −c_j (∂τ/∂q_j τ_j + ∂τ/∂q̇_j τ̇_j + M_{:,j} τ̈_j)``. Acts on every joint; grows with
+    frequency towards the joint resonance.
+``ripple``
+    Position-dependent torque ripple (cogging, gear-tooth or encoder eccentricity), periodic in
+    the joint angle: ``r_j = a sin(k q_j) + b cos(k q_j)`` with integer ``k ≥ 3`` cycles per
+    radian found by a periodogram search (orders 1–2 are left to ``inertia``, whose gravity terms
+    are harmonics of the same order).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+from typing import Callable
+
+import numpy as np
+import pinocchio as pin
+import scipy.signal
+
+from .base import BaseParameters, compute_base_parameters
+from .dataset import Dataset
+from .errors import DatasetError, ModelError, check_option
+from .model import RobotModel
+from .parameters import INERTIAL_NAMES
+from .regressor import rigid_body_regressor
+
+#: Effect names in the order reports list them (the names of the design document).
+EFFECT_NAMES: tuple[str, ...] = ("inertia", "coulomb", "viscous", "offset", "gain", "armature",
+                                 "payload", "delay", "elasticity", "ripple")
+
+SIGNATURES: dict[str, str] = {
+    "inertia": "follows the rigid-body regressor: scales with q̈ and gravity poses, couples joints",
+    "coulomb": "a step at q̇ = 0 in residual-versus-velocity",
+    "viscous": "a line through the origin in residual-versus-velocity",
+    "offset": "a constant bias, at rest and moving either way",
+    "gain": "proportional to the joint's own torque",
+    "armature": "proportional to the joint's own acceleration q̈_j",
+    "payload": "a load on the last body: gravity/inertia residual on all joints",
+    "delay": "≈ −d·τ̇: in quadrature with the torque, grows with frequency",
+    "elasticity": "spring deflection τ/k: grows with frequency towards a resonance",
+    "ripple": "periodic in the joint angle (k cycles per radian)",
+}
+
+UNITS = {"inertia": "", "coulomb": "N·m", "viscous": "N·m·s/rad", "offset": "N·m", "gain": "",
+         "armature": "kg·m²", "payload": "", "delay": "s", "elasticity": "rad/(N·m)",
+         "ripple": "N·m"}
+
+INERTIAL_UNITS = dict(zip(INERTIAL_NAMES, ("kg", "kg·m", "kg·m", "kg·m", *["kg·m²"] * 6)))
+
+#: Savitzky–Golay window (s) for the time derivatives of the nominal torque (delay, elasticity).
+DERIVATIVE_WINDOW = 0.04
+
+
+def _segment_derivatives(t: np.ndarray, x: np.ndarray, window: float
+                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Savitzky–Golay smoothed value, first and second time derivative of ``x`` (n, m).
+
+    Savitzky & Golay 1964, doi:10.1021/ac60214a047: local cubic fits over ``window`` seconds,
+    on a uniform grid at the median step (the samples are interpolated onto it and back).
+    """
+    n = t.size
+    if n < 7:
+        raise DatasetError(f"a recording segment has only {n} samples; time derivatives "
+                           "need at least 7")
+    dt = float(np.median(np.diff(t)))
+    grid = t[0] + dt * np.arange(int(np.floor((t[-1] - t[0]) / dt)) + 1)
+    xi = np.column_stack([np.interp(grid, t, x[:, i]) for i in range(x.shape[1])])
+    length = max(7, int(round(window / dt)) | 1)
+    length = min(length, grid.size if grid.size % 2 else grid.size - 1)
+    out = []
+    for deriv in (0, 1, 2):
+        y = scipy.signal.savgol_filter(xi, length, 3, deriv=deriv, delta=dt, axis=0,
+                                       mode="interp")
+        out.append(np.column_stack([np.interp(t, grid, y[:, i]) for i in range(x.shape[1])]))
+    return out[0], out[1], out[2]
+
+
+def time_derivatives(dataset: Dataset, x: np.ndarray, window: float = DERIVATIVE_WINDOW
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Smoothed ``x``, ``ẋ`` and ``ẍ`` for each recording segment of ``dataset`` (never across)."""
+    out = [np.empty_like(x) for _ in range(3)]
+    for s in np.unique(dataset.segment):
+        idx = np.flatnonzero(dataset.segment == s)
+        for o, v in zip(out, _segment_derivatives(dataset.t[idx], x[idx], window)):
+            o[idx] = v
+    return out[0], out[1], out[2]
+
+
+@dataclass(frozen=True, eq=False)
+class GapData:
+    """One dataset seen through the nominal model: the signals every effect's columns need.
+
+    Parameters
+    ----------
+    model : the robot (joint order, kinematics).
+    dataset : measured samples with torques.
+    nominal : (10·nbodies,) the nominal (simulator) standard inertial parameters ``π₀``.
+    nominal_extra : (N, nv) torque the nominal model adds beyond the rigid body (e.g. the friction
+        of an :class:`~consistid.IdentificationResult` used as nominal), or ``None``.
+    derivative_window : Savitzky–Golay window (s) for ``τ̇_nom`` and ``τ̈_nom``.
+    """
+
+    model: RobotModel
+    dataset: Dataset
+    nominal: np.ndarray
+    nominal_extra: np.ndarray | None = None
+    derivative_window: float = DERIVATIVE_WINDOW
+
+    @property
+    def n(self) -> int:
+        return self.dataset.n_samples
+
+    @property
+    def nv(self) -> int:
+        return self.model.nv
+
+    @cached_property
+    def tau(self) -> np.ndarray:
+        return self.dataset.require_torque()
+
+    @cached_property
+    def rigid(self) -> np.ndarray:
+        """Rigid-body regressor ``(N, nv, 10·nbodies)``."""
+        d = self.dataset
+        return rigid_body_regressor(self.model, d.q, d.dq, d.ddq)
+
+    @cached_property
+    def tau_nom(self) -> np.ndarray:
+        """Nominal torque ``Y π₀`` (+ ``nominal_extra``), (N, nv)."""
+        tau = self.rigid @ self.nominal
+        return tau if self.nominal_extra is None else tau + self.nominal_extra
+
+    @cached_property
+    def residual(self) -> np.ndarray:
+        """Measured minus nominal torque, (N, nv)."""
+        return self.tau - self.tau_nom
+
+    @cached_property
+    def gravity(self) -> np.ndarray:
+        """Nominal gravity torque ``g(q)``, (N, nv)."""
+        d = self.dataset
+        zero = np.zeros_like(d.q)
+        return rigid_body_regressor(self.model, d.q, zero, zero) @ self.nominal
+
+    @cached_property
+    def tau_nom_derivatives(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Smoothed ``τ_nom``, ``τ̇_nom``, ``τ̈_nom`` (each (N, nv))."""
+        return time_derivatives(self.dataset, self.tau_nom, self.derivative_window)
+
+    @cached_property
+    def rnea_derivatives(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``∂τ/∂q``, ``∂τ/∂q̇`` and ``M(q)`` of the nominal model, each (N, nv, nv)."""
+        m = self.model.with_parameters(self.nominal).pin_model
+        m.armature[:] = 0.0
+        data = m.createData()
+        d = self.dataset
+        out = [np.empty((self.n, self.nv, self.nv)) for _ in range(3)]
+        for k in range(self.n):
+            dq_, dv_, mm = pin.computeRNEADerivatives(m, data, self.model.configuration(d.q[k]),
+                                                      d.dq[k], d.ddq[k])
+            out[0][k], out[1][k] = dq_, dv_
+            out[2][k] = np.triu(mm) + np.triu(mm, 1).T
+        return out[0], out[1], out[2]
+
+
+@dataclass(frozen=True)
+class Atom:
+    """One candidate: an effect on one joint (or on the whole arm) with its parameter columns.
+
+    Attributes
+    ----------
+    effect : effect name (one of :data:`EFFECT_NAMES`).
+    joint : the joint index it acts on, or ``None`` for an arm-wide atom.
+    parameter_names : names of its parameters (columns), e.g. ``("panda_joint2.fc",)``.
+    units : unit of each parameter.
+    setting : the nonlinear setting fixed before the linear fit (ripple order ``k``), or ``None``.
+    """
+
+    effect: str
+    joint: int | None
+    parameter_names: tuple[str, ...]
+    units: tuple[str, ...]
+    setting: float | None = None
+
+    @property
+    def n_parameters(self) -> int:
+        return len(self.parameter_names)
+
+    def label(self, joint_names: list[str]) -> str:
+        where = "all joints" if self.joint is None else joint_names[self.joint]
+        extra = f", k={self.setting:g}" if self.setting is not None else ""
+        return f"{self.effect} ({where}{extra})"
+
+
+def _on_row(data: GapData, joint: int, cols: np.ndarray) -> np.ndarray:
+    """Columns ``(N, k)`` placed on the row of ``joint`` of an ``(N, nv, k)`` block."""
+    cols = cols.reshape(data.n, -1)
+    out = np.zeros((data.n, data.nv, cols.shape[1]))
+    out[:, joint, :] = cols
+    return out
+
+
+class EffectLibrary:
+    """The candidate effects for one robot: builds atoms and evaluates their columns.
+
+    Parameters
+    ----------
+    model : the robot.
+    effects : names among :data:`EFFECT_NAMES`.
+    base : base parameters of the rigid body (computed when ``None``); the ``inertia`` atom's
+        columns are the base regressor.
+    ripple_orders : (min, max) integer ripple orders ``k`` searched (max is further limited by the
+        sampling rate and speed so that ``k·|q̇|·Δt < π/2``).
+    """
+
+    def __init__(self, model: RobotModel, effects: tuple[str, ...] | list[str] = EFFECT_NAMES,
+                 base: BaseParameters | None = None,
+                 ripple_orders: tuple[int, int] = (3, 400)) -> None:
+        for e in effects:
+            check_option("effect", e, EFFECT_NAMES)
+        if len(set(effects)) != len(effects):
+            raise ModelError(f"effects list {list(effects)} names an effect twice")
+        self.model = model
+        self.effects = tuple(effects)
+        self.base = base if base is not None else compute_base_parameters(model)
+        self.ripple_orders = ripple_orders
+        self._columns: dict[str, Callable[[Atom, GapData], np.ndarray]] = {
+            "inertia": self._inertia, "coulomb": self._coulomb, "viscous": self._viscous,
+            "offset": self._offset, "gain": self._gain, "armature": self._armature,
+            "payload": self._payload, "delay": self._delay, "elasticity": self._elasticity,
+            "ripple": self._ripple,
+        }
+
+    # ----------------------------------------------------------------------------- atoms
+    def atoms(self, tuning: GapData | None = None,
+              tuning_residual: np.ndarray | None = None) -> list[Atom]:
+        """All candidate atoms; ``ripple`` orders are tuned on ``tuning_residual`` (N, nv) of the
+        ``tuning`` data (needed when ``ripple`` is among the effects)."""
+        names = self.model.joint_names
+        out: list[Atom] = []
+        for e in self.effects:
+            if e == "inertia":
+                units = tuple(INERTIAL_UNITS[n.rstrip("*").split(".")[-1]]
+                              for n in self.base.names)
+                out.append(Atom(e, None, tuple(f"δ{n}" for n in self.base.names), units))
+            elif e == "payload":
+                out.append(Atom(e, None, tuple(f"payload.{p}" for p in INERTIAL_NAMES),
+                                tuple(INERTIAL_UNITS[p] for p in INERTIAL_NAMES)))
+            elif e == "ripple":
+                if tuning is None or tuning_residual is None:
+                    raise ModelError("ripple atoms need tuning data and a residual")
+                for j in range(self.model.nv):
+                    k = self.ripple_order(tuning, tuning_residual[:, j], j)
+                    if k is not None:
+                        out.append(Atom(e, j, (f"{names[j]}.ripple_sin", f"{names[j]}.ripple_cos"),
+                                        ("N·m", "N·m"), float(k)))
+            else:
+                suffix = {"coulomb": "fc", "viscous": "fv", "offset": "fo", "gain": "gain",
+                          "armature": "Ia", "delay": "delay", "elasticity": "compliance"}[e]
+                if e == "delay":
+                    out.append(Atom(e, None, ("delay",), ("s",)))
+                out += [Atom(e, j, (f"{names[j]}.{suffix}",), (UNITS[e],))
+                        for j in range(self.model.nv)]
+        return out
+
+    def columns(self, atom: Atom, data: GapData) -> np.ndarray:
+        """The atom's columns on ``data``, shape ``(N, nv, n_parameters)``."""
+        return self._columns[atom.effect](atom, data)
+
+    # ----------------------------------------------------------------------------- columns
+    def _inertia(self, atom: Atom, data: GapData) -> np.ndarray:
+        return data.rigid[..., self.base.independent]
+
+    def _payload(self, atom: Atom, data: GapData) -> np.ndarray:
+        return data.rigid[..., -10:]
+
+    def _coulomb(self, atom: Atom, data: GapData) -> np.ndarray:
+        return _on_row(data, atom.joint, np.sign(data.dataset.dq[:, atom.joint]))
+
+    def _viscous(self, atom: Atom, data: GapData) -> np.ndarray:
+        return _on_row(data, atom.joint, data.dataset.dq[:, atom.joint])
+
+    def _offset(self, atom: Atom, data: GapData) -> np.ndarray:
+        return _on_row(data, atom.joint, np.ones(data.n))
+
+    def _gain(self, atom: Atom, data: GapData) -> np.ndarray:
+        return _on_row(data, atom.joint, data.tau_nom[:, atom.joint])
+
+    def _armature(self, atom: Atom, data: GapData) -> np.ndarray:
+        return _on_row(data, atom.joint, data.dataset.ddq[:, atom.joint])
+
+    def _delay(self, atom: Atom, data: GapData) -> np.ndarray:
+        rate = data.tau_nom_derivatives[1]
+        if atom.joint is None:
+            return -rate[:, :, None]
+        return _on_row(data, atom.joint, -rate[:, atom.joint])
+
+    def _elasticity(self, atom: Atom, data: GapData) -> np.ndarray:
+        j = atom.joint
+        tau, tau_d, tau_dd = (x[:, j] for x in data.tau_nom_derivatives)
+        d_q, d_v, mass = data.rnea_derivatives
+        col = d_q[:, :, j] * tau[:, None] + d_v[:, :, j] * tau_d[:, None] \
+            + mass[:, :, j] * tau_dd[:, None]
+        return -col[:, :, None]
+
+    def _ripple(self, atom: Atom, data: GapData) -> np.ndarray:
+        phase = atom.setting * data.dataset.q[:, atom.joint]
+        return _on_row(data, atom.joint, np.column_stack([np.sin(phase), np.cos(phase)]))
+
+    # ----------------------------------------------------------------------------- tuning
+    def ripple_order(self, data: GapData, residual: np.ndarray, joint: int) -> int | None:
+        """The integer order ``k`` whose ``sin(k q_j), cos(k q_j)`` pair explains most of
+        ``residual`` (a periodogram over ``k``, Lomb 1976, doi:10.1007/BF00648343, with exact
+        least squares per ``k``); ``None`` when no order is resolvable at this sampling."""
+        q = data.dataset.q[:, joint]
+        dt = float(np.median(np.diff(data.dataset.t)))
+        speed = float(np.percentile(np.abs(data.dataset.dq[:, joint]), 99))
+        k_lo, k_hi = self.ripple_orders
+        k_hi = min(k_hi, int(np.pi / (2 * max(speed, 1e-9) * dt)))
+        span = float(np.ptp(q))
+        k_lo = max(k_lo, int(np.ceil(2 * 2 * np.pi / max(span, 1e-12))))  # ≥ 2 periods seen
+        if k_hi < k_lo:
+            return None
+        r = residual - residual.mean()
+        best_k, best = None, -np.inf
+        for start in range(k_lo, k_hi + 1, 64):
+            ks = np.arange(start, min(start + 64, k_hi + 1))
+            phase = np.outer(q, ks)
+            s, c = np.sin(phase), np.cos(phase)
+            s -= s.mean(axis=0)
+            c -= c.mean(axis=0)
+            ss, cc, sc = (s * s).sum(0), (c * c).sum(0), (s * c).sum(0)
+            rs, rc = r @ s, r @ c
+            det = ss * cc - sc ** 2
+            ok = det > 1e-9 * ss * cc
+            explained = np.where(ok, (cc * rs ** 2 - 2 * sc * rs * rc + ss * rc ** 2)
+                                 / np.where(ok, det, 1.0), -np.inf)
+            i = int(np.argmax(explained))
+            if explained[i] > best:
+                best, best_k = float(explained[i]), int(ks[i])
+        return best_k
+
+
+def payload_standard(theta: np.ndarray) -> np.ndarray:
+    """The payload's 10 standard parameters (last body frame) from the payload atom's θ."""
+    return np.asarray(theta, dtype=float)

@@ -1,0 +1,731 @@
+r"""Sim-to-real gap diagnosis: where the nominal model's residual lies, which unmodelled effect
+explains it, and how far each effect shrinks it on held-out data.
+
+Method
+------
+1. *Residual.* ``r = τ_meas − τ_nom`` with the nominal (simulator) parameters, on training and
+   held-out data (a different recording, or the last 30 % of each recording when none is given).
+2. *Candidates.* Every effect of :mod:`consistid.candidates` offers atoms (an effect on one joint,
+   or arm-wide) whose correction ``Φ_a θ_a`` is linear in its parameters. All atoms' columns are
+   compressed once into per-joint Gram matrices ``Φ_jᵀΦ_j``, ``Φ_jᵀr_j`` (training and held-out),
+   so that any subset is fitted and scored without touching the samples again.
+3. *Greedy forward selection* (Efroymson 1960; Hastie, Tibshirani, Friedman, *The Elements of
+   Statistical Learning*, §3.3.2): at each step every remaining atom is fitted on the training
+   data jointly with the atoms already chosen (least squares weighted by ``1/σ_j²``) and scored by
+   its reduction of the held-out weighted sum of squares. The best atom is kept if
+
+   * the training BIC decreases (Schwarz 1978, doi:10.1214/aos/1176344136),
+     ``N log(SSE₁/SSE₀) + k log N < 0`` with ``N`` the number of training rows,
+   * its held-out reduction passes an F-test at level ``alpha``,
+     ``F = (ΔSSE_ho / k) / (SSE_ho / N_ho)``,
+   * and the reduction is at least ``min_gain`` of the nominal held-out sum of squares of the
+     joints it acts on (a practical-relevance floor: with 10⁴ autocorrelated samples every
+     systematic wiggle is "significant").
+
+   Atoms whose held-out reductions are within ``tie`` of the best and whose corrections are
+   nearly collinear with it (cosine ≥ 0.9 on the held-out data) are *indistinguishable* on these
+   data: the one with fewer parameters is kept and the others are listed as alternatives instead
+   of being ranked arbitrarily.
+4. *How far it shrinks.* Selected atoms are grouped by effect, in order of entry; the groups are
+   added one by one, each time refitted on the training data (the delay refined exactly,
+   ``τ_nom(t − d)``; inertia by the consistent SDP near the nominal when available) and scored
+   per joint on the held-out data: RMS before → after, shrink, parameters ± standard deviation.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field, replace
+from typing import Callable, Sequence
+
+import numpy as np
+import scipy.optimize
+import scipy.stats
+
+from .candidates import EFFECT_NAMES, SIGNATURES, Atom, EffectLibrary, GapData
+from .dataset import Dataset
+from .errors import ModelError, OptionError
+from .gap import GapBreakdown, gap_breakdown, noise_floor
+from .model import RobotModel
+
+log = logging.getLogger(__name__)
+
+#: A held-out shrink below this fraction does not list a joint under an arm-wide effect.
+JOINT_SHRINK_FLOOR = 0.05
+
+
+# --------------------------------------------------------------------------------- results
+@dataclass(frozen=True)
+class EffectParameter:
+    """One estimated parameter of a selected effect, with its standard deviation."""
+
+    name: str
+    value: float
+    std: float
+    unit: str
+    joint: str | None = None
+    effect: str = ""
+
+    def __str__(self) -> str:
+        words = {"coulomb": "Coulomb friction", "viscous": "viscous friction",
+                 "offset": "torque offset", "gain": "torque gain error", "armature": "armature",
+                 "delay": "delay", "elasticity": "compliance", "ripple": "ripple"}
+        what = words.get(self.effect, self.name)
+        scale, unit = (1e3, "ms") if self.unit == "s" else (1.0, self.unit)
+        where = f"{self.joint} " if self.joint else ""
+        if self.effect in ("inertia", "payload", "ripple"):
+            what, where = self.name, ""
+        return (f"{where}{what} {self.value * scale:.4g} ± {self.std * scale:.2g}"
+                + (f" {unit}" if unit else ""))
+
+
+@dataclass(frozen=True)
+class EffectFinding:
+    """A selected effect: where it acts, how far it shrinks the held-out residual, its parameters.
+
+    Attributes
+    ----------
+    name : effect name (``"coulomb"`` …).
+    joints : joints it explains: the joints of its per-joint atoms, or, for an arm-wide effect,
+        the joints whose held-out RMS it shrinks by at least 5 %.
+    scope : ``"joint"`` (per-joint atoms) or ``"arm"`` (one atom acting on every joint).
+    rms_before, rms_after : (nv,) held-out RMS per joint before and after adding this effect to
+        the effects ranked above it (N·m).
+    shrink : (nv,) ``1 − rms_after / rms_before`` per joint.
+    total_shrink : ``1 − ‖r_after‖_w / ‖r_before‖_w`` over all joints, residuals weighted by the
+        per-joint noise floor.
+    parameters : estimated parameters with standard deviations.
+    alternatives : other candidates indistinguishable from it on these data (same signature).
+    n_parameters : parameters it adds.
+    delta_bic : change of the training BIC when it entered (negative = better).
+    p_value : held-out F-test p-value when it entered.
+    signature : how this effect shows in the residual.
+    """
+
+    name: str
+    joints: tuple[str, ...]
+    scope: str
+    rms_before: np.ndarray
+    rms_after: np.ndarray
+    shrink: np.ndarray
+    total_shrink: float
+    parameters: tuple[EffectParameter, ...]
+    alternatives: tuple[str, ...]
+    n_parameters: int
+    delta_bic: float
+    p_value: float
+    signature: str
+
+    def __str__(self) -> str:
+        alt = f" (indistinguishable from {', '.join(self.alternatives)})" if self.alternatives \
+            else ""
+        return (f"{self.name} on {', '.join(self.joints) or 'no joint'}: held-out shrink "
+                f"{100 * self.total_shrink:.1f} %{alt}")
+
+
+@dataclass(frozen=True)
+class Step:
+    """One step of the greedy selection, with the candidates it compared (for the report)."""
+
+    chosen: str
+    gain: float
+    delta_bic: float
+    p_value: float
+    accepted: bool
+    reason: str
+    candidates: tuple[tuple[str, float, int], ...]
+
+
+@dataclass(frozen=True, eq=False)
+class GapModel:
+    """The nominal model plus the selected corrections, fitted on the training data.
+
+    ``predict(dataset)`` gives the corrected torque; with no atoms it is the nominal torque.
+    """
+
+    model: RobotModel
+    library: EffectLibrary
+    nominal: np.ndarray
+    atoms: tuple[Atom, ...]
+    theta: tuple[np.ndarray, ...]
+    delays: dict[int, float] = field(default_factory=dict)
+    inertial: np.ndarray | None = None
+    nominal_extra: Callable[[Dataset], np.ndarray] | None = None
+
+    def data(self, dataset: Dataset) -> GapData:
+        extra = self.nominal_extra(dataset) if self.nominal_extra is not None else None
+        return GapData(self.model, dataset, self.nominal, extra)
+
+    def correction(self, data: GapData) -> np.ndarray:
+        """Torque added to the nominal one, (N, nv)."""
+        out = np.zeros((data.n, data.nv))
+        for i, (atom, th) in enumerate(zip(self.atoms, self.theta)):
+            if i in self.delays:
+                out += exact_delay(data, atom, self.delays[i])
+            elif atom.effect == "inertia" and self.inertial is not None:
+                out += data.rigid @ (self.inertial - self.nominal)
+            else:
+                out += self.library.columns(atom, data) @ th
+        return out
+
+    def predict(self, dataset: Dataset) -> np.ndarray:
+        data = self.data(dataset)
+        return data.tau_nom + self.correction(data)
+
+
+@dataclass(frozen=True, eq=False)
+class Diagnosis:
+    """What :func:`diagnose` found.
+
+    Attributes
+    ----------
+    effects : selected effects, ranked by held-out residual reduction (largest first).
+    where : where the nominal model's residual lies (:class:`~consistid.gap.GapBreakdown`).
+    noise_floor : (nv,) torque noise standard deviation per joint (N·m).
+    noise_source : ``"given"`` or how it was estimated.
+    rms_nominal, rms_final : (nv,) held-out RMS of the nominal model and of the nominal model
+        plus every selected effect.
+    held_out_source : how the held-out data were obtained.
+    steps : the greedy selection's steps (candidates compared, why it stopped).
+    fit : the corrected model (:class:`GapModel`); ``fit.predict(dataset)``.
+    notes : remarks (e.g. which inertia solver was used).
+    """
+
+    model_name: str
+    joint_names: tuple[str, ...]
+    effects: tuple[EffectFinding, ...]
+    where: GapBreakdown
+    noise_floor: np.ndarray
+    noise_source: str
+    rms_nominal: np.ndarray
+    rms_final: np.ndarray
+    held_out_source: str
+    steps: tuple[Step, ...]
+    fit: GapModel
+    notes: tuple[str, ...] = ()
+
+    @property
+    def gap_to_noise(self) -> np.ndarray:
+        """Held-out RMS after every selected effect divided by the noise floor, per joint."""
+        return self.rms_final / self.noise_floor
+
+    @property
+    def at_noise_floor(self) -> bool:
+        """True when every joint's remaining held-out RMS is within 10 % of its noise floor."""
+        return bool(np.all(self.gap_to_noise <= 1.1))
+
+    def summary(self) -> str:
+        from .diagnosis_report import diagnosis_text
+
+        return diagnosis_text(self)
+
+    def __str__(self) -> str:
+        return self.summary()
+
+    def report(self, path: str | None = None):
+        """Write the report: ``*.html`` (plots embedded), ``*.txt``, or a directory (both, plus
+        the plots as PNG files). Returns the text, or the path written."""
+        from .diagnosis_report import write_report
+
+        if path is None:
+            return self.summary()
+        return write_report(self, path)
+
+
+# --------------------------------------------------------------------------------- algebra
+def _solve(G: np.ndarray, c: np.ndarray, rtol: float = 1e-10
+           ) -> tuple[np.ndarray, int, np.ndarray]:
+    """Least squares from normal equations, column-scaled, truncated eigen-decomposition.
+
+    Returns ``(θ, rank, G⁺)``; directions of ``G`` below ``rtol`` of its largest eigenvalue (after
+    scaling the columns to unit norm) are not determined by the data and left at zero.
+    """
+    d = np.sqrt(np.clip(np.diag(G), 0, None))
+    d[d == 0] = 1.0
+    gs = G / np.outer(d, d)
+    w, v = np.linalg.eigh(gs)
+    keep = w > rtol * max(w[-1], 1e-300)
+    vk = v[:, keep]
+    pinv = (vk / w[keep]) @ vk.T
+    theta = pinv @ (c / d)
+    return theta / d, int(keep.sum()), pinv / np.outer(d, d)
+
+
+@dataclass(frozen=True)
+class _Grams:
+    """Per-joint normal equations of one dataset: ``G[j] = Φ_jᵀΦ_j``, ``c[j] = Φ_jᵀr_j``,
+    ``s[j] = r_jᵀr_j`` and the sample count."""
+
+    G: np.ndarray
+    c: np.ndarray
+    s: np.ndarray
+    n: int
+
+    @classmethod
+    def build(cls, phi: np.ndarray, r: np.ndarray) -> "_Grams":
+        return cls(np.einsum("njp,njq->jpq", phi, phi), np.einsum("njp,nj->jp", phi, r),
+                   np.sum(r ** 2, axis=0), r.shape[0])
+
+    def sse(self, cols: np.ndarray, theta: np.ndarray) -> np.ndarray:
+        """Per-joint ``‖r_j − Φ_j[:, cols] θ‖²``, (nv,)."""
+        if cols.size == 0:
+            return self.s.copy()
+        g = self.G[:, cols][:, :, cols]
+        return (self.s - 2 * self.c[:, cols] @ theta
+                + np.einsum("p,jpq,q->j", theta, g, theta))
+
+    def weighted(self, w: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        g = np.einsum("j,jpq->pq", w, self.G[:, cols][:, :, cols])
+        return g, w @ self.c[:, cols]
+
+
+def exact_delay(data: GapData, atom: Atom, d: float) -> np.ndarray:
+    """Correction ``τ_nom(t − d) − τ_nom(t)`` of a delay atom (its joint, or all joints), by linear
+    interpolation within each recording segment (held at the ends)."""
+    out = np.zeros((data.n, data.nv))
+    joints = range(data.nv) if atom.joint is None else [atom.joint]
+    ds = data.dataset
+    for s in np.unique(ds.segment):
+        idx = np.flatnonzero(ds.segment == s)
+        t = ds.t[idx]
+        for j in joints:
+            x = data.tau_nom[idx, j]
+            out[idx, j] = np.interp(t - d, t, x) - x
+    return out
+
+
+# --------------------------------------------------------------------------------- helpers
+def _resolve_nominal(model: RobotModel, nominal) -> tuple[np.ndarray, Callable | None]:
+    """Standard inertial vector of the nominal model and an optional extra-torque function."""
+    from .result import IdentificationResult
+
+    if nominal is None:
+        return model.prior_parameters, None
+    if isinstance(nominal, RobotModel):
+        if nominal.joint_names != model.joint_names:
+            raise ModelError(f"nominal model joints {nominal.joint_names} differ from "
+                             f"{model.joint_names}")
+        return nominal.prior_parameters, None
+    if isinstance(nominal, IdentificationResult):
+        pi0 = nominal.inertial_parameters.copy()
+
+        def extra(ds: Dataset) -> np.ndarray:
+            rigid = GapData(model, ds, pi0).tau_nom
+            return nominal.predict(ds) - rigid
+
+        return pi0, extra
+    pi0 = np.asarray(nominal, dtype=float)
+    if pi0.shape != (model.n_inertial,):
+        raise ModelError(f"nominal parameters have shape {pi0.shape}; {model.name} needs "
+                         f"({model.n_inertial},) standard inertial parameters (10 per body)")
+    return pi0, None
+
+
+def _as_dataset(d: Dataset | Sequence[Dataset]) -> Dataset:
+    return d if isinstance(d, Dataset) else Dataset.concatenate(list(d))
+
+
+def _sigma(sigma, nv: int) -> np.ndarray:
+    s = np.broadcast_to(np.asarray(sigma, dtype=float), (nv,)).copy()
+    if not np.all(np.isfinite(s) & (s > 0)):
+        raise OptionError(f"sigma must be positive and finite per joint, got {s}")
+    return s
+
+
+# --------------------------------------------------------------------------------- selection
+@dataclass
+class _Problem:
+    """Everything the selection needs: atoms, their column slices, Grams, weights."""
+
+    library: EffectLibrary
+    atoms: list[Atom]
+    slices: list[np.ndarray]
+    train: _Grams
+    held: _Grams
+    w: np.ndarray
+    phi_train: np.ndarray
+
+    def cols(self, chosen: Sequence[int]) -> np.ndarray:
+        if not chosen:
+            return np.zeros(0, dtype=int)
+        return np.concatenate([self.slices[i] for i in chosen])
+
+    def fit(self, chosen: Sequence[int]) -> tuple[np.ndarray, np.ndarray, int]:
+        cols = self.cols(chosen)
+        if cols.size == 0:
+            return cols, np.zeros(0), 0
+        g, c = self.train.weighted(self.w, cols)
+        theta, rank, _ = _solve(g, c)
+        return cols, theta, rank
+
+
+def _rows_of(atom: Atom, nv: int) -> np.ndarray:
+    return np.arange(nv) if atom.joint is None else np.array([atom.joint])
+
+
+def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: float, tie: float,
+            max_steps: int, progress: Callable[[str], None] | None
+            ) -> tuple[list[int], list[tuple[str, ...]], list[Step], list[float], list[float]]:
+    """Greedy forward selection; returns chosen atom indices, their alternatives, the steps, and
+    the ΔBIC and p-value at entry of each chosen atom."""
+    nv = prob.w.size
+    n_tr, n_ho = prob.train.n * nv, prob.held.n * nv
+    nominal_ho = prob.held.s * prob.w
+    chosen: list[int] = []
+    alternatives: list[tuple[str, ...]] = []
+    bics: list[float] = []
+    pvals: list[float] = []
+    steps: list[Step] = []
+    cols, theta, rank = prob.fit(chosen)
+    sse_tr = float(prob.w @ prob.train.sse(cols, theta))
+    sse_ho = prob.w * prob.held.sse(cols, theta)
+    full_p = sum(s.size for s in prob.slices)
+    for _ in range(max_steps):
+        scores = []
+        for i, atom in enumerate(prob.atoms):
+            if i in chosen:
+                continue
+            c2, th2, r2 = prob.fit(chosen + [i])
+            k = r2 - rank
+            if k <= 0:
+                continue
+            tr2 = float(prob.w @ prob.train.sse(c2, th2))
+            ho2 = prob.w * prob.held.sse(c2, th2)
+            u = np.zeros(full_p)
+            u[c2] = th2
+            u[cols] -= theta
+            scores.append((i, float(sse_ho.sum() - ho2.sum()), k, tr2, ho2, u))
+        if not scores:
+            break
+        scores.sort(key=lambda s: -s[1])
+        best = scores[0]
+        if best[1] <= 0:
+            steps.append(Step(prob.atoms[best[0]].label(joint_names), best[1], np.nan, 1.0,
+                              False, "no candidate reduces the held-out residual",
+                              _cand_table(prob, scores, joint_names)))
+            break
+        # Indistinguishable candidates: similar held-out gain and collinear corrections.
+        g_ho = np.einsum("j,jpq->pq", prob.w, prob.held.G)
+        group = [best]
+        ub = best[5]
+        nb = float(ub @ g_ho @ ub)
+        for s in scores[1:]:
+            if s[1] < (1 - tie) * best[1]:
+                break
+            ns = float(s[5] @ g_ho @ s[5])
+            if nb > 0 and ns > 0 and (s[5] @ g_ho @ ub) / np.sqrt(nb * ns) >= 0.9:
+                group.append(s)
+        pick = min(group, key=lambda s: (s[2], -s[1]))
+        i, gain, k, tr2, ho2, _ = pick
+        atom = prob.atoms[i]
+        rows = _rows_of(atom, nv)
+        dbic = n_tr * np.log(tr2 / sse_tr) + k * np.log(n_tr)
+        f = (gain / k) / (ho2.sum() / n_ho)
+        p = float(scipy.stats.f.sf(f, k, n_ho)) if gain > 0 else 1.0
+        floor = min_gain * float(nominal_ho[rows].sum())
+        reason = ("accepted" if dbic < 0 and p < alpha and gain >= floor else
+                  f"stop: ΔBIC {dbic:.3g} ≥ 0" if dbic >= 0 else
+                  f"stop: held-out F-test p = {p:.2g} ≥ {alpha:g}" if p >= alpha else
+                  f"stop: held-out gain {gain / max(nominal_ho[rows].sum(), 1e-300):.2%} of the "
+                  f"nominal residual < min_gain {min_gain:.0%}")
+        ok = reason == "accepted"
+        steps.append(Step(atom.label(joint_names), gain, float(dbic), p, ok, reason,
+                          _cand_table(prob, scores, joint_names)))
+        if progress is not None:
+            progress(f"step {len(steps)}: {atom.label(joint_names)} — {reason}")
+        if not ok:
+            break
+        chosen.append(i)
+        alternatives.append(tuple(prob.atoms[s[0]].label(joint_names) for s in group
+                                  if s[0] != i))
+        bics.append(float(dbic))
+        pvals.append(p)
+        cols, theta, rank = prob.fit(chosen)
+        sse_tr = float(prob.w @ prob.train.sse(cols, theta))
+        sse_ho = prob.w * prob.held.sse(cols, theta)
+    return chosen, alternatives, steps, bics, pvals
+
+
+def _cand_table(prob: _Problem, scores: list, joint_names: list[str], top: int = 8
+                ) -> tuple[tuple[str, float, int], ...]:
+    return tuple((prob.atoms[s[0]].label(joint_names), s[1], s[2]) for s in scores[:top])
+
+
+# --------------------------------------------------------------------------------- refit
+def _refit(prob: _Problem, chosen: Sequence[int], train: GapData, model: RobotModel,
+           nominal: np.ndarray, nominal_extra, inertia_solver: str,
+           ) -> tuple[GapModel, list[np.ndarray], list[str]]:
+    """Fit the chosen atoms on the training data: linear least squares, then the delays exactly
+    (``τ_nom(t − d)``) and, when ``inertia_solver == "sdp"``, the rigid body by the consistent
+    SDP near the nominal, alternating with the linear atoms (block coordinate descent).
+
+    Returns the fitted model, the standard deviation of each atom's parameters, and notes.
+    """
+    notes: list[str] = []
+    atoms = [prob.atoms[i] for i in chosen]
+    cols, theta, _ = prob.fit(list(chosen))
+    g, _ = prob.train.weighted(prob.w, cols)
+    _, rank, pinv = _solve(g, prob.train.weighted(prob.w, cols)[1])
+    sse = float(prob.w @ prob.train.sse(cols, theta))
+    dof = max(prob.train.n * prob.w.size - rank, 1)
+    cov = pinv * sse / dof
+    std_all = np.sqrt(np.clip(np.diag(cov), 0, None))
+    thetas, stds, o = [], [], 0
+    for a in atoms:
+        thetas.append(theta[o:o + a.n_parameters])
+        stds.append(std_all[o:o + a.n_parameters])
+        o += a.n_parameters
+    fit = GapModel(model, prob.library, nominal, tuple(atoms), tuple(thetas), {}, None,
+                   nominal_extra)
+    delay_idx = [k for k, a in enumerate(atoms) if a.effect == "delay"]
+    inertia_idx = [k for k, a in enumerate(atoms) if a.effect == "inertia"]
+    if not delay_idx and not (inertia_idx and inertia_solver == "sdp"):
+        return fit, stds, notes
+    phi = [prob.library.columns(a, train) for a in atoms]
+    w = prob.w
+    linear = [k for k in range(len(atoms)) if k not in delay_idx
+              and not (k in inertia_idx and inertia_solver == "sdp")]
+    delays = {k: float(thetas[k][0]) for k in delay_idx}
+    inertial = None
+    r = train.residual
+    for _ in range(3):
+        fixed = np.zeros_like(r)
+        for k in delay_idx:
+            fixed += exact_delay(train, atoms[k], delays[k])
+        if inertial is not None:
+            fixed += train.rigid @ (inertial - nominal)
+        if linear:
+            a_mat = np.concatenate([phi[k] for k in linear], axis=2)
+            gl = np.einsum("j,njp,njq->pq", w, a_mat, a_mat)
+            cl = np.einsum("j,njp,nj->p", w, a_mat, r - fixed)
+            th, _, _ = _solve(gl, cl)
+            o = 0
+            for k in linear:
+                thetas[k] = th[o:o + atoms[k].n_parameters]
+                o += atoms[k].n_parameters
+        lin = sum((phi[k] @ thetas[k] for k in linear), np.zeros_like(r))
+        for k in delay_idx:
+            others = lin + sum((exact_delay(train, atoms[m], delays[m]) for m in delay_idx
+                                if m != k), np.zeros_like(r))
+            if inertial is not None:
+                others = others + train.rigid @ (inertial - nominal)
+            target = r - others
+            d0 = delays[k]
+            span = max(3 * abs(d0), 5 * float(np.median(np.diff(train.dataset.t))))
+
+            def cost(d: float, k: int = k, target: np.ndarray = target) -> float:
+                return float(w @ np.sum((target - exact_delay(train, atoms[k], d)) ** 2, axis=0))
+
+            res = scipy.optimize.minimize_scalar(cost, bounds=(d0 - span, d0 + span),
+                                                 method="bounded",
+                                                 options={"xatol": 1e-6})
+            delays[k] = float(res.x)
+        if inertia_idx and inertia_solver == "sdp":
+            others = lin + sum((exact_delay(train, atoms[m], delays[m]) for m in delay_idx),
+                               np.zeros_like(r))
+            inertial, note = _sdp_inertia(model, train, nominal, others)
+            if note not in notes:
+                notes.append(note)
+    for k in delay_idx:
+        thetas[k] = np.array([delays[k]])
+    fit = GapModel(model, prob.library, nominal, tuple(atoms), tuple(thetas),
+                   {k: delays[k] for k in delay_idx}, inertial, nominal_extra)
+    return fit, stds, notes
+
+
+def _sdp_inertia(model: RobotModel, train: GapData, nominal: np.ndarray, others: np.ndarray
+                 ) -> tuple[np.ndarray, str]:
+    """Consistent rigid-body parameters near the nominal (log-det prior) fitted to the measured
+    torque minus the other effects' corrections."""
+    from .identify import identify
+
+    corrected = train.dataset.with_torque(train.tau - others
+                                          - (0 if train.nominal_extra is None
+                                             else train.nominal_extra))
+    res = identify(model.with_parameters(nominal), corrected, method="sdp", friction=None,
+                   prior="logdet")
+    return res.inertial_parameters, (f"inertia re-identified by the consistent SDP "
+                                     f"({res.solver.name}: {res.solver.status}) with a log-det "
+                                     "prior around the nominal parameters")
+
+
+# --------------------------------------------------------------------------------- main
+def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=None,
+             held_out: Dataset | Sequence[Dataset] | None = None,
+             effects: Sequence[str] = EFFECT_NAMES, sigma: float | Sequence[float] | None = None,
+             *, alpha: float = 1e-3, min_gain: float = 0.01, tie: float = 0.05,
+             max_steps: int = 12, split: float = 0.7, inertia_solver: str = "auto",
+             progress: Callable[[str], None] | None = None) -> Diagnosis:
+    """Diagnose the gap between a nominal (simulator) model and measured torques.
+
+    Parameters
+    ----------
+    model : the robot (kinematics, joint order).
+    dataset : measured data (several recordings are stacked as segments).
+    nominal : the simulator's parameters: ``None`` (the model's URDF inertias), a standard
+        inertial vector (10 per body), a :class:`RobotModel`, or an
+        :class:`~consistid.IdentificationResult` (its rigid body and friction are the nominal).
+    held_out : data to score on (ideally a different trajectory); default the last
+        ``1 − split`` of each recording of ``dataset``.
+    effects : candidate effect names (default all of :data:`~consistid.candidates.EFFECT_NAMES`).
+    sigma : torque noise standard deviation (N·m), scalar or per joint; default estimated from
+        the high-frequency part of the residual (:func:`consistid.gap.noise_floor`).
+    alpha : level of the held-out F-test.
+    min_gain : smallest held-out reduction, as a fraction of the nominal residual's sum of
+        squares on the joints an atom acts on, for the atom to be selected.
+    tie : relative held-out gain within which collinear candidates count as indistinguishable.
+    max_steps : most atoms selected.
+    split : training fraction of each recording when ``held_out`` is ``None``.
+    inertia_solver : ``"sdp"`` (consistent, log-det prior around the nominal; needs
+        :mod:`consistid.sdp`), ``"ls"`` (least squares on base parameters) or ``"auto"`` (SDP when
+        available).
+    progress : called with a line of text after each selection step.
+
+    Returns
+    -------
+    Diagnosis
+    """
+    from .errors import check_option
+
+    check_option("inertia_solver", inertia_solver, ("auto", "sdp", "ls"))
+    if inertia_solver == "auto":
+        try:
+            from . import sdp  # noqa: F401
+            inertia_solver = "sdp"
+        except ImportError:
+            inertia_solver = "ls"
+    dataset = _as_dataset(dataset)
+    dataset.check_joints(model.nv, model.joint_names)
+    if held_out is None:
+        train_ds, held_ds = dataset.split(split)
+        held_source = f"last {1 - split:.0%} of each recording (time split)"
+    else:
+        train_ds, held_ds = dataset, _as_dataset(held_out)
+        held_ds.check_joints(model.nv, model.joint_names)
+        held_source = f"given ({held_ds.n_samples} samples, {held_ds.duration:.1f} s)"
+    pi0, extra_fn = _resolve_nominal(model, nominal)
+
+    def gap_data(ds: Dataset) -> GapData:
+        return GapData(model, ds, pi0, extra_fn(ds) if extra_fn is not None else None)
+
+    train, held = gap_data(train_ds), gap_data(held_ds)
+    everything = gap_data(Dataset.concatenate([train_ds, held_ds]))
+    if sigma is None:
+        floor, noise_source = noise_floor(everything.dataset, everything.residual,
+                                          everything.tau_nom)
+    else:
+        floor, noise_source = _sigma(sigma, model.nv), "given"
+    library = EffectLibrary(model, tuple(effects))
+
+    # Atoms: ripple orders are tuned on the residual of the other candidates (saturated fit).
+    plain = [e for e in effects if e != "ripple"]
+    atoms = EffectLibrary(model, tuple(plain), base=library.base).atoms()
+    phi_tr = np.concatenate([library.columns(a, train) for a in atoms], axis=2) if atoms \
+        else np.zeros((train.n, model.nv, 0))
+    if "ripple" in effects:
+        w0 = 1.0 / floor ** 2
+        rest = train.residual.copy()
+        if atoms:
+            g = _Grams.build(phi_tr, train.residual)
+            theta, _, _ = _solve(*g.weighted(w0, np.arange(phi_tr.shape[2])))
+            rest = train.residual - phi_tr @ theta
+        ripple = library.atoms(train, rest)
+        ripple = [a for a in ripple if a.effect == "ripple"]
+        atoms += ripple
+        if ripple:
+            phi_tr = np.concatenate([phi_tr] + [library.columns(a, train) for a in ripple],
+                                    axis=2)
+    phi_ho = np.concatenate([library.columns(a, held) for a in atoms], axis=2) if atoms \
+        else np.zeros((held.n, model.nv, 0))
+    slices, o = [], 0
+    for a in atoms:
+        slices.append(np.arange(o, o + a.n_parameters))
+        o += a.n_parameters
+    prob = _Problem(library, atoms, slices, _Grams.build(phi_tr, train.residual),
+                    _Grams.build(phi_ho, held.residual), 1.0 / floor ** 2, phi_tr)
+    names = model.joint_names
+    chosen, alts, steps, bics, pvals = _select(prob, names, alpha, min_gain, tie, max_steps,
+                                               progress)
+
+    # Group by effect in order of entry, then add the groups one by one.
+    order: list[str] = []
+    for i in chosen:
+        if prob.atoms[i].effect not in order:
+            order.append(prob.atoms[i].effect)
+    notes: list[str] = []
+    rms_nominal = np.sqrt(held.residual.__pow__(2).mean(axis=0))
+    before = rms_nominal
+    findings: list[EffectFinding] = []
+    fit = GapModel(model, library, pi0, (), (), {}, None, extra_fn)
+    cumulative: list[int] = []
+    final_stds: list[np.ndarray] = []
+    for name in order:
+        members = [k for k, i in enumerate(chosen) if prob.atoms[i].effect == name]
+        cumulative += [chosen[k] for k in members]
+        fit, stds, fit_notes = _refit(prob, cumulative, train, model, pi0, extra_fn,
+                                      inertia_solver)
+        notes += [n for n in fit_notes if n not in notes]
+        after = np.sqrt(np.mean((held.tau - held.tau_nom - fit.correction(held)) ** 2, axis=0))
+        final_stds = stds
+        shrink = 1.0 - after / np.where(before > 0, before, 1.0)
+        total = 1.0 - np.linalg.norm(after / floor) / max(np.linalg.norm(before / floor), 1e-300)
+        atoms_here = [prob.atoms[chosen[k]] for k in members]
+        if all(a.joint is not None for a in atoms_here):
+            joints = tuple(names[a.joint] for a in atoms_here)
+            scope = "joint"
+        else:
+            scope = "arm"
+            joints = tuple(names[j] for j in np.flatnonzero(shrink >= JOINT_SHRINK_FLOOR))
+        findings.append(EffectFinding(
+            name=name, joints=joints, scope=scope, rms_before=before, rms_after=after,
+            shrink=shrink, total_shrink=float(total), parameters=(),
+            alternatives=tuple(sorted({x for k in members for x in alts[k]})),
+            n_parameters=int(sum(a.n_parameters for a in atoms_here)),
+            delta_bic=float(sum(bics[k] for k in members)),
+            p_value=float(max(pvals[k] for k in members)), signature=SIGNATURES[name]))
+        before = after
+    # Parameters from the final fit (all effects together).
+    params_by_effect: dict[str, list[EffectParameter]] = {}
+    for atom, th, sd in zip(fit.atoms, fit.theta, final_stds):
+        joint = names[atom.joint] if atom.joint is not None else None
+        lst = params_by_effect.setdefault(atom.effect, [])
+        lst += _parameters(atom, th, sd, joint, fit, library)
+    findings = [replace(f, parameters=tuple(params_by_effect.get(f.name, ()))) for f in findings]
+    # Rank by held-out reduction of each group (entry order is greedy, hence already ranked
+    # by gain at entry; keep it).
+    if inertia_solver == "ls" and "inertia" in order:
+        notes.append("inertia re-identified by least squares on base parameters "
+                     "(consistent SDP not available)")
+    rms_final = before
+    if sigma is None and fit.atoms:
+        # The nominal residual's high band also holds the tails of steps and spikes that the
+        # effects explain (a Coulomb step has a 1/f² spectrum); estimate again without them.
+        floor, noise_source = noise_floor(
+            everything.dataset, everything.residual - fit.correction(everything),
+            everything.tau_nom)
+        noise_source += ", residual of the nominal model plus the selected effects"
+    where = gap_breakdown(everything, floor)
+    return Diagnosis(model.name, tuple(names), tuple(findings), where, floor, noise_source,
+                     rms_nominal, rms_final, held_source, tuple(steps), fit, tuple(notes))
+
+
+def _parameters(atom: Atom, theta: np.ndarray, std: np.ndarray, joint: str | None,
+                fit: GapModel, library: EffectLibrary) -> list[EffectParameter]:
+    """Readable parameters of a fitted atom (inertia: the most significant base changes)."""
+    if atom.effect == "inertia":
+        if fit.inertial is not None:
+            beta = library.base.project(fit.inertial - fit.nominal)
+        else:
+            beta = theta
+        z = np.abs(beta) / np.where(std > 0, std, np.inf)
+        top = np.argsort(-z)[:6]
+        return [EffectParameter(atom.parameter_names[i], float(beta[i]), float(std[i]),
+                                atom.units[i], None, "inertia") for i in top]
+    if atom.effect == "ripple":
+        amp = float(np.hypot(*theta))
+        amp_std = float(np.sqrt((theta[0] * std[0]) ** 2 + (theta[1] * std[1]) ** 2)
+                        / max(amp, 1e-300))
+        return [EffectParameter(f"{joint} ripple amplitude (k = {atom.setting:g}/rad)", amp,
+                                amp_std, "N·m", joint, "ripple")]
+    return [EffectParameter(n, float(v), float(s), u, joint, atom.effect)
+            for n, v, s, u in zip(atom.parameter_names, theta, std, atom.units)]
