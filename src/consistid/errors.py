@@ -24,6 +24,10 @@ class MissingColumnsError(DatasetError):
     """A CSV/NPZ file lacks columns that a :class:`~consistid.Dataset` needs."""
 
 
+class JointNameError(DatasetError):
+    """A log's joint names do not match the model's (lists the names missing on each side)."""
+
+
 class OptionError(ConsistidError, ValueError):
     """An option takes a value outside its allowed set; the message lists the allowed values."""
 

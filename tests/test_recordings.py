@@ -1,0 +1,115 @@
+import numpy as np
+import pytest
+
+from consistid.errors import DatasetError, JointNameError, MissingColumnsError, OptionError
+from consistid.recordings import Recording, from_arrays, load_recording
+
+T0 = 1460034856.877162  # a Unix stamp (2016-04-07)
+
+
+def log(n=40, nv=2, seed=0, dt=0.005):
+    rng = np.random.default_rng(seed)
+    t = T0 + np.cumsum(rng.uniform(0.6, 1.4, n) * dt)
+    return dict(t=t, q=rng.normal(size=(n, nv)), dq=rng.normal(size=(n, nv)),
+                ddq=rng.normal(size=(n, nv)), tau=rng.normal(size=(n, nv)))
+
+
+def test_unix_origin_is_subtracted_and_recorded():
+    a = log()
+    rec = from_arrays(**a)
+    assert rec.time_origin == a["t"][0]
+    assert rec.dataset.t[0] == 0.0
+    np.testing.assert_allclose(rec.dataset.t, a["t"] - a["t"][0], rtol=0, atol=1e-12)
+    assert "Unix time stamps" in rec.steps[0] and "2016-04-07" in rec.steps[0]
+    assert any("non-uniform" in s for s in rec.steps)
+
+
+def test_duplicated_stamps_average_first_error():
+    a = log(n=10)
+    a["t"][4] = a["t"][3]                       # two stamps repeated, with different values
+    a["t"][8] = a["t"][7]
+    rec = from_arrays(**a, duplicates="average")
+    assert rec.dataset.n_samples == 8
+    np.testing.assert_allclose(rec.dataset.q[3], 0.5 * (a["q"][3] + a["q"][4]))
+    np.testing.assert_allclose(rec.dataset.tau[6], 0.5 * (a["tau"][7] + a["tau"][8]))
+    assert any("2 duplicated time stamp(s)" in s and "10 → 8" in s for s in rec.steps)
+    first = from_arrays(**a, duplicates="first")
+    np.testing.assert_array_equal(first.dataset.q[3], a["q"][3])
+    with pytest.raises(DatasetError, match=r"t\[4\].*repeats t\[3\]"):
+        from_arrays(**a, duplicates="error")
+    with pytest.raises(OptionError, match="duplicates"):
+        from_arrays(**a, duplicates="drop")
+
+
+def test_backwards_time_is_refused_with_its_index():
+    a = log()
+    a["t"][11] = a["t"][9]
+    with pytest.raises(DatasetError, match=r"t\[11\].*before t\[10\]"):
+        from_arrays(**a)
+
+
+def test_joint_columns_are_reordered_to_the_model(planar_2r):
+    a = log()
+    swapped = {k: (v[:, ::-1] if v.ndim == 2 else v) for k, v in a.items()}
+    rec = from_arrays(**swapped, joint_names=["joint2", "joint1"], model=planar_2r)
+    for f in ("q", "dq", "ddq", "tau"):
+        np.testing.assert_array_equal(getattr(rec.dataset, f), a[f])
+    assert rec.dataset.joint_names == ("joint1", "joint2")
+    assert any("reordered" in s for s in rec.steps)
+
+
+def test_joint_name_mismatch_names_both_sides(planar_2r):
+    a = log()
+    with pytest.raises(JointNameError, match=r"missing from the log \['joint2'\].*not in the "
+                                             r"model \['elbow'\]"):
+        from_arrays(**a, joint_names=["joint1", "elbow"], model=planar_2r)
+    with pytest.raises(JointNameError, match="3 joint columns and no joint names"):
+        from_arrays(**log(nv=3), model=planar_2r)
+    with pytest.raises(JointNameError, match="appear more than once"):
+        from_arrays(**a, joint_names=["joint1", "joint1"], model=planar_2r)
+
+
+def test_trim_rule_drops_the_stated_durations():
+    a = log(n=200)
+    rec = from_arrays(**a, trim_start=0.1, trim_end=0.05)
+    t = a["t"] - a["t"][0]
+    keep = (t >= 0.1) & (t <= t[-1] - 0.05)
+    np.testing.assert_array_equal(rec.dataset.q, a["q"][keep])
+    assert any(f"({np.argmax(keep)} samples)" in s for s in rec.steps)
+    with pytest.raises(DatasetError, match="leaves no sample"):
+        from_arrays(**a, trim_start=10.0)
+
+
+def test_only_one_derivative_is_refused():
+    a = log()
+    a.pop("ddq")
+    with pytest.raises(MissingColumnsError, match="dq is given without ddq"):
+        from_arrays(**a)
+
+
+def test_npz_layouts_ignored_arrays_and_missing_ones(tmp_path, planar_2r):
+    a = log()
+    path = tmp_path / "run.npz"
+    np.savez(path, times=a["t"], positions=a["q"], velocities=a["dq"], accelerations=a["ddq"],
+             torques=a["tau"], target_positions=a["q"] * 0.0174)
+    rec = load_recording(path, model=planar_2r)
+    np.testing.assert_array_equal(rec.dataset.tau, a["tau"])
+    assert "ignored arrays ['target_positions']" in rec.steps[0]
+    assert isinstance(rec, Recording) and rec.source == str(path)
+    custom = load_recording(path, keys={"t": "times", "q": "positions", "dq": "velocities",
+                                        "ddq": "accelerations", "tau": "target_positions"})
+    np.testing.assert_array_equal(custom.dataset.tau, a["q"] * 0.0174)
+    bad = tmp_path / "bad.npz"
+    np.savez(bad, times=a["t"], positions=a["q"])
+    with pytest.raises(MissingColumnsError, match="match no known layout"):
+        load_recording(bad)
+    with pytest.raises(MissingColumnsError, match=r"tau \('torques'\)"):
+        load_recording(bad, keys="flobaroid")
+
+
+def test_concatenate_keeps_segments_and_steps():
+    r1, r2 = from_arrays(**log(seed=1)), from_arrays(**log(seed=2))
+    both = Recording.concatenate([r1, r2])
+    assert np.array_equal(np.unique(both.dataset.segment), [0, 1])
+    assert both.steps[0].startswith("[segment 0: arrays]")
+    assert both.dataset.n_samples == r1.dataset.n_samples + r2.dataset.n_samples
