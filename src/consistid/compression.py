@@ -74,9 +74,17 @@ class CompressedProblem:
 
 
 def compress(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
-             chunk: int = 4096) -> CompressedProblem:
-    """Accumulate the per-joint R factors of ``[Y_j | τ_j]`` over a dataset (O(p²) memory)."""
+             chunk: int = 4096, weights: np.ndarray | None = None) -> CompressedProblem:
+    """Accumulate the per-joint R factors of ``[Y_j | τ_j]`` over a dataset (O(p²) memory).
+
+    ``weights`` (N, nv) ≥ 0 scale each row's squared residual (row ``k`` of joint ``j`` is
+    multiplied by ``√w_kj``), as iteratively re-weighted least squares needs.
+    """
     tau = dataset.require_torque()
+    if weights is not None:
+        weights = np.asarray(weights, dtype=float)
+        if weights.shape != tau.shape or not np.all(np.isfinite(weights)) or np.any(weights < 0):
+            raise ValueError(f"row weights must be finite, ≥ 0 and of shape {tau.shape}")
     factors = None
     for s, y in iter_regressor(model, dataset, spec, chunk):
         p = y.shape[2]
@@ -84,5 +92,7 @@ def compress(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
             factors = np.zeros((model.nv, p + 1, p + 1))
         for j in range(model.nv):
             block = np.column_stack([y[:, j, :], tau[s, j]])
+            if weights is not None:
+                block *= np.sqrt(weights[s, j])[:, None]
             factors[j] = _r_factor(np.vstack([factors[j], block]), p + 1)
     return CompressedProblem(factors, dataset.n_samples, np.sum(tau ** 2, axis=0))

@@ -33,39 +33,111 @@ from typing import Sequence
 import cvxpy as cp
 import numpy as np
 
-from .errors import check_option
+from .errors import OptionError, check_option
+from .parameters import inertia_about_origin, pseudo_inertia_map
+from .parameters import pseudo_inertia as pseudo_inertia_numeric
 
 LEVELS = ("none", "mass-inertia", "triangle", "pseudo-inertia", "ellipsoid")
 
 
+def _linear_map(shape: tuple[int, int], entries: dict[tuple[int, int], dict[int, float]]
+                ) -> np.ndarray:
+    """``(rows·cols, 10)`` matrix of a matrix-valued linear function of the 10-vector."""
+    out = np.zeros((shape[0] * shape[1], 10))
+    for (r, c), terms in entries.items():
+        for k, coef in terms.items():
+            out[r + shape[0] * c, k] = coef
+    return out
+
+
+_INERTIA_INDEX = {(0, 0): 4, (0, 1): 5, (1, 1): 6, (0, 2): 7, (1, 2): 8, (2, 2): 9}
+#: vec(I) = _INERTIA_MAP x (column-major), I the inertia about the body origin.
+_INERTIA_MAP = _linear_map((3, 3), {(r, c): {_INERTIA_INDEX[min(r, c), max(r, c)]: 1.0}
+                                    for r in range(3) for c in range(3)})
+_SKEW_TERMS = {(0, 1): (3, -1.0), (0, 2): (2, 1.0), (1, 0): (3, 1.0), (1, 2): (1, -1.0),
+               (2, 0): (2, -1.0), (2, 1): (1, 1.0)}
+#: vec([[I, S(h)ᵀ], [S(h), m 1]]) = _MASS_INERTIA_MAP x: the 6×6 matrix of Sousa & Cortesão.
+_MASS_INERTIA_MAP = _linear_map((6, 6), {
+    **{(r, c): {_INERTIA_INDEX[min(r, c), max(r, c)]: 1.0} for r in range(3) for c in range(3)},
+    **{(3 + r, c): {k: v} for (r, c), (k, v) in _SKEW_TERMS.items()},
+    **{(c, 3 + r): {k: v} for (r, c), (k, v) in _SKEW_TERMS.items()},
+    **{(3 + r, 3 + r): {0: 1.0} for r in range(3)}})
+_PSEUDO_INERTIA_MAP = pseudo_inertia_map()
+
+
 def inertia_matrix(x: cp.Expression) -> cp.Expression:
     """3×3 inertia about the body origin from the 10-vector expression."""
-    return cp.bmat([[x[4], x[5], x[7]], [x[5], x[6], x[8]], [x[7], x[8], x[9]]])
+    return cp.reshape(_INERTIA_MAP @ x, (3, 3), order="F")
 
 
 def pseudo_inertia(x: cp.Expression) -> cp.Expression:
-    """The 4×4 pseudo-inertia ``J(x)`` as an affine cvxpy expression."""
-    inertia = inertia_matrix(x)
-    half_trace = 0.5 * (x[4] + x[6] + x[9])
-    sigma = half_trace * np.eye(3) - inertia
-    h = cp.reshape(x[1:4], (3, 1), order="F")
-    return cp.bmat([[sigma, h], [h.T, cp.reshape(x[0], (1, 1), order="F")]])
+    """The 4×4 pseudo-inertia ``J(x)`` as an affine cvxpy expression (one matrix product)."""
+    return cp.reshape(_PSEUDO_INERTIA_MAP @ x, (4, 4), order="F")
 
 
-def skew(h: cp.Expression) -> cp.Expression:
-    return cp.bmat([[0, -h[2], h[1]], [h[2], 0, -h[0]], [-h[1], h[0], 0]])
+def mass_inertia_matrix(x: cp.Expression) -> cp.Expression:
+    """The 6×6 ``[[I, S(h)ᵀ], [S(h), m·1]]`` (``S(h)`` the cross-product matrix of ``h = m c``)."""
+    return cp.reshape(_MASS_INERTIA_MAP @ x, (6, 6), order="F")
 
 
-def pseudo_inertia_lmi(x: cp.Expression, eps: float = 0.0) -> list[cp.Constraint]:
-    """``J(x) ⪰ eps·1``: density realizability (also covers ``"triangle"``)."""
-    return [pseudo_inertia(x) >> eps * np.eye(4)]
+@dataclass(frozen=True)
+class BodyScaling:
+    """Congruences that make one body's LMIs well scaled, from a realizable reference body.
+
+    With ``J_ref = L Lᵀ`` (Cholesky), ``J ⪰ eps·1 ⟺ L⁻¹ J L⁻ᵀ ⪰ eps·L⁻¹L⁻ᵀ``: the same set,
+    but the scaled matrix is ``1`` at the reference, whatever the units and the body's size.
+    The 6×6 mass–inertia matrix is scaled by ``D = diag(1/√ī·1₃, 1/√m·1₃)`` (``ī`` the mean
+    diagonal inertia of the reference about the body origin).
+    """
+
+    l_inv: np.ndarray
+    d: np.ndarray
+
+    @classmethod
+    def from_reference(cls, reference: np.ndarray) -> "BodyScaling":
+        j_ref = pseudo_inertia_numeric(reference)
+        try:
+            chol = np.linalg.cholesky(j_ref)
+        except np.linalg.LinAlgError as exc:
+            raise ValueError("the reference body's pseudo-inertia is not positive definite "
+                             f"(min eigenvalue {np.linalg.eigvalsh(j_ref)[0]:.3g})") from exc
+        i_bar = np.trace(inertia_about_origin(reference)) / 3.0
+        d = np.concatenate([np.full(3, i_bar ** -0.5), np.full(3, reference[0] ** -0.5)])
+        return cls(np.linalg.inv(chol), d)
+
+    def pseudo_inertia(self, x: cp.Expression) -> cp.Expression:
+        """``L⁻¹ J(x) L⁻ᵀ``."""
+        return self.l_inv @ pseudo_inertia(x) @ self.l_inv.T
+
+    def pseudo_inertia_eps(self, eps: float) -> np.ndarray:
+        return eps * self.l_inv @ self.l_inv.T
+
+    def parameter_map(self) -> np.ndarray:
+        """The (10, 10) ``T`` with ``J(T y) = L J(y) Lᵀ``: normalised → standard parameters
+        (``y`` of the reference body is the unit pseudo-inertia, ``J(y) = 1``)."""
+        pmap = pseudo_inertia_map()
+        l_mat = np.linalg.inv(self.l_inv)
+        return np.linalg.pinv(pmap) @ np.kron(l_mat, l_mat) @ pmap
 
 
-def mass_inertia_lmi(x: cp.Expression, eps: float = 0.0) -> list[cp.Constraint]:
+_NO_SCALING = BodyScaling(np.eye(4), np.ones(6))
+
+
+def pseudo_inertia_lmi(x: cp.Expression, eps: float = 0.0,
+                       scaling: BodyScaling | None = None) -> list[cp.Constraint]:
+    """``J(x) ⪰ eps·1``: density realizability (also covers ``"triangle"``).
+
+    ``scaling`` (from a reference body) imposes the same set in a well-scaled form.
+    """
+    sc = scaling or _NO_SCALING
+    return [sc.pseudo_inertia(x) >> sc.pseudo_inertia_eps(eps)]
+
+
+def mass_inertia_lmi(x: cp.Expression, eps: float = 0.0,
+                     scaling: BodyScaling | None = None) -> list[cp.Constraint]:
     """``[[I, S(h)ᵀ], [S(h), m·1]] ⪰ eps·1``: positive mass and ``I_c ⪰ 0``."""
-    s = skew(x[1:4])
-    block = cp.bmat([[inertia_matrix(x), s.T], [s, x[0] * np.eye(3)]])
-    return [block >> eps * np.eye(6)]
+    d = (scaling or _NO_SCALING).d
+    return [cp.multiply(np.outer(d, d), mass_inertia_matrix(x)) >> eps * np.diag(d ** 2)]
 
 
 @dataclass(frozen=True)
@@ -92,11 +164,18 @@ class Ellipsoid:
         return bool(d @ np.linalg.solve(self.shape, d) <= 1.0 + 1e-12)
 
 
-def ellipsoid_lmi(x: cp.Expression, ellipsoid: Ellipsoid, eps: float = 0.0
-                  ) -> list[cp.Constraint]:
-    """``J ⪰ eps·1`` and ``tr(J Q) ≥ 0``: a density supported in the ellipsoid exists."""
-    j = pseudo_inertia(x)
-    return [j >> eps * np.eye(4), cp.trace(j @ ellipsoid.q_matrix()) >= 0]
+def ellipsoid_lmi(x: cp.Expression, ellipsoid: Ellipsoid, eps: float = 0.0,
+                  scaling: BodyScaling | None = None) -> list[cp.Constraint]:
+    """``J ⪰ eps·1`` and ``tr(J Q) ≥ 0``: a density supported in the ellipsoid exists.
+
+    With ``scaling``, ``tr(J Q) = tr(Ĵ Q̂)`` for ``Ĵ = L⁻¹JL⁻ᵀ``, ``Q̂ = LᵀQL`` (normalised).
+    """
+    sc = scaling or _NO_SCALING
+    l_mat = np.linalg.inv(sc.l_inv)
+    q_hat = l_mat.T @ ellipsoid.q_matrix() @ l_mat
+    q_hat /= max(np.abs(q_hat).max(), 1e-300)
+    j_hat = sc.pseudo_inertia(x)
+    return [j_hat >> sc.pseudo_inertia_eps(eps), cp.sum(cp.multiply(j_hat, q_hat)) >= 0]
 
 
 def com_box(x: cp.Expression, lower: Sequence[float], upper: Sequence[float]
@@ -117,15 +196,20 @@ def mass_bounds(x: cp.Expression, lower: float | None = None, upper: float | Non
 
 
 def body_constraints(x: cp.Expression, level: str, eps: float = 0.0,
-                     ellipsoid: Ellipsoid | None = None) -> list[cp.Constraint]:
-    """The constraints of one consistency level (see :data:`LEVELS`)."""
+                     ellipsoid: Ellipsoid | None = None,
+                     scaling: BodyScaling | None = None) -> list[cp.Constraint]:
+    """The constraints of one consistency level (see :data:`LEVELS`).
+
+    ``"triangle"`` and ``"pseudo-inertia"`` give the same LMI: for one body, ``J ⪰ 0`` is
+    exactly ``m ≥ 0`` plus the triangle inequalities of ``I_c`` (module docstring).
+    """
     check_option("constraints", level, LEVELS)
     if level == "none":
         return []
     if level == "mass-inertia":
-        return mass_inertia_lmi(x, eps)
+        return mass_inertia_lmi(x, eps, scaling)
     if level == "ellipsoid":
         if ellipsoid is None:
-            raise ValueError("constraints='ellipsoid' needs an Ellipsoid for the body")
-        return ellipsoid_lmi(x, ellipsoid, eps)
-    return pseudo_inertia_lmi(x, eps)
+            raise OptionError("constraints='ellipsoid' needs an Ellipsoid for the body")
+        return ellipsoid_lmi(x, ellipsoid, eps, scaling)
+    return pseudo_inertia_lmi(x, eps, scaling)

@@ -79,6 +79,32 @@ def pseudo_inertia(p: np.ndarray) -> np.ndarray:
     return np.array(pin.PseudoInertia.FromDynamicParameters(_body(p)).toMatrix())
 
 
+def pseudo_inertia_map() -> np.ndarray:
+    r"""The constant (16, 10) matrix ``P`` with ``vec(J) = P π`` (column-major ``vec``).
+
+    From ``Σ = ½ tr(I) 1 − I``: ``Σ_xx = ½(−I_xx + I_yy + I_zz)`` (and cyclic), ``Σ_xy = −I_xy``
+    (and the other products), ``J[:3, 3] = h``, ``J[3, 3] = m``. ``P`` has full column rank and
+    ``pinv(P) vec(J)`` inverts it for a symmetric ``J``; cvxpy builders use it so that the
+    pseudo-inertia of a parameter expression is one matrix product.
+    """
+    out = np.zeros((16, 10))
+    for k in range(10):
+        e = np.zeros(10)
+        e[k] = 1.0
+        out[:, k] = _pseudo_inertia_linear(e).ravel(order="F")
+    return out
+
+
+def _pseudo_inertia_linear(p: np.ndarray) -> np.ndarray:
+    """``J(p)`` by its defining linear formula, valid for any 10-vector (no realizability)."""
+    inertia = inertia_about_origin(p)
+    J = np.empty((4, 4))
+    J[:3, :3] = 0.5 * np.trace(inertia) * np.eye(3) - inertia
+    J[:3, 3] = J[3, :3] = p[1:4]
+    J[3, 3] = p[0]
+    return J
+
+
 def from_pseudo_inertia(J: np.ndarray) -> np.ndarray:
     """The 10-vector of a 4×4 pseudo-inertia (inverse of :func:`pseudo_inertia`)."""
     J = np.asarray(J, dtype=float)
@@ -106,6 +132,9 @@ class BodyConsistency:
     mass: float
     min_pseudo_inertia_eigenvalue: float
     principal_moments: np.ndarray | None
+    #: the violated condition: ``"mass"``, ``"inertia"`` (``I_c`` not positive definite),
+    #: ``"triangle"``, ``"pseudo-inertia"``; ``""`` when ``ok``.
+    condition: str = ""
 
 
 def check_body(p: np.ndarray, level: str = "pseudo-inertia", body: str = "body",
@@ -119,24 +148,26 @@ def check_body(p: np.ndarray, level: str = "pseudo-inertia", body: str = "body",
     p = _body(p)
     lam_j = float(np.linalg.eigvalsh(pseudo_inertia(p))[0])
     if not p[0] > tol:
-        return BodyConsistency(body, False, f"{body}: mass {p[0]:.6g} kg ≤ 0", p[0], lam_j, None)
+        return BodyConsistency(body, False, f"{body}: mass {p[0]:.6g} kg ≤ {tol:g}", p[0], lam_j,
+                               None, "mass")
     _, _, inertia_com = to_mass_com_inertia(p)
     moments = np.linalg.eigvalsh(inertia_com)
     if moments[0] <= tol:
         return BodyConsistency(body, False,
                                f"{body}: inertia about the CoM not positive definite "
                                f"(smallest principal moment {moments[0]:.3g} kg·m²)",
-                               p[0], lam_j, moments)
+                               p[0], lam_j, moments, "inertia")
     if level in ("triangle", "pseudo-inertia"):
         slack = moments[0] + moments[1] - moments[2]
         if slack < -tol:
             return BodyConsistency(body, False,
                                    f"{body}: triangle inequality violated "
-                                   f"(I1 + I2 − I3 = {slack:.3g} kg·m²)", p[0], lam_j, moments)
+                                   f"(I1 + I2 − I3 = {slack:.3g} kg·m²)", p[0], lam_j, moments,
+                                   "triangle")
     if level == "pseudo-inertia" and lam_j < -tol:
         return BodyConsistency(body, False,
                                f"{body}: pseudo-inertia min eigenvalue {lam_j:.3g}",
-                               p[0], lam_j, moments)
+                               p[0], lam_j, moments, "pseudo-inertia")
     return BodyConsistency(body, True, "", p[0], lam_j, moments)
 
 
@@ -171,14 +202,33 @@ class ConsistencyReport:
 def is_physically_consistent(parameters: np.ndarray, level: str = "pseudo-inertia",
                              body_names: Sequence[str] | None = None,
                              tol: float = 0.0) -> ConsistencyReport:
-    """Check every body of a stacked standard vector (extra trailing entries are ignored).
+    """Check every body of a stacked standard vector.
+
+    Parameters
+    ----------
+    parameters : (10·n,) standard parameters; with ``body_names`` given, entries after the
+        ``10·len(body_names)`` inertial ones (friction, armature) are ignored.
+    level : one of :data:`CONSISTENCY_LEVELS`.
+    body_names : names used in the verdicts, default ``body1, body2, …``.
+    tol : absolute tolerance on the margins, see :func:`check_body`.
 
     Returns a :class:`ConsistencyReport` that is truthy when all bodies pass and names the first
-    violated condition of each failing body otherwise.
+    violated condition of each failing body otherwise (``BodyConsistency.condition``).
     """
     parameters = np.asarray(parameters, dtype=float)
-    n = parameters.size // 10
-    names = list(body_names) if body_names is not None else [f"body{i + 1}" for i in range(n)]
+    if parameters.ndim != 1:
+        raise ValueError(f"parameters must be a 1-D vector, got shape {parameters.shape}")
+    if body_names is None:
+        if parameters.size % 10:
+            raise ValueError(f"{parameters.size} parameters are not 10 per body; pass body_names "
+                             "to check the inertial part of a vector with friction entries")
+        n = parameters.size // 10
+        names = [f"body{i + 1}" for i in range(n)]
+    else:
+        names = list(body_names)
+        n = len(names)
+        if parameters.size < 10 * n:
+            raise ValueError(f"{parameters.size} parameters for {n} bodies; need {10 * n}")
     return ConsistencyReport(level, tuple(
         check_body(parameters[10 * i:10 * i + 10], level, names[i], tol) for i in range(n)))
 

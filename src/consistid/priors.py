@@ -12,23 +12,36 @@ length. Weighted Euclidean: ``‖W (x − x_0)‖²``.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import cvxpy as cp
 import numpy as np
 
-from .constraints import pseudo_inertia
+from .constraints import BodyScaling, inertia_matrix
+from .parameters import inertia_about_origin, pseudo_inertia_map
 from .parameters import pseudo_inertia as pseudo_inertia_numeric
 
 
-def logdet_divergence(x: cp.Expression, prior: np.ndarray) -> cp.Expression:
-    """``d(J(x) ‖ J(prior))`` for one body; ``prior`` must have a positive definite ``J``."""
+def _check_prior_body(prior: np.ndarray) -> np.ndarray:
     j0 = pseudo_inertia_numeric(prior)
     eig = np.linalg.eigvalsh(j0)
     if eig[0] <= 0:
         raise ValueError(f"the prior pseudo-inertia is not positive definite (min eigenvalue "
                          f"{eig[0]:.3g}); the log-det prior needs a realizable prior body")
-    j = pseudo_inertia(x)
-    return (-cp.log_det(j) + float(np.sum(np.log(eig)))
-            + cp.trace(np.linalg.inv(j0) @ j) - 4.0)
+    return j0
+
+
+def logdet_divergence(x: cp.Expression, prior: np.ndarray) -> cp.Expression:
+    r"""``d(J(x) ‖ J(prior))`` for one body; ``prior`` must have a positive definite ``J``.
+
+    Built in the normalised form ``d = −log det Ĵ + tr Ĵ − 4`` with ``Ĵ = L⁻¹ J L⁻ᵀ``,
+    ``J₀ = L Lᵀ`` (identical value, since ``log det J₀ = 2 log det L`` and
+    ``tr(J₀⁻¹J) = tr Ĵ``), so that the cone the solver sees is ``1`` at the prior whatever the
+    body's size and units.
+    """
+    _check_prior_body(prior)
+    j_hat = BodyScaling.from_reference(np.asarray(prior, dtype=float)).pseudo_inertia(x)
+    return -cp.log_det(j_hat) + cp.trace(j_hat) - 4.0
 
 
 def logdet_divergence_value(x: np.ndarray, prior: np.ndarray) -> float:
@@ -40,6 +53,21 @@ def logdet_divergence_value(x: np.ndarray, prior: np.ndarray) -> float:
     return float(-logdet + np.linalg.slogdet(j0)[1] + np.trace(np.linalg.solve(j0, j)) - 4.0)
 
 
+def logdet_metric(prior: np.ndarray) -> np.ndarray:
+    r"""The (10, 10) ``W`` with ``‖W (x − x₀)‖² = ½ ‖L⁻¹ (J(x) − J₀) L⁻ᵀ‖²_F``.
+
+    This is the second-order expansion of the log-det divergence at the prior,
+    ``d(J₀ + Δ ‖ J₀) = ½ tr((J₀⁻¹Δ)²) + O(Δ³)``, so a Euclidean prior with these weights has the
+    same local curvature as the log-det prior (and, like it, does not depend on units or frame).
+    """
+    j0 = _check_prior_body(prior)
+    l_inv = np.linalg.inv(np.linalg.cholesky(j0))
+    # vec(L⁻¹ J L⁻ᵀ) = (L⁻¹ ⊗ L⁻¹) vec(J) = (L⁻¹ ⊗ L⁻¹) P x
+    m = np.kron(l_inv, l_inv) @ pseudo_inertia_map() / np.sqrt(2.0)
+    _, r = np.linalg.qr(m)
+    return r
+
+
 def euclidean(x: cp.Expression, prior: np.ndarray, weights: np.ndarray | None = None
               ) -> cp.Expression:
     """``‖W (x − prior)‖²`` with a diagonal (1-D ``weights``) or full ``W``; default ``W = 1``."""
@@ -48,3 +76,48 @@ def euclidean(x: cp.Expression, prior: np.ndarray, weights: np.ndarray | None = 
         return cp.sum_squares(diff)
     w = np.asarray(weights, dtype=float)
     return cp.sum_squares(cp.multiply(w, diff) if w.ndim == 1 else w @ diff)
+
+
+@dataclass(frozen=True)
+class Neighbourhood:
+    r"""Hard bounds around the prior body (the "neighbourhood constraints" of the Maestro
+    identification write-up, in ``consistid``'s shared seeds, made convex in ``π``).
+
+    Attributes
+    ----------
+    mass : relative mass bound ``α``: ``|m − m₀| ≤ α m₀`` (``None``: no bound).
+    com : CoM radius ``β`` in metres: ``‖c − c₀‖ ≤ β``, i.e. the second-order cone
+        ``‖h − m c₀‖ ≤ β m`` (convex because ``m > 0``).
+    inertia : relative bound ``δ`` on the inertia about the body origin:
+        ``‖I − I₀‖_F ≤ δ ‖I₀‖_F``.
+    """
+
+    mass: float | None = None
+    com: float | None = None
+    inertia: float | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("mass", "com", "inertia"):
+            value = getattr(self, name)
+            if value is not None and not (np.isfinite(value) and value >= 0):
+                raise ValueError(f"Neighbourhood.{name} must be a finite number ≥ 0, got {value}")
+
+
+def neighbourhood_constraints(x: cp.Expression, prior: np.ndarray,
+                              bounds: Neighbourhood) -> list[cp.Constraint]:
+    """The constraints of :class:`Neighbourhood` for one body (each row scaled by the prior)."""
+    prior = np.asarray(prior, dtype=float)
+    m0 = prior[0]
+    if not m0 > 0:
+        raise ValueError(f"neighbourhood bounds need a prior body with positive mass, got {m0}")
+    out = []
+    if bounds.mass is not None:
+        out.append(cp.abs(x[0] / m0 - 1.0) <= bounds.mass)
+    if bounds.com is not None:
+        c0 = prior[1:4] / m0
+        out.append(cp.norm(x[1:4] / m0 - (x[0] / m0) * c0) <= bounds.com * x[0] / m0)
+    if bounds.inertia is not None:
+        i0 = inertia_about_origin(prior)
+        norm0 = np.linalg.norm(i0)
+        out.append(cp.norm(inertia_matrix(x) / norm0 - i0 / norm0, "fro") <= bounds.inertia)
+    return out
