@@ -10,9 +10,10 @@ from . import simulate
 from .base import BaseParameters, compute_base_parameters
 from .dataset import Dataset
 from .errors import (ConsistidError, DatasetError, IdentificationError, InfeasibleError,
-                     JointCountError, MissingColumnsError, ModelError, OptionError,
-                     PoorExcitationError)
-from .excitation import FourierTrajectory
+                     InfeasibleExcitationError, JointCountError, MissingColumnsError, ModelError,
+                     OptionError, PoorExcitationError)
+from .excitation import (BoundaryConditions, ExcitationDesign, ExcitationLimits, FourierTrajectory,
+                         design_excitation)
 from .identify import identify
 from .model import RobotModel
 from .parameters import is_physically_consistent
@@ -22,9 +23,10 @@ from .result import IdentificationResult
 __version__ = "0.1.0"
 
 __all__ = [
-    "BaseParameters", "ConsistidError", "Dataset", "DatasetError", "FourierTrajectory",
+    "BaseParameters", "BoundaryConditions", "ConsistidError", "Dataset", "DatasetError",
+    "ExcitationDesign", "ExcitationLimits", "FourierTrajectory", "InfeasibleExcitationError",
     "IdentificationError", "IdentificationResult", "InfeasibleError", "JointCountError",
     "MissingColumnsError", "ModelError", "OptionError", "PoorExcitationError", "RegressorSpec",
-    "RobotModel", "compute_base_parameters", "identify", "is_physically_consistent", "regressor",
-    "simulate",
+    "RobotModel", "compute_base_parameters", "design_excitation", "identify",
+    "is_physically_consistent", "regressor", "simulate",
 ]

@@ -48,6 +48,16 @@ class PoorExcitationError(IdentificationError):
     """The data do not excite the base parameters: the base regressor is rank deficient."""
 
 
+class ExcitationError(ConsistidError, ValueError):
+    """An excitation trajectory cannot be built or evaluated as requested (boundary conditions,
+    via-point times, sampling outside a non-periodic trajectory)."""
+
+
+class InfeasibleExcitationError(ExcitationError):
+    """The excitation limits admit no trajectory (e.g. a zero velocity limit, a rest pose outside
+    the workspace), or no optimisation start ended feasible; names the joint/constraint."""
+
+
 class InconsistentParametersError(ConsistidError, ValueError):
     """Parameters that must be physically consistent are not (names the body and the violation)."""
 
