@@ -219,6 +219,18 @@ class Dataset:
             raise DatasetError(f"unknown dataset format {path.suffix!r}; use .npz or .csv")
 
     @classmethod
+    def from_recording(cls, t: np.ndarray, q: np.ndarray, tau: np.ndarray,
+                       **options) -> "Dataset":
+        """A dataset from a robot log: time stamps fixed, outliers removed, zero-phase filtered,
+        ``dq`` and ``ddq`` estimated (the default chain of :func:`consistid.signals.preprocess`,
+        which takes the ``options`` and also returns the record of the steps applied; here
+        the steps are logged at INFO level on the ``consistid.signals`` logger).
+        """
+        from .signals import preprocess  # signals imports this module
+
+        return preprocess(t, q, tau, **options).dataset
+
+    @classmethod
     def load(cls, path: str | Path, joint_names: Sequence[str] | None = None) -> "Dataset":
         """Read a dataset written by :meth:`save` (or any file with the documented columns)."""
         path = Path(path)

@@ -16,8 +16,9 @@ name            field(s)                    added drive torque
 ==============  ==========================  =================================================
 ``viscous``     ``viscous`` (N·m·s/rad)     :math:`f_v\,\dot q` (MuJoCo ``dof_damping``)
 ``coulomb``     ``coulomb`` (N·m),          :math:`f_c\operatorname{sign}\dot q` through
-                ``coulomb_model``           MuJoCo's ``frictionloss`` (a soft constraint:
-                                            exact once :math:`|\dot q|` exceeds a few mrad/s),
+                ``coulomb_model``           MuJoCo's ``frictionloss`` (a soft constraint,
+                                            tuned to be exact once :math:`|\dot q|` exceeds
+                                            ~0.01 rad/s at 1 kHz),
                                             or :math:`f_c\tanh(\dot q/v_s)` as an external
                                             torque (``coulomb_model="tanh"``, ``v_s`` =
                                             ``coulomb_speed``)
