@@ -113,3 +113,21 @@ def test_concatenate_keeps_segments_and_steps():
     assert np.array_equal(np.unique(both.dataset.segment), [0, 1])
     assert both.steps[0].startswith("[segment 0: arrays]")
     assert both.dataset.n_samples == r1.dataset.n_samples + r2.dataset.n_samples
+
+
+def test_raw_log_goes_through_the_signal_chain_and_is_trimmed_after_it():
+    rate, f = 500.0, 0.4
+    rng = np.random.default_rng(5)
+    t = T0 + np.arange(5000) / rate + rng.uniform(-1e-4, 1e-4, 5000)
+    t[100] = t[99]                                              # a duplicated stamp
+    w = 2 * np.pi * f * (t - T0)
+    q = np.column_stack([np.sin(w), 0.5 * np.cos(w)])
+    tau = np.column_stack([np.cos(w), np.sin(w)])
+    rec = from_arrays(t, q, tau, trim_start=1.0, cutoff=5.0)
+    text = "\n".join(rec.steps)
+    assert "1 duplicated time stamp(s)" in text and "signals.preprocess" in text
+    assert rec.dataset.t[0] >= 1.0
+    w_ds = 2 * np.pi * f * rec.dataset.t
+    inner = slice(50, -50)
+    np.testing.assert_allclose(rec.dataset.dq[inner, 0], 2 * np.pi * f * np.cos(w_ds[inner]),
+                               atol=2e-3)

@@ -17,6 +17,7 @@ from .excitation import (BoundaryConditions, ExcitationDesign, ExcitationLimits,
 from .identify import identify
 from .model import RobotModel
 from .parameters import is_physically_consistent
+from .recordings import load_recording
 from .regressor import RegressorSpec, regressor
 from .result import IdentificationResult
 
@@ -28,5 +29,5 @@ __all__ = [
     "IdentificationError", "IdentificationResult", "InfeasibleError", "JointCountError",
     "MissingColumnsError", "ModelError", "OptionError", "PoorExcitationError", "RegressorSpec",
     "RobotModel", "compute_base_parameters", "design_excitation", "identify",
-    "is_physically_consistent", "regressor", "simulate",
+    "is_physically_consistent", "load_recording", "regressor", "simulate",
 ]

@@ -45,6 +45,33 @@ def demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def identify(args: argparse.Namespace) -> int:
+    """Identify from the recordings of a TOML configuration (:mod:`consistid.config`)."""
+    import consistid as ci
+    from consistid.config import config_model, config_recordings, load_config
+    from consistid.validation import score, scores_table
+
+    config = load_config(args.config)
+    model = config_model(config)
+    train, held = config_recordings(config, model)
+    _log(str(train))
+    if held is not None:
+        _log(str(held))
+    options = config.table("identify", required=False)
+    _log(f"identifying {model.name} on {train.dataset.n_samples} samples "
+         f"({', '.join(f'{k}={v!r}' for k, v in options.items()) or 'defaults'})")
+    t0 = time.perf_counter()
+    res = ci.identify(model, train.dataset, **options)
+    _log(f"      done in {time.perf_counter() - t0:.2f} s")
+    print(res.summary(max_rows=None if args.all else 20))
+    scored = [score(res, train.dataset, "train")]
+    if held is not None:
+        scored.append(score(res, held.dataset, "held-out"))
+    print("\nTorque fit: relative error per joint and total (%), RMS (N·m)")
+    print(scores_table(scored))
+    return 0
+
+
 def excite(args: argparse.Namespace) -> int:
     """Design an optimal excitation trajectory (:mod:`consistid.excitation.config`), write CSV."""
     from consistid.excitation.config import load_config
@@ -61,6 +88,7 @@ def excite(args: argparse.Namespace) -> int:
 
 COMMANDS: dict[str, tuple[Callable[[argparse.Namespace], int], str]] = {
     "demo": (demo, "simulate an excitation run, identify it, print a report"),
+    "identify": (identify, "identify a robot from the logs named in a TOML config"),
     "excite": (excite, "design an optimal excitation trajectory from a TOML config, write CSV"),
 }
 
@@ -74,6 +102,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--rate", type=float, default=500.0, help="sampling rate in Hz")
     p.add_argument("--noise", type=float, default=0.1, help="torque noise σ in N·m")
     p.add_argument("--seed", type=int, default=0)
+    p = sub.add_parser("identify", help=COMMANDS["identify"][1])
+    p.add_argument("config", help="TOML file with [model], [data] and [identify] tables")
+    p.add_argument("--all", action="store_true", help="list every base parameter")
     p = sub.add_parser("excite", help=COMMANDS["excite"][1])
     p.add_argument("config", help="TOML file with [model] and [excite] tables")
     p.add_argument("--output", help="CSV path (default: [excite] output)")

@@ -28,6 +28,10 @@ class JointNameError(DatasetError):
     """A log's joint names do not match the model's (lists the names missing on each side)."""
 
 
+class ConfigError(ConsistidError, ValueError):
+    """A run configuration (TOML) is missing a table or key, or has an unknown one."""
+
+
 class OptionError(ConsistidError, ValueError):
     """An option takes a value outside its allowed set; the message lists the allowed values."""
 

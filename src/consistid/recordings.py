@@ -16,14 +16,16 @@ what was done:
    squares works on samples, not on a time grid; gaps longer than :data:`GAP_FACTOR` median steps
    are reported.
 3. **Derivatives**: logged velocities and accelerations are used as recorded (the log is taken
-   to be filtered already; nothing is filtered again). A log without them goes through
-   ``Dataset.from_recording`` (the :mod:`consistid.signals` chain), whose steps are appended.
+   to be filtered already; nothing is filtered again). A raw log without them goes through
+   :func:`consistid.signals.preprocess` (filtering, differentiation, resampling of jittered
+   stamps, edge trimming), whose steps are appended.
 4. **Joint names**: the log's columns are matched to the model's joints by name and reordered
    to the model's order; a name missing on either side raises
    :class:`~consistid.errors.JointNameError` listing both sides. A log without names must have
    exactly the model's joint count and is taken to be in the model's order (recorded as a step).
-5. **Trimming** (the rule): samples with ``t < t₀ + trim_start`` or ``t > t_end − trim_end`` are
-   dropped. The start of an excitation run — the move away from rest and the filters' start-up —
+5. **Trimming** (the rule): samples with ``t < trim_start`` or ``t > t_end − trim_end`` are
+   dropped, ``t`` counted from the log's first stamp and ``t_end`` its last (after the signal
+   chain for raw logs, so its filter edges fall inside the trimmed part where they overlap). The start of an excitation run — the move away from rest and the filters' start-up —
    is not described by a steady friction model; how long it lasts depends on the set-up, so the
    durations are explicit arguments (0 by default) and always recorded. For the KUKA LWR4+ logs
    the tutorial measures it (``docs/tutorial_real_kuka.md``): 2 s.
@@ -185,7 +187,8 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
     t : (N,) time stamps in s (any origin, e.g. Unix time); non-decreasing.
     q, tau : (N, n) joint positions (rad or m) and measured joint torques (N·m or N).
     dq, ddq : (N, n) logged velocities and accelerations, used as recorded; both ``None``
-        to estimate them with ``Dataset.from_recording`` (``signal_options`` are passed on).
+        to estimate them with :func:`consistid.signals.preprocess` (``signal_options`` are
+        passed on, e.g. ``cutoff``, ``derivative``).
     joint_names : names of the log's columns, matched to ``model``'s joints.
     model : the robot; its joint order is the dataset's.
     trim_start, trim_end : seconds dropped at the start and at the end (the trimming rule).
@@ -230,7 +233,7 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
         spread = (f"sampling {1.0 / med:.1f} Hz median; steps {dt.min() * 1e3:.2f}–"
                   f"{dt.max() * 1e3:.2f} ms")
         uniform = dt.max() - dt.min() <= 1e-6 * med
-        spread += " (uniform)" if uniform else " (non-uniform: samples kept at their own stamps)"
+        spread += " (uniform)" if uniform else " (non-uniform)"
         gaps = np.flatnonzero(dt > GAP_FACTOR * med)
         if gaps.size:
             spread += (f"; {gaps.size} gap(s) longer than {GAP_FACTOR:g} median steps, first "
@@ -243,47 +246,34 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
     if trim_start < 0 or trim_end < 0 or not np.isfinite(trim_start + trim_end):
         raise DatasetError(f"{source}: trim_start and trim_end must be finite seconds ≥ 0, got "
                            f"{trim_start}, {trim_end}")
-    keep = (t >= t[0] + trim_start) & (t <= t[-1] - trim_end)
-    if not keep.any():
-        raise DatasetError(f"{source}: trimming {trim_start} s at the start and {trim_end} s at "
-                           f"the end leaves no sample of {t[-1] - t[0]:.3f} s")
-    if trim_start or trim_end:
-        first, last = np.flatnonzero(keep)[[0, -1]]
-        steps.append(f"trimmed {trim_start:g} s at the start ({first} samples) and {trim_end:g} s "
-                     f"at the end ({t.size - 1 - last} samples): kept t ∈ [{t[first]:.4f}, "
-                     f"{t[last]:.4f}] s")
-    else:
-        steps.append("not trimmed")
-    t = t[keep]
-    arrays = {k: a[keep] for k, a in arrays.items()}
     if "dq" in arrays:
         steps.append("velocities and accelerations used as logged (taken as already filtered; "
-                     "not filtered again)")
+                     "not filtered again); samples kept at their own time stamps (least squares "
+                     "uses samples, not a time grid)")
         dataset = Dataset(t=t, q=arrays["q"], dq=arrays["dq"], ddq=arrays["ddq"],
                           tau=arrays["tau"], joint_names=names)
     else:
-        dataset, more = _estimate_derivatives(t, arrays["q"], arrays["tau"], names, source,
-                                              signal_options)
-        steps.extend(more)
+        from .signals import preprocess  # the chain for raw logs
+
+        pre = preprocess(t, arrays["q"], arrays["tau"], joint_names=names, **signal_options)
+        steps.append(f"no logged velocities/accelerations: signals.preprocess ({pre.dataset.n_samples}"
+                     f" samples at {pre.rate:.6g} Hz, cut-off {pre.cutoff:.4g} Hz):")
+        steps.extend(f"  {s}" for s in pre.steps)
+        dataset = pre.dataset
+    end = t[-1]
+    keep = (dataset.t >= trim_start) & (dataset.t <= end - trim_end)
+    if not keep.any():
+        raise DatasetError(f"{source}: trimming {trim_start} s at the start and {trim_end} s at "
+                           f"the end leaves no sample of {end:.3f} s")
+    if trim_start or trim_end:
+        first, last = np.flatnonzero(keep)[[0, -1]]
+        steps.append(f"trimmed {trim_start:g} s at the start ({first} samples) and {trim_end:g} s "
+                     f"at the end ({dataset.n_samples - 1 - last} samples): kept t ∈ "
+                     f"[{dataset.t[first]:.4f}, {dataset.t[last]:.4f}] s")
+        dataset = dataset.select(keep)
+    else:
+        steps.append("not trimmed")
     return Recording(dataset, tuple(steps), source, t0)
-
-
-def _estimate_derivatives(t: np.ndarray, q: np.ndarray, tau: np.ndarray,
-                          names: tuple[str, ...] | None, source: str,
-                          options: Mapping[str, object]) -> tuple[Dataset, list[str]]:
-    """``Dataset.from_recording`` (the signals chain) and the steps it reports."""
-    build = getattr(Dataset, "from_recording", None)
-    if build is None:
-        raise MissingColumnsError(f"{source} has no velocities/accelerations and this consistid "
-                                  "has no signal chain (Dataset.from_recording) to estimate them")
-    out = build(t, q, tau, joint_names=names, **options)
-    dataset = getattr(out, "dataset", out)
-    steps = getattr(out, "steps", None) or getattr(dataset, "steps", None)
-    if steps:
-        return dataset, ["velocities and accelerations estimated by Dataset.from_recording:",
-                         *(f"  {s}" for s in steps)]
-    return dataset, ["velocities and accelerations estimated by Dataset.from_recording "
-                     "(its default chain; it reported no steps)"]
 
 
 def _resolve_layout(files: Sequence[str], keys: str | Mapping[str, str], source: str

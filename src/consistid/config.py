@@ -1,0 +1,150 @@
+r"""TOML run configurations: a robot model and recordings, for the ``consistid`` commands.
+
+A configuration names the URDF and the logs once, so that ``consistid identify CONFIG`` (and
+other commands that read the same ``[model]`` / ``[data]`` tables) run on a user's robot without
+code. Example (``examples/kuka_lwr4/identify.toml``)::
+
+    root = "../.."                        # where relative paths start, relative to this file
+
+    [model]
+    urdf = "../shared/data/kuka_lwr4/kuka_lwr4.urdf"
+    strip_dynamics = false                # true: load a copy without <dynamics> tags
+    # locked_joints = ["finger_joint"]     gravity = [0.0, 0.0, -9.81]
+
+    [data]
+    dir = "../shared/data/kuka_lwr4"      # prefix of the files below (optional)
+    keys = "flobaroid"                    # or "auto", "consistid", or {t = "times", q = ..., ...}
+    joint_names = ["lwr_0_joint", "lwr_1_joint", ...]
+    trim_start = 2.0                      # seconds dropped at the start of each recording
+    trim_end = 0.0
+    duplicates = "average"
+    train = ["measurements_2.npz", "measurements_3.npz"]
+    held_out = ["measurements_1.npz"]
+
+    [identify]                            # keyword arguments of consistid.identify
+    method = "sdp"
+    friction = ["coulomb", "viscous", "offset"]
+
+Relative paths are resolved against ``root``, itself relative to the configuration file's folder
+(default: that folder), never against the current directory, so a configuration works from
+anywhere. Unknown keys raise :class:`~consistid.errors.ConfigError` naming the table and the key.
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Mapping
+
+from .errors import ConfigError
+from .model import RobotModel
+from .recordings import Recording, load_recording
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - exercised on Python 3.10 only
+    import tomli as tomllib
+
+MODEL_KEYS = ("urdf", "strip_dynamics", "locked_joints", "gravity", "name")
+DATA_KEYS = ("dir", "keys", "joint_names", "trim_start", "trim_end", "duplicates", "train",
+             "held_out")
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """A parsed configuration.
+
+    Attributes
+    ----------
+    path : the configuration file.
+    root : the folder relative paths start from.
+    tables : the raw TOML tables (``model``, ``data``, ``identify``, ``diagnose`` …).
+    """
+
+    path: Path
+    root: Path
+    tables: Mapping[str, Any]
+
+    def table(self, name: str, allowed: tuple[str, ...] | None = None,
+              required: bool = True) -> dict[str, Any]:
+        """A table; with ``allowed``, unknown keys raise :class:`ConfigError`."""
+        value = self.tables.get(name)
+        if value is None:
+            if required:
+                raise ConfigError(f"{self.path.name}: missing table [{name}]")
+            return {}
+        if not isinstance(value, Mapping):
+            raise ConfigError(f"{self.path.name}: [{name}] must be a table, got {value!r}")
+        if allowed is not None:
+            unknown = sorted(set(value) - set(allowed))
+            if unknown:
+                raise ConfigError(f"{self.path.name}: unknown key(s) {unknown} in [{name}]; "
+                                  f"allowed: {list(allowed)}")
+        return dict(value)
+
+    def resolve(self, value: str, *, under: str | None = None) -> Path:
+        """A path from the configuration: absolute as is, else relative to ``root`` (then to
+        ``under``, itself relative to ``root``, when given)."""
+        p = Path(value).expanduser()
+        if p.is_absolute():
+            return p
+        base = self.root if under is None else self.resolve(under)
+        return (base / p).resolve()
+
+
+def load_config(path: str | Path) -> RunConfig:
+    """Read a TOML configuration (module docstring for the layout)."""
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError(f"configuration file {str(path)!r} does not exist")
+    try:
+        with open(path, "rb") as fh:
+            tables = tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{path.name} is not valid TOML: {exc}") from exc
+    root = tables.pop("root", ".")
+    if not isinstance(root, str):
+        raise ConfigError(f"{path.name}: root must be a path string, got {root!r}")
+    return RunConfig(path.resolve(), (path.resolve().parent / root).resolve(), tables)
+
+
+def config_model(config: RunConfig) -> RobotModel:
+    """The robot of the ``[model]`` table."""
+    t = config.table("model", MODEL_KEYS)
+    if "urdf" not in t:
+        raise ConfigError(f"{config.path.name}: [model] needs urdf = \"path/to/robot.urdf\"")
+    urdf = config.resolve(t["urdf"])
+    kwargs: dict[str, Any] = {"locked_joints": t.get("locked_joints", ())}
+    for key in ("gravity", "name"):
+        if key in t:
+            kwargs[key] = t[key]
+    if t.get("strip_dynamics", False):
+        from .urdf import model_without_dynamics
+
+        return model_without_dynamics(urdf, **kwargs)[0]
+    return RobotModel.from_urdf(urdf, **kwargs)
+
+
+def config_recordings(config: RunConfig, model: RobotModel | None = None
+                      ) -> tuple[Recording, Recording | None]:
+    """The ``train`` recordings (stacked as segments) and the ``held_out`` ones (or ``None``)
+    of the ``[data]`` table, each trimmed and matched to ``model``'s joints."""
+    t = config.table("data", DATA_KEYS)
+    if not t.get("train"):
+        raise ConfigError(f"{config.path.name}: [data] needs train = [\"file.npz\", ...]")
+    options = {k: t[k] for k in ("joint_names", "trim_start", "trim_end", "duplicates") if k in t}
+    keys = t.get("keys", "auto")
+
+    def read(files: Any, what: str) -> Recording:
+        if isinstance(files, str):
+            files = [files]
+        if not isinstance(files, list) or not all(isinstance(f, str) for f in files):
+            raise ConfigError(f"{config.path.name}: [data] {what} must be a list of file names, "
+                              f"got {files!r}")
+        recs = [load_recording(config.resolve(f, under=t.get("dir")), keys, model=model,
+                               **options) for f in files]
+        return recs[0] if len(recs) == 1 else Recording.concatenate(recs)
+
+    held = t.get("held_out")
+    return read(t["train"], "train"), (read(held, "held_out") if held else None)
