@@ -52,6 +52,18 @@ class PoorExcitationError(IdentificationError):
     """The data do not excite the base parameters: the base regressor is rank deficient."""
 
 
+class UnrealizableCoefficientsError(InfeasibleError):
+    """No physically consistent standard parameters reproduce the given base coefficients.
+
+    ``moves`` holds the smallest (weighted L1) changes of the named coefficients that would make
+    them realisable (:class:`consistid.recover.CoefficientMove`).
+    """
+
+    def __init__(self, message: str, moves: tuple = ()) -> None:
+        super().__init__(message)
+        self.moves = tuple(moves)
+
+
 class ExcitationError(ConsistidError, ValueError):
     """An excitation trajectory cannot be built or evaluated as requested (boundary conditions,
     via-point times, sampling outside a non-periodic trajectory)."""

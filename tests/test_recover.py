@@ -1,0 +1,130 @@
+"""Base → consistent standard recovery: exact reproduction, nearest mode, diagnostics, statuses."""
+
+import numpy as np
+import pytest
+
+import consistid as ci
+from consistid.errors import (IdentificationError, InfeasibleError, ModelError, OptionError,
+                              UnrealizableCoefficientsError)
+from consistid.identify import nearest_standard
+from consistid.parameters import from_mass_com_inertia, is_physically_consistent, perturb
+from consistid.recover import recover_standard
+from consistid.regressor import regressor
+
+from .conftest import random_states
+
+
+@pytest.fixture(scope="module")
+def setup(panda):
+    base = ci.compute_base_parameters(panda)
+    truth = perturb(panda.prior_parameters, 0.2, np.random.default_rng(1))
+    return base, truth
+
+
+@pytest.fixture(scope="module")
+def noisy_ols(panda, setup):
+    """OLS coefficients from heavily noisy data (1 N·m): not realisable as they stand."""
+    _, truth = setup
+    run = ci.simulate.excitation_run(panda, truth, duration=10.0, rate=200.0, torque_noise=1.0,
+                                     seed=1)
+    return run.dataset, ci.identify(panda, run.dataset, method="ols", friction=None)
+
+
+@pytest.mark.parametrize("prior", ["logdet", "euclidean"])
+def test_exact_reproduces_truth_coefficients(panda, setup, prior):
+    base, truth = setup
+    beta = base.project(truth)
+    rec = recover_standard(panda, beta, prior=prior)
+    assert [s.status for s in rec.solver] == ["optimal"]
+    assert np.max(np.abs(rec.residual) / np.maximum(np.abs(beta), 1.0)) < 1e-6
+    assert rec.check(tol=1e-6).ok
+    # every body, including those most of whose columns vanish (panda_link1), is consistent
+    assert np.all(rec.margins > 0) and is_physically_consistent(
+        rec.inertial_parameters, body_names=panda.body_names).ok
+    # same coefficients ⇒ same torques, checked on fresh states against the truth itself
+    q, dq, ddq = random_states(panda, 20, seed=5)
+    y = regressor(panda, q, dq, ddq)
+    assert np.max(np.abs(y @ rec.parameters - y @ truth)) < 1e-5
+
+
+def test_bodies_with_vanishing_columns_are_constrained(panda, setup):
+    """A truth whose link 1 is a thin rod along z: the coefficient fixes link1.Izz (+ grouped
+    terms) only, and the prior's other link-1 values with that Izz are not realisable. The
+    recovered link 1 must be consistent anyway (FIGAROH left such bodies unconstrained)."""
+    base, truth = setup
+    rod = truth.copy()
+    rod[0:10] = from_mass_com_inertia(4.0, [0.0, 0.0, -0.1], np.diag([0.05, 0.05, 2e-4]))
+    beta = base.project(rod)
+    naive = nearest_standard(base, beta, panda.prior_parameters)   # ignores consistency
+    assert not is_physically_consistent(naive, body_names=panda.body_names).bodies[0].ok
+    rec = recover_standard(panda, beta, prior="euclidean")
+    assert rec.consistency.bodies[0].ok and np.all(rec.margins > 0)
+    assert np.max(np.abs(rec.residual)) < 1e-6
+
+
+def test_nearest_on_noisy_ols_reports_moves(panda, noisy_ols):
+    data, res = noisy_ols
+    with pytest.raises(UnrealizableCoefficientsError) as info:
+        recover_standard(panda, res)
+    named = info.value.moves
+    assert named and all(m.grouping in res.base.groupings for m in named)
+    assert "β" in str(info.value) and "nearest" in str(info.value)
+    rec = recover_standard(panda, res, mode="nearest")
+    assert rec.is_consistent and rec.consistency.ok
+    assert rec.moves and rec.moves[0].grouping in res.base.groupings
+    recovered = rec.recovered_base
+    for m in rec.moves:
+        assert m.recovered == pytest.approx(recovered[m.index], abs=1e-12)
+        assert m.given == res.base_parameters[m.index]
+        assert abs(m.sigmas) >= 1e-3
+    # nearest: it moves the coefficients by a fraction of their standard deviation only
+    assert max(abs(m.sigmas) for m in rec.moves) < 1.0
+    assert rec.distance == pytest.approx(
+        float(np.sum((np.linalg.solve(np.linalg.cholesky(res.base_covariance),
+                                      recovered - res.base_parameters)) ** 2)), rel=1e-6)
+    check = rec.check(data)
+    assert check.ok and np.max(check.torque_difference) < 0.05
+    assert "moved" in rec.summary() and "panda_link2" in rec.summary()
+
+
+def test_infeasibility_names_the_unrealisable_coefficient(panda, setup):
+    """Izz about a body's origin is ≥ 0 for any mass distribution: a negative value alone can
+    only be fixed by moving that coefficient."""
+    base, truth = setup
+    beta = base.project(truth)
+    k = base.groupings.index("panda_link7.Izz")
+    beta[k] = -0.01
+    with pytest.raises(UnrealizableCoefficientsError) as info:
+        recover_standard(panda, beta)
+    moves = {m.index: m for m in info.value.moves}
+    assert k in moves and moves[k].change >= 0.01 - 1e-6
+    assert "panda_link7.Izz" in str(info.value)
+
+
+def test_friction_coefficients_are_recovered_and_kept_nonnegative(panda, setup):
+    _, truth = setup
+    fr = ("coulomb", "viscous", "offset")
+    theta = np.concatenate([truth, np.linspace(0.2, 0.8, 7), np.linspace(0.1, 0.4, 7),
+                            np.zeros(7)])
+    run = ci.simulate.excitation_run(panda, theta, duration=10.0, rate=200.0, torque_noise=0.05,
+                                     friction=fr, seed=4)
+    res = ci.identify(panda, run.dataset, method="ols", friction=fr)
+    rec = recover_standard(panda, res, mode="nearest")
+    friction = rec.parameters[panda.n_inertial:panda.n_inertial + 14]
+    assert np.all(friction >= -1e-9)
+    assert np.allclose(friction, theta[70:84], atol=0.05)
+
+
+def test_status_and_input_errors(panda, setup):
+    base, truth = setup
+    beta = base.project(truth)
+    with pytest.raises(IdentificationError, match="NOT_A_SOLVER"):
+        recover_standard(panda, beta, solver="NOT_A_SOLVER")
+    with pytest.raises(InfeasibleError):              # J ⪰ 10·J₀ cannot match these masses
+        recover_standard(panda, beta, margin=10.0)
+    with pytest.raises(ModelError, match="43"):
+        recover_standard(panda, beta[:-1])
+    with pytest.raises(OptionError):
+        recover_standard(panda, beta, mode="closest")
+    with pytest.raises(OptionError, match="positive definite"):
+        recover_standard(panda, beta, covariance=-np.eye(beta.size))
