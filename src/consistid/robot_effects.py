@@ -361,7 +361,7 @@ def measure_torque(t: np.ndarray, t_fine: np.ndarray, tau_fine: np.ndarray, effe
             raise ModelError(f"effects.delay[{j}] = {delay[j]} s reaches before the start of the "
                              "simulation; simulate a longer settling time")
         out[:, j] = np.interp(shifted, t_fine, tau_fine[:, j])
-    out = (1.0 + np.asarray(effects.torque_gain)) * out + np.asarray(effects.torque_offset)
+    out = sensor_torque(effects, out)
     return out + np.asarray(effects.torque_noise) * rng.standard_normal(out.shape)
 
 
@@ -372,3 +372,38 @@ def measure_position(q_sensor: np.ndarray, effects: Effects,
     q = q_sensor + np.asarray(effects.position_noise) * rng.standard_normal(q_sensor.shape)
     step = np.asarray(effects.quantisation)
     return np.where(step > 0, np.round(q / np.where(step > 0, step, 1.0)) * step, q)
+
+
+# --------------------------------------------------------------------------------- closed forms
+def effect_torque(model: RobotModel, effects: Effects, q: np.ndarray, dq: np.ndarray,
+                  ddq: np.ndarray) -> np.ndarray:
+    r"""The drive torque the dynamic effects add to the rigid-body model, (N, nv).
+
+    .. math:: \Delta\tau = f_v \dot q + f_c s(\dot q) + I_a \ddot q + Y_p(q,\dot q,\ddot q)\,\pi_p
+
+    with ``s = sign`` for ``"frictionloss"`` (what MuJoCo applies once ``|q̇|`` ≳ 0.01 rad/s)
+    or ``tanh(·/v_s)``, and ``Y_p π_p`` the payload through the regressor of the body that
+    carries it. Zero on elastic joints, whose torque sensor reads the link-side torque only.
+    Sensor effects are not included (see :func:`sensor_torque`).
+    """
+    eff = effects if effects.resolved else effects.for_model(model)
+    q, dq, ddq = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (q, dq, ddq))
+    fc = np.asarray(eff.coulomb)
+    s = np.sign(dq) if eff.coulomb_model == "frictionloss" else np.tanh(dq / eff.coulomb_speed)
+    out = np.asarray(eff.viscous) * dq + fc * s + np.asarray(eff.armature) * ddq
+    if eff.payload is not None:
+        joint, p = eff.payload.parameters(model)
+        pm = model.pin_model
+        data = pm.createData()
+        cols = slice(10 * joint, 10 * joint + 10)
+        for k in range(q.shape[0]):
+            y = pin.computeJointTorqueRegressor(pm, data, model.configuration(q[k]), dq[k], ddq[k])
+            out[k] += y[:, cols] @ p
+    return np.where(eff.elastic, 0.0, out)
+
+
+def sensor_torque(effects: Effects, tau: np.ndarray) -> np.ndarray:
+    """What the torque sensor reports for the torque ``tau`` without delay and noise:
+    ``(1 + g) τ + o``. ``effects`` must be resolved."""
+    effects._require_resolved()
+    return (1.0 + np.asarray(effects.torque_gain)) * tau + np.asarray(effects.torque_offset)
