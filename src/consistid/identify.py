@@ -144,4 +144,4 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset], method: st
     from .sdp import identify_sdp
 
     return identify_sdp(model, problem, base, spec, constraints=constraints, prior=prior,
-                        **options)
+                        dataset=dataset, **options)

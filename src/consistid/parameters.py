@@ -69,9 +69,18 @@ def to_mass_com_inertia(p: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
 
 
 def from_mass_com_inertia(m: float, c: Sequence[float], inertia_com: np.ndarray) -> np.ndarray:
-    """10-vector from mass, CoM and inertia about the CoM (``pinocchio.Inertia``)."""
-    return np.array(pin.Inertia(float(m), np.asarray(c, float), np.asarray(inertia_com, float))
-                    .toDynamicParameters())
+    """10-vector from mass, CoM and inertia about the CoM: ``h = m c``,
+    ``I = I_c + m [c]_×ᵀ[c]_×`` (what ``pinocchio.Inertia(m, c, I_c).toDynamicParameters()``
+    gives, but also for inconsistent input, which Pinocchio refuses, so that it can be checked).
+    """
+    c = np.asarray(c, dtype=float)
+    inertia_com = np.asarray(inertia_com, dtype=float)
+    if c.shape != (3,) or inertia_com.shape != (3, 3):
+        raise ValueError(f"c must have shape (3,) and inertia_com (3, 3), got {c.shape} and "
+                         f"{inertia_com.shape}")
+    cx = pin.skew(c)
+    i = 0.5 * (inertia_com + inertia_com.T) - float(m) * cx @ cx
+    return np.array([m, *(float(m) * c), i[0, 0], i[0, 1], i[1, 1], i[0, 2], i[1, 2], i[2, 2]])
 
 
 def pseudo_inertia(p: np.ndarray) -> np.ndarray:
