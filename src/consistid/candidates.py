@@ -16,7 +16,12 @@ Effects and their signatures (what each looks like in the residual ``r = τ − 
     Rigid-body parameter mismatch: ``r = W_b δβ`` with ``W_b`` the base regressor (Gautier 1991,
     doi:10.1002/rob.4620080405). Couples joints, scales with q̈ and with gravity-loaded poses.
 ``coulomb``
-    ``r_j = f_c sign(q̇_j)``: a step at ``q̇_j = 0`` in residual-versus-velocity.
+    ``r_j = f_c L[tanh(q̇_j / v_s)]`` (``v_s = 0``: ``sign``): a step at ``q̇_j = 0`` in
+    residual-versus-velocity. ``v_s`` (a smooth friction law) is chosen from
+    :data:`COULOMB_SPEEDS` and ``L`` from :data:`FILTER_CUTOFFS` on the training data: ``L`` is
+    the identity, or, when the torques were low-pass filtered, the zero-phase Butterworth filter
+    of the signal chain (:func:`consistid.signals.lowpass`) at cut-off ``f_c``, which smears the
+    step over its response time and does not commute with the sign.
 ``viscous``
     ``r_j = f_v q̇_j``: a straight line through the origin in residual-versus-velocity.
 ``offset``
@@ -41,19 +46,22 @@ Effects and their signatures (what each looks like in the residual ``r = τ − 
     frequency towards the joint resonance.
 ``ripple``
     Position-dependent torque ripple (cogging, gear-tooth or encoder eccentricity), periodic in
-    the joint angle: ``r_j = a sin(k q_j) + b cos(k q_j)`` with integer ``k ≥ 3`` cycles per
-    radian found by a periodogram search (orders 1–2 are left to ``inertia``, whose gravity terms
-    are harmonics of the same order).
+    the joint angle: ``r_j = L[a sin(k q_j) + b cos(k q_j)]`` with integer ``k ≥ 3`` cycles per
+    radian found by a periodogram search (orders 1–2 are left to ``inertia``, whose gravity
+    terms are harmonics of the same order), and ``L`` the identity or, for low-pass filtered
+    torques, the chain's filter at a cut-off chosen from :data:`FILTER_CUTOFFS` and refined
+    between its grid neighbours: ``k q̇_j / 2π`` easily exceeds the cut-off.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 from typing import Callable
 
 import numpy as np
 import pinocchio as pin
+import scipy.optimize
 import scipy.signal
 
 from .base import BaseParameters, compute_base_parameters
@@ -85,6 +93,13 @@ UNITS = {"inertia": "", "coulomb": "N·m", "viscous": "N·m·s/rad", "offset": "
          "ripple": "N·m"}
 
 INERTIAL_UNITS = dict(zip(INERTIAL_NAMES, ("kg", "kg·m", "kg·m", "kg·m", *["kg·m²"] * 6)))
+
+#: Smoothing speeds (rad/s) tried for the ``coulomb`` atom; 0 is the sign function.
+COULOMB_SPEEDS: tuple[float, ...] = (0.0, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1)
+
+#: Low-pass cut-offs (Hz) tried for Coulomb steps and ripple seen through filtered torques;
+#: ``inf``: unfiltered.
+FILTER_CUTOFFS: tuple[float, ...] = (np.inf, 50.0, 30.0, 20.0, 12.0, 8.0, 5.0, 3.0, 2.0)
 
 #: Savitzky–Golay window (s) for the time derivatives of the nominal torque (delay, elasticity).
 DERIVATIVE_WINDOW = 0.04
@@ -212,7 +227,10 @@ class Atom:
     joint : the joint index it acts on, or ``None`` for an arm-wide atom.
     parameter_names : names of its parameters (columns), e.g. ``("panda_joint2.fc",)``.
     units : unit of each parameter.
-    setting : the nonlinear setting fixed before the linear fit (ripple order ``k``), or ``None``.
+    setting : the nonlinear setting fixed before the linear fit (ripple order ``k``, Coulomb
+        smoothing speed ``v_s``), or ``None``.
+    cutoff : for Coulomb and ripple, the low-pass cut-off (Hz) through which the torque sees
+        them (``inf``: none).
     """
 
     effect: str
@@ -220,6 +238,7 @@ class Atom:
     parameter_names: tuple[str, ...]
     units: tuple[str, ...]
     setting: float | None = None
+    cutoff: float = np.inf
 
     @property
     def n_parameters(self) -> int:
@@ -227,8 +246,51 @@ class Atom:
 
     def label(self, joint_names: list[str]) -> str:
         where = "all joints" if self.joint is None else joint_names[self.joint]
-        extra = f", k={self.setting:g}" if self.setting is not None else ""
+        extra = ""
+        if self.setting is not None and self.effect == "ripple":
+            extra = f", k={self.setting:g}"
+        elif self.setting:
+            extra = f", v_s={self.setting:g}"
+        if np.isfinite(self.cutoff):
+            extra += f", seen below {self.cutoff:.3g} Hz"
         return f"{self.effect} ({where}{extra})"
+
+
+def lowpass_segments(dataset: Dataset, x: np.ndarray, cutoff: float) -> np.ndarray:
+    """``x`` (N,) or (N, m) through the signal chain's zero-phase Butterworth low-pass
+    (:func:`consistid.signals.lowpass`) at ``cutoff`` Hz, per recording segment (resampled to a
+    uniform grid at its median step and back when the steps vary); ``inf``: ``x`` unchanged."""
+    if not np.isfinite(cutoff):
+        return x
+    from .signals import lowpass
+
+    flat = x.reshape(x.shape[0], -1)
+    out = np.empty_like(flat)
+    for s in np.unique(dataset.segment):
+        idx = np.flatnonzero(dataset.segment == s)
+        t = dataset.t[idx]
+        if idx.size < 8:
+            out[idx] = flat[idx]
+            continue
+        dt = float(np.median(np.diff(t)))
+        rate = 1.0 / dt
+        if cutoff >= 0.45 * rate:
+            out[idx] = flat[idx]
+            continue
+        uniform = np.ptp(np.diff(t)) <= 1e-6 * dt
+        if uniform:
+            out[idx] = lowpass(flat[idx], cutoff, rate)
+        else:
+            grid = t[0] + dt * np.arange(int(np.floor((t[-1] - t[0]) / dt)) + 1)
+            xi = np.column_stack([np.interp(grid, t, c) for c in flat[idx].T])
+            yi = lowpass(xi, cutoff, rate)
+            out[idx] = np.column_stack([np.interp(t, grid, c) for c in yi.T])
+    return out.reshape(x.shape)
+
+
+def smooth_sign(x: np.ndarray, speed: float) -> np.ndarray:
+    """``tanh(x / speed)``, or ``sign(x)`` when ``speed`` is 0."""
+    return np.sign(x) if speed <= 0 else np.tanh(x / speed)
 
 
 def _on_row(data: GapData, joint: int, cols: np.ndarray) -> np.ndarray:
@@ -291,8 +353,9 @@ class EffectLibrary:
                 for j in range(self.model.nv):
                     k = self.ripple_order(tuning, tuning_residual[:, j], j)
                     if k is not None:
-                        out.append(Atom(e, j, (f"{names[j]}.ripple_sin", f"{names[j]}.ripple_cos"),
-                                        ("N·m", "N·m"), float(k)))
+                        atom = Atom(e, j, (f"{names[j]}.ripple_sin", f"{names[j]}.ripple_cos"),
+                                    ("N·m", "N·m"), float(k))
+                        out.append(self.tune_cutoff(tuning, tuning_residual[:, j], atom))
             else:
                 suffix = {"coulomb": "fc", "viscous": "fv", "offset": "fo", "gain": "gain",
                           "armature": "Ia", "delay": "delay", "elasticity": "compliance"}[e]
@@ -314,7 +377,8 @@ class EffectLibrary:
         return data.rigid[..., -10:]
 
     def _coulomb(self, atom: Atom, data: GapData) -> np.ndarray:
-        return _on_row(data, atom.joint, np.sign(data.dataset.dq[:, atom.joint]))
+        col = smooth_sign(data.dataset.dq[:, atom.joint], atom.setting or 0.0)
+        return _on_row(data, atom.joint, lowpass_segments(data.dataset, col, atom.cutoff))
 
     def _viscous(self, atom: Atom, data: GapData) -> np.ndarray:
         return _on_row(data, atom.joint, data.dataset.dq[:, atom.joint])
@@ -344,9 +408,51 @@ class EffectLibrary:
 
     def _ripple(self, atom: Atom, data: GapData) -> np.ndarray:
         phase = atom.setting * data.dataset.q[:, atom.joint]
-        return _on_row(data, atom.joint, np.column_stack([np.sin(phase), np.cos(phase)]))
+        cols = np.column_stack([np.sin(phase), np.cos(phase)])
+        return _on_row(data, atom.joint, lowpass_segments(data.dataset, cols, atom.cutoff))
+
+    def tune_cutoff(self, data: GapData, residual: np.ndarray, atom: Atom) -> Atom:
+        """The atom (Coulomb or ripple, one joint) with the cut-off of :data:`FILTER_CUTOFFS`
+        (below the Nyquist frequency), refined between its grid neighbours, whose columns
+        explain most of ``residual`` (N,) by least squares."""
+        nyquist = 0.5 / float(np.median(np.diff(data.dataset.t)))
+
+        def explained(fc: float) -> float:
+            a = self.columns(replace(atom, cutoff=fc), data)[:, atom.joint, :]
+            g, c = a.T @ a, a.T @ residual
+            if np.linalg.cond(g) > 1e12:
+                return -np.inf
+            return float(c @ np.linalg.solve(g, c))
+
+        grid = [fc for fc in FILTER_CUTOFFS if not (np.isfinite(fc) and fc >= 0.9 * nyquist)]
+        scores = [explained(fc) for fc in grid]
+        i = int(np.argmax(scores))
+        if not np.isfinite(grid[i]):
+            return replace(atom, cutoff=np.inf)
+        lo = grid[i + 1] if i + 1 < len(grid) else grid[i] / 2
+        hi = grid[i - 1] if np.isfinite(grid[i - 1]) else min(2 * grid[i], nyquist)
+        res = scipy.optimize.minimize_scalar(lambda x: -explained(float(np.exp(x))),
+                                             bounds=(np.log(lo), np.log(hi)), method="bounded",
+                                             options={"xatol": 1e-3})
+        fc = float(np.exp(res.x)) if -res.fun > scores[i] else grid[i]
+        return replace(atom, cutoff=fc)
 
     # ----------------------------------------------------------------------------- tuning
+    def coulomb_speed(self, data: GapData, residual: np.ndarray, joint: int) -> float:
+        """The smoothing speed of :data:`COULOMB_SPEEDS` whose ``tanh(q̇_j/v_s)`` column explains
+        most of ``residual`` (N,) by a one-column least-squares fit."""
+        dq = data.dataset.dq[:, joint]
+        best, best_v = -np.inf, 0.0
+        for v in COULOMB_SPEEDS:
+            c = smooth_sign(dq, v)
+            cc = float(c @ c)
+            if cc <= 0:
+                continue
+            explained = float(c @ residual) ** 2 / cc
+            if explained > best:
+                best, best_v = explained, v
+        return best_v
+
     def ripple_order(self, data: GapData, residual: np.ndarray, joint: int) -> int | None:
         """The integer order ``k`` whose ``sin(k q_j), cos(k q_j)`` pair explains most of
         ``residual`` (a periodogram over ``k``, Lomb 1976, doi:10.1007/BF00648343, with exact

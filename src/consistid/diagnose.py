@@ -45,7 +45,7 @@ import scipy.stats
 from .candidates import EFFECT_NAMES, SIGNATURES, Atom, EffectLibrary, GapData
 from .dataset import Dataset
 from .errors import ModelError, OptionError
-from .gap import GapBreakdown, gap_breakdown, noise_floor
+from .gap import GapBreakdown, autocorrelation_time, gap_breakdown, noise_floor
 from .model import RobotModel
 
 log = logging.getLogger(__name__)
@@ -65,18 +65,19 @@ class EffectParameter:
     unit: str
     joint: str | None = None
     effect: str = ""
+    note: str = ""
 
     def __str__(self) -> str:
         words = {"coulomb": "Coulomb friction", "viscous": "viscous friction",
                  "offset": "torque offset", "gain": "torque gain error", "armature": "armature",
-                 "delay": "delay", "elasticity": "compliance", "ripple": "ripple"}
+                 "delay": "delay", "elasticity": "stiffness", "ripple": "ripple"}
         what = words.get(self.effect, self.name)
         scale, unit = (1e3, "ms") if self.unit == "s" else (1.0, self.unit)
         where = f"{self.joint} " if self.joint else ""
         if self.effect in ("inertia", "payload", "ripple"):
             what, where = self.name, ""
         return (f"{where}{what} {self.value * scale:.4g} ± {self.std * scale:.2g}"
-                + (f" {unit}" if unit else ""))
+                + (f" {unit}" if unit else "") + (f" ({self.note})" if self.note else ""))
 
 
 @dataclass(frozen=True)
@@ -185,6 +186,10 @@ class Diagnosis:
     noise_source : ``"given"`` or how it was estimated.
     rms_nominal, rms_final : (nv,) held-out RMS of the nominal model and of the nominal model
         plus every selected effect.
+    library_floor : (nv,) held-out RMS with *every* candidate atom fitted at once: the most the
+        candidate library can explain (above the noise floor when an effect outside the library
+        remains, or when the torques were low-pass filtered so that the noise floor, estimated
+        from the high band, is too low).
     held_out_source : how the held-out data were obtained.
     steps : the greedy selection's steps (candidates compared, why it stopped).
     fit : the corrected model (:class:`GapModel`); ``fit.predict(dataset)``.
@@ -199,6 +204,7 @@ class Diagnosis:
     noise_source: str
     rms_nominal: np.ndarray
     rms_final: np.ndarray
+    library_floor: np.ndarray
     held_out_source: str
     steps: tuple[Step, ...]
     fit: GapModel
@@ -213,6 +219,12 @@ class Diagnosis:
     def at_noise_floor(self) -> bool:
         """True when every joint's remaining held-out RMS is within 10 % of its noise floor."""
         return bool(np.all(self.gap_to_noise <= 1.1))
+
+    @property
+    def at_library_floor(self) -> bool:
+        """True when every joint's remaining held-out RMS is within 10 % of the library floor
+        (what all candidates together reach): the selection left nothing explainable out."""
+        return bool(np.all(self.rms_final <= 1.1 * self.library_floor))
 
     def summary(self) -> str:
         from .diagnosis_report import diagnosis_text
@@ -344,6 +356,8 @@ class _Problem:
     held: _Grams
     w: np.ndarray
     phi_train: np.ndarray
+    #: integrated autocorrelation time of the residual (samples per independent sample)
+    tau_corr: float = 1.0
 
     def cols(self, chosen: Sequence[int]) -> np.ndarray:
         if not chosen:
@@ -369,7 +383,7 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
     """Greedy forward selection; returns chosen atom indices, their alternatives, the steps, and
     the ΔBIC and p-value at entry of each chosen atom."""
     nv = prob.w.size
-    n_tr, n_ho = prob.train.n * nv, prob.held.n * nv
+    n_tr, n_ho = prob.train.n * nv / prob.tau_corr, prob.held.n * nv / prob.tau_corr
     nominal_ho = prob.held.s * prob.w
     chosen: list[int] = []
     alternatives: list[tuple[str, ...]] = []
@@ -483,33 +497,29 @@ def _refit(prob: _Problem, chosen: Sequence[int], train: GapData, model: RobotMo
         return fit, stds, notes
     phi = [prob.library.columns(a, train) for a in atoms]
     w = prob.w
+    sdp = bool(inertia_idx) and inertia_solver == "sdp"
     linear = [k for k in range(len(atoms)) if k not in delay_idx
-              and not (k in inertia_idx and inertia_solver == "sdp")]
+              and not (sdp and k in inertia_idx)]
     delays = {k: float(thetas[k][0]) for k in delay_idx}
     inertial = None
     r = train.residual
+
+    def contribution(k: int) -> np.ndarray:
+        if k in delay_idx:
+            return exact_delay(train, atoms[k], delays[k])
+        if k in inertia_idx and inertial is not None:
+            return train.rigid @ (inertial - nominal)
+        return phi[k] @ thetas[k]
+
+    def others(skip: Sequence[int]) -> np.ndarray:
+        return sum((contribution(m) for m in range(len(atoms)) if m not in skip),
+                   np.zeros_like(r))
+
+    # Block coordinate descent started from the joint least-squares fit (where the linearised
+    # delay and the unconstrained inertia already sit near the answer).
     for _ in range(3):
-        fixed = np.zeros_like(r)
         for k in delay_idx:
-            fixed += exact_delay(train, atoms[k], delays[k])
-        if inertial is not None:
-            fixed += train.rigid @ (inertial - nominal)
-        if linear:
-            a_mat = np.concatenate([phi[k] for k in linear], axis=2)
-            gl = np.einsum("j,njp,njq->pq", w, a_mat, a_mat)
-            cl = np.einsum("j,njp,nj->p", w, a_mat, r - fixed)
-            th, _, _ = _solve(gl, cl)
-            o = 0
-            for k in linear:
-                thetas[k] = th[o:o + atoms[k].n_parameters]
-                o += atoms[k].n_parameters
-        lin = sum((phi[k] @ thetas[k] for k in linear), np.zeros_like(r))
-        for k in delay_idx:
-            others = lin + sum((exact_delay(train, atoms[m], delays[m]) for m in delay_idx
-                                if m != k), np.zeros_like(r))
-            if inertial is not None:
-                others = others + train.rigid @ (inertial - nominal)
-            target = r - others
+            target = r - others([k])
             d0 = delays[k]
             span = max(3 * abs(d0), 5 * float(np.median(np.diff(train.dataset.t))))
 
@@ -517,15 +527,22 @@ def _refit(prob: _Problem, chosen: Sequence[int], train: GapData, model: RobotMo
                 return float(w @ np.sum((target - exact_delay(train, atoms[k], d)) ** 2, axis=0))
 
             res = scipy.optimize.minimize_scalar(cost, bounds=(d0 - span, d0 + span),
-                                                 method="bounded",
-                                                 options={"xatol": 1e-6})
+                                                 method="bounded", options={"xatol": 1e-6})
             delays[k] = float(res.x)
-        if inertia_idx and inertia_solver == "sdp":
-            others = lin + sum((exact_delay(train, atoms[m], delays[m]) for m in delay_idx),
-                               np.zeros_like(r))
-            inertial, note = _sdp_inertia(model, train, nominal, others)
+        if sdp:
+            inertial, note, base_std = _sdp_inertia(model, train, nominal, others(inertia_idx))
+            stds[inertia_idx[0]] = base_std
             if note not in notes:
                 notes.append(note)
+        if linear:
+            a_mat = np.concatenate([phi[k] for k in linear], axis=2)
+            gl = np.einsum("j,njp,njq->pq", w, a_mat, a_mat)
+            cl = np.einsum("j,njp,nj->p", w, a_mat, r - others(linear))
+            th, _, _ = _solve(gl, cl)
+            o = 0
+            for k in linear:
+                thetas[k] = th[o:o + atoms[k].n_parameters]
+                o += atoms[k].n_parameters
     for k in delay_idx:
         thetas[k] = np.array([delays[k]])
     fit = GapModel(model, prob.library, nominal, tuple(atoms), tuple(thetas),
@@ -534,9 +551,10 @@ def _refit(prob: _Problem, chosen: Sequence[int], train: GapData, model: RobotMo
 
 
 def _sdp_inertia(model: RobotModel, train: GapData, nominal: np.ndarray, others: np.ndarray
-                 ) -> tuple[np.ndarray, str]:
+                 ) -> tuple[np.ndarray, str, np.ndarray]:
     """Consistent rigid-body parameters near the nominal (log-det prior) fitted to the measured
-    torque minus the other effects' corrections."""
+    torque minus the other effects' corrections; returns them, a note, and the standard
+    deviations of the base parameters."""
     from .identify import identify
 
     corrected = train.dataset.with_torque(train.tau - others
@@ -546,7 +564,45 @@ def _sdp_inertia(model: RobotModel, train: GapData, nominal: np.ndarray, others:
                    prior="logdet")
     return res.inertial_parameters, (f"inertia re-identified by the consistent SDP "
                                      f"({res.solver.name}: {res.solver.status}) with a log-det "
-                                     "prior around the nominal parameters")
+                                     "prior around the nominal parameters"), res.base_std
+
+
+def _tuned_atoms(library: EffectLibrary, train: GapData, floor: np.ndarray
+                 ) -> tuple[list[Atom], np.ndarray]:
+    """All candidate atoms with their nonlinear settings chosen on the training data, and their
+    training columns ``(N, nv, P)``.
+
+    The settings are tuned against the residual of the *saturated* fit (every linear candidate
+    at once): the Coulomb smoothing speed on that residual plus the joint's own sign-Coulomb
+    fit, the ripple order on that residual; so other effects do not masquerade as them.
+    """
+    model = library.model
+    plain = [e for e in library.effects if e != "ripple"]
+    atoms = EffectLibrary(model, tuple(plain), base=library.base).atoms()
+    if not atoms:
+        return [], np.zeros((train.n, model.nv, 0))
+    blocks = [library.columns(a, train) for a in atoms]
+    phi_tr = np.concatenate(blocks, axis=2)
+    tune = "ripple" in library.effects or "coulomb" in plain
+    if not tune:
+        return atoms, phi_tr
+    g = _Grams.build(phi_tr, train.residual)
+    theta, _, _ = _solve(*g.weighted(1.0 / floor ** 2, np.arange(phi_tr.shape[2])))
+    rest = train.residual - phi_tr @ theta
+    o = 0
+    for i, a in enumerate(atoms):
+        if a.effect == "coulomb":
+            partial = rest[:, a.joint] + blocks[i][:, a.joint, 0] * theta[o]
+            v = library.coulomb_speed(train, partial, a.joint)
+            atoms[i] = library.tune_cutoff(train, partial, replace(a, setting=v))
+            blocks[i] = library.columns(atoms[i], train)
+        o += a.n_parameters
+    if "ripple" in library.effects:
+        for a in library.atoms(train, rest):
+            if a.effect == "ripple":
+                atoms.append(a)
+                blocks.append(library.columns(a, train))
+    return atoms, np.concatenate(blocks, axis=2)
 
 
 # --------------------------------------------------------------------------------- main
@@ -617,24 +673,7 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
         floor, noise_source = _sigma(sigma, model.nv), "given"
     library = EffectLibrary(model, tuple(effects))
 
-    # Atoms: ripple orders are tuned on the residual of the other candidates (saturated fit).
-    plain = [e for e in effects if e != "ripple"]
-    atoms = EffectLibrary(model, tuple(plain), base=library.base).atoms()
-    phi_tr = np.concatenate([library.columns(a, train) for a in atoms], axis=2) if atoms \
-        else np.zeros((train.n, model.nv, 0))
-    if "ripple" in effects:
-        w0 = 1.0 / floor ** 2
-        rest = train.residual.copy()
-        if atoms:
-            g = _Grams.build(phi_tr, train.residual)
-            theta, _, _ = _solve(*g.weighted(w0, np.arange(phi_tr.shape[2])))
-            rest = train.residual - phi_tr @ theta
-        ripple = library.atoms(train, rest)
-        ripple = [a for a in ripple if a.effect == "ripple"]
-        atoms += ripple
-        if ripple:
-            phi_tr = np.concatenate([phi_tr] + [library.columns(a, train) for a in ripple],
-                                    axis=2)
+    atoms, phi_tr = _tuned_atoms(library, train, floor)
     phi_ho = np.concatenate([library.columns(a, held) for a in atoms], axis=2) if atoms \
         else np.zeros((held.n, model.nv, 0))
     slices, o = [], 0
@@ -643,6 +682,16 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
         o += a.n_parameters
     prob = _Problem(library, atoms, slices, _Grams.build(phi_tr, train.residual),
                     _Grams.build(phi_ho, held.residual), 1.0 / floor ** 2, phi_tr)
+    everything_cols = prob.cols(list(range(len(atoms))))
+    _, theta_all, _ = prob.fit(list(range(len(atoms))))
+    library_floor = np.sqrt(prob.held.sse(everything_cols, theta_all) / held.n)
+    # Rows are not independent when the residual is coloured (filtered noise): count effective
+    # samples with the autocorrelation time of what no candidate explains.
+    saturated = train.residual - phi_tr[..., everything_cols] @ theta_all if atoms \
+        else train.residual
+    tau_joint = autocorrelation_time(train.dataset, saturated)
+    prob.tau_corr = float(np.sum(prob.w * tau_joint * np.mean(saturated ** 2, axis=0))
+                          / np.sum(prob.w * np.mean(saturated ** 2, axis=0)))
     names = model.joint_names
     chosen, alts, steps, bics, pvals = _select(prob, names, alpha, min_gain, tie, max_steps,
                                                progress)
@@ -705,8 +754,16 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
             everything.tau_nom)
         noise_source += ", residual of the nominal model plus the selected effects"
     where = gap_breakdown(everything, floor)
+    low = np.flatnonzero(floor < 0.5 * library_floor)
+    if low.size:
+        notes.append(
+            f"on {', '.join(names[j] for j in low)} the residual's high band holds far less "
+            "than what every candidate together leaves on the held-out data: the torques were "
+            "probably low-pass filtered (the noise floor is then underestimated: pass sigma), "
+            "or an effect outside the candidate library remains")
     return Diagnosis(model.name, tuple(names), tuple(findings), where, floor, noise_source,
-                     rms_nominal, rms_final, held_source, tuple(steps), fit, tuple(notes))
+                     rms_nominal, rms_final, library_floor, held_source, tuple(steps), fit,
+                     tuple(notes))
 
 
 def _parameters(atom: Atom, theta: np.ndarray, std: np.ndarray, joint: str | None,
@@ -725,7 +782,19 @@ def _parameters(atom: Atom, theta: np.ndarray, std: np.ndarray, joint: str | Non
         amp = float(np.hypot(*theta))
         amp_std = float(np.sqrt((theta[0] * std[0]) ** 2 + (theta[1] * std[1]) ** 2)
                         / max(amp, 1e-300))
-        return [EffectParameter(f"{joint} ripple amplitude (k = {atom.setting:g}/rad)", amp,
-                                amp_std, "N·m", joint, "ripple")]
+        seen = (f", seen through a ≈{atom.cutoff:.3g} Hz low-pass" if np.isfinite(atom.cutoff)
+                else "")
+        return [EffectParameter(f"{joint} ripple amplitude (k = {atom.setting:g}/rad{seen})",
+                                amp, amp_std, "N·m", joint, "ripple")]
+    if atom.effect == "coulomb" and (atom.setting or np.isfinite(atom.cutoff)):
+        law = f"tanh(q̇/{atom.setting:g} rad/s)" if atom.setting else "sign(q̇)"
+        seen = (f" seen through a ≈{atom.cutoff:.3g} Hz low-pass" if np.isfinite(atom.cutoff)
+                else "")
+        return [EffectParameter(f"{joint}.fc", float(theta[0]), float(std[0]), "N·m", joint,
+                                "coulomb", law + seen)]
+    if atom.effect == "elasticity" and theta[0] > 0:
+        c, sc = float(theta[0]), float(std[0])
+        return [EffectParameter(f"{joint}.stiffness", 1.0 / c, sc / c ** 2, "N·m/rad", joint,
+                                "elasticity")]
     return [EffectParameter(n, float(v), float(s), u, joint, atom.effect)
             for n, v, s, u in zip(atom.parameter_names, theta, std, atom.units)]

@@ -55,14 +55,21 @@ def diagnosis_text(diag: "Diagnosis") -> str:
     else:
         lines += ["No effect selected: no candidate reduces the held-out residual enough to "
                   "generalise.", ""]
-    verdict = ("the remaining gap is at the noise floor" if diag.at_noise_floor else
-               "a gap above the noise floor remains (an effect outside the candidate library, "
-               "or noise estimated too low)")
+    if diag.at_noise_floor:
+        verdict = "the remaining gap is at the noise floor"
+    elif diag.at_library_floor:
+        verdict = ("the selected effects explain all that the candidate library can; the rest "
+                   "lies outside the library, or the noise floor is underestimated (low-pass "
+                   "filtered torques: pass sigma)")
+    else:
+        verdict = ("a gap that the candidates could still reduce remains (below the selection's "
+                   "relevance or significance thresholds)")
     lines.append(f"Verdict: {verdict}.")
-    lines += ["", table(["joint", "nominal RMS", "final RMS", "noise floor", "final / noise"],
-                        [(n, a, b, s, r) for n, a, b, s, r in
-                         zip(names, diag.rms_nominal, diag.rms_final, diag.noise_floor,
-                             diag.gap_to_noise)]), ""]
+    lines += ["", table(["joint", "nominal RMS", "final RMS", "library floor", "noise floor",
+                         "final / noise"],
+                        [(n, a, b, lf, s, r) for n, a, b, lf, s, r in
+                         zip(names, diag.rms_nominal, diag.rms_final, diag.library_floor,
+                             diag.noise_floor, diag.gap_to_noise)]), ""]
     for k, e in enumerate(diag.effects, 1):
         lines.append(f"[{k}] {e.name} — {e.signature}")
         shown = [j for j in range(len(names)) if names[j] in e.joints] or \
