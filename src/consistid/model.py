@@ -187,6 +187,17 @@ class RobotModel:
                           locked_joints=self.locked_joints,
                           locked_configuration=self.locked_configuration)
 
+    def to_urdf(self, path: str | Path, parameters: np.ndarray | None = None,
+                parameter_names: Sequence[str] | None = None, merged: str = "auto") -> Path:
+        """Write the source URDF carrying this model's inertias (or ``parameters``, with optional
+        friction entries named by ``parameter_names``); see :func:`consistid.export.write_urdf`.
+
+        Refuses (``InconsistentParametersError``) to write a physically inconsistent body.
+        """
+        from .export import write_urdf
+
+        return write_urdf(self, path, parameters, parameter_names, merged)
+
     # ----------------------------------------------------------------------------- description
     @property
     def nv(self) -> int:

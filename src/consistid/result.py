@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import cached_property
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -105,6 +106,13 @@ class IdentificationResult:
     def identified_model(self) -> RobotModel:
         """The robot model carrying the identified inertial parameters."""
         return self.model.with_parameters(self.inertial_parameters)
+
+    def to_urdf(self, path: str | Path, merged: str = "auto") -> Path:
+        """Write the model's URDF with the identified inertias and Coulomb/viscous friction
+        (:func:`consistid.export.write_urdf`); refuses an inconsistent body."""
+        from .export import write_urdf
+
+        return write_urdf(self.model, path, self.parameters, self.parameter_names, merged)
 
     # ----------------------------------------------------------------------------- prediction
     def predict(self, dataset: Dataset) -> np.ndarray:
