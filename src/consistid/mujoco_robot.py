@@ -48,9 +48,9 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
-from .robot_effects import Effects
 from .errors import ModelError, check_option
 from .model import RobotModel
+from .robot_effects import Effects
 
 INTEGRATORS = ("Euler", "RK4", "implicitfast")
 #: Impedance of the friction-loss constraint (``solimpfriction``); with the time constant at its
@@ -224,7 +224,8 @@ class MujocoRobot:
     ----------
     xml : the MJCF text; ``mj_model`` : ``mujoco.MjModel``.
     link_dof, motor_dof : (nv,) MuJoCo dof index of each link joint and of its drive (the rotor
-        dof of an elastic joint, else the link dof).
+        dof of an elastic joint, else the link dof); every joint has one coordinate, so these
+        index ``qpos`` as well.
     """
 
     def __init__(self, model: RobotModel, effects: Effects | None = None,

@@ -240,8 +240,9 @@ class Effects:
             raise ModelError(f"effects.coulomb_speed = {self.coulomb_speed!r}; it must be > 0 "
                              "rad/s")
         if self.payload is not None and not isinstance(self.payload, Payload):
-            raise ModelError("effects.payload must be a Payload, got "
-                             f"{type(self.payload).__name__}")
+            raise ModelError("effects.payload must be a consistid.robot_effects.Payload (the "
+                             "simulator's payload: mass, com, inertia, frame), got "
+                             f"{type(self.payload).__module__}.{type(self.payload).__name__}")
 
     # ----------------------------------------------------------------------------- building
     def with_effect(self, name: str, magnitude: JointValues,

@@ -138,6 +138,8 @@ class Recording:
         accelerations at ``t``.
     true_tau : (N, nv) the torque at the torque sensor, before any sensor effect.
     motor_q, motor_dq : (N, nv) drive-side coordinates (equal to the link's on rigid joints).
+    control : (N, nv) the controller's torque ``u`` (the motor torque; on a rigid joint it is
+        ``true_tau``).
     desired_q : (N, nv) the controller's reference.
     effects : the :class:`Effects`, resolved per joint (``(nv,)`` arrays).
     true_parameters : (10·nbodies,) inertial parameters of the simulated robot, payload excluded.
@@ -155,6 +157,7 @@ class Recording:
     true_tau: np.ndarray
     motor_q: np.ndarray
     motor_dq: np.ndarray
+    control: np.ndarray
     desired_q: np.ndarray
     effects: Effects
     true_parameters: np.ndarray
@@ -227,10 +230,10 @@ def record(model: RobotModel, trajectory: Trajectory, effects: Effects | None = 
         if not hasattr(trajectory, "period"):
             raise ModelError("record(duration=None) needs a trajectory with a period")
         duration = float(trajectory.period)
-    ratio = physics_rate / rate
     if not (rate > 0 and physics_rate > 0 and duration > 0 and settle >= 0):
         raise ModelError(f"rate = {rate}, physics_rate = {physics_rate}, duration = {duration} "
                          f"and settle = {settle} must be positive (settle ≥ 0)")
+    ratio = physics_rate / rate
     if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
         raise ModelError(f"physics_rate / rate = {physics_rate} / {rate} must be a positive "
                          "integer: the log takes every k-th physics step")
@@ -249,15 +252,15 @@ def record(model: RobotModel, trajectory: Trajectory, effects: Effects | None = 
     desired = trajectory.evaluate(t0 + np.arange(steps) * h)
     trace = robot.run(controller.gains, model, t0, desired, every, n_settle, progress)
     rng = np.random.default_rng(seed)
-    sensed_q = trace.sensed_q
-    q_meas = measure_position(sensed_q, eff, rng)
+    t = np.arange(n_log) / rate  # = trace.t up to rounding
+    q_meas = measure_position(trace.sensed_q, eff, rng)
     tau_true = trace.tau_fine[n_settle::every]
-    tau_meas = measure_torque(trace.t, trace.t_fine, trace.tau_fine, eff, rng)
+    tau_meas = measure_torque(t, trace.t_fine, trace.tau_fine, eff, rng)
     payload = eff.payload.parameters(model) if eff.payload is not None else (None, None)
     return Recording(
-        t=trace.t, q=q_meas, tau=tau_meas, true_q=trace.q, true_dq=trace.dq,
+        t=t, q=q_meas, tau=tau_meas, true_q=trace.q, true_dq=trace.dq,
         true_ddq=trace.ddq, true_tau=tau_true, motor_q=trace.motor_q,
-        motor_dq=trace.motor_dq, desired_q=desired[0][n_settle::every],
+        motor_dq=trace.motor_dq, control=trace.control, desired_q=desired[0][n_settle::every],
         effects=eff, true_parameters=robot.model.prior_parameters,
         payload_parameters=payload[1], payload_joint=payload[0],
         joint_names=tuple(model.joint_names), rate=float(rate),
