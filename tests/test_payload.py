@@ -9,6 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import consistid as ci
+from consistid.cli import main
 from consistid.constraints import Ellipsoid
 from consistid.errors import OptionError, PoorExcitationWarning
 from consistid.parameters import from_mass_com_inertia, perturb
@@ -130,6 +131,18 @@ def test_bad_inputs(panda, hidden):
         estimate_payload(panda, hidden["loaded_res"], robot=panda.prior_parameters)
     with pytest.raises(ci.ModelError, match="unknown frame"):
         estimate_payload(panda, hidden["loaded_data"], robot=hidden["unloaded"], frame="nope")
+
+
+def test_cli_payload(panda, hidden, tmp_path, capsys):
+    hidden["loaded_data"].save(tmp_path / "loaded.npz")
+    hidden["held"].save(tmp_path / "unloaded.npz")      # any data: the CLI re-identifies
+    (tmp_path / "payload.toml").write_text(
+        f'[model]\nurdf = "{panda.source}"\n'
+        'locked_joints = ["panda_finger_joint1", "panda_finger_joint2"]\n'
+        '[data]\ntrain = ["unloaded.npz"]\n[identify]\nfriction = []\n'
+        '[payload]\nloaded = ["loaded.npz"]\nframe = "panda_link8"\nroute = "torque"\n')
+    assert main(["payload", str(tmp_path / "payload.toml")]) == 0
+    assert "payload on 'panda_link7' in frame 'panda_link8'" in capsys.readouterr().out
 
 
 @settings(max_examples=25, deadline=None)

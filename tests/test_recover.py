@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 import consistid as ci
+from consistid.cli import main
 from consistid.errors import (IdentificationError, InfeasibleError, ModelError, OptionError,
                               UnrealizableCoefficientsError)
 from consistid.identify import nearest_standard
@@ -128,3 +129,15 @@ def test_status_and_input_errors(panda, setup):
         recover_standard(panda, beta, mode="closest")
     with pytest.raises(OptionError, match="positive definite"):
         recover_standard(panda, beta, covariance=-np.eye(beta.size))
+
+
+def test_cli_recover_writes_a_consistent_urdf(panda, setup, tmp_path):
+    base, truth = setup
+    np.savez(tmp_path / "beta.npz", beta=base.project(truth))
+    (tmp_path / "recover.toml").write_text(
+        f'[model]\nurdf = "{panda.source}"\n'
+        'locked_joints = ["panda_finger_joint1", "panda_finger_joint2"]\n'
+        '[recover]\ncoefficients = "beta.npz"\nprior = "euclidean"\nurdf = "out.urdf"\n')
+    assert main(["recover", str(tmp_path / "recover.toml")]) == 0
+    back = ci.RobotModel.from_urdf(tmp_path / "out.urdf", locked_joints=panda.locked_joints)
+    assert np.max(np.abs(base.project(back.prior_parameters) - base.project(truth))) < 1e-6

@@ -99,11 +99,88 @@ def simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+RECOVER_KEYS = ("coefficients", "friction", "armature", "mode", "prior", "margin", "slack",
+                "urdf", "merged")
+PAYLOAD_KEYS = ("loaded", "route", "frame", "body", "ellipsoid", "mass_range")
+
+
+def recover(args: argparse.Namespace) -> int:
+    """Consistent standard parameters from base coefficients (:mod:`consistid.recover`): from a
+    ``coefficients`` file (npz: ``beta`` [, ``covariance``]) or by OLS on the ``[data]`` logs."""
+    import consistid as ci
+    from consistid.config import config_model, config_recordings, load_config
+    from consistid.errors import ConfigError
+
+    config = load_config(args.config)
+    model = config_model(config)
+    t = config.table("recover", RECOVER_KEYS, required=False)
+    options = {k: t[k] for k in ("mode", "prior", "margin", "slack") if k in t}
+    if "coefficients" in t:
+        with np.load(config.resolve(t["coefficients"])) as f:
+            if "beta" not in f.files:
+                raise ConfigError(f"{t['coefficients']}: needs an array 'beta'")
+            beta = f["beta"]
+            cov = f["covariance"] if "covariance" in f.files else None
+        rec = ci.recover_standard(model, beta, covariance=cov, friction=t.get("friction"),
+                                  armature=t.get("armature", False), **options)
+    else:
+        train, _ = config_recordings(config, model)
+        _log(f"identifying base coefficients by OLS on {train.dataset.n_samples} samples")
+        res = ci.identify(model, train.dataset, method="ols",
+                          friction=t.get("friction", ("coulomb", "viscous", "offset")),
+                          armature=t.get("armature", False))
+        rec = ci.recover_standard(model, res, **options)
+    print(rec.summary(max_rows=None if args.all else 20))
+    if "urdf" in t:
+        _log(f"wrote {rec.to_urdf(config.resolve(t['urdf']), t.get('merged', 'auto'))}")
+    return 0
+
+
+def payload(args: argparse.Namespace) -> int:
+    """Payload from unloaded ``[data]`` logs and ``[payload] loaded`` logs
+    (:mod:`consistid.payload`); the robot is identified as ``[identify]`` says (default OLS)."""
+    import dataclasses
+
+    import consistid as ci
+    from consistid.config import config_model, config_recordings, load_config
+    from consistid.constraints import Ellipsoid
+    from consistid.errors import ConfigError
+
+    config = load_config(args.config)
+    model = config_model(config)
+    t = config.table("payload", PAYLOAD_KEYS)
+    loaded_config = dataclasses.replace(config, tables={
+        **config.tables, "data": {**config.table("data"), "train": t.get("loaded", []),
+                                  "held_out": []}})
+    unloaded, _ = config_recordings(config, model)
+    loaded, _ = config_recordings(loaded_config, model)
+    options = {"method": "ols", **config.table("identify", required=False)}
+    _log(f"identifying the unloaded robot ({options})")
+    robot = ci.identify(model, unloaded.dataset, **options)
+    route = t.get("route", "torque")
+    target = (loaded.dataset if route == "torque"
+              else ci.identify(model, loaded.dataset, **options))
+    ellipsoid = None
+    if "ellipsoid" in t:
+        e = t["ellipsoid"]
+        if not isinstance(e, dict) or set(e) != {"center", "semi_axes"}:
+            raise ConfigError(f"{config.path.name}: [payload] ellipsoid must be "
+                              f"{{center = [x, y, z], semi_axes = [a, b, c]}}, got {e!r}")
+        ellipsoid = Ellipsoid.from_semi_axes(e["center"], e["semi_axes"])
+    result = ci.estimate_payload(model, target, robot=robot, frame=t.get("frame"),
+                                 body=t.get("body"), ellipsoid=ellipsoid,
+                                 mass_range=t.get("mass_range"))
+    print(result)
+    return 0
+
+
 COMMANDS: dict[str, tuple[Callable[[argparse.Namespace], int], str]] = {
     "demo": (demo, "simulate an excitation run, identify it, print a report"),
     "identify": (identify, "identify a robot from the logs named in a TOML config"),
     "excite": (excite, "design an optimal excitation trajectory from a TOML config, write CSV"),
     "simulate": (simulate, "run a MuJoCo arm with unmodelled effects, show the nominal residual"),
+    "recover": (recover, "consistent standard parameters from base coefficients (TOML config)"),
+    "payload": (payload, "estimate a payload from unloaded and loaded logs (TOML config)"),
 }
 
 
@@ -132,6 +209,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--noise", type=float, default=0.05, help="torque noise σ in N·m")
     p.add_argument("--plot", metavar="PNG", help="write the residuals to this PNG")
     p.add_argument("--seed", type=int, default=0)
+    p = sub.add_parser("recover", help=COMMANDS["recover"][1])
+    p.add_argument("config", help="TOML file with [model], [recover] and [data] or "
+                                  "[recover] coefficients")
+    p.add_argument("--all", action="store_true", help="list every moved coefficient")
+    p = sub.add_parser("payload", help=COMMANDS["payload"][1])
+    p.add_argument("config", help="TOML file with [model], [data] (unloaded) and [payload]")
     return parser
 
 
