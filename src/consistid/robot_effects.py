@@ -11,27 +11,27 @@ one at a time (e.g. to test a diagnosis blindly).
 Dynamics (simulated inside MuJoCo). Signs are those of the torque the drive must *supply*, so on
 a rigid joint each adds to the measured torque:
 
-==============  ==========================  =================================================
-name            field(s)                    added drive torque
-==============  ==========================  =================================================
-``viscous``     ``viscous`` (N·m·s/rad)     :math:`f_v\,\dot q` (MuJoCo ``dof_damping``)
-``coulomb``     ``coulomb`` (N·m),          :math:`f_c\operatorname{sign}\dot q` through
-                ``coulomb_model``           MuJoCo's ``frictionloss`` (a soft constraint,
-                                            tuned to be exact once :math:`|\dot q|` exceeds
-                                            ~0.01 rad/s at 1 kHz),
-                                            or :math:`f_c\tanh(\dot q/v_s)` as an external
-                                            torque (``coulomb_model="tanh"``, ``v_s`` =
-                                            ``coulomb_speed``)
-``armature``    ``armature`` (kg·m²)        :math:`I_a\,\ddot q` (MuJoCo ``dof_armature``)
-``payload``     ``payload``                 a rigid body fixed to the flange (:class:`Payload`)
-``elasticity``  ``stiffness`` K (N·m/rad),  a motor inertia B coupled to the link by a spring
-                ``motor_inertia`` B         (Spong 1987, "Modeling and control of elastic
-                (kg·m²), ``spring_damping`` joint robots", J. Dyn. Sys. Meas. Control 109(4),
-                D (N·m·s/rad)               doi:10.1115/1.3143866):
-                                            :math:`M(q)\ddot q + h = \tau_J`,
-                                            :math:`B\ddot\theta + \tau_J = u`,
-                                            :math:`\tau_J = K(\theta-q) + D(\dot\theta-\dot q)`
-==============  ==========================  =================================================
+==============  ============================  ==================================================
+name            field(s)                      added drive torque
+==============  ============================  ==================================================
+``viscous``     ``viscous`` (N·m·s/rad)       :math:`f_v\,\dot q` (MuJoCo ``dof_damping``)
+``coulomb``     ``coulomb`` (N·m),            :math:`f_c\operatorname{sign}\dot q` through
+                ``coulomb_model``             MuJoCo's ``frictionloss`` (a soft constraint,
+                                              tuned to be exact once :math:`|\dot q|` exceeds
+                                              ~0.01 rad/s at 1 kHz),
+                                              or :math:`f_c\tanh(\dot q/v_s)` as an external
+                                              torque (``coulomb_model="tanh"``, ``v_s`` =
+                                              ``coulomb_speed``)
+``armature``    ``armature`` (kg·m²)          :math:`I_a\,\ddot q` (MuJoCo ``dof_armature``)
+``payload``     ``payload``                   a rigid body on the flange (:class:`Payload`)
+``elasticity``  ``stiffness`` K (N·m/rad),    a motor inertia B coupled to the link by a spring
+                ``motor_inertia`` B (kg·m²),  (Spong 1987, "Modeling and control of elastic
+                ``spring_damping`` D          joint robots", J. Dyn. Sys. Meas. Control 109(4),
+                (N·m·s/rad)                   doi:10.1115/1.3143866):
+                                              :math:`M(q)\ddot q + h = \tau_J`,
+                                              :math:`B\ddot\theta + \tau_J = u`,
+                                              :math:`\tau_J = K(\theta-q) + D(\dot\theta-\dot q)`
+==============  ============================  ==================================================
 
 On an elastic joint the drive-side effects (``viscous``, ``coulomb``, ``armature``) act on the
 motor coordinate θ; the torque sensor sits at the spring and reads τ_J, so it does not see them.
@@ -39,17 +39,18 @@ On a rigid joint the measured torque is the drive torque ``u``.
 
 Sensors (applied to the logged signals by :func:`measure_torque` and :func:`measure_position`):
 
-==================  =======================  ================================================
-name                field                    measured signal
-==================  =======================  ================================================
-``offset``          ``torque_offset`` (N·m)  :math:`\tau_m(t) = (1+g)\,\tau(t-d) + o + \epsilon`,
-``gain``            ``torque_gain`` g        ``g`` the relative gain *error*,
-``delay``           ``delay`` d (s)          the torque channel lagging the positions by d,
-``torque_noise``    ``torque_noise`` (N·m)   :math:`\epsilon \sim \mathcal N(0, \sigma_\tau^2)`
-``position_noise``  ``position_noise`` (rad) :math:`q_m = \Delta\,\operatorname{round}((q_s+\nu)/\Delta)`,
-``quantisation``    ``quantisation`` Δ (rad) :math:`\nu \sim \mathcal N(0, \sigma_q^2)`, Δ one
-                                             encoder count (no rounding where Δ = 0)
-==================  =======================  ================================================
+==================  =========================  ==================================================
+name                field                      measured signal
+==================  =========================  ==================================================
+``offset``          ``torque_offset`` o (N·m)  :math:`\tau_m(t) = (1+g)\,\tau(t-d) + o + \epsilon`
+``gain``            ``torque_gain`` g          ``g`` the relative gain *error*,
+``delay``           ``delay`` d (s)            the torque channel lagging the positions by d,
+``torque_noise``    ``torque_noise`` (N·m)     :math:`\epsilon \sim \mathcal N(0, \sigma_\tau^2)`
+``position_noise``  ``position_noise`` (rad)   :math:`\nu \sim \mathcal N(0, \sigma_q^2)` added
+                                               to ``q_s``, then
+``quantisation``    ``quantisation`` Δ (rad)   :math:`q_m = \Delta\,\mathrm{round}(q/\Delta)`
+                                               (Δ one count; no rounding where Δ = 0)
+==================  =========================  ==================================================
 
 ``q_s`` is the link angle, or on an elastic joint the motor angle θ when
 ``position_sensor="motor"`` (the default: a motor-side encoder, as on most geared arms).
