@@ -179,6 +179,12 @@ def test_elasticity(panda, trajectory):
     np.testing.assert_allclose(link.q, link.true_q)
 
 
+def test_divergence_raises_instead_of_a_silently_reset_log(panda, trajectory):
+    """Too stiff a spring for a 1 ms step on the light wrist: MuJoCo would reset and go on."""
+    with pytest.raises(ModelError, match="diverged.*physics_rate"):
+        record(panda, trajectory, Effects(stiffness=50000.0), duration=0.5, settle=0.0)
+
+
 def test_quantisation(panda, trajectory):
     step = 2 * np.pi / 2 ** 14
     rec, _ = run(panda, trajectory, Effects(quantisation=step))

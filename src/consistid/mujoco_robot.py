@@ -297,6 +297,19 @@ class MujocoRobot:
                 f"{diag[worst]:.3g} kg·m²); raise effects.coulomb_speed above "
                 f"{e.coulomb_speed * ratio[worst]:.3g} rad/s, add armature, or shorten the step")
 
+    def _check_stable(self, data: mujoco.MjData, t: float) -> None:
+        """Raise if MuJoCo flagged a diverging state (it then resets the state and carries on,
+        which would leave a silently wrong log)."""
+        bad = [w for w in (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQVEL,
+                           mujoco.mjtWarning.mjWARN_BADQPOS) if data.warning[w].number]
+        if bad:
+            dof = int(data.warning[bad[0]].lastinfo)
+            raise ModelError(
+                f"the MuJoCo simulation of {self.model.name} diverged before t = {t:.3f} s "
+                f"({bad[0].name} at dof {dof}): the physics step {self.timestep:g} s is too long "
+                "for the stiffest element (an elastic joint, ω = √(K/M_jj), on a light link, or "
+                "damping D·h/M_jj ≥ 2, explicit here); raise physics_rate or soften the effect")
+
     def run(self, gains: tuple[float, float], nominal: RobotModel, t0: float,
             desired: tuple[np.ndarray, np.ndarray, np.ndarray], log_every: int,
             log_from: int = 0, progress: Callable[[float], None] | None = None) -> Trace:
@@ -307,7 +320,8 @@ class MujocoRobot:
         The robot starts on the desired state (an elastic joint's motor pre-deflected by the
         true static torque). Every ``log_every``-th step from ``log_from`` is logged; the
         acceleration is MuJoCo's at the logged state (``mj_forward`` with the step's torques).
-        ``progress`` (if given) is called with the fraction done every 1000 steps.
+        ``progress`` (if given) is called with the fraction done every 1000 steps. Raises
+        :class:`ModelError` if the simulation diverges.
         """
         qd, dqd, ddqd = desired
         steps = qd.shape[0]
@@ -356,7 +370,9 @@ class MujocoRobot:
                     out[key][row] = value
                 row += 1
             mujoco.mj_step(mj, data)
-            if progress is not None and k % 1000 == 0:
-                progress(k / steps)
+            if k % 1000 == 999 or k == steps - 1:
+                self._check_stable(data, t0 + (k + 1) * self.timestep)
+                if progress is not None:
+                    progress((k + 1) / steps)
         t_fine = t0 + np.arange(steps) * self.timestep
         return Trace(t=t_fine[logged], t_fine=t_fine, tau_fine=tau_fine, **out)
