@@ -1,0 +1,106 @@
+"""End to end on real KUKA LWR4+ torque-sensor logs (read from ../shared; skipped when absent).
+
+Recipe (upstream FloBaRoID): identify on measurements_2 + measurements_3, validate on
+measurements_1 (the same trajectory as measurements_2). Independent figures from the data's
+README: plain OLS with Coulomb + viscous + offset has rank 64 and a total relative error ≈ 2.0 %
+on the training files and ≈ 2.2 % on measurements_1 (RMS 0.19–0.29 N·m per joint).
+"""
+
+import numpy as np
+import pytest
+
+import consistid as ci
+from consistid.errors import JointNameError
+from consistid.recordings import Recording, load_recording
+from consistid.urdf import model_without_dynamics
+from consistid.validation import refit_joint_terms, rigid_model, score
+
+JOINTS = [f"lwr_{i}_joint" for i in range(7)]
+pytestmark = pytest.mark.filterwarnings("ignore::consistid.errors.PoorExcitationWarning")
+
+
+@pytest.fixture(scope="module")
+def kuka(kuka_dir):
+    prior = ci.RobotModel.from_urdf(kuka_dir / "kuka_lwr4.urdf")
+
+    def load(i):
+        return load_recording(kuka_dir / f"measurements_{i}.npz", "flobaroid",
+                              joint_names=JOINTS, model=prior, trim_start=2.0)
+
+    recs = {i: load(i) for i in (1, 2, 3)}
+    train = Recording.concatenate([recs[2], recs[3]]).dataset
+    return dict(prior=prior, recs=recs, train=train, held=recs[1].dataset, dir=kuka_dir)
+
+
+@pytest.fixture(scope="module")
+def fits(kuka):
+    return {m: ci.identify(kuka["prior"], kuka["train"], method=m) for m in ("ols", "sdp")}
+
+
+def test_loader_reports_what_it_did_on_the_real_files(kuka):
+    rec = kuka["recs"][1]
+    text = "\n".join(rec.steps)
+    assert "ignored arrays ['target_accelerations', 'target_positions', 'target_velocities']" in text
+    assert "2016-04-07" in text and "non-uniform" in text and "trimmed 2 s" in text
+    assert rec.dataset.n_samples == 5027 - 401 and rec.dataset.joint_names == tuple(JOINTS)
+    assert np.array_equal(np.unique(kuka["train"].segment), [0, 1])
+    wrong = JOINTS[:6] + ["lwr_7_joint"]
+    with pytest.raises(JointNameError, match=r"missing from the log \['lwr_6_joint'\]"):
+        load_recording(kuka["dir"] / "measurements_1.npz", joint_names=wrong,
+                       model=kuka["prior"])
+
+
+def test_flobaroid_urdf_loads_only_without_its_dynamics_tags(kuka):
+    with pytest.raises(ci.ModelError, match="Pinocchio could not read"):
+        ci.RobotModel.from_urdf(kuka["dir"] / "kuka_lwr4_identified.urdf")
+    model, dyn = model_without_dynamics(kuka["dir"] / "kuka_lwr4_identified.urdf")
+    assert model.joint_names == JOINTS
+    assert [dyn[j].friction < 0 for j in JOINTS] == [False] * 3 + [True] * 4
+    # FloBaRoID's answer is not density-realizable (its LMI does not imply the triangle
+    # inequalities); the a-priori URDF is.
+    assert not rigid_model(model).consistency.ok
+    assert rigid_model(kuka["prior"]).consistency.ok
+
+
+def test_ols_reproduces_the_independent_figures(kuka, fits):
+    ols = fits["ols"]
+    assert ols.base.n_base == 64
+    held, train = score(ols, kuka["held"]), score(ols, kuka["train"])
+    assert 0.021 < held.total_relative_error < 0.023
+    assert 0.019 < train.total_relative_error < 0.021
+    assert np.all((held.rms > 0.18) & (held.rms < 0.30))
+
+
+def test_sdp_is_consistent_and_beats_the_urdf_models(kuka, fits):
+    sdp = fits["sdp"]
+    assert sdp.is_consistent and sdp.consistency.min_eigenvalues.min() > 0
+    e_sdp = score(sdp, kuka["held"]).total_relative_error
+    flobaroid, _ = model_without_dynamics(kuka["dir"] / "kuka_lwr4_identified.urdf")
+    for model in (kuka["prior"], flobaroid):
+        assert e_sdp < score(rigid_model(model), kuka["held"]).total_relative_error
+        refit = refit_joint_terms(model, kuka["train"])   # fairest variant of each reference
+        assert e_sdp < score(refit, kuka["held"]).total_relative_error
+
+
+def test_sdp_close_to_ols_on_the_repeated_trajectory(kuka, fits):
+    # Measured: 1.12. Issue 8's target is 1.05 (see the strict xfail below and the tutorial).
+    ratio = (score(fits["sdp"], kuka["held"]).total_relative_error
+             / score(fits["ols"], kuka["held"]).total_relative_error)
+    assert ratio < 1.15
+
+
+@pytest.mark.xfail(strict=True, reason="OLS fits measurements_1 better with unrealizable inertias "
+                   "that mimic a position-dependent torque on the repeated trajectory; the "
+                   "consistent SDP cannot (SDP/OLS = 1.12). See docs/tutorial_real_kuka.md.")
+def test_issue_target_sdp_within_5_percent_of_ols(kuka, fits):
+    ratio = (score(fits["sdp"], kuka["held"]).total_relative_error
+             / score(fits["ols"], kuka["held"]).total_relative_error)
+    assert ratio <= 1.05
+
+
+def test_on_a_new_trajectory_the_consistent_model_generalises_and_ols_does_not(kuka):
+    train = Recording.concatenate([kuka["recs"][1], kuka["recs"][2]]).dataset
+    new = kuka["recs"][3].dataset
+    e_ols = score(ci.identify(kuka["prior"], train, method="ols"), new).total_relative_error
+    e_sdp = score(ci.identify(kuka["prior"], train, method="sdp"), new).total_relative_error
+    assert e_sdp < 0.5 * e_ols
