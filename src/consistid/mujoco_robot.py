@@ -308,7 +308,8 @@ class MujocoRobot:
                 f"the MuJoCo simulation of {self.model.name} diverged before t = {t:.3f} s "
                 f"({bad[0].name} at dof {dof}): the physics step {self.timestep:g} s is too long "
                 "for the stiffest element (an elastic joint, ω = √(K/M_jj), on a light link, or "
-                "damping D·h/M_jj ≥ 2, explicit here); raise physics_rate or soften the effect")
+                "damping D·h/M_jj ≥ 2, explicit here), or the controller is too stiff for it; "
+                "raise physics_rate or soften the effect")
 
     def run(self, gains: tuple[float, float], nominal: RobotModel, t0: float,
             desired: tuple[np.ndarray, np.ndarray, np.ndarray], log_every: int,
@@ -328,8 +329,7 @@ class MujocoRobot:
         mj, data = self.mj_model, mujoco.MjData(self.mj_model)
         eff, nv = self.effects, self.nv
         elastic = eff.elastic
-        sense_motor = elastic & (eff.position_sensor == "motor")
-        sense_dof = np.where(sense_motor, self.motor_dof, self.link_dof)
+        sense_dof = self.motor_dof if eff.position_sensor == "motor" else self.link_dof
         drive, link = self.motor_dof, self.link_dof
         data.qpos[link], data.qvel[link] = qd[0], dqd[0]
         if elastic.any():
@@ -353,7 +353,7 @@ class MujocoRobot:
         applied = np.zeros(mj.nv)
         row = 0
         for k in range(steps):
-            qs, vs = data.qpos[sense_dof], data.qvel[sense_dof]
+            qs, vs = data.qpos[drive], data.qvel[drive]  # collocated feedback
             u = pin.rnea(pm, pdata, to_config(qs), vs,
                          ddqd[k] + kp * (qd[k] - qs) + kd * (dqd[k] - vs))
             applied[drive] = u
@@ -365,7 +365,8 @@ class MujocoRobot:
                 mujoco.mj_forward(mj, data)
                 for key, value in (("q", data.qpos[link]), ("dq", data.qvel[link]),
                                    ("ddq", data.qacc[link]), ("motor_q", data.qpos[drive]),
-                                   ("motor_dq", data.qvel[drive]), ("sensed_q", qs),
+                                   ("motor_dq", data.qvel[drive]),
+                                   ("sensed_q", data.qpos[sense_dof]),
                                    ("control", u)):
                     out[key][row] = value
                 row += 1

@@ -91,9 +91,11 @@ class TrackingController:
               \quad e = q_d - q,\; K_p = \omega^2,\; K_d = 2\zeta\omega
 
     (Craig, *Introduction to Robotics*, ch. 10; the seeds' simulated experiment), one
-    ``pinocchio.rnea`` call of the nominal model per physics step. ``q`` is the angle the joint's
-    position sensor reads, noise free; ``u`` is held over the step (a 1 kHz torque loop by
-    default). Model errors and unmodelled effects show up as tracking error and in ``u``.
+    ``pinocchio.rnea`` call of the nominal model per physics step. ``q`` is the drive-side
+    angle, noise free: the joint angle, or the motor angle on an elastic joint (collocated
+    feedback, as elastic-joint arms do; through the spring the loop would be unstable), whatever
+    the logged position sensor is. ``u`` is held over the step (a 1 kHz torque loop by default).
+    Model errors and unmodelled effects show up as tracking error and in ``u``.
 
     Parameters
     ----------
