@@ -31,11 +31,15 @@ Park 2019, "Geometric robot dynamic identification: a convex programming approac
   ``r`` on each entry of the normalised pseudo-inertia, in the same χ² units as the Fisher-weighted
   data term (equivalently, a Wishart prior with ``ν − 5 = γ`` degrees of freedom). It depends on
   neither the data set nor its length: as samples accumulate, the data dominate.
-* **Scaling**: the solver sees ``θ = θ_c + Φ w`` where ``Φ = (Rᵀ R + ½γ H₀)^{-1/2}`` (Cholesky,
-  computed per body in prior-normalised coordinates, ``H₀`` the prior's Hessian at ``π₀``) and
-  ``θ_c`` the minimiser of the quadratic model, so the objective's Hessian is ``≈ 1`` in ``w`` for
-  every prior weight, and every body's LMI is imposed on its prior-normalised pseudo-inertia
-  (:class:`~consistid.constraints.BodyScaling`). A change of variables: the optimum is unchanged.
+* **Scaling**: the solver sees ``θ = θ_c + Φ w`` with ``Φᵀ(RᵀR + ½γ H₀)Φ = 1`` (``H₀`` the
+  prior's Hessian at ``π₀``; ``Φ`` from one QR factorisation, in per-body prior-normalised
+  coordinates) and ``θ_c`` the minimiser of that quadratic model: the objective's Hessian is
+  ``≈ 1`` in ``w`` for every prior weight, and every body's LMI is imposed on its prior-normalised
+  pseudo-inertia (:class:`~consistid.constraints.BodyScaling`). Clarabel's own equilibration is
+  then redundant and is switched off. A solve that still ends ``optimal_inaccurate`` is rescaled
+  once around its answer and repeated (``details["refinements"]``). Changes of variables only:
+  the optimum is unchanged. Per-joint ``σ`` is floored at :data:`SIGMA_FLOOR` times the joint's
+  torque RMS, so noise-free data do not give infinite weights.
 """
 
 from __future__ import annotations
@@ -101,6 +105,12 @@ class _Setup:
     ellipsoids: tuple[cons.Ellipsoid | None, ...]
     nonnegative: np.ndarray         # (p,) bool
     euclid_w: np.ndarray | None     # (p_inertial, p_inertial) Euclidean prior weights
+    prior: str | None
+    gamma: float
+    neighbourhood: priors.Neighbourhood | None
+    com_boxes: Mapping[str, tuple[Sequence[float], Sequence[float]]]
+    mass_bounds: Mapping[str, tuple[float | None, float | None]]
+    total_mass: tuple[float | None, float | None] | None
 
 
 def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParameters,
@@ -196,9 +206,9 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
     if not (np.isfinite(gamma) and gamma >= 0):
         raise OptionError(f"prior_weight must be a finite number ≥ 0, got {prior_weight}")
     prior_vec = prior_vector(model, spec)
-    setup = _make_setup(model, spec, prior_vec, constraints, prior, prior_weights, ellipsoids,
+    setup = _make_setup(model, spec, prior_vec, constraints, prior, gamma, prior_weights,
+                        ellipsoids, neighbourhood, com_boxes, mass_bounds, total_mass,
                         friction_nonnegative, margin)
-    _check_bodies(model, com_boxes, mass_bounds)
 
     if sigma is None:
         sig, source = _ols_sigma(problem, base), "ols"
@@ -210,18 +220,20 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
 
     work, theta = problem, None
     solve_time = compile_time = 0.0
-    iterations = 0
+    iterations = refinements = 0
     setup_time = time.perf_counter() - start
     for k in range(passes + 1):
         t0 = time.perf_counter()
         r_full, z_full, _ = work.stacked(sigma=sig)
-        program = _build(model, spec, r_full, z_full, prior_vec, setup, prior, gamma,
-                         neighbourhood, com_boxes, mass_bounds, total_mass, scale)
+        program = _build(model, spec, r_full, z_full, prior_vec, setup, scale)
         setup_time += time.perf_counter() - t0
-        report = _solve(program, model, prior_vec, solver, solver_options, scale)
-        solve_time += report.solve_time
-        compile_time += report.compile_time
-        iterations += report.iterations or 0
+        program, reports = _solve_pass(program, model, spec, r_full, z_full, prior_vec, setup,
+                                       solver, solver_options, scale)
+        report = reports[-1]
+        refinements += len(reports) - 1
+        solve_time += sum(rep.solve_time for rep in reports)
+        compile_time += sum(rep.compile_time for rep in reports)
+        iterations += sum(rep.iterations or 0 for rep in reports)
         active = _check_answer(program)
         new = program.theta()
         done = theta is not None and (np.linalg.norm(new - theta)
@@ -247,16 +259,14 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
                       "and no prior: poorly excited directions are decided by the constraints "
                       "alone; consider prior='logdet'", PoorExcitationWarning, stacklevel=3)
     chi2 = float(np.sum(work.sum_squares(theta) / sig ** 2))
-    details = _details(model, theta, setup, prior, prior_vec, gamma, gamma_default,
-                       prior_weight, active, chi2)
+    details = _details(model, theta, setup, prior_vec, gamma_default, prior_weight, active, chi2)
     size = program.problem.size_metrics
     details.update(program_size={"variables": int(size.num_scalar_variables),
-                                 "constraint_rows": int(size.num_scalar_eq_constr
-                                                        + size.num_scalar_leq_constr),
-                                 "data": int(size.num_scalar_data)})
-    details.update(solver=solver, status=report.status, passes=k + 1, sigma_source=source,
-                   scaled=scale, solve_time=solve_time, compile_time=compile_time,
-                   setup_time=setup_time)
+                                 "constraints": len(program.problem.constraints),
+                                 "data": int(size.num_scalar_data)},
+                   solver=solver, status=report.status, passes=k + 1, refinements=refinements,
+                   sigma_source=source, scaled=scale, solve_time=solve_time,
+                   compile_time=compile_time, setup_time=setup_time)
     return IdentificationResult(
         method="sdp", model=model, spec=spec, base=base, parameters=theta,
         parameter_names=tuple(parameter_names(model, spec)), prior=prior_vec,
@@ -300,12 +310,14 @@ def _reference(body: np.ndarray, fallback: float) -> np.ndarray:
 
 
 def _make_setup(model: RobotModel, spec: RegressorSpec, prior_vec: np.ndarray,
-                constraints: str | Mapping[str, str], prior: str | None,
+                constraints: str | Mapping[str, str], prior: str | None, gamma: float,
                 prior_weights: np.ndarray | None, ellipsoids: Mapping[str, cons.Ellipsoid] | None,
+                neighbourhood: priors.Neighbourhood | None, com_boxes: Mapping | None,
+                mass_bounds: Mapping | None, total_mass: tuple | None,
                 friction_nonnegative: bool, margin: float) -> _Setup:
     levels = _body_levels(model, constraints)
     ellipsoids = dict(ellipsoids or {})
-    _check_bodies(model, ellipsoids)
+    _check_bodies(model, ellipsoids, com_boxes, mass_bounds)
     missing = [b for b, lvl in zip(model.body_names, levels)
                if lvl == "ellipsoid" and b not in ellipsoids]
     if missing:
@@ -349,7 +361,8 @@ def _make_setup(model: RobotModel, spec: RegressorSpec, prior_vec: np.ndarray,
                                   f"({p_in}, {p_in}), got {np.shape(prior_weights)}")
             euclid_w = w
     return _Setup(levels, refs, scalings, eps, tuple(ellipsoids.get(b) for b in model.body_names),
-                  nonneg, euclid_w)
+                  nonneg, euclid_w, prior, gamma, neighbourhood, dict(com_boxes or {}),
+                  dict(mass_bounds or {}), total_mass)
 
 
 # ------------------------------------------------------------------------------------ noise
@@ -381,17 +394,26 @@ def _huber_weights(model: RobotModel, dataset: Dataset, spec: RegressorSpec, the
 
 
 # ------------------------------------------------------------------------------------ program
-def _prior_hessian(prior: str | None, setup: _Setup, nb: int) -> np.ndarray:
-    """Curvature ``H₀`` of the prior term (per unit weight) at ``π₀`` on the inertial block."""
+def _prior_hessian(prior: str | None, setup: _Setup, nb: int,
+                   around: np.ndarray | None = None) -> np.ndarray:
+    """Curvature ``H₀`` of the prior term (per unit weight) on the inertial block, at ``π₀``
+    or, for the log-det prior, at ``around`` (bodies there that are not realisable: at ``π₀``)."""
     if prior == "euclidean":
         return 2.0 * setup.euclid_w.T @ setup.euclid_w
-    metric = scipy.linalg.block_diag(*(priors.logdet_metric(setup.references[10 * i:10 * i + 10])
-                                       for i in range(nb)))
+    blocks = []
+    for i in range(nb):
+        at = setup.references[10 * i:10 * i + 10]
+        if around is not None and prior == "logdet":
+            body = around[10 * i:10 * i + 10]
+            if np.linalg.eigvalsh(pseudo_inertia(body))[0] > 0:
+                at = body
+        blocks.append(priors.logdet_metric(at))
+    metric = scipy.linalg.block_diag(*blocks)
     return 2.0 * metric.T @ metric
 
 
-def _whitening(r: np.ndarray, z: np.ndarray, prior_vec: np.ndarray, setup: _Setup,
-               prior: str | None, gamma: float, nb: int) -> tuple[np.ndarray, np.ndarray]:
+def _whitening(r: np.ndarray, z: np.ndarray, prior_vec: np.ndarray, setup: _Setup, nb: int,
+               around: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """``(θ_c, Φ)`` with ``Φᵀ(RᵀR + ½γ_s H₀)Φ = 1`` and ``θ_c`` its quadratic-model minimiser
     (both from one QR factorisation, so that noise-free data, whose weights are ~10⁶ σ⁻¹, stay
     accurate).
@@ -401,7 +423,11 @@ def _whitening(r: np.ndarray, z: np.ndarray, prior_vec: np.ndarray, setup: _Setu
     whitening of the quadratic model, which keeps Clarabel accurate from ``γ = 10⁻⁶`` to ``10²``
     times the default), or 1 without a prior: then unexcited directions get the unit scale of
     ``Ĵ``. Only the coordinates change, not the optimum.
+
+    ``around`` (a previous, inaccurate answer): centre there instead, with the log-det
+    curvature ``J⁻¹ ⊗ J⁻¹`` of that answer rather than of the prior (one Newton-like rescaling).
     """
+    prior, gamma = setup.prior, setup.gamma
     p, p_in = prior_vec.size, 10 * nb
     t = np.eye(p)
     t[:p_in, :p_in] = scipy.linalg.block_diag(*(sc.parameter_map() for sc in setup.scalings))
@@ -410,7 +436,8 @@ def _whitening(r: np.ndarray, z: np.ndarray, prior_vec: np.ndarray, setup: _Setu
     t[:, p_in:] /= np.sqrt(np.where(d > 0, d, 1.0))
     a = r @ t
     h0 = np.zeros((p, p))
-    h0[:p_in, :p_in] = t[:p_in, :p_in].T @ _prior_hessian(prior, setup, nb) @ t[:p_in, :p_in]
+    h0[:p_in, :p_in] = (t[:p_in, :p_in].T @ _prior_hessian(prior, setup, nb, around)
+                        @ t[:p_in, :p_in])
     m2 = 0.5 * (gamma if gamma > 0 else 1.0) * h0
     m2[p_in:, p_in:] += 1e-9 * np.eye(p - p_in)
     m2 += 1e-12 * np.diag(np.sum(a ** 2, axis=0) + np.diag(m2))  # keeps m2 definite
@@ -421,6 +448,8 @@ def _whitening(r: np.ndarray, z: np.ndarray, prior_vec: np.ndarray, setup: _Setu
     q_aug, r_aug = np.linalg.qr(np.vstack([a, m_half]))
     y_c = scipy.linalg.solve_triangular(r_aug, q_aug.T @ np.concatenate([z, m_half @ y0]))
     phi = t @ scipy.linalg.solve_triangular(r_aug, np.eye(p))
+    if around is not None:
+        return around.copy(), phi
     return t @ y_c, phi
 
 
@@ -454,13 +483,14 @@ class _Program:
 
 
 def _build(model: RobotModel, spec: RegressorSpec, r: np.ndarray, z: np.ndarray,
-           prior_vec: np.ndarray, setup: _Setup, prior: str | None, gamma: float,
-           neighbourhood: priors.Neighbourhood | None, com_boxes: Mapping | None,
-           mass_bounds: Mapping | None, total_mass: tuple | None, scale: bool) -> _Program:
+           prior_vec: np.ndarray, setup: _Setup, scale: bool,
+           around: np.ndarray | None = None) -> _Program:
     """The cvxpy program of one pass (module docstring)."""
     nb, p = model.n_bodies, prior_vec.size
+    prior, gamma, neighbourhood = setup.prior, setup.gamma, setup.neighbourhood
+    com_boxes, mass_bounds, total_mass = setup.com_boxes, setup.mass_bounds, setup.total_mass
     if scale:
-        theta_c, phi = _whitening(r, z, prior_vec, setup, prior, gamma, nb)
+        theta_c, phi = _whitening(r, z, prior_vec, setup, nb, around)
     else:
         theta_c, phi = np.zeros(p), np.eye(p)
     w = cp.Variable(p, name="w")
@@ -518,6 +548,35 @@ def _build(model: RobotModel, spec: RegressorSpec, r: np.ndarray, z: np.ndarray,
         objective = objective + gamma * cp.sum(cp.hstack(prior_terms))
     problem = cp.Problem(cp.Minimize(objective), [c for c, _ in labelled])
     return _Program(problem, w, theta_c, phi, tuple(labelled))
+
+
+def _solve_pass(program: _Program, model: RobotModel, spec: RegressorSpec, r: np.ndarray,
+                z: np.ndarray, prior_vec: np.ndarray, setup: _Setup, solver: str,
+                options: dict[str, Any] | None, scale: bool
+                ) -> tuple[_Program, list[SolverReport]]:
+    """Solve; if the scaled program ends ``optimal_inaccurate``, rescale around that answer
+    (:func:`_whitening` with ``around``) and solve once more. The refined answer replaces the
+    first only if its solve succeeds; otherwise the first stands, with its warning."""
+    if not scale:
+        return program, [_solve(program, model, prior_vec, solver, options, scale)]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        first = _solve(program, model, prior_vec, solver, options, scale)
+    if first.status != cp.OPTIMAL_INACCURATE:
+        _rewarn(caught)
+        return program, [first]
+    refined = _build(model, spec, r, z, prior_vec, setup, scale, around=program.theta())
+    try:
+        second = _solve(refined, model, prior_vec, solver, options, scale)
+    except IdentificationError:
+        _rewarn(caught)
+        return program, [first]
+    return refined, [first, second]
+
+
+def _rewarn(caught: list[warnings.WarningMessage]) -> None:
+    for w in caught:
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
 
 
 def _solve(program: _Program, model: RobotModel, prior_vec: np.ndarray, solver: str,
@@ -598,10 +657,10 @@ def _base_covariance(r_b: np.ndarray) -> tuple[float, np.ndarray]:
     return cond, cov
 
 
-def _details(model: RobotModel, theta: np.ndarray, setup: _Setup, prior: str | None,
-             prior_vec: np.ndarray, gamma: float, gamma_default: float, given: float | None,
-             active: tuple[str, ...], chi2: float) -> dict[str, Any]:
-    nb = model.n_bodies
+def _details(model: RobotModel, theta: np.ndarray, setup: _Setup, prior_vec: np.ndarray,
+             gamma_default: float, given: float | None, active: tuple[str, ...],
+             chi2: float) -> dict[str, Any]:
+    nb, prior, gamma = model.n_bodies, setup.prior, setup.gamma
     lam = {b: float(np.linalg.eigvalsh(pseudo_inertia(theta[10 * i:10 * i + 10]))[0])
            for i, b in enumerate(model.body_names)}
     rel = {}
@@ -623,8 +682,8 @@ def _details(model: RobotModel, theta: np.ndarray, setup: _Setup, prior: str | N
         "prior": str(prior),
         "prior_weight": gamma,
         "default_prior_weight": gamma_default,
-        "prior_weight_rule": "given" if given is not None or prior is None else
-        f"default 2/r², r = {np.sqrt(2.0 / gamma_default):.3g}",
+        "prior_weight_rule": "no prior" if prior is None else "given" if given is not None
+        else f"default 2/r², r = {np.sqrt(2.0 / gamma_default):.3g}",
         "prior_divergence": divergence,
         "data_chi2": chi2,
         "min_eigenvalues": lam,
