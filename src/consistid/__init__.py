@@ -8,31 +8,37 @@
 
 from . import simulate
 from .base import BaseParameters, compute_base_parameters
+from .constraints import Ellipsoid
 from .dataset import Dataset
 from .errors import (ConsistidError, DatasetError, IdentificationError,
-                     InconsistentParametersError, InfeasibleError, InfeasibleExcitationError,
-                     JointCountError, MissingColumnsError, ModelError, OptionError,
-                     PoorExcitationError, UnrealizableCoefficientsError)
+                     InaccurateSolutionWarning, InconsistentParametersError, InfeasibleError,
+                     InfeasibleExcitationError, JointCountError, MissingColumnsError, ModelError,
+                     OptionError, PoorExcitationError, PoorExcitationWarning,
+                     UnrealizableCoefficientsError)
 from .excitation import (BoundaryConditions, ExcitationDesign, ExcitationLimits, FourierTrajectory,
                          design_excitation)
 from .identify import identify
 from .model import RobotModel
 from .parameters import is_physically_consistent
+from .priors import Neighbourhood
 from .payload import Payload, estimate_payload, payload_from_base_change
 from .recordings import load_recording
 from .recover import RecoveryResult, recover_standard
 from .regressor import RegressorSpec, regressor
 from .result import IdentificationResult
+from .sdp import default_prior_weight
 
 __version__ = "0.1.0"
 
 __all__ = [
     "BaseParameters", "BoundaryConditions", "ConsistidError", "Dataset", "DatasetError",
-    "ExcitationDesign", "ExcitationLimits", "FourierTrajectory", "InfeasibleExcitationError",
-    "IdentificationError", "IdentificationResult", "InconsistentParametersError",
-    "InfeasibleError", "JointCountError", "MissingColumnsError", "ModelError", "OptionError",
-    "Payload", "PoorExcitationError", "RecoveryResult", "RegressorSpec", "RobotModel",
-    "UnrealizableCoefficientsError", "compute_base_parameters", "design_excitation",
-    "estimate_payload", "identify", "is_physically_consistent", "load_recording",
+    "Ellipsoid", "ExcitationDesign", "ExcitationLimits", "FourierTrajectory",
+    "InfeasibleExcitationError", "IdentificationError", "IdentificationResult",
+    "InaccurateSolutionWarning", "InconsistentParametersError", "InfeasibleError",
+    "JointCountError", "MissingColumnsError", "ModelError", "Neighbourhood", "OptionError",
+    "Payload", "PoorExcitationError", "PoorExcitationWarning", "RecoveryResult",
+    "RegressorSpec", "RobotModel", "UnrealizableCoefficientsError", "compute_base_parameters",
+    "default_prior_weight", "design_excitation", "estimate_payload", "identify",
+    "is_physically_consistent", "load_recording",
     "payload_from_base_change", "recover_standard", "regressor", "simulate",
 ]

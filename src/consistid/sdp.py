@@ -171,10 +171,14 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
     -------
     IdentificationResult
         ``method="sdp"``; ``base_parameters = B θ`` of the answer with the covariance
-        ``(R_bᵀ R_b)⁻¹`` of the weighted fit; ``details`` holds ``min_eigenvalues`` and
-        ``relative_margins`` per body, ``active_constraints``, ``prior``, ``prior_weight``,
-        ``default_prior_weight``, ``solve_time``, ``compile_time``, ``setup_time``, ``passes``,
-        ``sigma_source``, ``data_chi2``, ``prior_divergence``, ``program_size`` (variables,
+        ``(R_bᵀ R_b)⁻¹`` of the weighted fit. ``details``: ``constraints`` (levels and active
+        ones, text), ``prior``, ``prior_weight``, ``prior_weight_rule``, ``solver``,
+        ``sigma_source`` (``"ols" | "given" | "irls" | "huber"``), ``scaled``;
+        ``active_constraints`` (labels); ``min_eigenvalues`` (``λ_min(J)``, kg·m²) and
+        ``relative_margins`` (``λ_min(L⁻¹JL⁻ᵀ)``, prior-normalised) per body;
+        ``fit`` (``data_chi2``, ``prior_divergence``, ``default_prior_weight``);
+        ``timing`` (``solve``, ``compile``, ``setup`` seconds, also in ``solver``);
+        ``passes`` (``reweighting``, ``refinements``); ``program_size`` (variables,
         constraints, data entries handed to cvxpy: independent of N).
 
     Raises
@@ -264,9 +268,10 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
     details.update(program_size={"variables": int(size.num_scalar_variables),
                                  "constraints": len(program.problem.constraints),
                                  "data": int(size.num_scalar_data)},
-                   solver=solver, status=report.status, passes=k + 1, refinements=refinements,
-                   sigma_source=source, scaled=scale, solve_time=solve_time,
-                   compile_time=compile_time, setup_time=setup_time)
+                   solver=solver, sigma_source=source,
+                   passes={"reweighting": k + 1, "refinements": refinements},
+                   timing={"solve": solve_time, "compile": compile_time, "setup": setup_time},
+                   scaled=scale)
     return IdentificationResult(
         method="sdp", model=model, spec=spec, base=base, parameters=theta,
         parameter_names=tuple(parameter_names(model, spec)), prior=prior_vec,
@@ -676,18 +681,20 @@ def _details(model: RobotModel, theta: np.ndarray, setup: _Setup, prior_vec: np.
     elif prior == "euclidean":
         divergence = float(np.sum((setup.euclid_w @ (theta[:10 * nb] - prior_vec[:10 * nb])) ** 2))
     levels = set(setup.levels)
+    described = (levels.pop() if len(levels) == 1 else
+                 ", ".join(f"{b}={lvl}" for b, lvl in zip(model.body_names, setup.levels)))
+    shown = ", ".join(active[:4]) + (f" … ({len(active)} in all)" if len(active) > 4 else "")
     return {
-        "constraints": levels.pop() if len(levels) == 1 else
-        ", ".join(f"{b}={lvl}" for b, lvl in zip(model.body_names, setup.levels)),
+        # strings and numbers (the summary prints these)
+        "constraints": f"{described}; active: {shown or 'none'}",
         "prior": str(prior),
         "prior_weight": gamma,
-        "default_prior_weight": gamma_default,
         "prior_weight_rule": "no prior" if prior is None else "given" if given is not None
         else f"default 2/r², r = {np.sqrt(2.0 / gamma_default):.3g}",
-        "prior_divergence": divergence,
-        "data_chi2": chi2,
+        # structured figures
+        "active_constraints": active,
         "min_eigenvalues": lam,
         "relative_margins": rel,
-        "active_constraints": active,
-        "n_active_constraints": len(active),
+        "fit": {"data_chi2": chi2, "prior_divergence": divergence,
+                "default_prior_weight": gamma_default},
     }
