@@ -21,13 +21,19 @@ positive semidefinite (Wensing, Kim, Slotine 2017, RA-L 3(1), doi:10.1109/LRA.20
 
     .. math::  d^* = \min_\pi \|L(B\pi - \hat\beta)\|^2 \;\text{s.t. consistency}, \qquad
                \min_\pi \textstyle\sum_i d(J_i \| J_{0,i}) \;\text{s.t. consistency},\;
-               \|L(B\pi - \hat\beta)\|^2 \le d^* + \delta
+               \|L(B\pi - \hat\beta)\|^2 \le d^*(1 + 10^{-3}) + \delta
 
     with ``LᵀL = Σ⁻¹`` the inverse covariance of ``β̂``: the first finds how close any consistent
-    set can get (in χ² units), the second lets the prior choose among the (near-)closest sets
-    without moving the coefficients by more than ``δ`` (default 0.01 χ², i.e. at most 0.1 σ).
-    A one-stage penalty ``‖L(Bπ − β̂)‖² + λ d`` was measured to move coefficients by up to
-    0.3 σ (λ = 1e-3) on the Panda for the prior's sake; the two stages do not.
+    set can get (in χ² units), the second lets the prior choose among the sets that are, to
+    ``δ`` (default 1 χ² unit: statistically as close as the closest), just as close. The nearest
+    set lies on the boundary of consistency, where the coefficients alone pin the null space of
+    ``B`` to odd values; measured on the Panda (OLS, 1 N·m noise, Euclidean prior), ``δ = 0.01``
+    left link masses up to 15 kg (truth ≤ 4 kg), ``δ = 1`` gave masses within 0.5 kg of the
+    truth while moving no coefficient by more than 1.1 σ. A one-stage penalty
+    ``‖L(Bπ − β̂)‖² + λ d`` has no such bound on how far the prior pulls the coefficients.
+    With a nearly flat prior body (Panda link 2: ``λ_min/λ_max(J₀) ≈ 1e-6``) the log-det prior
+    resists any thickness change there and may push other bodies' masses far instead; the
+    summary names such bodies (``prior="euclidean"`` does not have this stiffness).
 
 When ``mode="exact"`` is infeasible, :class:`~consistid.errors.UnrealizableCoefficientsError`
 names the coefficients (by their readable grouping) that no consistent set can meet, with the
@@ -52,8 +58,8 @@ from .base import BaseParameters, compute_base_parameters
 from .conic import DEFAULT_SOLVER, solve
 from .constraints import BodyScaling
 from .dataset import Dataset
-from .errors import (InconsistentParametersError, InfeasibleError, ModelError, OptionError,
-                     UnrealizableCoefficientsError, check_option)
+from .errors import (IdentificationError, InconsistentParametersError, InfeasibleError,
+                     ModelError, OptionError, UnrealizableCoefficientsError, check_option)
 from .model import RobotModel
 from .parameters import ConsistencyReport, is_physically_consistent, pseudo_inertia
 from .priors import euclidean, logdet_divergence, logdet_divergence_value
@@ -70,11 +76,17 @@ ABSOLUTE_STD = 1e-6
 MOVE_THRESHOLD = 1e-3
 #: Weight of the prior tie-break in the first (distance) stage of nearest mode.
 STAGE1_TIE = 1e-6
-#: Clarabel tolerances of the first stage (its d* is needed to well within ``slack`` only) and
-#: of the infeasibility diagnosis.
-STAGE1_CLARABEL = {"tol_gap_rel": 1e-6, "tol_gap_abs": 1e-9, "tol_feas": 1e-7}
+#: Relative part of the second stage's allowance, ``d ≤ d*(1 + SLACK_RTOL) + slack``.
+SLACK_RTOL = 1e-3
+#: Clarabel tolerances of both nearest-mode stages and of the infeasibility diagnosis: d* is
+#: needed to well within ``slack`` only, the prior's optimum to 1e-6 relative, and the answer is
+#: checked afterwards (margins ≥ 1e-6 relative ≫ 1e-7 feasibility, distance recomputed). The
+#: default 1e-8 makes Clarabel stall ("AlmostSolved") one step after meeting these.
+NEAREST_CLARABEL = {"tol_gap_rel": 1e-6, "tol_gap_abs": 1e-9, "tol_feas": 1e-7}
 #: A prior body with cond(J₀) above this is "nearly flat" (named in messages and notes).
 FLAT_PRIOR = 1e5
+#: Round-off below zero accepted (and set to 0) on entries constrained ≥ 0 (N·m, N·m·s/rad, kg·m²).
+NONNEGATIVE_ROUNDOFF = 1e-7
 #: Per-joint terms kept non-negative when ``joint_constraints`` is on.
 NONNEGATIVE_TERMS = ("coulomb", "viscous", "armature")
 
@@ -415,7 +427,7 @@ def diagnose_infeasibility(problem: _Problem, solver: str = DEFAULT_SOLVER,
     x, constraints, _ = problem.variables()
     change = problem.base.matrix @ x - problem.beta
     # A diagnosis: the L1 optimum is needed to well within the reported moves only.
-    options1 = ({**STAGE1_CLARABEL, **(options or {})} if solver.upper() == "CLARABEL"
+    options1 = ({**NEAREST_CLARABEL, **(options or {})} if solver.upper() == "CLARABEL"
                 else options)
     report = solve(cp.Problem(cp.Minimize(cp.norm1(cp.multiply(1.0 / problem.std, change))),
                               constraints), "infeasibility diagnosis", solver, options1)
@@ -425,6 +437,18 @@ def diagnose_infeasibility(problem: _Problem, solver: str = DEFAULT_SOLVER,
 def _finish(problem: _Problem, mode: str, x: np.ndarray, reports: tuple[SolverReport, ...],
             details: dict[str, Any]) -> RecoveryResult:
     model = problem.model
+    x = np.array(x, dtype=float)
+    if problem.joint_constraints:
+        # Entries constrained ≥ 0 come back within the solver's feasibility tolerance, e.g.
+        # −8e-10; set those (only those) to 0 so that exporters see the sign the constraint gave.
+        keep = model.n_inertial + _nonnegative_joint_columns(problem.spec)
+        low = x[keep]
+        if np.any(low < -NONNEGATIVE_ROUNDOFF):
+            raise IdentificationError(
+                f"solver returned {problem.base.standard_names[keep[np.argmin(low)]]} = "
+                f"{low.min():.3g} despite the constraint ≥ 0")
+        details["clipped_to_zero"] = int(np.sum(low < 0))
+        x[keep] = np.maximum(low, 0.0)
     margins, divergences = np.empty(model.n_bodies), np.empty(model.n_bodies)
     for i in range(model.n_bodies):
         xi, pi = x[10 * i:10 * i + 10], problem.prior[10 * i:10 * i + 10]
@@ -471,18 +495,20 @@ def _nearest(problem: _Problem, slack: float, solver: str, options: dict[str, An
     tie = STAGE1_TIE * sum(euclidean(x1[10 * i:10 * i + 10], problem.prior[10 * i:10 * i + 10],
                                      euclidean_weights(problem.prior[10 * i:10 * i + 10]))
                            for i in range(problem.model.n_bodies))
-    # Stage 1 only needs d* to well within the slack: its optimum lies on the boundary of the
-    # cone, where Clarabel's duality gap stalls near 1e-6 relative ("AlmostSolved"), so ask for that.
-    options1 = ({**STAGE1_CLARABEL, **(options or {})} if solver.upper() == "CLARABEL"
+    # Both stages end on the boundary of the cone, where Clarabel's gap and residuals stall
+    # near 1e-6..1e-8 ("AlmostSolved"); ask for what is needed (NEAREST_CLARABEL).
+    options1 = ({**NEAREST_CLARABEL, **(options or {})} if solver.upper() == "CLARABEL"
                 else options)
     stage1 = solve(cp.Problem(cp.Minimize(cp.sum_squares(problem.misfit(x1)) + tie),
                               constraints1), "nearest recovery (stage 1: distance)", solver,
                    options1)
     d_star = float(np.sum((problem.weight @ (problem.base.project(x1.value) - problem.beta)) ** 2))
     x2, constraints2, objective = problem.variables()
-    constraints2.append(cp.sum_squares(problem.misfit(x2)) <= d_star + slack)
+    bound = d_star * (1.0 + SLACK_RTOL) + slack
+    # normalised to 1 so that the cone's scale does not depend on how misfit β̂ is
+    constraints2.append(cp.sum_squares(problem.misfit(x2) / np.sqrt(bound)) <= 1.0)
     stage2 = solve(cp.Problem(cp.Minimize(objective), constraints2),
-                   problem.label("nearest recovery (stage 2: prior)"), solver, options)
+                   problem.label("nearest recovery (stage 2: prior)"), solver, options1)
     return _finish(problem, "nearest", x2.value, (stage1, stage2),
                    {"stage1_distance": d_star, "slack": slack})
 
@@ -493,7 +519,7 @@ def recover_standard(model: RobotModel, base_params: np.ndarray | Identification
                      covariance: np.ndarray | None = None,
                      friction: FrictionArg = None, armature: bool | Sequence[int | str] = False,
                      prior_parameters: np.ndarray | None = None, margin: float = 1e-6,
-                     slack: float = 1e-2, joint_constraints: bool = True,
+                     slack: float = 1.0, joint_constraints: bool = True,
                      solver: str = DEFAULT_SOLVER,
                      solver_options: dict[str, Any] | None = None) -> RecoveryResult:
     """Physically consistent standard parameters with the given base coefficients.
@@ -519,8 +545,10 @@ def recover_standard(model: RobotModel, base_params: np.ndarray | Identification
         solver round-off (≈1e-8 in the scaled LMI) cannot leave a body with a slightly negative
         eigenvalue (the Euclidean prior, which has no barrier, ends on the boundary otherwise).
         ``0`` allows bodies on the boundary of consistency.
-    slack : nearest mode: extra weighted squared distance allowed to the prior stage.
-    joint_constraints : keep Coulomb, viscous and armature entries ``≥ 0``.
+    slack : nearest mode: extra weighted squared distance (χ² units with a covariance) allowed
+        to the prior stage beyond ``d*(1 + 1e-3)``.
+    joint_constraints : keep Coulomb, viscous and armature entries ``≥ 0`` (solver round-off
+        down to ``−NONNEGATIVE_ROUNDOFF`` is set to 0; counted in ``details``).
     solver, solver_options : cvxpy solver (default Clarabel) and its options.
 
     Returns
