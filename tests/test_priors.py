@@ -1,0 +1,71 @@
+"""Prior terms: the log-det divergence, its metric, and the neighbourhood bounds."""
+
+from __future__ import annotations
+
+import cvxpy as cp
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from consistid import priors
+from consistid.parameters import from_mass_com_inertia, pseudo_inertia
+
+SETTINGS = settings(max_examples=25, deadline=None)
+
+
+def body(seed: int, m: float | None = None) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    s = rng.uniform(1e-3, 0.05, 3)  # second moments: always a solid body
+    mass = rng.uniform(0.5, 5.0) if m is None else m
+    return from_mass_com_inertia(mass, rng.normal(0, 0.2, 3),
+                                 mass * np.diag([s[1] + s[2], s[0] + s[2], s[0] + s[1]]))
+
+
+def divergence(j: np.ndarray, j0: np.ndarray) -> float:
+    """Definition (Lee, Wensing, Park 2019, eq. 24), computed independently."""
+    return float(-np.log(np.linalg.det(j)) + np.log(np.linalg.det(j0))
+                 + np.trace(np.linalg.solve(j0, j)) - 4)
+
+
+@SETTINGS
+@given(st.integers(0, 2**31))
+def test_logdet_divergence_expression_matches_definition(seed):
+    p0, p = body(seed), body(seed + 1)
+    x = cp.Variable(10)
+    x.value = p
+    expected = divergence(pseudo_inertia(p), pseudo_inertia(p0))
+    assert priors.logdet_divergence(x, p0).value == pytest.approx(expected, rel=1e-9, abs=1e-9)
+    assert priors.logdet_divergence_value(p, p0) == pytest.approx(expected, rel=1e-9, abs=1e-9)
+    assert priors.logdet_divergence_value(p0, p0) == pytest.approx(0.0, abs=1e-9)
+
+
+@SETTINGS
+@given(st.integers(0, 2**31))
+def test_logdet_metric_is_the_second_order_expansion(seed):
+    p0 = body(seed)
+    w = priors.logdet_metric(p0)
+    d = np.random.default_rng(seed).normal(size=10)
+    d *= 1e-3 * np.linalg.norm(p0) / np.linalg.norm(d)
+    for step in (1.0, 0.1):  # third-order remainder: the ratio tends to 1 linearly
+        quad = np.sum((w @ (step * d)) ** 2)
+        ratio = priors.logdet_divergence_value(p0 + step * d, p0) / quad
+        assert abs(ratio - 1) < (0.3 if step == 1.0 else 0.03)
+
+
+def test_neighbourhood_bounds_hold_when_minimising_against_them():
+    """Pull a body far away; the optimum sits on each bound."""
+    p0 = body(5, m=2.0)
+    far = body(6, m=4.0)
+    bounds = priors.Neighbourhood(mass=0.1, com=0.02, inertia=0.2)
+    x = cp.Variable(10)
+    problem = cp.Problem(cp.Minimize(cp.sum_squares(x - far)),
+                         priors.neighbourhood_constraints(x, p0, bounds))
+    problem.solve(solver="CLARABEL")
+    assert problem.status == "optimal"
+    v = x.value
+    assert abs(v[0] / p0[0] - 1) == pytest.approx(0.1, abs=1e-6)
+    c, c0 = v[1:4] / v[0], p0[1:4] / p0[0]
+    assert np.linalg.norm(c - c0) <= 0.02 + 1e-6
+    with pytest.raises(ValueError, match="Neighbourhood.com"):
+        priors.Neighbourhood(com=-1.0)
