@@ -18,9 +18,16 @@ Method
      ``N log(SSE₁/SSE₀) + k log N < 0`` with ``N`` the number of training rows,
    * its held-out reduction passes an F-test at level ``alpha``,
      ``F = (ΔSSE_ho / k) / (SSE_ho / N_ho)``,
-   * and the reduction is at least ``min_gain`` of the nominal held-out sum of squares of the
-     joints it acts on (a practical-relevance floor: with 10⁴ autocorrelated samples every
-     systematic wiggle is "significant").
+   * the reduction is at least ``min_gain`` of the nominal held-out sum of squares of the
+     joints it acts on (a practical-relevance floor),
+   * and its parameter is physical where the effect has a sign (friction, rotor inertia,
+     compliance, payload mass ≥ 0).
+
+   The best atom (largest held-out reduction) that passes is kept. Rows are counted as
+   ``N / τ`` effectively independent samples, ``τ`` the integrated autocorrelation time of the
+   residual that no candidate explains (:func:`consistid.gap.autocorrelation_time`): filtered
+   torques make neighbouring samples nearly equal, and tests counting every row would accept
+   any wiggle.
 
    Atoms whose held-out reductions are within ``tie`` of the best and whose corrections are
    nearly collinear with it (cosine ≥ 0.9 on the held-out data) are *indistinguishable* on these
@@ -52,6 +59,9 @@ log = logging.getLogger(__name__)
 
 #: A held-out shrink below this fraction does not list a joint under an arm-wide effect.
 JOINT_SHRINK_FLOOR = 0.05
+#: Effects whose (first) parameter must be positive to be physical: friction, rotor inertia,
+#: compliance, payload mass. A candidate fitted negative is not selected.
+POSITIVE = ("coulomb", "viscous", "armature", "elasticity", "payload")
 
 
 # --------------------------------------------------------------------------------- results
@@ -356,8 +366,9 @@ class _Problem:
     held: _Grams
     w: np.ndarray
     phi_train: np.ndarray
-    #: integrated autocorrelation time of the residual (samples per independent sample)
-    tau_corr: float = 1.0
+    #: (nv,) integrated autocorrelation time of the residual per joint (samples per
+    #: independent sample)
+    tau_corr: np.ndarray | float = 1.0
 
     def cols(self, chosen: Sequence[int]) -> np.ndarray:
         if not chosen:
@@ -383,7 +394,7 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
     """Greedy forward selection; returns chosen atom indices, their alternatives, the steps, and
     the ΔBIC and p-value at entry of each chosen atom."""
     nv = prob.w.size
-    n_tr, n_ho = prob.train.n * nv / prob.tau_corr, prob.held.n * nv / prob.tau_corr
+    n_tr_j, n_ho_j = prob.train.n / prob.tau_corr, prob.held.n / prob.tau_corr
     nominal_ho = prob.held.s * prob.w
     chosen: list[int] = []
     alternatives: list[tuple[str, ...]] = []
@@ -391,7 +402,7 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
     pvals: list[float] = []
     steps: list[Step] = []
     cols, theta, rank = prob.fit(chosen)
-    sse_tr = float(prob.w @ prob.train.sse(cols, theta))
+    sse_tr = prob.w * prob.train.sse(cols, theta)
     sse_ho = prob.w * prob.held.sse(cols, theta)
     full_p = sum(s.size for s in prob.slices)
     for _ in range(max_steps):
@@ -403,59 +414,91 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
             k = r2 - rank
             if k <= 0:
                 continue
-            tr2 = float(prob.w @ prob.train.sse(c2, th2))
+            tr2 = prob.w * prob.train.sse(c2, th2)
             ho2 = prob.w * prob.held.sse(c2, th2)
             u = np.zeros(full_p)
             u[c2] = th2
             u[cols] -= theta
-            scores.append((i, float(sse_ho.sum() - ho2.sum()), k, tr2, ho2, u))
+            own = th2[-atom.n_parameters:]
+            scores.append((i, float(sse_ho.sum() - ho2.sum()), k, tr2, ho2, u, own))
         if not scores:
             break
         scores.sort(key=lambda s: -s[1])
-        best = scores[0]
-        if best[1] <= 0:
-            steps.append(Step(prob.atoms[best[0]].label(joint_names), best[1], np.nan, 1.0,
-                              False, "no candidate reduces the held-out residual",
-                              _cand_table(prob, scores, joint_names)))
-            break
-        # Indistinguishable candidates: similar held-out gain and collinear corrections.
-        g_ho = np.einsum("j,jpq->pq", prob.w, prob.held.G)
-        group = [best]
-        ub = best[5]
-        nb = float(ub @ g_ho @ ub)
-        for s in scores[1:]:
-            if s[1] < (1 - tie) * best[1]:
+
+        def verdict(s: tuple) -> tuple[str, float, float]:
+            # Tests on the rows the atom acts on (its joint, or all): another joint's residual
+            # says nothing about this atom's significance.
+            i, gain, k, tr2, ho2 = s[:5]
+            atom = prob.atoms[i]
+            rows = _rows_of(atom, nv)
+            n_tr, n_ho = float(n_tr_j[rows].sum()), float(n_ho_j[rows].sum())
+            before_tr, after_tr = float(sse_tr[rows].sum()), float(tr2[rows].sum())
+            dbic = n_tr * np.log(after_tr / before_tr) + k * np.log(n_tr)
+            gain_rows = float(sse_ho[rows].sum() - ho2[rows].sum())
+            f = (gain_rows / k) / (float(ho2[rows].sum()) / n_ho)
+            p = float(scipy.stats.f.sf(f, k, n_ho)) if gain_rows > 0 else 1.0
+            floor = min_gain * float(nominal_ho[rows].sum())
+            if gain <= 0:
+                return "does not reduce the held-out residual", dbic, p
+            if atom.effect in POSITIVE and s[6][0] < 0:
+                return (f"its {atom.parameter_names[0]} is negative: not a physical "
+                        f"{atom.effect}", dbic, p)
+            if dbic >= 0:
+                return f"ΔBIC {dbic:.3g} ≥ 0", dbic, p
+            if p >= alpha:
+                return f"held-out F-test p = {p:.2g} ≥ {alpha:g}", dbic, p
+            if gain < floor:
+                return (f"held-out gain {gain / max(nominal_ho[rows].sum(), 1e-300):.2%} of the "
+                        f"nominal residual < min_gain {min_gain:.0%}", dbic, p)
+            return "accepted", dbic, p
+
+        verdicts = {}
+        passing = None
+        for sc in scores:
+            verdicts[sc[0]] = verdict(sc)
+            if verdicts[sc[0]][0] == "accepted":
+                passing = sc
                 break
-            ns = float(s[5] @ g_ho @ s[5])
-            if nb > 0 and ns > 0 and (s[5] @ g_ho @ ub) / np.sqrt(nb * ns) >= 0.9:
-                group.append(s)
-        pick = min(group, key=lambda s: (s[2], -s[1]))
-        i, gain, k, tr2, ho2, _ = pick
+        table = _cand_table(prob, scores, joint_names)
+        if passing is None:
+            best = scores[0]
+            steps.append(Step(prob.atoms[best[0]].label(joint_names), best[1],
+                              float(verdicts[best[0]][1]), verdicts[best[0]][2], False,
+                              f"stop: no candidate passes (best: {verdicts[best[0]][0]})",
+                              table))
+            if progress is not None:
+                progress(f"step {len(steps)}: stop — {steps[-1].reason}")
+            break
+        # Indistinguishable candidates: similar held-out gain and collinear corrections; the one
+        # with the fewest parameters (that passes) is kept, the others are its alternatives.
+        g_ho = np.einsum("j,jpq->pq", prob.w, prob.held.G)
+        ub = passing[5]
+        nb = float(ub @ g_ho @ ub)
+        group = [passing]
+        for sc in scores:
+            if sc is passing or abs(sc[1] - passing[1]) > tie * passing[1]:
+                continue
+            ns = float(sc[5] @ g_ho @ sc[5])
+            if nb > 0 and ns > 0 and (sc[5] @ g_ho @ ub) / np.sqrt(nb * ns) >= 0.9:
+                group.append(sc)
+        for sc in group:
+            if sc[0] not in verdicts:
+                verdicts[sc[0]] = verdict(sc)
+        eligible = [sc for sc in group if verdicts[sc[0]][0] == "accepted"]
+        pick = min(eligible, key=lambda sc: (sc[2], -sc[1]))
+        i, gain = pick[0], pick[1]
+        reason, dbic, p = verdicts[i]
         atom = prob.atoms[i]
-        rows = _rows_of(atom, nv)
-        dbic = n_tr * np.log(tr2 / sse_tr) + k * np.log(n_tr)
-        f = (gain / k) / (ho2.sum() / n_ho)
-        p = float(scipy.stats.f.sf(f, k, n_ho)) if gain > 0 else 1.0
-        floor = min_gain * float(nominal_ho[rows].sum())
-        reason = ("accepted" if dbic < 0 and p < alpha and gain >= floor else
-                  f"stop: ΔBIC {dbic:.3g} ≥ 0" if dbic >= 0 else
-                  f"stop: held-out F-test p = {p:.2g} ≥ {alpha:g}" if p >= alpha else
-                  f"stop: held-out gain {gain / max(nominal_ho[rows].sum(), 1e-300):.2%} of the "
-                  f"nominal residual < min_gain {min_gain:.0%}")
-        ok = reason == "accepted"
-        steps.append(Step(atom.label(joint_names), gain, float(dbic), p, ok, reason,
-                          _cand_table(prob, scores, joint_names)))
+        steps.append(Step(atom.label(joint_names), gain, float(dbic), p, True, reason, table))
         if progress is not None:
             progress(f"step {len(steps)}: {atom.label(joint_names)} — {reason}")
-        if not ok:
-            break
         chosen.append(i)
-        alternatives.append(tuple(prob.atoms[s[0]].label(joint_names) for s in group
-                                  if s[0] != i))
+        alternatives.append(tuple(prob.atoms[sc[0]].label(joint_names) for sc in group
+                                  if sc[0] != i))
         bics.append(float(dbic))
         pvals.append(p)
         cols, theta, rank = prob.fit(chosen)
-        sse_tr = float(prob.w @ prob.train.sse(cols, theta))
+        sse_tr = prob.w * prob.train.sse(cols, theta)
         sse_ho = prob.w * prob.held.sse(cols, theta)
     return chosen, alternatives, steps, bics, pvals
 
@@ -610,7 +653,7 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
              held_out: Dataset | Sequence[Dataset] | None = None,
              effects: Sequence[str] = EFFECT_NAMES, sigma: float | Sequence[float] | None = None,
              *, alpha: float = 1e-3, min_gain: float = 0.01, tie: float = 0.05,
-             max_steps: int = 12, split: float = 0.7, inertia_solver: str = "auto",
+             max_steps: int = 20, split: float = 0.7, inertia_solver: str = "auto",
              progress: Callable[[str], None] | None = None) -> Diagnosis:
     """Diagnose the gap between a nominal (simulator) model and measured torques.
 
@@ -689,9 +732,7 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     # samples with the autocorrelation time of what no candidate explains.
     saturated = train.residual - phi_tr[..., everything_cols] @ theta_all if atoms \
         else train.residual
-    tau_joint = autocorrelation_time(train.dataset, saturated)
-    prob.tau_corr = float(np.sum(prob.w * tau_joint * np.mean(saturated ** 2, axis=0))
-                          / np.sum(prob.w * np.mean(saturated ** 2, axis=0)))
+    prob.tau_corr = autocorrelation_time(train.dataset, saturated)
     names = model.joint_names
     chosen, alts, steps, bics, pvals = _select(prob, names, alpha, min_gain, tie, max_steps,
                                                progress)
@@ -710,14 +751,22 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     final_stds: list[np.ndarray] = []
     for name in order:
         members = [k for k, i in enumerate(chosen) if prob.atoms[i].effect == name]
-        cumulative += [chosen[k] for k in members]
-        fit, stds, fit_notes = _refit(prob, cumulative, train, model, pi0, extra_fn,
-                                      inertia_solver)
-        notes += [n for n in fit_notes if n not in notes]
-        after = np.sqrt(np.mean((held.tau - held.tau_nom - fit.correction(held)) ** 2, axis=0))
-        final_stds = stds
+        trial = cumulative + [chosen[k] for k in members]
+        trial_fit, stds, fit_notes = _refit(prob, trial, train, model, pi0, extra_fn,
+                                            inertia_solver)
+        after = np.sqrt(np.mean((held.tau - held.tau_nom - trial_fit.correction(held)) ** 2,
+                                axis=0))
         shrink = 1.0 - after / np.where(before > 0, before, 1.0)
         total = 1.0 - np.linalg.norm(after / floor) / max(np.linalg.norm(before / floor), 1e-300)
+        if total <= 0:
+            # Selected with the least-squares inertia, it no longer generalises once the final
+            # fit (exact delay, consistent inertia) is made: say so and leave it out.
+            labels = ", ".join(prob.atoms[chosen[k]].label(names) for k in members)
+            notes.append(f"{labels} was selected but does not reduce the held-out residual in "
+                         f"the final fit (shrink {100 * total:.1f} %): left out")
+            continue
+        cumulative, fit, final_stds = trial, trial_fit, stds
+        notes += [n for n in fit_notes if n not in notes]
         atoms_here = [prob.atoms[chosen[k]] for k in members]
         if all(a.joint is not None for a in atoms_here):
             joints = tuple(names[a.joint] for a in atoms_here)
