@@ -48,7 +48,7 @@ import pinocchio as pin
 
 from .errors import InconsistentParametersError, ModelError, check_option
 from .model import RobotModel
-from .parameters import check_body, to_mass_com_inertia
+from .parameters import check_body
 
 MERGED = ("auto", "lump", "subtract")
 
@@ -139,7 +139,8 @@ def _links(model: RobotModel, full: pin.Model, root: ET.Element) -> list[_Link]:
 
 def _joint_terms(model: RobotModel, parameters: np.ndarray, names: Sequence[str] | None
                  ) -> dict[str, dict[str, float]]:
-    """``{joint: {"fc": …, "fv": …, "fo": …, "Ia": …}}`` from the entries after the inertial ones."""
+    """``{joint: {"fc": …, "fv": …, "fo": …, "Ia": …}}`` from the entries after the inertial
+    ones."""
     extra = parameters[model.n_inertial:]
     if extra.size == 0:
         return {}

@@ -1,8 +1,8 @@
 r"""Payload estimation: the 10 inertial parameters of a tool or load on the last link.
 
 Rule of change (Gaz & De Luca, "Payload estimation based on identified coefficients of robot
-dynamics — with an application to collision detection", IROS 2017,
-doi:10.1109/IROS.2017.8206142; Robotics 2 lecture notes in consistid's seeds): a payload rigidly
+dynamics — with an application to collision detection", IROS 2017, pp. 3033–3040; Robotics 2
+lecture notes in consistid's seeds): a payload rigidly
 attached to body ``n`` only adds to that body's standard parameters, expressed in the same frame,
 
 .. math::  \pi_n \;\to\; \pi_n + \pi_L, \qquad
@@ -170,7 +170,8 @@ def frame_transform(rotation: np.ndarray, translation: np.ndarray) -> np.ndarray
     With ``h_r = R h``:
 
     .. math::  m' = m,\quad h' = R h + m p,\quad
-               I' = R I R^\top + m(\|p\|^2 1 - p p^\top) + 2 (p^\top h_r) 1 - p h_r^\top - h_r p^\top
+               I' = R I R^\top + m(\|p\|^2 1 - p p^\top)
+                    + 2 (p^\top h_r) 1 - p h_r^\top - h_r p^\top
 
     (substitute ``r = p + R s`` in ``I = Σ m_k(‖r‖²1 − r rᵀ)``). Linear, valid for any
     10-vector (no mass needed, unlike ``pinocchio.Inertia.se3Action``).

@@ -10,10 +10,11 @@ positive semidefinite (Wensing, Kim, Slotine 2017, RA-L 3(1), doi:10.1109/LRA.20
                B\pi = \hat\beta,\; J_i(\pi) \succeq \epsilon\, J_i(\pi_0)\;\forall i
 
     with ``d`` the log-det divergence (Lee, Wensing, Park 2019, T-RO 36(2),
-    doi:10.1109/TRO.2019.2926491) or a relative Euclidean distance (:func:`euclidean_weights`). This is the problem Gaz,
-    Flacco, De Luca (ICRA 2016, doi:10.1109/ICRA.2016.7487356) and Gaz et al. (RA-L 2019,
-    doi:10.1109/LRA.2019.2931248) solve by penalty-based nonlinear search; here it is convex and
-    solved globally by one SDP. **Every** body is constrained, including bodies some (or all) of
+    doi:10.1109/TRO.2019.2926491) or a relative Euclidean distance (:func:`euclidean_weights`).
+    This is the problem Gaz, Flacco, De Luca ("Extracting feasible robot parameters from dynamic
+    coefficients using nonlinear optimization methods", ICRA 2016, pp. 2075–2081) and Gaz et al.
+    (Panda identification, RA-L 4(4), 2019, pp. 4147–4154) solve by nonlinear, penalty-based
+    search; here it is convex and solved globally by one SDP. **Every** body is constrained, including bodies some (or all) of
     whose columns vanish from the regressor: their parameters are then set by the prior.
 
 ``mode="nearest"``
