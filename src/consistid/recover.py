@@ -417,7 +417,7 @@ def _moves(problem: _Problem, recovered: np.ndarray, threshold: float
     return tuple(sorted(out, key=lambda m: -abs(m.sigmas)))
 
 
-def diagnose_infeasibility(problem: _Problem, solver: str = DEFAULT_SOLVER,
+def _diagnose_infeasibility(problem: _Problem, solver: str = DEFAULT_SOLVER,
                            options: dict[str, Any] | None = None
                            ) -> tuple[tuple[CoefficientMove, ...], SolverReport]:
     """The smallest weighted-L1 change ``Σ |Δβ_i| / σ_i`` that makes ``β̂`` realisable.
@@ -476,7 +476,7 @@ def _exact(problem: _Problem, solver: str, options: dict[str, Any] | None) -> Re
         report = solve(cp.Problem(cp.Minimize(objective), constraints),
                        problem.label("exact recovery"), solver, options)
     except InfeasibleError as exc:
-        moves, _ = diagnose_infeasibility(problem, solver, options)
+        moves, _ = _diagnose_infeasibility(problem, solver, options)
         listed = "; ".join(str(m) for m in moves[:8])
         more = f" (and {len(moves) - 8} more)" if len(moves) > 8 else ""
         raise UnrealizableCoefficientsError(
