@@ -277,6 +277,16 @@ def test_bspline_design_with_imposed_start(planar_2r):
     assert d.constraints.feasible and np.isfinite(d.cond)
 
 
+@pytest.mark.parametrize("method, criterion", [("SLSQP", "e-opt"), ("trust-constr", "d-opt")])
+def test_methods_and_criteria_improve_the_design(planar_2r, method, criterion):
+    d = design_excitation(planar_2r, harmonics=2, period=4.0, criterion=criterion,
+                          friction=None, method=method, n_starts=1, max_iter=10, n_grid=40,
+                          n_check=400, seed=2)
+    start = d.starts[0]
+    assert start.value < start.initial_value and d.constraints.feasible
+    assert d.value == pytest.approx(d.quality.criteria[criterion], rel=0.05)
+
+
 def test_cli_excite_writes_a_csv(planar_2r, tmp_path):
     cfg = tmp_path / "excite.toml"
     cfg.write_text(f"""

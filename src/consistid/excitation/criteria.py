@@ -6,7 +6,7 @@ per-joint noise ``Σ = diag(σ_j²)`` and optionally column-scaled, ``A = Σ^{-1
 ``"cond"``
     the 2-norm condition number ``κ(A) = s_max / s_min`` (Gautier & Khalil 1992, "Exciting
     trajectories for the identification of base inertial parameters of robots", IJRR 11(4),
-    doi:10.1177/027836499201100405). With ``D = diag(|β_prior|)`` it is the scaled criterion of
+    doi:10.1177/027836499201100408). With ``D = diag(|β_prior|)`` it is the scaled criterion of
     Pressé & Gautier 1993 used by Rackl et al. 2012 (ICRA, doi:10.1109/ICRA.2012.6225279,
     eq. 15), to which :func:`consistid.excitation.design_excitation` can add Rackl's torque
     term ``ξ / mean|τ|``.

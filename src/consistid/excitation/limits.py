@@ -28,7 +28,7 @@ from .trajectory import DEFAULT_ACCELERATION_LIMIT, _joint_vector
 
 
 def end_effector_frame(model: RobotModel) -> str:
-    """The default end-effector frame: the last body frame of the model (e.g. ``panda_hand_tcp``)."""
+    """The default end-effector frame: the model's last body frame (e.g. ``panda_hand_tcp``)."""
     bodies = [f.name for f in model.pin_model.frames if f.type == pin.FrameType.BODY]
     return bodies[-1]
 

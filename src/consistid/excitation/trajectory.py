@@ -1,4 +1,4 @@
-r"""Excitation trajectory parameterisations: Fourier series (with a boundary polynomial) and B-splines.
+r"""Excitation trajectories: Fourier series (with a boundary polynomial) and B-splines.
 
 Every parameterisation here is *affine* in its coefficients: with the coefficients of joint ``j``
 in row ``X[j]`` (the same basis for every joint),
@@ -133,7 +133,8 @@ class Parameterisation(ABC):
     @abstractmethod
     def basis(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(G, O)`` with ``G`` (3, N, n_coefficients) and ``O`` (3, N, nv) such that
-        ``q^{(d)}(t_i) = O[d, i] + X @ G[d, i]`` for ``d = 0, 1, 2`` (times in ``[0, duration]``)."""
+        ``q^{(d)}(t_i) = O[d, i] + X @ G[d, i]`` for ``d = 0, 1, 2`` (times in
+        ``[0, duration]``)."""
 
     @abstractmethod
     def rest(self, q_centre: np.ndarray) -> np.ndarray:
