@@ -204,3 +204,34 @@ def test_rnea_derivatives_mass_matrix_is_symmetrised(panda):
     crba = pin.crba(m, m.createData(), data.q[3])
     np.testing.assert_allclose(gap.rnea_derivatives[2][3], np.triu(crba) + np.triu(crba, 1).T,
                                atol=1e-10)
+
+
+def test_cli_diagnose_writes_the_report(panda, tmp_path, capsys):
+    """``consistid diagnose CONFIG``: TOML with the URDF, npz logs (consistid layout) and an
+    output folder; Coulomb friction injected on joint 4 is named in the printed summary."""
+    from consistid.cli import main
+    from consistid.model import EXAMPLE_ROBOTS, example_robot_data_dir
+
+    for name, seed, duration in (("train", 8, 8.0), ("held", 9, 5.0)):
+        d = excitation_run(panda, duration=duration, rate=RATE, torque_noise=0.05,
+                           seed=seed).dataset
+        d.with_torque(d.tau + np.outer(np.sign(d.dq[:, 3]), np.eye(7)[3])).save(
+            tmp_path / f"{name}.npz")
+    urdf, locked = EXAMPLE_ROBOTS["panda"]
+    (tmp_path / "diag.toml").write_text(f"""
+[model]
+urdf = "{example_robot_data_dir() / urdf}"
+locked_joints = {list(locked)}
+[data]
+keys = "consistid"
+joint_names = {panda.joint_names}
+train = ["train.npz"]
+held_out = ["held.npz"]
+[diagnose]
+sigma = 0.05
+output = "report"
+""".replace("'", '"'))
+    assert main(["diagnose", str(tmp_path / "diag.toml")]) == 0
+    out = capsys.readouterr().out
+    assert "coulomb" in out and "panda_joint4" in out
+    assert (tmp_path / "report" / "report.html").is_file()

@@ -10,6 +10,7 @@ from . import simulate
 from .base import BaseParameters, compute_base_parameters
 from .constraints import Ellipsoid
 from .dataset import Dataset
+from .diagnose import Diagnosis, diagnose
 from .errors import (ConsistidError, DatasetError, IdentificationError,
                      InaccurateSolutionWarning, InconsistentParametersError, InfeasibleError,
                      InfeasibleExcitationError, JointCountError, MissingColumnsError, ModelError,
@@ -32,6 +33,7 @@ __version__ = "0.1.0"
 
 __all__ = [
     "BaseParameters", "BoundaryConditions", "ConsistidError", "Dataset", "DatasetError",
+    "Diagnosis", "diagnose",
     "Ellipsoid", "ExcitationDesign", "ExcitationLimits", "FourierTrajectory",
     "InfeasibleExcitationError", "IdentificationError", "IdentificationResult",
     "InaccurateSolutionWarning", "InconsistentParametersError", "InfeasibleError",

@@ -186,6 +186,42 @@ def payload(args: argparse.Namespace) -> int:
     return 0
 
 
+DIAGNOSE_KEYS = ("effects", "sigma", "alpha", "min_gain", "tie", "max_steps", "split",
+                 "inertia_solver", "nominal_urdf", "output")
+
+
+def diagnose(args: argparse.Namespace) -> int:
+    """Sim-to-real gap diagnosis of the ``[model]`` (or ``[diagnose] nominal_urdf``) against the
+    ``[data]`` logs (:mod:`consistid.diagnose`); the report goes to ``[diagnose] output``."""
+    import consistid as ci
+    from consistid.config import config_model, config_recordings, load_config
+    from consistid.urdf import model_without_dynamics
+
+    config = load_config(args.config)
+    model = config_model(config)
+    train, held = config_recordings(config, model)
+    t = config.table("diagnose", DIAGNOSE_KEYS, required=False)
+    options = {k: t[k] for k in DIAGNOSE_KEYS[:8] if k in t}
+    nominal = None
+    if "nominal_urdf" in t:
+        m = config.table("model")
+        nominal = model_without_dynamics(
+            config.resolve(t["nominal_urdf"]), locked_joints=m.get("locked_joints", ()),
+            **({"gravity": m["gravity"]} if "gravity" in m else {}))[0]
+    _log(f"diagnosing {model.name}: {train.dataset.n_samples} training samples, "
+         f"{'held-out logs' if held is not None else 'time split'}")
+    t0 = time.perf_counter()
+    diag = ci.diagnose(model, train.dataset, nominal=nominal,
+                       held_out=None if held is None else held.dataset, progress=_log,
+                       **options)
+    _log(f"      done in {time.perf_counter() - t0:.2f} s")
+    print(diag.summary())
+    output = args.output or t.get("output")
+    if output:
+        _log(f"wrote {diag.report(config.resolve(output) if not args.output else output)}")
+    return 0
+
+
 COMMANDS: dict[str, tuple[Callable[[argparse.Namespace], int], str]] = {
     "demo": (demo, "simulate an excitation run, identify it, print a report"),
     "identify": (identify, "identify a robot from the logs named in a TOML config"),
@@ -193,6 +229,7 @@ COMMANDS: dict[str, tuple[Callable[[argparse.Namespace], int], str]] = {
     "simulate": (simulate, "run a MuJoCo arm with unmodelled effects, show the nominal residual"),
     "recover": (recover, "consistent standard parameters from base coefficients (TOML config)"),
     "payload": (payload, "estimate a payload from unloaded and loaded logs (TOML config)"),
+    "diagnose": (diagnose, "sim-to-real gap diagnosis of a model against logs (TOML config)"),
 }
 
 
@@ -227,6 +264,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--all", action="store_true", help="list every moved coefficient")
     p = sub.add_parser("payload", help=COMMANDS["payload"][1])
     p.add_argument("config", help="TOML file with [model], [data] (unloaded) and [payload]")
+    p = sub.add_parser("diagnose", help=COMMANDS["diagnose"][1])
+    p.add_argument("config", help="TOML file with [model], [data] and optionally [diagnose]")
+    p.add_argument("--output", help="report directory, .html or .txt (default: [diagnose] "
+                                    "output; none: text to stdout only)")
     return parser
 
 
