@@ -65,3 +65,16 @@ def test_bad_inputs_raise_named_errors(tmp_path, panda):
         ci.RobotModel.from_urdf(bad)
     with pytest.raises(ci.ModelError, match="10 per body"):
         panda.with_parameters(np.ones(5))
+
+
+def test_unset_urdf_limits_read_as_unlimited_and_excite_the_double_pendulum():
+    pend = ci.RobotModel.example("double_pendulum")
+    lim = pend.limits
+    assert np.all(np.isinf(lim.lower)) and np.all(np.isinf(lim.upper))
+    assert np.all(np.isinf(lim.velocity)) and np.all(np.isinf(lim.effort))
+    # random states now move, so the base map sees every identifiable column (link1.mz included)
+    base = ci.compute_base_parameters(pend)
+    q, dq, ddq = ci.base.random_states(pend, 400, np.random.default_rng(0))
+    y = ci.regressor(pend, q, dq, ddq)
+    assert base.n_base == np.linalg.matrix_rank(y)
+    assert np.ptp(q) > 1.0

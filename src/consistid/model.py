@@ -242,7 +242,13 @@ class RobotModel:
 
     @cached_property
     def limits(self) -> JointLimits:
-        """Position limits per joint; unbounded (continuous) joints get ``±inf``."""
+        """Joint limits per DoF; ``±inf`` where the URDF sets none.
+
+        Unbounded (continuous) joints get ``±inf``. A URDF ``<limit>`` with an empty position
+        range (``lower ≥ upper``) or a zero velocity/effort — example-robot-data's double pendulum
+        writes ``0`` for all four, meaning "not set" — is read as unlimited, not as a joint that
+        cannot move.
+        """
         m = self.pin_model
         lower, upper = np.empty(self.nv), np.empty(self.nv)
         for j in range(1, m.njoints):
@@ -252,9 +258,13 @@ class RobotModel:
                 upper[joint.idx_v] = m.upperPositionLimit[joint.idx_q]
             else:
                 lower[joint.idx_v], upper[joint.idx_v] = -np.inf, np.inf
-        lower[~np.isfinite(lower) | (lower < -1e10)] = -np.inf
-        upper[~np.isfinite(upper) | (upper > 1e10)] = np.inf
-        return JointLimits(lower, upper, np.array(m.velocityLimit), np.array(m.effortLimit))
+        unset = lower >= upper
+        lower[unset | ~np.isfinite(lower) | (lower < -1e10)] = -np.inf
+        upper[unset | ~np.isfinite(upper) | (upper > 1e10)] = np.inf
+        velocity, effort = (np.array([m.velocityLimit, m.effortLimit][i]) for i in (0, 1))
+        velocity[velocity <= 0] = np.inf
+        effort[effort <= 0] = np.inf
+        return JointLimits(lower, upper, velocity, effort)
 
     def __repr__(self) -> str:
         return (f"RobotModel({self.name!r}, nv={self.nv}, bodies={self.n_bodies}, "
