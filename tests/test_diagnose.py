@@ -111,6 +111,19 @@ def test_coulomb_parameters_and_friction_regimes(panda, tmp_path):
                                                   "residual_spectrum.png", "joint_bars.png"}
 
 
+def test_time_split_and_a_nominal_that_already_has_the_effect(panda):
+    """Without held-out data the last 30 % of the recording scores; an identified nominal model
+    that already carries the Coulomb friction leaves nothing to explain."""
+    d = excitation_run(panda, duration=12.0, rate=RATE, torque_noise=0.05, seed=10).dataset
+    d = d.with_torque(d.tau + np.outer(np.sign(d.dq[:, 4]), np.eye(7)[4]) * 0.6)
+    diag = diagnose(panda, d, sigma=0.05)
+    assert "time split" in diag.held_out_source
+    assert [e.name for e in diag.effects] == ["coulomb"]
+    nominal = ci.identify(panda, d, method="ols", friction={"coulomb": [4]})
+    diag = diagnose(panda, d, nominal=nominal, sigma=0.05)
+    assert diag.effects == () and diag.at_noise_floor
+
+
 def test_bad_arguments_raise_named_errors(panda):
     data = excitation_run(panda, duration=2.0, rate=RATE, seed=0).dataset
     with pytest.raises(ModelError, match="nominal parameters have shape"):
@@ -210,18 +223,15 @@ def test_cli_diagnose_writes_the_report(panda, tmp_path, capsys):
     """``consistid diagnose CONFIG``: TOML with the URDF, npz logs (consistid layout) and an
     output folder; Coulomb friction injected on joint 4 is named in the printed summary."""
     from consistid.cli import main
-    from consistid.model import EXAMPLE_ROBOTS, example_robot_data_dir
 
     for name, seed, duration in (("train", 8, 8.0), ("held", 9, 5.0)):
         d = excitation_run(panda, duration=duration, rate=RATE, torque_noise=0.05,
                            seed=seed).dataset
         d.with_torque(d.tau + np.outer(np.sign(d.dq[:, 3]), np.eye(7)[3])).save(
             tmp_path / f"{name}.npz")
-    urdf, locked = EXAMPLE_ROBOTS["panda"]
     (tmp_path / "diag.toml").write_text(f"""
 [model]
-urdf = "{example_robot_data_dir() / urdf}"
-locked_joints = {list(locked)}
+example = "panda"
 [data]
 keys = "consistid"
 joint_names = {panda.joint_names}

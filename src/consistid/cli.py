@@ -203,11 +203,10 @@ def diagnose(args: argparse.Namespace) -> int:
     t = config.table("diagnose", DIAGNOSE_KEYS, required=False)
     options = {k: t[k] for k in DIAGNOSE_KEYS[:8] if k in t}
     nominal = None
-    if "nominal_urdf" in t:
-        m = config.table("model")
-        nominal = model_without_dynamics(
-            config.resolve(t["nominal_urdf"]), locked_joints=m.get("locked_joints", ()),
-            **({"gravity": m["gravity"]} if "gravity" in m else {}))[0]
+    if "nominal_urdf" in t:  # same joints, locks and gravity as [model], other inertias
+        nominal = model_without_dynamics(config.resolve(t["nominal_urdf"]),
+                                         locked_joints=model.locked_joints,
+                                         gravity=model.gravity)[0]
     _log(f"diagnosing {model.name}: {train.dataset.n_samples} training samples, "
          f"{'held-out logs' if held is not None else 'time split'}")
     t0 = time.perf_counter()

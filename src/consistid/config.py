@@ -7,7 +7,7 @@ code. Example (``examples/kuka_lwr4/identify.toml``)::
     root = "../.."                        # where relative paths start, relative to this file
 
     [model]
-    urdf = "../shared/data/kuka_lwr4/kuka_lwr4.urdf"
+    urdf = "../shared/data/kuka_lwr4/kuka_lwr4.urdf"   # or: example = "panda" (no other key)
     strip_dynamics = false                # true: load a copy without <dynamics> tags
     # locked_joints = ["finger_joint"]     gravity = [0.0, 0.0, -9.81]
 
@@ -46,7 +46,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - exercised on Python 3.10 only
     import tomli as tomllib
 
-MODEL_KEYS = ("urdf", "strip_dynamics", "locked_joints", "gravity", "name")
+MODEL_KEYS = ("urdf", "example", "strip_dynamics", "locked_joints", "gravity", "name")
 DATA_KEYS = ("dir", "keys", "joint_names", "trim_start", "trim_end", "duplicates", "train",
              "held_out")
 
@@ -112,6 +112,11 @@ def load_config(path: str | Path) -> RunConfig:
 def config_model(config: RunConfig) -> RobotModel:
     """The robot of the ``[model]`` table."""
     t = config.table("model", MODEL_KEYS)
+    if "example" in t:  # an example-robot-data arm by name (RobotModel.example)
+        if set(t) != {"example"}:
+            raise ConfigError(f"{config.path.name}: [model] example = {t['example']!r} takes no "
+                              f"other key; got {sorted(set(t) - {'example'})}")
+        return RobotModel.example(t["example"])
     if "urdf" not in t:
         raise ConfigError(f"{config.path.name}: [model] needs urdf = \"path/to/robot.urdf\"")
     urdf = config.resolve(t["urdf"])

@@ -183,6 +183,10 @@ class GapModel:
         data = self.data(dataset)
         return data.tau_nom + self.correction(data)
 
+    def __repr__(self) -> str:
+        labels = ", ".join(a.label(self.model.joint_names) for a in self.atoms) or "nominal only"
+        return f"GapModel({self.model.name!r}: {labels})"
+
 
 @dataclass(frozen=True, eq=False)
 class Diagnosis:
@@ -243,6 +247,11 @@ class Diagnosis:
 
     def __str__(self) -> str:
         return self.summary()
+
+    def __repr__(self) -> str:
+        found = ", ".join(f"{e.name}({', '.join(e.joints)})" for e in self.effects) or "none"
+        return (f"Diagnosis({self.model_name!r}, effects=[{found}], "
+                f"at_noise_floor={self.at_noise_floor})")
 
     def report(self, path: str | None = None):
         """Write the report: ``*.html`` (plots embedded), ``*.txt``, or a directory (both, plus
@@ -762,8 +771,10 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
             # Selected with the least-squares inertia, it no longer generalises once the final
             # fit (exact delay, consistent inertia) is made: say so and leave it out.
             labels = ", ".join(prob.atoms[chosen[k]].label(names) for k in members)
-            notes.append(f"{labels} was selected but does not reduce the held-out residual in "
-                         f"the final fit (shrink {100 * total:.1f} %): left out")
+            verb = "was" if len(members) == 1 else "were"
+            notes.append(f"{labels} {verb} selected but do{'es' if verb == 'was' else ''} not "
+                         f"reduce the held-out residual in the final fit (shrink "
+                         f"{100 * total:.1f} %): left out")
             continue
         cumulative, fit, final_stds = trial, trial_fit, stds
         notes += [n for n in fit_notes if n not in notes]
@@ -789,6 +800,7 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
         lst = params_by_effect.setdefault(atom.effect, [])
         lst += _parameters(atom, th, sd, joint, fit, library)
     findings = [replace(f, parameters=tuple(params_by_effect.get(f.name, ()))) for f in findings]
+    notes += _asymmetric_friction(fit, names)
     # Rank by held-out reduction of each group (entry order is greedy, hence already ranked
     # by gain at entry; keep it).
     if inertia_solver == "ls" and "inertia" in order:
@@ -813,6 +825,19 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     return Diagnosis(model.name, tuple(names), tuple(findings), where, floor, noise_source,
                      rms_nominal, rms_final, library_floor, held_source, tuple(steps), fit,
                      tuple(notes))
+
+
+def _asymmetric_friction(fit: GapModel, names: list[str]) -> list[str]:
+    """Coulomb friction and an offset on the same joint read together as asymmetric friction,
+    ``τ_f = f_o + f_c sign(q̇)``: ``f_o + f_c`` moving forward, ``f_o − f_c`` backward."""
+    found: dict[int, dict[str, float]] = {}
+    for atom, th in zip(fit.atoms, fit.theta):
+        if atom.effect in ("coulomb", "offset") and atom.joint is not None:
+            found.setdefault(atom.joint, {})[atom.effect] = float(th[0])
+    return [f"{names[j]}: Coulomb friction and offset together are an asymmetric friction, "
+            f"{v['offset'] + v['coulomb']:.3g} N·m moving +, {v['offset'] - v['coulomb']:.3g} N·m "
+            "moving − (or a sensor offset beside symmetric friction: the data cannot tell)"
+            for j, v in sorted(found.items()) if len(v) == 2]
 
 
 def _parameters(atom: Atom, theta: np.ndarray, std: np.ndarray, joint: str | None,

@@ -10,12 +10,13 @@ Noise floor
     mean residual power density in the band just above it (``[2 f_s, 6 f_s]``, with ``f_s``
     the frequency below which the nominal torque has 99.9 % of its power), and
 
-    .. math::  \hat\sigma^2 = \int_0^{f_N} \min(\bar S_r(f), S_0)\, df
+    .. math::  \hat\sigma^2 = \int_0^{f_N} \min(\bar S_r(f), 1.25\, S_0)\, df
 
-    (``S̄_r`` the spectrum smoothed over 9 bins, and the clip raised to ``1.25 S₀`` so that its
-    remaining scatter is not clipped), which equals ``S₀ f_N`` for white noise and stays right when the torques were low-pass filtered
-    above ``6 f_s`` (the filtered band contributes what it has). It cannot see noise filtered
-    away *below* ``6 f_s``: give ``sigma`` for heavily pre-filtered data.
+    (``S̄_r`` the spectrum smoothed over 9 bins; the clip at ``1.25 S₀`` leaves its remaining
+    scatter unclipped). This equals ``S₀ f_N`` for white noise and stays right when the torques
+    were low-pass filtered above ``6 f_s`` (the filtered band contributes what it has). It cannot
+    see noise filtered away *below* ``6 f_s``: give ``sigma`` for heavily pre-filtered data
+    (:func:`consistid.diagnose` then also reports the *library floor*).
 """
 
 from __future__ import annotations
