@@ -54,6 +54,7 @@ from .dataset import Dataset
 from .errors import ModelError, OptionError
 from .gap import GapBreakdown, autocorrelation_time, gap_breakdown, noise_floor
 from .model import RobotModel
+from .parameters import pseudo_inertia
 
 log = logging.getLogger(__name__)
 
@@ -612,11 +613,18 @@ def _sdp_inertia(model: RobotModel, train: GapData, nominal: np.ndarray, others:
     corrected = train.dataset.with_torque(train.tau - others
                                           - (0 if train.nominal_extra is None
                                              else train.nominal_extra))
+    # The log-det prior needs every nominal body realisable (J ≻ 0); otherwise say so and use
+    # the Euclidean prior around the same nominal values.
+    bad = [name for name, i in zip(model.body_names, range(0, nominal.size, 10))
+           if not np.linalg.eigvalsh(pseudo_inertia(nominal[i:i + 10]))[0] > 0]
+    prior = "euclidean" if bad else "logdet"
     res = identify(model.with_parameters(nominal), corrected, method="sdp", friction=None,
-                   prior="logdet")
+                   prior=prior)
+    why = (f" (the nominal {', '.join(bad)} {'is' if len(bad) == 1 else 'are'} not physically "
+           "realisable, so no log-det prior)" if bad else "")
     return res.inertial_parameters, (f"inertia re-identified by the consistent SDP "
-                                     f"({res.solver.name}: {res.solver.status}) with a log-det "
-                                     "prior around the nominal parameters"), res.base_std
+                                     f"({res.solver.name}: {res.solver.status}) with a {prior} "
+                                     f"prior around the nominal parameters{why}"), res.base_std
 
 
 def _tuned_atoms(library: EffectLibrary, train: GapData, floor: np.ndarray
