@@ -37,7 +37,7 @@ DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "kuka_lw
 JOINTS = [f"lwr_{i}_joint" for i in range(7)]
 TRIM_START = 2.0
 #: Torque noise σ for the diagnosis (N·m). The logged torques are low-pass filtered upstream, so
-#: the spectral noise-floor estimate sees only what the filter left (≈ 0.002–0.02 N·m) and would
+#: the spectral noise-floor estimate sees only what the filter left (0.002–0.02 N·m) and would
 #: weight joints by it; 0.2 N·m is the per-joint RMS that the 64-parameter least-squares fit
 #: leaves on the training data (0.16–0.22 N·m): a floor no candidate effect can be asked to beat.
 SIGMA = 0.2
@@ -149,9 +149,9 @@ def main() -> int:
           f"{'PASS' if ratio <= 1.05 else 'FAIL'}")
     print(f"every body's pseudo-inertia ⪰ 0 (SDP): {sdp.is_consistent}  "
           f"(min eigenvalue {sdp.consistency.min_eigenvalues.min():.3g})")
-    print(f"SDP {100 * e['consistid SDP (pseudo-inertia, log-det prior)']:.2f} % vs best "
-          f"a-priori/FloBaRoID variant {100 * best_ref:.2f} %: "
-          f"{'beats both' if e['consistid SDP (pseudo-inertia, log-det prior)'] < best_ref else 'does not beat both'}")
+    e_sdp = e["consistid SDP (pseudo-inertia, log-det prior)"]
+    print(f"SDP {100 * e_sdp:.2f} % vs best a-priori/FloBaRoID variant {100 * best_ref:.2f} %: "
+          f"{'beats both' if e_sdp < best_ref else 'does not beat both'}")
 
     print("\n== Cross-trajectory check (measurements_1 and _2 share one trajectory, _3 is "
           "another) ==")
@@ -183,7 +183,7 @@ def main() -> int:
         rows += [[k, *held_scores[k].rms, 100 * held_scores[k].total_relative_error]
                  for k in ("consistid OLS", "consistid SDP (pseudo-inertia, log-det prior)")]
         print("\nHeld-out RMS per joint (N·m) and total relative error e (%) as the effects are "
-              "added in rank order (joints numbered 1–7 = lwr_0…lwr_6), and the identified models:")
+              "added in rank order (joints 1–7 = lwr_0…lwr_6), and the identified models:")
         print(table(["model", *(f"rms{j + 1}" for j in range(7)), "e%"], rows, floatfmt=".3g"))
     return 0
 

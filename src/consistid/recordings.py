@@ -25,10 +25,12 @@ what was done:
    exactly the model's joint count and is taken to be in the model's order (recorded as a step).
 5. **Trimming** (the rule): samples with ``t < trim_start`` or ``t > t_end − trim_end`` are
    dropped, ``t`` counted from the log's first stamp and ``t_end`` its last (after the signal
-   chain for raw logs, so its filter edges fall inside the trimmed part where they overlap). The start of an excitation run — the move away from rest and the filters' start-up —
-   is not described by a steady friction model; how long it lasts depends on the set-up, so the
-   durations are explicit arguments (0 by default) and always recorded. For the KUKA LWR4+ logs
-   the tutorial measures it (``docs/tutorial_real_kuka.md``): 2 s.
+   chain for raw logs, so its filter edges fall inside the trimmed part where they overlap).
+   The start of an excitation run — the move away from rest, the filters' start-up — is not
+   described by a steady model; how long it lasts depends on the set-up, so the durations are
+   explicit arguments (0 by default) and always recorded. For the KUKA LWR4+ logs the tutorial
+   measures it (``docs/tutorial_real_kuka.md``: a model fitted on the steady part leaves 2–5×
+   its steady residual during the first 2 s): 2 s.
 """
 
 from __future__ import annotations
@@ -136,7 +138,8 @@ def _merge_duplicates(t: np.ndarray, arrays: dict[str, np.ndarray], policy: str,
 
 
 def _match_joints(names: Sequence[str] | None, nv: int, model: RobotModel | None,
-                  source: str, steps: list[str]) -> tuple[np.ndarray | None, tuple[str, ...] | None]:
+                  source: str, steps: list[str]
+                  ) -> tuple[np.ndarray | None, tuple[str, ...] | None]:
     """Column order that puts the log's joints in the model's order (``None``: keep)."""
     if names is not None:
         names = tuple(str(n) for n in names)
@@ -256,8 +259,9 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
         from .signals import preprocess  # the chain for raw logs
 
         pre = preprocess(t, arrays["q"], arrays["tau"], joint_names=names, **signal_options)
-        steps.append(f"no logged velocities/accelerations: signals.preprocess ({pre.dataset.n_samples}"
-                     f" samples at {pre.rate:.6g} Hz, cut-off {pre.cutoff:.4g} Hz):")
+        steps.append(f"no logged velocities/accelerations: signals.preprocess "
+                     f"({pre.dataset.n_samples} samples at {pre.rate:.6g} Hz, cut-off "
+                     f"{pre.cutoff:.4g} Hz):")
         steps.extend(f"  {s}" for s in pre.steps)
         dataset = pre.dataset
     end = t[-1]
@@ -288,9 +292,9 @@ def _resolve_layout(files: Sequence[str], keys: str | Mapping[str, str], source:
         fits = [name for name, lay in NPZ_LAYOUTS.items()
                 if all(lay[k] in files for k in REQUIRED)]
         if not fits:
+            known = {n: list(lay.values()) for n, lay in NPZ_LAYOUTS.items()}
             raise MissingColumnsError(f"{source}: arrays {sorted(files)} match no known layout "
-                                      f"{ {n: list(lay.values()) for n, lay in NPZ_LAYOUTS.items()} }; "
-                                      "pass keys={'t': ..., 'q': ..., 'tau': ...}")
+                                      f"{known}; pass keys={{'t': ..., 'q': ..., 'tau': ...}}")
         layout = dict(NPZ_LAYOUTS[fits[0]])
     else:
         check_option("keys", keys, ("auto", *NPZ_LAYOUTS))
