@@ -355,7 +355,7 @@ class EffectLibrary:
                     if k is not None:
                         atom = Atom(e, j, (f"{names[j]}.ripple_sin", f"{names[j]}.ripple_cos"),
                                     ("N·m", "N·m"), float(k))
-                        out.append(self.tune_cutoff(tuning, tuning_residual[:, j], atom))
+                        out.append(self.tune_cutoff(tuning, tuning_residual[:, j], atom)[0])
             else:
                 suffix = {"coulomb": "fc", "viscous": "fv", "offset": "fo", "gain": "gain",
                           "armature": "Ia", "delay": "delay", "elasticity": "compliance"}[e]
@@ -411,10 +411,12 @@ class EffectLibrary:
         cols = np.column_stack([np.sin(phase), np.cos(phase)])
         return _on_row(data, atom.joint, lowpass_segments(data.dataset, cols, atom.cutoff))
 
-    def tune_cutoff(self, data: GapData, residual: np.ndarray, atom: Atom) -> Atom:
+    # ----------------------------------------------------------------------------- tuning
+    def tune_cutoff(self, data: GapData, residual: np.ndarray, atom: Atom
+                    ) -> tuple[Atom, float]:
         """The atom (Coulomb or ripple, one joint) with the cut-off of :data:`FILTER_CUTOFFS`
         (below the Nyquist frequency), refined between its grid neighbours, whose columns
-        explain most of ``residual`` (N,) by least squares."""
+        explain most of ``residual`` (N,) by least squares; and that explained sum of squares."""
         nyquist = 0.5 / float(np.median(np.diff(data.dataset.t)))
 
         def explained(fc: float) -> float:
@@ -428,30 +430,22 @@ class EffectLibrary:
         scores = [explained(fc) for fc in grid]
         i = int(np.argmax(scores))
         if not np.isfinite(grid[i]):
-            return replace(atom, cutoff=np.inf)
+            return replace(atom, cutoff=np.inf), scores[i]
         lo = grid[i + 1] if i + 1 < len(grid) else grid[i] / 2
         hi = grid[i - 1] if np.isfinite(grid[i - 1]) else min(2 * grid[i], nyquist)
         res = scipy.optimize.minimize_scalar(lambda x: -explained(float(np.exp(x))),
                                              bounds=(np.log(lo), np.log(hi)), method="bounded",
                                              options={"xatol": 1e-3})
-        fc = float(np.exp(res.x)) if -res.fun > scores[i] else grid[i]
-        return replace(atom, cutoff=fc)
+        if -res.fun > scores[i]:
+            return replace(atom, cutoff=float(np.exp(res.x))), float(-res.fun)
+        return replace(atom, cutoff=grid[i]), scores[i]
 
-    # ----------------------------------------------------------------------------- tuning
-    def coulomb_speed(self, data: GapData, residual: np.ndarray, joint: int) -> float:
-        """The smoothing speed of :data:`COULOMB_SPEEDS` whose ``tanh(q̇_j/v_s)`` column explains
-        most of ``residual`` (N,) by a one-column least-squares fit."""
-        dq = data.dataset.dq[:, joint]
-        best, best_v = -np.inf, 0.0
-        for v in COULOMB_SPEEDS:
-            c = smooth_sign(dq, v)
-            cc = float(c @ c)
-            if cc <= 0:
-                continue
-            explained = float(c @ residual) ** 2 / cc
-            if explained > best:
-                best, best_v = explained, v
-        return best_v
+    def tune_coulomb(self, data: GapData, residual: np.ndarray, atom: Atom) -> Atom:
+        """The Coulomb atom with the smoothing speed of :data:`COULOMB_SPEEDS` and the cut-off
+        (:meth:`tune_cutoff`) that together explain most of ``residual`` (N,)."""
+        trials = [self.tune_cutoff(data, residual, replace(atom, setting=v))
+                  for v in COULOMB_SPEEDS]
+        return max(trials, key=lambda t: t[1])[0]
 
     def ripple_order(self, data: GapData, residual: np.ndarray, joint: int) -> int | None:
         """The integer order ``k`` whose ``sin(k q_j), cos(k q_j)`` pair explains most of

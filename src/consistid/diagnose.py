@@ -33,15 +33,17 @@ Method
    nearly collinear with it (cosine ≥ 0.9 on the held-out data) are *indistinguishable* on these
    data: the one with fewer parameters is kept and the others are listed as alternatives instead
    of being ranked arbitrarily.
-4. *How far it shrinks.* Selected atoms are grouped by effect, in order of entry; the groups are
-   added one by one, each time refitted on the training data (the delay refined exactly,
-   ``τ_nom(t − d)``; inertia by the consistent SDP near the nominal when available) and scored
-   per joint on the held-out data: RMS before → after, shrink, parameters ± standard deviation.
+4. *How far it shrinks.* Selected atoms are grouped by effect and the groups ranked by the
+   held-out reductions of their atoms at entry; the groups are added one by one in that order,
+   each time refitted on the training data (the delay refined exactly, ``τ_nom(t − d)``;
+   inertia by the consistent SDP near the nominal, started from the joint least-squares fit)
+   and scored per joint on the held-out data: RMS before → after, shrink, parameters ± standard
+   deviation. A group that no longer reduces the held-out residual in this final fit is left
+   out, with a note.
 """
 
 from __future__ import annotations
 
-import logging
 from dataclasses import dataclass, field, replace
 from typing import Callable, Sequence
 
@@ -51,12 +53,10 @@ import scipy.stats
 
 from .candidates import EFFECT_NAMES, SIGNATURES, Atom, EffectLibrary, GapData
 from .dataset import Dataset
-from .errors import ModelError, OptionError
+from .errors import ModelError, OptionError, check_option
 from .gap import GapBreakdown, autocorrelation_time, gap_breakdown, noise_floor
 from .model import RobotModel
 from .parameters import pseudo_inertia
-
-log = logging.getLogger(__name__)
 
 #: A held-out shrink below this fraction does not list a joint under an arm-wide effect.
 JOINT_SHRINK_FLOOR = 0.05
@@ -105,7 +105,7 @@ class EffectFinding:
         the effects ranked above it (N·m).
     shrink : (nv,) ``1 − rms_after / rms_before`` per joint.
     total_shrink : ``1 − ‖r_after‖_w / ‖r_before‖_w`` over all joints, residuals weighted by the
-        per-joint noise floor.
+        per-joint noise floor used in the selection.
     parameters : estimated parameters with standard deviations.
     alternatives : other candidates indistinguishable from it on these data (same signature).
     n_parameters : parameters it adds.
@@ -195,7 +195,9 @@ class Diagnosis:
 
     Attributes
     ----------
-    effects : selected effects, ranked by held-out residual reduction (largest first).
+    effects : selected effects, ranked by held-out residual reduction (largest first: the sum
+        of its atoms' reductions when they entered the selection); ``rms_before``/``rms_after``
+        of each are cumulative in this order.
     where : where the nominal model's residual lies (:class:`~consistid.gap.GapBreakdown`).
     noise_floor : (nv,) torque noise standard deviation per joint (N·m).
     noise_source : ``"given"`` or how it was estimated.
@@ -375,7 +377,6 @@ class _Problem:
     train: _Grams
     held: _Grams
     w: np.ndarray
-    phi_train: np.ndarray
     #: (nv,) integrated autocorrelation time of the residual per joint (samples per
     #: independent sample)
     tau_corr: np.ndarray | float = 1.0
@@ -623,7 +624,8 @@ def _sdp_inertia(model: RobotModel, train: GapData, nominal: np.ndarray, others:
     why = (f" (the nominal {', '.join(bad)} {'is' if len(bad) == 1 else 'are'} not physically "
            "realisable, so no log-det prior)" if bad else "")
     return res.inertial_parameters, (f"inertia re-identified by the consistent SDP "
-                                     f"({res.solver.name}: {res.solver.status}) with a {prior} "
+                                     f"({res.solver.name}: {res.solver.status}) with a "
+                                     f"{'log-det' if prior == 'logdet' else prior} "
                                      f"prior around the nominal parameters{why}"), res.base_std
 
 
@@ -653,8 +655,7 @@ def _tuned_atoms(library: EffectLibrary, train: GapData, floor: np.ndarray
     for i, a in enumerate(atoms):
         if a.effect == "coulomb":
             partial = rest[:, a.joint] + blocks[i][:, a.joint, 0] * theta[o]
-            v = library.coulomb_speed(train, partial, a.joint)
-            atoms[i] = library.tune_cutoff(train, partial, replace(a, setting=v))
+            atoms[i] = library.tune_coulomb(train, partial, a)
             blocks[i] = library.columns(atoms[i], train)
         o += a.n_parameters
     if "ripple" in library.effects:
@@ -670,7 +671,7 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
              held_out: Dataset | Sequence[Dataset] | None = None,
              effects: Sequence[str] = EFFECT_NAMES, sigma: float | Sequence[float] | None = None,
              *, alpha: float = 1e-3, min_gain: float = 0.01, tie: float = 0.05,
-             max_steps: int = 20, split: float = 0.7, inertia_solver: str = "auto",
+             max_steps: int = 20, split: float = 0.7, inertia_solver: str = "sdp",
              progress: Callable[[str], None] | None = None) -> Diagnosis:
     """Diagnose the gap between a nominal (simulator) model and measured torques.
 
@@ -692,24 +693,17 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     tie : relative held-out gain within which collinear candidates count as indistinguishable.
     max_steps : most atoms selected.
     split : training fraction of each recording when ``held_out`` is ``None``.
-    inertia_solver : ``"sdp"`` (consistent, log-det prior around the nominal; needs
-        :mod:`consistid.sdp`), ``"ls"`` (least squares on base parameters) or ``"auto"`` (SDP when
-        available).
+    inertia_solver : how the selected ``inertia`` effect is finally fitted: ``"sdp"``
+        (:mod:`consistid.sdp`: every body physically consistent, log-det prior around the
+        nominal; Euclidean when a nominal body is not realisable) or ``"ls"`` (least squares on
+        the base parameters). The selection itself always scores inertia by least squares.
     progress : called with a line of text after each selection step.
 
     Returns
     -------
     Diagnosis
     """
-    from .errors import check_option
-
-    check_option("inertia_solver", inertia_solver, ("auto", "sdp", "ls"))
-    if inertia_solver == "auto":
-        try:
-            from . import sdp  # noqa: F401
-            inertia_solver = "sdp"
-        except ImportError:
-            inertia_solver = "ls"
+    check_option("inertia_solver", inertia_solver, ("sdp", "ls"))
     dataset = _as_dataset(dataset)
     dataset.check_joints(model.nv, model.joint_names)
     if held_out is None:
@@ -741,7 +735,7 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
         slices.append(np.arange(o, o + a.n_parameters))
         o += a.n_parameters
     prob = _Problem(library, atoms, slices, _Grams.build(phi_tr, train.residual),
-                    _Grams.build(phi_ho, held.residual), 1.0 / floor ** 2, phi_tr)
+                    _Grams.build(phi_ho, held.residual), 1.0 / floor ** 2)
     everything_cols = prob.cols(list(range(len(atoms))))
     _, theta_all, _ = prob.fit(list(range(len(atoms))))
     library_floor = np.sqrt(prob.held.sse(everything_cols, theta_all) / held.n)
@@ -754,13 +748,20 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     chosen, alts, steps, bics, pvals = _select(prob, names, alpha, min_gain, tie, max_steps,
                                                progress)
 
-    # Group by effect in order of entry, then add the groups one by one.
-    order: list[str] = []
-    for i in chosen:
-        if prob.atoms[i].effect not in order:
-            order.append(prob.atoms[i].effect)
     notes: list[str] = []
-    rms_nominal = np.sqrt(held.residual.__pow__(2).mean(axis=0))
+    chosen, alts, bics, pvals = _prune_nested(prob, chosen, alts, bics, pvals, names, notes)
+    # Group the atoms by effect and rank the groups by how much the held-out residual grows
+    # when the group is removed from all the selected atoms; add them one by one in that order.
+    groups = list(dict.fromkeys(prob.atoms[i].effect for i in chosen))
+    _, th_all, _ = prob.fit(chosen)
+    sse_all = float(prob.w @ prob.held.sse(prob.cols(chosen), th_all))
+    importance = {}
+    for g in groups:
+        rest = [i for i in chosen if prob.atoms[i].effect != g]
+        c, th, _ = prob.fit(rest)
+        importance[g] = float(prob.w @ prob.held.sse(c, th)) - sse_all
+    order = sorted(groups, key=lambda g: -importance[g])
+    rms_nominal = np.sqrt(np.mean(held.residual ** 2, axis=0))
     before = rms_nominal
     findings: list[EffectFinding] = []
     fit = GapModel(model, library, pi0, (), (), {}, None, extra_fn)
@@ -809,11 +810,9 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
         lst += _parameters(atom, th, sd, joint, fit, library)
     findings = [replace(f, parameters=tuple(params_by_effect.get(f.name, ()))) for f in findings]
     notes += _asymmetric_friction(fit, names)
-    # Rank by held-out reduction of each group (entry order is greedy, hence already ranked
-    # by gain at entry; keep it).
     if inertia_solver == "ls" and "inertia" in order:
         notes.append("inertia re-identified by least squares on base parameters "
-                     "(consistent SDP not available)")
+                     "(inertia_solver='ls': not checked for physical consistency)")
     rms_final = before
     if sigma is None and fit.atoms:
         # The nominal residual's high band also holds the tails of steps and spikes that the
@@ -833,6 +832,26 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     return Diagnosis(model.name, tuple(names), tuple(findings), where, floor, noise_source,
                      rms_nominal, rms_final, library_floor, held_source, tuple(steps), fit,
                      tuple(notes))
+
+
+def _prune_nested(prob: _Problem, chosen: list[int], alts: list, bics: list, pvals: list,
+                  names: list[str], notes: list[str]) -> tuple[list, list, list, list]:
+    """Drop selected atoms whose columns lie in the span of the other selected atoms (e.g. a
+    ``payload`` chosen as the simpler of two indistinguishable candidates, after which
+    ``inertia`` entered too): they add nothing to the fit. Appends a note per dropped atom."""
+    keep = list(range(len(chosen)))
+    _, _, full_rank = prob.fit(chosen)
+    for k in reversed(range(len(chosen))):
+        others = [chosen[m] for m in keep if m != k]
+        if not others:
+            continue
+        _, _, rank = prob.fit(others)
+        if rank == full_rank:
+            keep.remove(k)
+            notes.append(f"{prob.atoms[chosen[k]].label(names)} is contained in the other "
+                         "selected effects (its columns lie in their span): merged into them")
+    return ([chosen[k] for k in keep], [alts[k] for k in keep], [bics[k] for k in keep],
+            [pvals[k] for k in keep])
 
 
 def _asymmetric_friction(fit: GapModel, names: list[str]) -> list[str]:
