@@ -86,9 +86,9 @@ def identify(args: argparse.Namespace) -> int:
 
 def excite(args: argparse.Namespace) -> int:
     """Design an optimal excitation trajectory (:mod:`consistid.excitation.config`), write CSV."""
-    from consistid.excitation.config import load_config
+    from consistid.excitation.config import load_excitation_config
 
-    config = load_config(args.config)
+    config = load_excitation_config(args.config)
     _log(f"designing an excitation trajectory for {config.model.name} "
          f"({config.options.get('n_starts', 4)} starts)")
     design = config.run(progress=lambda start: _log(f"      {start}"))

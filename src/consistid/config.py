@@ -35,7 +35,7 @@ from __future__ import annotations
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Iterable, Mapping
 
 from .errors import ConfigError
 from .model import RobotModel
@@ -66,21 +66,28 @@ class RunConfig:
     root: Path
     tables: Mapping[str, Any]
 
-    def table(self, name: str, allowed: tuple[str, ...] | None = None,
+    def table(self, name: str, allowed: Iterable[str] | None = None,
               required: bool = True) -> dict[str, Any]:
-        """A table; with ``allowed``, unknown keys raise :class:`ConfigError`."""
+        """A top-level table; with ``allowed``, unknown keys raise :class:`ConfigError`."""
         value = self.tables.get(name)
         if value is None:
             if required:
                 raise ConfigError(f"{self.path.name}: missing table [{name}]")
             return {}
+        return self.check_table(name, value, allowed)
+
+    def check_table(self, name: str, value: Any, allowed: Iterable[str] | None = None
+                    ) -> dict[str, Any]:
+        """``value`` as a table called ``[name]`` (also nested ones such as ``excite.limits``);
+        with ``allowed``, unknown keys raise :class:`ConfigError` naming the table and key."""
         if not isinstance(value, Mapping):
             raise ConfigError(f"{self.path.name}: [{name}] must be a table, got {value!r}")
         if allowed is not None:
+            allowed = list(allowed)
             unknown = sorted(set(value) - set(allowed))
             if unknown:
                 raise ConfigError(f"{self.path.name}: unknown key(s) {unknown} in [{name}]; "
-                                  f"allowed: {list(allowed)}")
+                                  f"allowed: {sorted(allowed)}")
         return dict(value)
 
     def resolve(self, value: str, *, under: str | None = None) -> Path:

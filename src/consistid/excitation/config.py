@@ -1,9 +1,10 @@
 """Excitation designs described by a TOML file (``consistid excite CONFIG``).
 
-Example (relative paths are relative to the file's folder)::
+The ``[model]`` table and the path rules are those of every consistid configuration
+(:mod:`consistid.config`). Example::
 
     [model]
-    robot = "panda"                 # an example robot, or: urdf = "arm.urdf"
+    example = "panda"               # an example robot, or: urdf = "arm.urdf"
     # locked_joints = ["finger_joint"]   gravity = [0.0, 0.0, -9.81]
 
     [excite]
@@ -16,7 +17,7 @@ Example (relative paths are relative to the file's folder)::
     n_starts = 4
     max_iter = 100
     rate = 500.0                    # Hz of the CSV
-    output = "excitation.csv"
+    output = "excitation.csv"       # relative to the configuration's root
 
     [excite.limits]                 # overrides of the URDF limits (scalars or one per joint)
     acceleration = [15, 7.5, 10, 12.5, 15, 20, 20]
@@ -27,28 +28,22 @@ Example (relative paths are relative to the file's folder)::
 
     [excite.boundary]               # optional: q_start, q_end, dq_start, ... (BoundaryConditions)
 
-Unknown keys raise :class:`~consistid.errors.OptionError` naming the table and the key.
+Unknown keys raise :class:`~consistid.errors.ConfigError` naming the table and the key.
 """
 
 from __future__ import annotations
 
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from ..errors import OptionError
+from ..config import RunConfig, config_model, load_config
+from ..errors import ConfigError
 from ..model import RobotModel
 from .design import ExcitationDesign, StartResult, design_excitation
 from .limits import CartesianBox, ExcitationLimits, FloorPlane, KeepOutSphere
 from .trajectory import BoundaryConditions
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - exercised on Python 3.10 only
-    import tomli as tomllib
-
-MODEL_KEYS = {"robot", "urdf", "locked_joints", "gravity", "name"}
 EXCITE_KEYS = {"trajectory", "harmonics", "period", "criterion", "friction", "armature", "seed",
                "n_starts", "max_iter", "method", "via_points", "degree", "column_scale",
                "torque_weight", "noise_std", "n_grid", "n_check", "safety", "rate", "output",
@@ -59,27 +54,11 @@ BOUNDARY_KEYS = {"q_start", "q_end", "dq_start", "dq_end", "ddq_start", "ddq_end
 PASSED_ON = ("trajectory", "harmonics", "period", "criterion", "armature", "seed", "n_starts",
              "max_iter", "method", "via_points", "degree", "column_scale", "torque_weight",
              "noise_std", "n_grid", "n_check", "safety")
-
-
-def _table(where: str, value: Any, allowed: set[str]) -> dict[str, Any]:
-    if not isinstance(value, dict):
-        raise OptionError(f"{where} must be a table, got {value!r}")
-    unknown = sorted(set(value) - allowed)
-    if unknown:
-        raise OptionError(f"unknown key(s) {unknown} in {where}; allowed: {sorted(allowed)}")
-    return dict(value)
-
-
-def _constraint(where: str, value: Any, cls: type, allowed: set[str]) -> Any:
-    if value is None:
-        return None
-    sub = _table(where, value, allowed)
-    if "frames" in sub:
-        sub["frames"] = tuple(sub["frames"])
-    try:
-        return cls(**sub)
-    except TypeError as exc:
-        raise OptionError(f"{where}: {exc}") from exc
+SHAPES: dict[str, tuple[type, set[str]]] = {
+    "workspace": (CartesianBox, {"lower", "upper", "frames"}),
+    "floor": (FloorPlane, {"z_min", "frames"}),
+    "sphere": (KeepOutSphere, {"radius", "centre", "frames"}),
+}
 
 
 @dataclass(frozen=True)
@@ -96,46 +75,33 @@ class ExcitationConfig:
         return design_excitation(self.model, progress=progress, **self.options)
 
 
-def _model(where: str, t: dict[str, Any], here: Path) -> RobotModel:
-    if ("robot" in t) == ("urdf" in t):
-        raise OptionError(f"{where}: give exactly one of robot = \"panda\" (example robot) or "
-                          "urdf = \"path/to/robot.urdf\"")
-    if "robot" in t:
-        return RobotModel.example(t["robot"])
-    kwargs = {k: t[k] for k in ("locked_joints", "gravity", "name") if k in t}
-    return RobotModel.from_urdf(here / t["urdf"], **kwargs)
+def _shape(config: RunConfig, key: str, value: Any) -> Any:
+    cls, allowed = SHAPES[key]
+    sub = config.check_table(f"excite.limits.{key}", value, allowed)
+    if "frames" in sub:
+        sub["frames"] = tuple(sub["frames"])
+    try:
+        return cls(**sub)
+    except TypeError as exc:
+        raise ConfigError(f"{config.path.name}: [excite.limits.{key}]: {exc}") from exc
 
 
-def load_config(path: str | Path) -> ExcitationConfig:
+def load_excitation_config(path: str | Path) -> ExcitationConfig:
     """Read and check a TOML excitation config (module docstring for the layout)."""
-    path = Path(path)
-    if not path.is_file():
-        raise OptionError(f"config file {str(path)!r} does not exist")
-    with open(path, "rb") as fh:
-        try:
-            cfg = tomllib.load(fh)
-        except tomllib.TOMLDecodeError as exc:
-            raise OptionError(f"{path.name} is not valid TOML: {exc}") from exc
-    here = path.resolve().parent
-    model = _model(f"{path.name} [model]",
-                   _table(f"{path.name} [model]", cfg.get("model"), MODEL_KEYS), here)
-    ex = _table(f"{path.name} [excite]", cfg.get("excite", {}), EXCITE_KEYS)
-    lim = _table(f"{path.name} [excite.limits]", ex.get("limits", {}), LIMIT_KEYS)
+    config = load_config(path)
+    model = config_model(config)
+    ex = config.table("excite", EXCITE_KEYS, required=False)
+    lim = config.check_table("excite.limits", ex.get("limits", {}), LIMIT_KEYS)
     limits = ExcitationLimits.from_model(
         model, **{k: lim[k] for k in ("acceleration", "velocity", "torque", "lower", "upper")
                   if k in lim},
-        workspace=_constraint("[excite.limits] workspace", lim.get("workspace"), CartesianBox,
-                              {"lower", "upper", "frames"}),
-        floor=_constraint("[excite.limits] floor", lim.get("floor"), FloorPlane,
-                          {"z_min", "frames"}),
-        sphere=_constraint("[excite.limits] sphere", lim.get("sphere"), KeepOutSphere,
-                           {"radius", "centre", "frames"}))
+        **{k: _shape(config, k, lim[k]) for k in SHAPES if k in lim})
     options: dict[str, Any] = {k: ex[k] for k in PASSED_ON if k in ex}
     if "friction" in ex:
         options["friction"] = tuple(ex["friction"]) or None
     if "boundary" in ex:
         options["boundary"] = BoundaryConditions(
-            **_table(f"{path.name} [excite.boundary]", ex["boundary"], BOUNDARY_KEYS))
+            **config.check_table("excite.boundary", ex["boundary"], BOUNDARY_KEYS))
     options["limits"] = limits
-    return ExcitationConfig(model, options, here / ex.get("output", "excitation.csv"),
+    return ExcitationConfig(model, options, config.resolve(ex.get("output", "excitation.csv")),
                             float(ex.get("rate", 500.0)))
