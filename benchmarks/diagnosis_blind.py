@@ -238,8 +238,8 @@ def run_scenario(model: ci.RobotModel, library: EffectLibrary, seed: int, n_effe
                           / np.linalg.norm(diag.rms_final[affected])))
 
 
-def describe(t: Truth, names: list[str]) -> str:
-    where = "" if t.joint is None else f"@{names[t.joint].split('_')[-1]}"
+def describe(t: Truth) -> str:
+    where = "" if t.joint is None else f"@j{t.joint + 1}"
     if t.name == "payload":
         v = f"{t.value[0]:.2f} kg"
     elif t.name == "inertia":
@@ -264,7 +264,6 @@ def main() -> None:
     logging.disable(logging.WARNING)
     model = ci.RobotModel.example(args.robot)
     library = EffectLibrary(model)
-    names = model.joint_names
     header = (f"{'seed':>5}  {'injected':<44} {'named (ranked)':<34} {'top':>4} {'joints':>6} "
               f"{'shrink pred/true':>17} {'ok':>3} {'t [s]':>6}")
     results: dict[int, list[dict]] = {1: [], 2: []}
@@ -275,7 +274,7 @@ def main() -> None:
         for k in range(count):
             seed = args.seed + 1000 * n_eff + k
             r = run_scenario(model, library, seed, n_eff, args.inertia_solver)
-            injected = ", ".join(describe(t, names) for t in r["truth"])
+            injected = ", ".join(describe(t) for t in r["truth"])
             if r["failed"]:
                 skipped[n_eff].append(seed)
                 print(f"{seed:>5}  {injected:<44} skipped: {r['failed']}", flush=True)
