@@ -51,11 +51,40 @@ def test_friction_and_armature_columns_add_their_counts(panda):
     assert ci.compute_base_parameters(panda, arm).n_base == 62
 
 
+def test_position_term_on_a_joint_with_fixed_gravity_axis_is_its_link_gravity(planar_2r):
+    # Joint 1's axis never turns w.r.t. gravity: link 1's gravity torque on it is
+    # g·(mx1 cos q1 − my1 sin q1) (closed form), exactly the position pair; joint 2's pair is new.
+    g = 9.81
+    spec = RegressorSpec.make(planar_2r, ("position",))
+    base = ci.compute_base_parameters(planar_2r, spec)
+    assert base.n_base == 6 + 2
+    names = list(base.standard_names)
+
+    def beta(name):
+        return base.matrix[:, names.index(name)]
+
+    assert np.allclose(g * beta("joint1.pc1"), beta("link1.mx"), atol=1e-9)
+    assert np.allclose(-g * beta("joint1.ps1"), beta("link1.my"), atol=1e-9)
+    assert {"joint2.ps1", "joint2.pc1"} <= {names[i] for i in base.independent}
+
+
+def test_position_term_counts_on_the_panda(panda):
+    # Joint 2's axis is horizontal and meets the vertical axis 1 at a fixed point: its pair is
+    # link 2's gravity torque (as above) and adds nothing; the six other pairs add 12.
+    full = RegressorSpec.make(panda, ("coulomb", "viscous", "offset", "position"))
+    base = ci.compute_base_parameters(panda, full)
+    q, dq, ddq = random_states(panda, 300, 5)
+    assert base.n_base == 64 + 12 == np.linalg.matrix_rank(regressor(panda, q, dq, ddq, full))
+    only2 = RegressorSpec.make(panda, {"position": ["panda_joint2"]})
+    assert ci.compute_base_parameters(panda, only2).n_base == 43
+
+
 @settings(max_examples=20, deadline=None)
-@given(seed=st.integers(0, 2**32 - 1))
-def test_base_parameters_predict_the_same_torques(panda, seed):
+@given(seed=st.integers(0, 2**32 - 1),
+       position=st.lists(st.integers(0, 6), max_size=7, unique=True))
+def test_base_parameters_predict_the_same_torques(panda, seed, position):
     rng = np.random.default_rng(seed)
-    spec = RegressorSpec.make(panda, ("coulomb", "viscous"))
+    spec = RegressorSpec.make(panda, {"coulomb": True, "viscous": True, "position": position})
     base = ci.compute_base_parameters(panda, spec)
     pi = rng.normal(size=base.n_standard)
     q, dq, ddq = random_states(panda, 6, seed)

@@ -144,7 +144,7 @@ def test_criterion_gradient_matches_finite_differences(criterion):
 
 
 def test_regressor_sensitivity_matches_central_differences(panda):
-    spec = ci.RegressorSpec.make(panda, ("viscous", "offset"), armature=True)
+    spec = ci.RegressorSpec.make(panda, ("viscous", "offset", "position"), armature=True)
     rng = np.random.default_rng(2)
     q, dq, ddq = rng.uniform(-1, 1, (3, 2, 7))
     y, dy = regressor_sensitivity(panda, q, dq, ddq, spec)

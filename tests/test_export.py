@@ -80,11 +80,11 @@ def test_merged_links(panda, truth, tmp_path):
 
 
 def test_friction_tags_round_trip(panda, truth, tmp_path):
-    spec = RegressorSpec.make(panda, ("coulomb", "viscous", "offset"))
+    spec = RegressorSpec.make(panda, ("coulomb", "viscous", "offset", "position"))
     names = parameter_names(panda, spec)
     fc, fv = np.linspace(0.1, 0.7, 7), np.linspace(0.02, 0.3, 7)
-    theta = np.concatenate([truth, fc, fv, np.full(7, 0.05)])
-    with pytest.warns(ExportWarning, match="panda_joint1.fo"):
+    theta = np.concatenate([truth, fc, fv, np.full(7, 0.05), np.full(14, 0.02)])
+    with pytest.warns(ExportWarning, match="panda_joint1.fo=0.05, panda_joint1.ps1=0.02"):
         out = write_urdf(panda, tmp_path / "f.urdf", theta, names)
     back = _reload(panda, out)
     assert np.allclose(back.pin_model.friction, fc, atol=1e-15)

@@ -26,16 +26,18 @@ def test_rigid_regressor_matches_rnea(panda, seed):
 def test_friction_and_armature_columns_match_independent_model(panda, seed):
     rng = np.random.default_rng(seed)
     q, dq, ddq = random_states(panda, 4, seed)
-    fc, fv, fo, ia = (rng.uniform(0.0, 2.0, panda.nv) for _ in range(4))
-    spec = RegressorSpec.make(panda, ("coulomb", "viscous", "offset"), armature=True)
-    pi = np.concatenate([panda.prior_parameters, fc, fv, fo, ia])
+    fc, fv, fo, ps, pc, ia = (rng.uniform(-2.0, 2.0, panda.nv) for _ in range(6))
+    spec = RegressorSpec.make(panda, ("coulomb", "viscous", "offset", "position"), armature=True)
+    # position columns come per joint as (sin, cos) pairs
+    pi = np.concatenate([panda.prior_parameters, fc, fv, fo, np.column_stack([ps, pc]).ravel(),
+                         ia])
     tau = (regressor(panda, q, dq, ddq, spec) @ pi).reshape(4, panda.nv)
     # independent: Pinocchio's rnea with model.armature, plus the friction law written out
     m = panda.pin_model.copy()
     m.armature = ia
     d = m.createData()
     expected = np.array([pin.rnea(m, d, q[k], dq[k], ddq[k]) for k in range(4)])
-    expected += fc * np.sign(dq) + fv * dq + fo
+    expected += fc * np.sign(dq) + fv * dq + fo + ps * np.sin(q) + pc * np.cos(q)
     assert np.allclose(tau, expected, atol=1e-9, rtol=0)
 
 
@@ -63,6 +65,15 @@ def test_rows_are_sample_major_and_blocks_switch_per_joint(panda):
     assert y3[2, 3, 71] == np.sign(dq[2, 3]) and y3[2, 1, 71] == 0.0
     single = regressor(panda, q[2], dq[2], ddq[2], spec)
     assert np.array_equal(single, y[14:21])
+    # the position term: a (sin, cos) pair per chosen joint, after the offsets, on its joint only
+    spec = RegressorSpec.make(panda, {"offset": [0], "position": ["panda_joint7", 2]})
+    assert spec.describe() == "offset on 1/7, position on 2/7"
+    assert parameter_names(panda, spec)[70:] == [
+        "panda_joint1.fo", "panda_joint3.ps1", "panda_joint3.pc1", "panda_joint7.ps1",
+        "panda_joint7.pc1"]
+    y3 = regressor(panda, q, dq, ddq, spec).reshape(3, 7, -1)
+    assert y3[1, 6, 73] == np.sin(q[1, 6]) and y3[1, 6, 74] == np.cos(q[1, 6])
+    assert not np.any(y3[:, :6, 73:]) and not np.any(y3[:, :, 71:73][:, [0, 1, 3, 4, 5, 6]])
 
 
 def test_unknown_terms_and_joints_are_named(panda):

@@ -86,6 +86,19 @@ def test_noise_free_data_recover_the_base_parameters(panda, truth, sets):
         assert res.is_consistent
 
 
+def test_position_terms_have_no_sign_constraint(panda, truth):
+    # sin q_j, cos q_j per joint (joint 2's pair is regrouped with link 2's first moments)
+    friction = FRICTION + ("position",)
+    params = np.concatenate([truth, np.tile([-0.3, 0.2], panda.nv)])
+    data = ci.simulate.excitation_run(panda, params, 5.0, 100.0, torque_noise=0.0,
+                                      friction=friction, seed=5).dataset
+    res = ci.identify(panda, data, method="sdp", friction=friction)
+    expected = res.base.project(params)
+    assert np.max(np.abs(res.base_parameters - expected)) <= 1e-6 * np.max(np.abs(expected))
+    assert res.parameters[res.parameter_names.index("panda_joint7.ps1")] == pytest.approx(-0.3)
+    assert res.is_consistent
+
+
 def test_well_excited_fit_matches_ols_and_every_body_is_realizable(panda, sets, well):
     ols = ci.identify(panda, sets["train"], method="ols", friction=FRICTION)
     assert held_rms(well, sets["held"]) <= 1.01 * held_rms(ols, sets["held"])

@@ -49,8 +49,11 @@ import pinocchio as pin
 from .errors import InconsistentParametersError, ModelError, check_option
 from .model import RobotModel
 from .parameters import check_body
+from .regressor import TERM_COLUMNS
 
 MERGED = ("auto", "lump", "subtract")
+#: Per-joint parameter name suffixes (``"<joint>.<suffix>"``); only fc and fv have URDF tags.
+SUFFIXES = tuple(s for suffixes in TERM_COLUMNS.values() for s in suffixes)
 
 
 class ExportWarning(UserWarning):
@@ -139,8 +142,8 @@ def _links(model: RobotModel, full: pin.Model, root: ET.Element) -> list[_Link]:
 
 def _joint_terms(model: RobotModel, parameters: np.ndarray, names: Sequence[str] | None
                  ) -> dict[str, dict[str, float]]:
-    """``{joint: {"fc": …, "fv": …, "fo": …, "Ia": …}}`` from the entries after the inertial
-    ones."""
+    """``{joint: {"fc": …, "fv": …, "fo": …, "ps1": …, "pc1": …, "Ia": …}}`` from the entries
+    after the inertial ones."""
     extra = parameters[model.n_inertial:]
     if extra.size == 0:
         return {}
@@ -150,8 +153,9 @@ def _joint_terms(model: RobotModel, parameters: np.ndarray, names: Sequence[str]
     out: dict[str, dict[str, float]] = {}
     for name, value in zip(names[model.n_inertial:], extra):
         joint, _, term = name.rpartition(".")
-        if joint not in model.joint_names or term not in ("fc", "fv", "fo", "Ia"):
-            raise ModelError(f"cannot place parameter {name!r}: expected '<joint>.fc|fv|fo|Ia'")
+        if joint not in model.joint_names or term not in SUFFIXES:
+            raise ModelError(f"cannot place parameter {name!r}: expected "
+                             f"'<joint>.{'|'.join(SUFFIXES)}'")
         out.setdefault(joint, {})[term] = float(value)
     return out
 
@@ -187,8 +191,9 @@ def write_urdf(model: RobotModel, path: str | Path, parameters: np.ndarray | Non
     path : the output file.
     parameters : (10·nbodies [+ k],) standard parameters, then optionally friction/armature
         entries named by ``parameter_names`` (``"<joint>.fc"`` → ``friction``, ``".fv"`` →
-        ``damping``; ``".fo"`` offsets and ``".Ia"`` armatures have no URDF tag and are reported
-        by an :class:`ExportWarning`). Default: the model's current inertias.
+        ``damping``; ``".fo"`` offsets, ``".ps1"``/``".pc1"`` position terms and ``".Ia"``
+        armatures have no URDF tag and are reported by an :class:`ExportWarning`). Default: the
+        model's current inertias.
     parameter_names : names of ``parameters`` (needed with friction entries).
     merged : how a body's merged links share its parameters (module docstring).
 
@@ -261,7 +266,8 @@ def write_urdf(model: RobotModel, path: str | Path, parameters: np.ndarray | Non
                 raise InconsistentParametersError(
                     f"joint {joint!r}: negative {attr} {values[term]:.6g} (URDF <dynamics> "
                     f"{attr} must be ≥ 0)")
-        dropped += [f"{joint}.{t}={values[t]:.4g}" for t in ("fo", "Ia") if values.get(t)]
+        dropped += [f"{joint}.{t}={v:.4g}" for t, v in values.items()
+                    if t not in ("fc", "fv") and v]
         if "fc" in values or "fv" in values:
             tag = joints[joint].find("dynamics")
             if tag is None:
@@ -271,7 +277,8 @@ def write_urdf(model: RobotModel, path: str | Path, parameters: np.ndarray | Non
             if "fc" in values:
                 tag.set("friction", _fmt(values["fc"]))
     if dropped:
-        warnings.warn(f"URDF has no tag for torque offsets or armature; not written: "
+        warnings.warn(f"URDF has no tag for torque offsets, position terms or armature; not "
+                      f"written: "
                       f"{', '.join(dropped)}", ExportWarning, stacklevel=2)
 
     out = Path(path)

@@ -376,14 +376,8 @@ def euclidean_weights(prior: np.ndarray) -> np.ndarray:
 
 
 def _nonnegative_joint_columns(spec: RegressorSpec) -> np.ndarray:
-    out, c = [], 0
-    for term, mask in spec.masks:
-        for m in mask:
-            if m:
-                if term in NONNEGATIVE_TERMS:
-                    out.append(c)
-                c += 1
-    return np.array(out, dtype=int)
+    return np.array([c for c, (term, _, _) in enumerate(spec.columns)
+                     if term in NONNEGATIVE_TERMS], dtype=int)
 
 
 def _weights(beta: np.ndarray, covariance: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:

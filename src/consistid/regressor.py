@@ -8,6 +8,7 @@ The torque model is linear in the parameters (Atkeson, An, Hollerbach 1986; Khal
     \tau_k = Y_\text{rb}(q_k, \dot q_k, \ddot q_k)\,\pi
            + \operatorname{diag}(\operatorname{sign}\dot q_k)\, f_c
            + \operatorname{diag}(\dot q_k)\, f_v + f_o
+           + \operatorname{diag}(\sin q_k)\, p_s + \operatorname{diag}(\cos q_k)\, p_c
            + \operatorname{diag}(\ddot q_k)\, I_a
 
 Columns, in this order:
@@ -15,8 +16,27 @@ Columns, in this order:
 ``rigid``
     10 per body, Pinocchio order (``pinocchio.computeJointTorqueRegressor``), names
     ``"<body>.<m|mx|my|mz|Ixx|Ixy|Iyy|Ixz|Iyz|Izz>"``.
-``coulomb``, ``viscous``, ``offset``, ``armature``
-    one column per enabled joint, names ``"<joint>.fc"``, ``".fv"``, ``".fo"``, ``".Ia"``.
+``coulomb``, ``viscous``, ``offset``
+    one column per enabled joint, names ``"<joint>.fc"``, ``".fv"``, ``".fo"``.
+``position``
+    two columns per enabled joint, ``sin q_j`` and ``cos q_j``, names ``"<joint>.ps1"``,
+    ``".pc1"``: the first harmonic of a torque that is periodic in the joint's own angle, one
+    cycle per revolution. Physically, what a joint torque sensor reads besides the joint torque
+    and that turns with the joint: cross-talk of the bending moments it carries (their direction
+    in the sensor frame turns with ``q_j``; S.-H. Lee, Y.-L. Kim, J.-B. Song, "Torque sensor
+    calibration using virtual load for a manipulator", Int. J. Precision Engineering and
+    Manufacturing 11(2), 219–225, 2010, doi:10.1007/s12541-010-0025-0), a mounting
+    eccentricity or misalignment of sensor or bearing, and the once-per-revolution component of
+    position-dependent transmission torque. It is not a rigid-body effect, so it is free of sign
+    and (like an offset) of any prior. On a joint whose axis keeps a fixed direction relative to
+    gravity while the joints before it move (a horizontal first joint; the second joint of an
+    arm whose vertical first axis meets it), the link's own gravity torque is already
+    ``a sin q_j + b cos q_j`` (D. Ma, J. M. Hollerbach, Y. Xu, "Gravity based autonomous
+    calibration for robot manipulators", IEEE ICRA 1994): there the two columns are dependent on
+    that link's first mass moments, and the base parameters (:mod:`consistid.base`) regroup
+    them; torques cannot tell the two apart.
+``armature``
+    one column per enabled joint, names ``"<joint>.Ia"``.
 
 Rows are **sample-major**: row ``k·nv + j`` is joint ``j`` of sample ``k``, i.e.
 ``Y.reshape(N, nv, p)[k, j]``.
@@ -37,8 +57,13 @@ from .dataset import Dataset
 from .errors import JointCountError, check_option
 from .model import RobotModel
 
-JOINT_TERMS: tuple[str, ...] = ("coulomb", "viscous", "offset", "armature")
-TERM_SUFFIX = {"coulomb": "fc", "viscous": "fv", "offset": "fo", "armature": "Ia"}
+JOINT_TERMS: tuple[str, ...] = ("coulomb", "viscous", "offset", "position", "armature")
+#: The terms chosen through ``friction=`` (every term but armature).
+FRICTION_TERMS: tuple[str, ...] = JOINT_TERMS[:4]
+#: Name suffixes of each term's columns, per enabled joint, in column order.
+TERM_COLUMNS: dict[str, tuple[str, ...]] = {
+    "coulomb": ("fc",), "viscous": ("fv",), "offset": ("fo",), "position": ("ps1", "pc1"),
+    "armature": ("Ia",)}
 
 FrictionArg = Sequence[str] | Mapping[str, Sequence[int | str] | bool] | None
 
@@ -47,7 +72,9 @@ FrictionArg = Sequence[str] | Mapping[str, Sequence[int | str] | bool] | None
 class RegressorSpec:
     """Which per-joint columns the regressor carries, beside the rigid-body block.
 
-    ``masks[term]`` is a boolean tuple of length ``nv``. Build one with :meth:`make`.
+    ``masks[term]`` is a boolean tuple of length ``nv``. Build one with :meth:`make`. Columns
+    come term by term (order of :data:`JOINT_TERMS`), joint by joint within a term, and within a
+    joint in the order of :data:`TERM_COLUMNS` (:attr:`columns`).
     """
 
     nv: int
@@ -60,8 +87,10 @@ class RegressorSpec:
 
         Parameters
         ----------
-        friction : names among ``"coulomb", "viscous", "offset"`` (all joints), or a mapping
-            ``{term: joints}`` where joints are indices or names (or ``True`` for all), or ``None``.
+        friction : names among ``"coulomb", "viscous", "offset", "position"`` (all joints), or
+            a mapping ``{term: joints}`` where joints are indices or names (or ``True`` for
+            all), or ``None``. ``"position"`` is the per-joint ``sin q_j, cos q_j`` pair (module
+            docstring); it is not friction, but like the offset it is a per-joint torque term.
         armature : ``True`` for a rotor-inertia column per joint, or the joints that get one.
         """
         nv = model.nv
@@ -88,8 +117,8 @@ class RegressorSpec:
         if not isinstance(friction, Mapping):
             friction = {term: True for term in friction}
         for term in friction:
-            check_option("friction term", term, JOINT_TERMS[:3])
-        masks = {term: mask(friction.get(term, False)) for term in JOINT_TERMS[:3]}
+            check_option("friction term", term, FRICTION_TERMS)
+        masks = {term: mask(friction.get(term, False)) for term in FRICTION_TERMS}
         masks["armature"] = mask(armature)
         return cls(nv, tuple((t, masks[t]) for t in JOINT_TERMS))
 
@@ -97,12 +126,17 @@ class RegressorSpec:
         return np.array(dict(self.masks)[term], dtype=bool)
 
     @property
+    def columns(self) -> tuple[tuple[str, int, str], ...]:
+        """``(term, joint index, suffix)`` of each per-joint column, in column order."""
+        return tuple((term, j, suffix) for term, m in self.masks for j in range(self.nv) if m[j]
+                     for suffix in TERM_COLUMNS[term])
+
+    @property
     def n_joint_columns(self) -> int:
-        return int(sum(sum(m) for _, m in self.masks))
+        return len(self.columns)
 
     def joint_column_names(self, joint_names: Sequence[str]) -> list[str]:
-        return [f"{joint_names[j]}.{TERM_SUFFIX[term]}"
-                for term, m in self.masks for j in range(self.nv) if m[j]]
+        return [f"{joint_names[j]}.{suffix}" for _, j, suffix in self.columns]
 
     def describe(self) -> str:
         parts = [f"{term} on {sum(m)}/{self.nv}" for term, m in self.masks if any(m)]
@@ -115,21 +149,20 @@ def parameter_names(model: RobotModel, spec: RegressorSpec) -> list[str]:
 
 
 def prior_vector(model: RobotModel, spec: RegressorSpec) -> np.ndarray:
-    """The CAD prior extended by zeros for friction/offset/armature columns."""
+    """The CAD prior extended by zeros for the per-joint (friction, offset, position, armature)
+    columns."""
     return np.concatenate([model.prior_parameters, np.zeros(spec.n_joint_columns)])
 
 
-def joint_columns(dq: np.ndarray, ddq: np.ndarray, spec: RegressorSpec) -> np.ndarray:
+def joint_columns(q: np.ndarray, dq: np.ndarray, ddq: np.ndarray,
+                  spec: RegressorSpec) -> np.ndarray:
     """The per-joint blocks for samples ``(N, nv)`` as an array ``(N, nv, n_joint_columns)``."""
     n, nv = dq.shape
-    signals = {"coulomb": np.sign(dq), "viscous": dq, "offset": np.ones_like(dq), "armature": ddq}
+    signals = {"fc": np.sign(dq), "fv": dq, "fo": np.ones_like(dq), "ps1": np.sin(q),
+               "pc1": np.cos(q), "Ia": ddq}
     out = np.zeros((n, nv, spec.n_joint_columns))
-    c = 0
-    for term, m in spec.masks:
-        for j in range(nv):
-            if m[j]:
-                out[:, j, c] = signals[term][:, j]
-                c += 1
+    for c, (_, j, suffix) in enumerate(spec.columns):
+        out[:, j, c] = signals[suffix][:, j]
     return out
 
 
@@ -157,7 +190,7 @@ def regressor(model: RobotModel, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray,
     Parameters
     ----------
     q, dq, ddq : (N, nv) joint angles, velocities, accelerations (one sample may be 1-D).
-    spec : which friction/armature columns to append; default rigid body only.
+    spec : which per-joint columns to append; default rigid body only.
     out : optional preallocated ``(N, nv, p)`` array to fill (avoids a copy for large N).
     """
     q, dq, ddq = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (q, dq, ddq))
@@ -168,7 +201,7 @@ def regressor(model: RobotModel, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray,
     y = np.empty((n, model.nv, p)) if out is None else out
     rigid_body_regressor(model, q, dq, ddq, out=y[:, :, :model.n_inertial])
     if spec.n_joint_columns:
-        y[:, :, model.n_inertial:] = joint_columns(dq, ddq, spec)
+        y[:, :, model.n_inertial:] = joint_columns(q, dq, ddq, spec)
     return y.reshape(n * model.nv, p)
 
 

@@ -78,7 +78,7 @@ ACTIVE_TOL = 1e-6
 CHECK_TOL = 1e-6
 #: Above this condition number of the weighted base regressor (and without a prior), warn.
 COND_WARN = 1e4
-#: Joint-column terms that must be non-negative (``offset`` is free).
+#: Joint-column terms that must be non-negative (``offset`` and ``position`` are free).
 NONNEGATIVE_TERMS = ("coulomb", "viscous", "armature")
 HUBER_DEFAULT = 1.345
 
@@ -345,12 +345,8 @@ def _make_setup(model: RobotModel, spec: RegressorSpec, prior_vec: np.ndarray,
                     for i in range(nb)])
     nonneg = np.zeros(prior_vec.size, dtype=bool)
     if friction_nonnegative:
-        c = 10 * nb
-        for term, mask in spec.masks:
-            for on in mask:
-                if on:
-                    nonneg[c] = term in NONNEGATIVE_TERMS
-                    c += 1
+        for c, (term, _, _) in enumerate(spec.columns):
+            nonneg[10 * nb + c] = term in NONNEGATIVE_TERMS
     euclid_w = None
     if prior == "euclidean":
         p_in = 10 * nb

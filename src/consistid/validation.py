@@ -32,7 +32,7 @@ from .dataset import Dataset
 from .errors import ModelError
 from .model import RobotModel
 from .parameters import ConsistencyReport, is_physically_consistent
-from .regressor import TERM_SUFFIX, FrictionArg, RegressorSpec, joint_columns
+from .regressor import TERM_COLUMNS, FrictionArg, RegressorSpec, joint_columns
 from .report import table
 from .urdf import JointDynamics
 
@@ -143,7 +143,8 @@ class FixedModel:
         dataset.check_joints(self.model.nv, self.model.joint_names)
         tau = self.model.rnea(dataset.q, dataset.dq, dataset.ddq)
         if self.spec.n_joint_columns:
-            tau = tau + joint_columns(dataset.dq, dataset.ddq, self.spec) @ self.joint_parameters
+            tau = tau + joint_columns(dataset.q, dataset.dq, dataset.ddq,
+                                      self.spec) @ self.joint_parameters
         return tau
 
 
@@ -182,7 +183,7 @@ def refit_joint_terms(model: RobotModel, dataset: Dataset,
     """
     spec = RegressorSpec.make(model, friction, armature)
     tau = dataset.require_torque() - model.rnea(dataset.q, dataset.dq, dataset.ddq)
-    cols = joint_columns(dataset.dq, dataset.ddq, spec)
+    cols = joint_columns(dataset.q, dataset.dq, dataset.ddq, spec)
     phi = np.zeros(spec.n_joint_columns)
     std = np.zeros(spec.n_joint_columns)
     names = spec.joint_column_names(model.joint_names)
@@ -200,5 +201,5 @@ def refit_joint_terms(model: RobotModel, dataset: Dataset,
         sigma2 = float(rho @ rho) / max(dataset.n_samples - own.size, 1)
         phi[own] = coef
         std[own] = np.sqrt(np.diag(sigma2 * np.linalg.inv(a.T @ a)))
-    terms = ",".join(TERM_SUFFIX[t] for t, m in spec.masks if any(m))
+    terms = ",".join(",".join(TERM_COLUMNS[t]) for t, m in spec.masks if any(m))
     return FixedModel(model, spec, phi, label or f"{model.name} + refit {terms}", std)

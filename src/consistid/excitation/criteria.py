@@ -90,8 +90,8 @@ def regressor_sensitivity(model: RobotModel, q: np.ndarray, dq: np.ndarray, ddq:
     Returns ``Y`` (N, nv, p) and ``dY`` (N, 3·nv, nv, p) with
     ``dY[i, d·nv + k] = ∂Y_i/∂x_k`` for ``x = q, q̇, q̈`` (``d = 0, 1, 2``). The rigid-body block
     is linear in ``q̈`` (differenced with a unit step, exact), quadratic in ``q̇`` and smooth in
-    ``q`` (forward differences with ``step``); friction/armature columns are differentiated
-    analytically (``∂ sign(q̇)/∂q̇ = 0``).
+    ``q`` (forward differences with ``step``); the per-joint columns are differentiated
+    analytically (``∂ sign(q̇)/∂q̇ = 0``, ``∂ sin q/∂q = cos q``, ``∂ cos q/∂q = −sin q``).
     """
     m = model.pin_model
     data = m.createData()
@@ -118,15 +118,14 @@ def regressor_sensitivity(model: RobotModel, q: np.ndarray, dq: np.ndarray, ddq:
             dy[i, 2 * nv + k, :, :ni] = pin.computeJointTorqueRegressor(
                 m, data, cfg, vi, ai + eye[k]) - y0
     if spec.n_joint_columns:
-        y[:, :, ni:] = joint_columns(dq, ddq, spec)
-        c = ni
-        for term, mask in spec.masks:
-            for j in range(nv):
-                if not mask[j]:
-                    continue
-                if term == "viscous":
-                    dy[:, nv + j, j, c] = 1.0
-                elif term == "armature":
-                    dy[:, 2 * nv + j, j, c] = 1.0
-                c += 1
+        y[:, :, ni:] = joint_columns(q, dq, ddq, spec)
+        for c, (_, j, suffix) in enumerate(spec.columns, start=ni):
+            if suffix == "fv":
+                dy[:, nv + j, j, c] = 1.0
+            elif suffix == "Ia":
+                dy[:, 2 * nv + j, j, c] = 1.0
+            elif suffix == "ps1":
+                dy[:, j, j, c] = np.cos(q[:, j])
+            elif suffix == "pc1":
+                dy[:, j, j, c] = -np.sin(q[:, j])
     return y, dy
