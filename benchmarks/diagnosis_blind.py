@@ -63,29 +63,30 @@ class Truth:
     value: object
 
 
-def draw(rng: np.random.Generator, name: str, nv: int) -> Truth:
+def draw(rng: np.random.Generator, name: str, nv: int, scale: float = 1.0) -> Truth:
+    """A random effect; ``scale`` multiplies every magnitude (divides the stiffness)."""
     joint = int(rng.integers(nv))
     sign = rng.choice([-1.0, 1.0])
     if name == "coulomb":
-        return Truth(name, joint, rng.uniform(0.5, 3.0))
+        return Truth(name, joint, scale * rng.uniform(0.5, 3.0))
     if name == "viscous":
-        return Truth(name, joint, rng.uniform(0.3, 2.0))
+        return Truth(name, joint, scale * rng.uniform(0.3, 2.0))
     if name == "offset":
-        return Truth(name, joint, sign * rng.uniform(0.3, 2.0))
+        return Truth(name, joint, scale * sign * rng.uniform(0.3, 2.0))
     if name == "gain":
-        return Truth(name, joint, sign * rng.uniform(0.03, 0.15))
+        return Truth(name, joint, scale * sign * rng.uniform(0.03, 0.15))
     if name == "armature":
-        return Truth(name, joint, rng.uniform(0.02, 0.2))
+        return Truth(name, joint, scale * rng.uniform(0.02, 0.2))
     if name == "payload":
-        return Truth(name, None, (rng.uniform(0.5, 3.0), rng.uniform(-0.1, 0.1, 3)))
+        return Truth(name, None, (scale * rng.uniform(0.5, 3.0), rng.uniform(-0.1, 0.1, 3)))
     if name == "delay":
-        return Truth(name, None, rng.uniform(0.003, 0.020))
+        return Truth(name, None, scale * rng.uniform(0.003, 0.020))
     if name == "elasticity":
-        return Truth(name, int(rng.integers(min(nv, 4))), rng.uniform(1500.0, 8000.0))
+        return Truth(name, int(rng.integers(min(nv, 4))), rng.uniform(1500.0, 8000.0) / scale)
     if name == "inertia":
-        return Truth(name, None, (rng.uniform(0.1, 0.3), int(rng.integers(2 ** 31))))
+        return Truth(name, None, (scale * rng.uniform(0.1, 0.3), int(rng.integers(2 ** 31))))
     if name == "ripple":
-        return Truth(name, joint, (rng.uniform(0.3, 1.5), int(rng.integers(5, 61)),
+        return Truth(name, joint, (scale * rng.uniform(0.3, 1.5), int(rng.integers(5, 61)),
                                    rng.uniform(0, 2 * np.pi)))
     raise ValueError(name)
 
@@ -175,10 +176,10 @@ def shrink_on(rms_before: np.ndarray, rms_after: np.ndarray, sigma: np.ndarray,
 
 
 def run_scenario(model: ci.RobotModel, library: EffectLibrary, seed: int, n_effects: int,
-                 inertia_solver: str = "sdp") -> dict:
+                 inertia_solver: str = "sdp", scale: float = 1.0) -> dict:
     rng = np.random.default_rng(seed)
     names = list(rng.choice(EFFECTS, size=n_effects, replace=False))
-    truths = [draw(rng, str(n), model.nv) for n in names]
+    truths = [draw(rng, str(n), model.nv, scale) for n in names]
     if n_effects == 2 and truths[0].joint is not None and truths[0].joint == truths[1].joint:
         truths[1].joint = (truths[1].joint + 1 + int(rng.integers(model.nv - 1))) % model.nv
         if truths[1].name == "elasticity":
@@ -260,6 +261,9 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0, help="first scenario seed")
     parser.add_argument("--robot", default="panda")
     parser.add_argument("--inertia-solver", default="sdp", choices=("sdp", "ls"))
+    parser.add_argument("--scale", type=float, default=1.0,
+                        help="multiply every effect magnitude (divide the stiffness): < 1 "
+                             "for effects closer to the noise")
     args = parser.parse_args()
     logging.disable(logging.WARNING)
     model = ci.RobotModel.example(args.robot)
@@ -273,7 +277,7 @@ def main() -> None:
         print(f"\n{'single' if n_eff == 1 else 'two'}-effect scenarios\n{header}")
         for k in range(count):
             seed = args.seed + 1000 * n_eff + k
-            r = run_scenario(model, library, seed, n_eff, args.inertia_solver)
+            r = run_scenario(model, library, seed, n_eff, args.inertia_solver, args.scale)
             injected = ", ".join(describe(t) for t in r["truth"])
             if r["failed"]:
                 skipped[n_eff].append(seed)

@@ -88,6 +88,16 @@ def test_no_effect_names_nothing_and_is_at_the_noise_floor(panda):
     assert "noise floor" in diag.summary()
 
 
+def test_no_effect_on_the_mujoco_robot_names_nothing(panda):
+    """The MuJoCo robot with noise only, through the default (low-pass) signal chain: nothing is
+    named, and the filtered torques are detected, so the floor is the library floor."""
+    train, held = mujoco_pair(panda, Effects(torque_noise=0.05))
+    diag = diagnose(panda, train, held_out=held)
+    assert diag.effects == ()
+    assert diag.at_noise_floor
+    assert "low-pass filtered" in diag.noise_source
+
+
 def test_coulomb_parameters_and_friction_regimes(panda, tmp_path):
     """Ideal data with f_c = 0.7 N·m on joint 2: estimate within 3σ of the truth, the regime means
     moving ± are ±f_c, and the report is written in every format."""

@@ -54,7 +54,8 @@ import scipy.stats
 from .candidates import EFFECT_NAMES, SIGNATURES, Atom, EffectLibrary, GapData
 from .dataset import Dataset
 from .errors import ModelError, OptionError, check_option
-from .gap import GapBreakdown, autocorrelation_time, gap_breakdown, noise_floor
+from .gap import (FILTERED_ROLLOFF, GapBreakdown, autocorrelation_time, gap_breakdown,
+                  high_band_rolloff, noise_floor)
 from .model import RobotModel
 from .parameters import pseudo_inertia
 
@@ -720,9 +721,12 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
 
     train, held = gap_data(train_ds), gap_data(held_ds)
     everything = gap_data(Dataset.concatenate([train_ds, held_ds]))
+    filtered = np.zeros(model.nv, dtype=bool)
     if sigma is None:
         floor, noise_source = noise_floor(everything.dataset, everything.residual,
                                           everything.tau_nom)
+        filtered = high_band_rolloff(everything.dataset, everything.residual,
+                                     everything.tau_nom) < FILTERED_ROLLOFF
     else:
         floor, noise_source = _sigma(sigma, model.nv), "given"
     library = EffectLibrary(model, tuple(effects))
@@ -745,6 +749,16 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
         else train.residual
     prob.tau_corr = autocorrelation_time(train.dataset, saturated)
     names = model.joint_names
+    # Low-pass filtered torques hide the noise level: there the floor is what no candidate
+    # explains on held-out data (an upper bound of the noise), also used as the weight.
+    substitute = filtered & (floor < 0.5 * library_floor)
+    if substitute.any():
+        floor = np.where(substitute, library_floor, floor)
+        prob.w = 1.0 / floor ** 2
+        noise_source += (f"; on {', '.join(names[j] for j in np.flatnonzero(substitute))} the "
+                         "torques look low-pass filtered (the spectrum keeps falling), so the "
+                         "floor there is the held-out RMS with every candidate fitted (an upper "
+                         "bound; pass sigma if known)")
     chosen, alts, steps, bics, pvals = _select(prob, names, alpha, min_gain, tie, max_steps,
                                                progress)
 
@@ -814,21 +828,21 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
         notes.append("inertia re-identified by least squares on base parameters "
                      "(inertia_solver='ls': not checked for physical consistency)")
     rms_final = before
-    if sigma is None and fit.atoms:
+    if sigma is None and fit.atoms and not substitute.all():
         # The nominal residual's high band also holds the tails of steps and spikes that the
         # effects explain (a Coulomb step has a 1/f² spectrum); estimate again without them.
-        floor, noise_source = noise_floor(
-            everything.dataset, everything.residual - fit.correction(everything),
-            everything.tau_nom)
-        noise_source += ", residual of the nominal model plus the selected effects"
+        again, _ = noise_floor(everything.dataset,
+                               everything.residual - fit.correction(everything),
+                               everything.tau_nom)
+        floor = np.where(substitute, floor, again)
+        noise_source += " (re-estimated on the residual with the selected effects)"
     where = gap_breakdown(everything, floor)
     low = np.flatnonzero(floor < 0.5 * library_floor)
     if low.size:
         notes.append(
-            f"on {', '.join(names[j] for j in low)} the residual's high band holds far less "
-            "than what every candidate together leaves on the held-out data: the torques were "
-            "probably low-pass filtered (the noise floor is then underestimated: pass sigma), "
-            "or an effect outside the candidate library remains")
+            f"on {', '.join(names[j] for j in low)} the noise floor is less than half of what "
+            "every candidate together leaves on the held-out data: an effect outside the "
+            "candidate library remains (or the noise is coloured: pass sigma)")
     return Diagnosis(model.name, tuple(names), tuple(findings), where, floor, noise_source,
                      rms_nominal, rms_final, library_floor, held_source, tuple(steps), fit,
                      tuple(notes))

@@ -15,8 +15,10 @@ Noise floor
     (``S̄_r`` the spectrum smoothed over 9 bins; the clip at ``1.25 S₀`` leaves its remaining
     scatter unclipped). This equals ``S₀ f_N`` for white noise and stays right when the torques
     were low-pass filtered above ``6 f_s`` (the filtered band contributes what it has). It cannot
-    see noise filtered away *below* ``6 f_s``: give ``sigma`` for heavily pre-filtered data
-    (:func:`consistid.diagnose` then also reports the *library floor*).
+    see noise filtered away *below* ``6 f_s``; :func:`high_band_rolloff` detects such
+    filtering (the spectrum keeps falling instead of levelling out), and
+    :func:`consistid.diagnose` then uses the *library floor* instead (an upper bound) unless
+    ``sigma`` is given.
 """
 
 from __future__ import annotations
@@ -41,6 +43,8 @@ GRAVITY_SHARE = 0.8
 GRAVITY_LOAD = 0.25
 #: the noise estimate clips the smoothed residual spectrum at this multiple of the noise level.
 CLIP = 1.25
+#: a high-band roll-off (:func:`high_band_rolloff`) below this marks low-pass filtered torques.
+FILTERED_ROLLOFF = 1e-2
 
 
 @dataclass(frozen=True, eq=False)
@@ -170,6 +174,25 @@ def noise_floor(dataset: Dataset, residual: np.ndarray, tau_nom: np.ndarray
     sigma = np.maximum(sigma, 1e-12)
     return sigma, (f"estimated from the residual spectrum {lo:.3g}–{hi:.3g} Hz "
                    f"(nominal torque band < {f_s:.3g} Hz)")
+
+
+def high_band_rolloff(dataset: Dataset, residual: np.ndarray, tau_nom: np.ndarray
+                      ) -> np.ndarray:
+    """Per joint, the residual's mean power density in the top quarter of the spectrum divided
+    by that in the noise band of :func:`noise_floor`: about 1 for white noise, orders of
+    magnitude below 1 when the torques were low-pass filtered (then the high band no longer
+    shows the noise level, :data:`FILTERED_ROLLOFF`)."""
+    freqs, p_res = spectrum(dataset, residual)
+    _, p_nom = spectrum(dataset, tau_nom)
+    if freqs.size < 8:
+        return np.ones(residual.shape[1])
+    f_s = _signal_band(freqs, p_nom)
+    nyq = freqs[-1]
+    band = (freqs >= 2 * f_s) & (freqs <= min(6 * f_s, 0.9 * nyq))
+    top = freqs >= 0.75 * nyq
+    if band.sum() < 3 or top.sum() < 3:
+        return np.ones(residual.shape[1])
+    return np.mean(p_res[top], axis=0) / np.maximum(np.mean(p_res[band], axis=0), 1e-300)
 
 
 def autocorrelation_time(dataset: Dataset, residual: np.ndarray, c: float = 5.0,
