@@ -1,7 +1,8 @@
 """Real KUKA LWR4+ torque-sensor logs: consistid's OLS and consistent SDP against the a-priori URDF
 and FloBaRoID's identified model, on a held-out recording.
 
-Run from the repository: ``OPENBLAS_NUM_THREADS=1 python benchmarks/real_kuka.py [--diagnose]``.
+Run from the repository:
+``OPENBLAS_NUM_THREADS=1 python benchmarks/real_kuka.py [--position] [--diagnose]``.
 
 Data: ``../shared/data/kuka_lwr4`` beside the checkout (FloBaRoID project, LGPL-3.0; never copied
 into consistid), or ``--data DIR``. The upstream recipe: identify on measurements_2 +
@@ -13,7 +14,9 @@ Prints: (1) what the loader did; (2) the held-out table — per-joint and total 
 RMS (N·m) — for every model; (3) physical consistency (minimum pseudo-inertia eigenvalue per
 body); (4) friction/offset estimates ± standard deviation and base-parameter uncertainty; (5) the
 acceptance checks; (6) a cross-trajectory check (training and validation on *different*
-trajectories); with ``--diagnose``, (7) the diagnosis of the a-priori URDF.
+trajectories); with ``--position``, (7) the per-joint position term (``sin q_j, cos q_j``):
+which joints get it, chosen on the training files alone, and the held-out and cross-trajectory
+figures with and without it; with ``--diagnose``, (8) the diagnosis of the a-priori URDF.
 """
 
 from __future__ import annotations
@@ -41,6 +44,7 @@ TRIM_START = 2.0
 #: weight joints by it; 0.2 N·m is the per-joint RMS that the 64-parameter least-squares fit
 #: leaves on the training data (0.16–0.22 N·m): a floor no candidate effect can be asked to beat.
 SIGMA = 0.2
+FRICTION = ("coulomb", "viscous", "offset")
 
 
 def load(data: Path, model: ci.RobotModel, numbers: tuple[int, ...]) -> Recording:
@@ -65,9 +69,73 @@ def joint_terms_table(results: dict[str, object], names: list[str]) -> str:
     return table(["model", *short], rows)
 
 
+def _errors(prior: ci.RobotModel, train: ci.Dataset, held: ci.Dataset,
+            friction: object) -> tuple[float, float, bool]:
+    """Held-out total relative error of OLS and the SDP, and the SDP's consistency."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ci.errors.PoorExcitationWarning)
+        ols = ci.identify(prior, train, method="ols", friction=friction)
+        sdp = ci.identify(prior, train, method="sdp", friction=friction)
+    return (score(ols, held).total_relative_error, score(sdp, held).total_relative_error,
+            sdp.is_consistent)
+
+
+def position_joints(prior: ci.RobotModel, data: Path) -> tuple[list[int], str]:
+    """Joints that get the position term, chosen on the training recordings only.
+
+    Folds: train on measurements_2, score measurements_3, and the reverse (two different
+    trajectories, so the score is that of a new motion). Greedy forward selection: add the joint
+    whose term lowers the SDP's mean total relative error over both folds most; stop when no
+    joint lowers it. measurements_1 is never read. Returns the chosen joints and the table.
+    """
+    recs = {i: load(data, prior, (i,)).dataset for i in (2, 3)}
+
+    def cv(joints: list[int]) -> tuple[float, float]:
+        friction = {t: True for t in FRICTION} | {"position": joints}
+        e = [_errors(prior, recs[a], recs[b], friction) for a, b in ((2, 3), (3, 2))]
+        return float(np.mean([x[0] for x in e])), float(np.mean([x[1] for x in e]))
+
+    chosen: list[int] = []
+    e_ols, e_sdp = cv(chosen)
+    rows = [["none", 100 * e_ols, 100 * e_sdp, ""]]
+    while len(chosen) < prior.nv:
+        trials = {j: cv(sorted(chosen + [j])) for j in range(prior.nv) if j not in chosen}
+        for j, (o, sd) in trials.items():
+            rows.append([f"{'+'.join(f'j{k + 1}' for k in sorted(chosen + [j]))}", 100 * o,
+                         100 * sd, ""])
+        best = min(trials, key=lambda j: trials[j][1])
+        if trials[best][1] >= e_sdp:
+            break
+        chosen.append(best)
+        e_sdp = trials[best][1]
+        rows[-len(trials) + list(trials).index(best)][3] = "chosen"
+    return sorted(chosen), table(["position term on", "OLS e% (mean of 2→3, 3→2)", "SDP e%",
+                                  ""], rows, floatfmt=".3g")
+
+
+def position_table(prior: ci.RobotModel, data: Path, chosen: list[int]) -> str:
+    """Held-out figures without the position term, with it on every joint, and on ``chosen``."""
+    variants = {"c,v,o": FRICTION, "+ position, all joints": (*FRICTION, "position"),
+                f"+ position, {','.join(f'j{j + 1}' for j in chosen)}":
+                    {t: True for t in FRICTION} | {"position": chosen}}
+    rows = []
+    for trn, val in (((2, 3), 1), ((1, 2), 3), ((3,), 1), ((1, 3), 2)):
+        tr, va = load(data, prior, trn).dataset, load(data, prior, (val,)).dataset
+        e_plain = None
+        for label, friction in variants.items():
+            e_ols, e_sdp, ok = _errors(prior, tr, va, friction)
+            e_plain = e_ols if e_plain is None else e_plain
+            rows.append([f"{'+'.join(map(str, trn))} → {val}", label, 100 * e_ols, 100 * e_sdp,
+                         e_sdp / e_ols, e_sdp / e_plain, "yes" if ok else "no"])
+    return table(["train → held-out", "joint terms", "OLS e%", "SDP e%", "SDP/OLS",
+                  "SDP/OLS(c,v,o)", "SDP ⪰ 0"], rows, floatfmt=".3g")
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", type=Path, default=DATA)
+    ap.add_argument("--position", action="store_true",
+                    help="also measure the per-joint position term (sin q, cos q)")
     ap.add_argument("--diagnose", action="store_true", help="also diagnose the a-priori URDF")
     args = ap.parse_args()
     if not (args.data / "measurements_1.npz").is_file():
@@ -89,7 +157,7 @@ def main() -> int:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ci.errors.PoorExcitationWarning)
             fits[method] = ci.identify(prior, train.dataset, method=method,
-                                       friction=("coulomb", "viscous", "offset"))
+                                       friction=FRICTION)
         timings[method] = time.perf_counter() - t0
     ols, sdp = fits["ols"], fits["sdp"]
     models = {
@@ -168,6 +236,47 @@ def main() -> int:
         rows.append([f"{'+'.join(map(str, trn))} → {val}", seen, 100 * so, 100 * ss, ss / so])
     print(table(["train → held-out", "trajectory seen", "OLS e%", "SDP e%", "SDP/OLS"], rows,
                 floatfmt=".3g"))
+
+    if args.position:
+        print("\n== Position term sin q_j, cos q_j per joint: joints chosen on the training "
+              "files only (train 2 → score 3, train 3 → score 2; greedy on the SDP's error) ==")
+        chosen, cv_table = position_joints(prior, args.data)
+        print(cv_table)
+        print("\n== Position term: held-out total relative error (SDP/OLS: same joint terms; "
+              "SDP/OLS(c,v,o): against OLS without the position term) ==")
+        print(position_table(prior, args.data, chosen))
+        pos = {"all joints": (*FRICTION, "position"),
+               ",".join(f"j{j + 1}" for j in chosen): {t: True for t in FRICTION}
+               | {"position": chosen}}
+        pos_fits = {}
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ci.errors.PoorExcitationWarning)
+            for label, friction in pos.items():
+                for method in ("ols", "sdp"):
+                    pos_fits[f"consistid {method.upper()} + position ({label})"] = ci.identify(
+                        prior, train.dataset, method=method, friction=friction)
+        print("\n-- held-out measurements_1 per joint (train 2+3):")
+        print(scores_table([held_scores["consistid OLS"],
+                            held_scores["consistid SDP (pseudo-inertia, log-det prior)"]]
+                           + [score(r, held.dataset, k) for k, r in pos_fits.items()]))
+        rows = []
+        for label, res in pos_fits.items():
+            names = list(res.parameter_names)
+            cells = []
+            for j in chosen:
+                a, b = (res.parameters[names.index(f"{JOINTS[j]}.{c}")] for c in ("ps1", "pc1"))
+                cells.append(f"{a:+.3f}, {b:+.3f} (amplitude {np.hypot(a, b):.2f})")
+            r7 = res.residual(held.dataset)[:, 6]
+            rows.append([label, *cells, np.corrcoef(r7, np.sin(held.dataset.q[:, 6]))[0, 1],
+                         res.consistency.min_eigenvalues.min()])
+        r7 = sdp.residual(held.dataset)[:, 6]
+        rows.append(["consistid SDP (no position term)", *(["-"] * len(chosen)),
+                     np.corrcoef(r7, np.sin(held.dataset.q[:, 6]))[0, 1],
+                     sdp.consistency.min_eigenvalues.min()])
+        print("\n-- position terms p_s, p_c (N·m) of the chosen joints; joint 7's held-out "
+              "residual vs sin q7; smallest pseudo-inertia eigenvalue:")
+        print(table(["model", *(f"j{j + 1}: ps1, pc1" for j in chosen), "corr(r7, sin q7)",
+                     "min λ(J)"], rows, floatfmt=".3g"))
 
     if args.diagnose:
         print(f"\n== Diagnosis of the a-priori URDF (train 2+3, held-out 1, σ = {SIGMA} N·m) ==")
