@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 import consistid as ci
-from consistid.errors import DatasetError, JointCountError, MissingColumnsError
+from consistid.errors import DatasetError, JointCountError, JointNameError, MissingColumnsError
 
 
 def make(n=50, nv=3, seed=0, **over):
@@ -22,6 +22,28 @@ def test_nan_is_named_by_field_index_and_joint():
     q[7, 2] = np.inf
     with pytest.raises(DatasetError, match=r"dataset\.q\[7, 2\] is infinite"):
         make(q=q)
+
+
+def test_too_few_joint_names_is_named_before_any_value_check():
+    tau = np.zeros((50, 3))
+    tau[3, 2] = np.nan
+    with pytest.raises(DatasetError, match="1 names for 3 joints"):
+        make(tau=tau, joint_names=("a",))
+
+
+def test_segment_must_hold_integers():
+    with pytest.raises(DatasetError, match=r"dataset\.segment\[10\] = 0.5"):
+        make(segment=np.where(np.arange(50) == 10, 0.5, 0.0))
+
+
+def test_joint_names_must_match_the_model_and_each_other(panda):
+    names = tuple(reversed(panda.joint_names))
+    d = make(nv=7, joint_names=names)
+    with pytest.raises(JointNameError, match="differ from the model's"):
+        ci.identify(panda, d, method="ols")
+    with pytest.raises(JointNameError):
+        ci.Dataset.concatenate([make(joint_names=("a", "b", "c")),
+                                make(joint_names=("x", "y", "z"))])
 
 
 def test_shape_errors_name_the_field():
@@ -47,11 +69,30 @@ def test_joint_count_mismatch_is_named(panda):
 
 @pytest.mark.parametrize("suffix", [".npz", ".csv"])
 def test_save_load_round_trip(tmp_path, suffix):
-    d = make(seed=3)
+    d = make(seed=3, joint_names=("a", "b", "c"))
     d.save(tmp_path / f"run{suffix}")
-    back = ci.Dataset.load(tmp_path / f"run{suffix}")
-    for f in ("t", "q", "dq", "ddq", "tau", "segment"):
+    back = ci.Dataset.load(tmp_path / f"run{suffix}", joint_names=("a", "b", "c"))
+    for f in ("t", "q", "dq", "ddq", "tau", "segment", "joint_names"):
         assert np.array_equal(getattr(d, f), getattr(back, f)), f
+
+
+def test_npz_keeps_joint_names_and_refuses_other_ones(tmp_path):
+    make(joint_names=("a", "b", "c")).save(tmp_path / "run.npz")
+    assert ci.Dataset.load(tmp_path / "run.npz").joint_names == ("a", "b", "c")
+    with pytest.raises(JointNameError, match="names its joints"):
+        ci.Dataset.load(tmp_path / "run.npz", joint_names=("x", "y", "z"))
+
+
+def test_csv_with_some_torque_columns_is_refused(tmp_path):
+    path = tmp_path / "partial.csv"
+    make().save(path)
+    lines = path.read_text().splitlines()
+    header = lines[0].split(",")
+    drop = header.index("tau2")
+    path.write_text("\n".join(",".join(c for i, c in enumerate(line.split(",")) if i != drop)
+                              for line in lines))
+    with pytest.raises(MissingColumnsError, match=r"lacks \['tau2'\]"):
+        ci.Dataset.load(path)
 
 
 def test_csv_missing_columns_are_listed(tmp_path):

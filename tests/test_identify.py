@@ -87,3 +87,10 @@ def test_unknown_options_are_refused(panda, runs):
         ci.identify(panda, runs[0], method="ridge")
     with pytest.raises(ci.OptionError, match="apply to method='sdp' only"):
         ci.identify(panda, runs[0], method="ols", prior="euclidean")
+
+
+def test_report_writes_the_summary(panda, runs, tmp_path):
+    res = ci.identify(panda, runs[0], method="ols", friction=None)
+    text = res.report(tmp_path / "report.txt")
+    assert text == res.summary()
+    assert (tmp_path / "report.txt").read_text().startswith("consistid identification")

@@ -48,8 +48,12 @@ def test_with_parameters_changes_inertias_only(panda):
     pi[30] *= 2.0
     changed = panda.with_parameters(pi)
     assert np.allclose(changed.prior_parameters, pi)
-    assert changed.joint_names == panda.joint_names
     assert np.allclose(panda.prior_parameters[30] * 2, changed.prior_parameters[30])
+    assert changed.joint_names == panda.joint_names and changed.source == panda.source
+    assert changed.locked_joints == panda.locked_joints
+    assert np.array_equal(changed.gravity, panda.gravity)
+    # the original is untouched (Pinocchio models are copied, not shared)
+    assert panda.prior_parameters[30] == pi[30] / 2
 
 
 def test_bad_inputs_raise_named_errors(tmp_path, panda):
@@ -65,6 +69,10 @@ def test_bad_inputs_raise_named_errors(tmp_path, panda):
         ci.RobotModel.from_urdf(bad)
     with pytest.raises(ci.ModelError, match="10 per body"):
         panda.with_parameters(np.ones(5))
+    with pytest.raises(ci.ModelError, match="not in locked_joints"):
+        ci.RobotModel.from_urdf(panda.source, locked_configuration={"panda_joint1": 0.3})
+    with pytest.raises(ci.JointCountError, match="q has 6 joints"):
+        panda.rnea(np.zeros(6), np.zeros(6), np.zeros(6))
 
 
 def test_unset_urdf_limits_read_as_unlimited_and_excite_the_double_pendulum():

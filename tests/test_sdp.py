@@ -180,7 +180,7 @@ def test_levels_hold_on_the_answer(panda, sets):
     assert not free.is_consistent  # otherwise the levels below would not be tested
     mi = ci.identify(panda, sets["poor"], constraints="mass-inertia", **kw)
     tri = ci.identify(panda, sets["poor"], constraints="triangle", **kw)
-    assert is_physically_consistent(mi.parameters, "mass-inertia", panda.body_names, tol=-1e-9)
+    assert is_physically_consistent(mi.parameters, "mass-inertia", panda.body_names, tol=1e-9)
     assert any(a.endswith("mass-inertia LMI") for a in mi.details["active_constraints"])
     assert is_physically_consistent(tri.parameters, "triangle", panda.body_names, tol=1e-12)
     assert np.all(min_eigs(tri.parameters, panda.n_bodies) > 0)

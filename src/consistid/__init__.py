@@ -11,11 +11,11 @@ from .base import BaseParameters, compute_base_parameters
 from .constraints import Ellipsoid
 from .dataset import Dataset
 from .diagnose import Diagnosis, diagnose
-from .errors import (ConsistidError, DatasetError, IdentificationError,
-                     InaccurateSolutionWarning, InconsistentParametersError, InfeasibleError,
-                     InfeasibleExcitationError, JointCountError, MissingColumnsError, ModelError,
-                     OptionError, PoorExcitationError, PoorExcitationWarning,
-                     UnrealizableCoefficientsError)
+from .errors import (ConfigError, ConsistidError, DatasetError, ExcitationError,
+                     IdentificationError, InaccurateSolutionWarning, InconsistentParametersError,
+                     InfeasibleError, InfeasibleExcitationError, JointCountError, JointNameError,
+                     MissingColumnsError, ModelError, OptionError, PoorExcitationError,
+                     PoorExcitationWarning, UnrealizableCoefficientsError)
 from .excitation import (BoundaryConditions, ExcitationDesign, ExcitationLimits, FourierTrajectory,
                          design_excitation)
 from .identify import identify
@@ -32,7 +32,8 @@ from .sdp import default_prior_weight
 __version__ = "0.1.0"
 
 __all__ = [
-    "BaseParameters", "BoundaryConditions", "ConsistidError", "Dataset", "DatasetError",
+    "BaseParameters", "BoundaryConditions", "ConfigError", "ConsistidError", "Dataset",
+    "DatasetError", "ExcitationError", "JointNameError",
     "Diagnosis", "diagnose",
     "Ellipsoid", "ExcitationDesign", "ExcitationLimits", "FourierTrajectory",
     "InfeasibleExcitationError", "IdentificationError", "IdentificationResult",

@@ -8,7 +8,7 @@ mixes two recordings.
 File formats
 ------------
 NPZ
-    arrays ``t, q, dq, ddq, tau`` (optionally ``segment``).
+    arrays ``t, q, dq, ddq, tau`` (optionally ``segment`` and ``joint_names``).
 CSV
     a header line and one row per sample; columns ``t``, ``q1..qn``, ``dq1..dqn``, ``ddq1..ddqn``,
     ``tau1..taun`` (1-based joint index), optionally ``segment``. Column order is free.
@@ -22,7 +22,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .errors import DatasetError, JointCountError, MissingColumnsError
+from .errors import DatasetError, JointCountError, JointNameError, MissingColumnsError
 
 FIELDS = ("q", "dq", "ddq", "tau")
 
@@ -90,17 +90,23 @@ class Dataset:
                                    f"({n}, nv) to match t's {n} samples")
             if nv is None:
                 nv = a.shape[1]
+                if names is not None and len(names) != nv:
+                    raise DatasetError(f"dataset.joint_names has {len(names)} names for {nv} "
+                                       "joints")
             elif a.shape[1] != nv:
                 raise DatasetError(f"dataset.{name} has {a.shape[1]} joints; dataset.q has {nv}")
             _check_finite(name, a, names)
             object.__setattr__(self, name, a)
-        if names is not None and len(names) != nv:
-            raise DatasetError(f"dataset.joint_names has {len(names)} names for {nv} joints")
         _check_finite("t", t, None)
-        seg = (np.zeros(n, dtype=int) if self.segment is None
-               else np.asarray(self.segment).astype(int))
+        seg = np.zeros(n, dtype=int) if self.segment is None else np.asarray(self.segment)
         if seg.shape != (n,):
             raise DatasetError(f"dataset.segment has shape {seg.shape}; expected ({n},)")
+        if seg.dtype.kind not in "iu":
+            if not np.all(np.isfinite(seg)) or np.any(seg != np.round(seg)):
+                k = int(np.flatnonzero(~np.isfinite(seg) | (seg != np.round(seg)))[0])
+                raise DatasetError(f"dataset.segment[{k}] = {float(seg[k])} is not an integer "
+                                   "recording index")
+            seg = seg.astype(int)
         object.__setattr__(self, "segment", seg)
         same = seg[1:] == seg[:-1]
         bad = np.flatnonzero(same & (np.diff(t) <= 0))
@@ -131,10 +137,16 @@ class Dataset:
         return self.tau
 
     def check_joints(self, nv: int, joint_names: Sequence[str] | None = None) -> None:
-        """Raise :class:`JointCountError` unless the dataset has ``nv`` joints."""
+        """Raise :class:`JointCountError` unless the dataset has ``nv`` joints, and
+        :class:`JointNameError` when both sides name their joints and the names differ."""
         if self.nv != nv:
             where = f" ({', '.join(joint_names)})" if joint_names else ""
             raise JointCountError(f"dataset has {self.nv} joints but the model has {nv}{where}")
+        if joint_names is not None and self.joint_names is not None \
+                and tuple(joint_names) != self.joint_names:
+            raise JointNameError(f"dataset joints {list(self.joint_names)} differ from the "
+                                 f"model's {list(joint_names)} (same count, other names or "
+                                 "order)")
 
     def select(self, index: np.ndarray | slice) -> "Dataset":
         """The samples at ``index`` (boolean mask, integer array or slice)."""
@@ -175,10 +187,10 @@ class Dataset:
         """Stack recordings; each becomes its own segment and time is shifted to stay increasing."""
         if not datasets:
             raise DatasetError("nothing to concatenate")
-        nv = datasets[0].nv
+        nv, names = datasets[0].nv, datasets[0].joint_names
         parts, offset, seg0 = [], 0.0, 0
         for d in datasets:
-            d.check_joints(nv)
+            d.check_joints(nv, names)
             shift = offset - d.t[0] if parts else 0.0
             parts.append((d.t + shift, d, d.segment - d.segment.min() + seg0))
             offset = d.t[-1] + shift + (np.median(np.diff(d.t)) if d.n_samples > 1 else 1.0)
@@ -210,6 +222,8 @@ class Dataset:
         path = Path(path)
         if path.suffix == ".npz":
             arrays = {k: getattr(self, k) for k in ("t", *FIELDS) if getattr(self, k) is not None}
+            if self.joint_names is not None:
+                arrays["joint_names"] = np.array(self.joint_names)
             np.savez(path, segment=self.segment, **arrays)
         elif path.suffix == ".csv":
             cols = self.columns()
@@ -243,7 +257,11 @@ class Dataset:
                     raise MissingColumnsError(f"{path.name} lacks arrays {missing}; it has "
                                               f"{sorted(f.files)}")
                 arrays = {k: f[k] for k in f.files if k in ("t", *FIELDS, "segment")}
-            return cls(joint_names=joint_names, **arrays)
+                stored = tuple(str(n) for n in f["joint_names"]) if "joint_names" in f else None
+            if joint_names is not None and stored is not None and tuple(joint_names) != stored:
+                raise JointNameError(f"{path.name} names its joints {list(stored)}, not "
+                                     f"{list(joint_names)}")
+            return cls(joint_names=joint_names if joint_names is not None else stored, **arrays)
         if path.suffix == ".csv":
             with open(path) as fh:
                 header = fh.readline().strip().split(",")
@@ -259,8 +277,11 @@ class Dataset:
             stack = {f: np.column_stack([col[f"{f}{j + 1}"] for j in range(nv)])
                      for f in ("q", "dq", "ddq")}
             tau_cols = [f"tau{j + 1}" for j in range(nv)]
-            tau = np.column_stack([col[c] for c in tau_cols]) if all(
-                c in col for c in tau_cols) else None
+            missing_tau = [c for c in tau_cols if c not in col]
+            if missing_tau and len(missing_tau) < nv:
+                raise MissingColumnsError(f"{path.name} has some torque columns but lacks "
+                                          f"{missing_tau}")
+            tau = None if missing_tau else np.column_stack([col[c] for c in tau_cols])
             return cls(t=col["t"], tau=tau, joint_names=joint_names,
                        segment=col.get("segment"), **stack)
         raise DatasetError(f"unknown dataset format {path.suffix!r}; use .npz or .csv")

@@ -74,6 +74,10 @@ class InfeasibleExcitationError(ExcitationError):
     the workspace), or no optimisation start ended feasible; names the joint/constraint."""
 
 
+class ParameterShapeError(ConsistidError, ValueError):
+    """A parameter vector or matrix has the wrong shape (not 10 per body, not 4×4 …)."""
+
+
 class InconsistentParametersError(ConsistidError, ValueError):
     """Parameters that must be physically consistent are not (names the body and the violation)."""
 

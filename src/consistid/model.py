@@ -21,7 +21,7 @@ from typing import Iterable, Sequence
 import numpy as np
 import pinocchio as pin
 
-from .errors import ModelError, check_option
+from .errors import JointCountError, ModelError, check_option
 from .parameters import INERTIAL_NAMES
 
 #: example-robot-data arms consistid knows by name: URDF path below ``robots/`` and joints to lock.
@@ -143,6 +143,10 @@ class RobotModel:
             raise ModelError(
                 f"unknown joint(s) {unknown} in {path.name}; joints are {list(full.names)[1:]}"
             )
+        unlocked = sorted(set(config) - set(locked))
+        if unlocked:
+            raise ModelError(f"locked_configuration names joint(s) {unlocked} that are not in "
+                             f"locked_joints {locked}")
         model = full
         if locked:
             q_ref = pin.neutral(full)
@@ -261,7 +265,7 @@ class RobotModel:
         unset = lower >= upper
         lower[unset | ~np.isfinite(lower) | (lower < -1e10)] = -np.inf
         upper[unset | ~np.isfinite(upper) | (upper > 1e10)] = np.inf
-        velocity, effort = (np.array([m.velocityLimit, m.effortLimit][i]) for i in (0, 1))
+        velocity, effort = np.array(m.velocityLimit), np.array(m.effortLimit)
         velocity[velocity <= 0] = np.inf
         effort[effort <= 0] = np.inf
         return JointLimits(lower, upper, velocity, effort)
@@ -293,6 +297,10 @@ class RobotModel:
         Uses ``pinocchio.rnea`` (which adds ``model.armature · q̈``); samples along axis 0.
         """
         q, dq, ddq = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (q, dq, ddq))
+        for name, a in (("q", q), ("dq", dq), ("ddq", ddq)):
+            if a.shape[1] != self.nv:
+                raise JointCountError(f"{name} has {a.shape[1]} joints but {self.name} has "
+                                      f"{self.nv}")
         data = self.pin_model.createData()
         out = np.empty_like(dq)
         for k in range(q.shape[0]):

@@ -35,7 +35,8 @@ from typing import Sequence
 import numpy as np
 import pinocchio as pin
 
-from .errors import check_option
+from .errors import (InconsistentParametersError, OptionError, ParameterShapeError,
+                     check_option)
 
 INERTIAL_NAMES: tuple[str, ...] = ("m", "mx", "my", "mz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
 CONSISTENCY_LEVELS: tuple[str, ...] = ("mass-inertia", "triangle", "pseudo-inertia")
@@ -44,7 +45,8 @@ CONSISTENCY_LEVELS: tuple[str, ...] = ("mass-inertia", "triangle", "pseudo-inert
 def _body(p: np.ndarray) -> np.ndarray:
     p = np.asarray(p, dtype=float)
     if p.shape != (10,):
-        raise ValueError(f"a body's standard parameters have shape (10,), got {p.shape}")
+        raise ParameterShapeError(
+            f"a body's standard parameters have shape (10,), got {p.shape}")
     return p
 
 
@@ -57,12 +59,13 @@ def inertia_about_origin(p: np.ndarray) -> np.ndarray:
 def to_mass_com_inertia(p: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
     """``(m, c, I_c)`` from a 10-vector; ``I_c = I − m [c]_×ᵀ[c]_×`` (parallel axes).
 
-    Raises ``ValueError`` for a non-positive mass, where the centre of mass is undefined.
+    Raises :class:`InconsistentParametersError` (a ``ValueError``) for a non-positive mass,
+    where the centre of mass is undefined.
     """
     p = _body(p)
     m = p[0]
     if not m > 0:
-        raise ValueError(f"mass {m:.6g} ≤ 0: the centre of mass is undefined")
+        raise InconsistentParametersError(f"mass {m:.6g} ≤ 0: the centre of mass is undefined")
     c = p[1:4] / m
     cx = pin.skew(c)
     return float(m), c, inertia_about_origin(p) + m * cx @ cx
@@ -76,8 +79,9 @@ def from_mass_com_inertia(m: float, c: Sequence[float], inertia_com: np.ndarray)
     c = np.asarray(c, dtype=float)
     inertia_com = np.asarray(inertia_com, dtype=float)
     if c.shape != (3,) or inertia_com.shape != (3, 3):
-        raise ValueError(f"c must have shape (3,) and inertia_com (3, 3), got {c.shape} and "
-                         f"{inertia_com.shape}")
+        raise ParameterShapeError(
+            f"c must have shape (3,) and inertia_com (3, 3), got {c.shape} and "
+            f"{inertia_com.shape}")
     cx = pin.skew(c)
     i = 0.5 * (inertia_com + inertia_com.T) - float(m) * cx @ cx
     return np.array([m, *(float(m) * c), i[0, 0], i[0, 1], i[1, 1], i[0, 2], i[1, 2], i[2, 2]])
@@ -118,7 +122,7 @@ def from_pseudo_inertia(J: np.ndarray) -> np.ndarray:
     """The 10-vector of a 4×4 pseudo-inertia (inverse of :func:`pseudo_inertia`)."""
     J = np.asarray(J, dtype=float)
     if J.shape != (4, 4):
-        raise ValueError(f"a pseudo-inertia is 4×4, got {J.shape}")
+        raise ParameterShapeError(f"a pseudo-inertia is 4×4, got {J.shape}")
     return np.array(pin.PseudoInertia.FromMatrix(0.5 * (J + J.T)).toDynamicParameters())
 
 
@@ -126,7 +130,8 @@ def inertias_from_vector(parameters: np.ndarray) -> list[pin.Inertia]:
     """``pinocchio.Inertia`` objects from a stacked standard vector (10 per body)."""
     parameters = np.asarray(parameters, dtype=float)
     if parameters.ndim != 1 or parameters.size % 10:
-        raise ValueError(f"stacked standard parameters need 10 per body, got {parameters.shape}")
+        raise ParameterShapeError(
+            f"stacked standard parameters need 10 per body, got {parameters.shape}")
     return [pin.Inertia.FromDynamicParameters(parameters[i:i + 10])
             for i in range(0, parameters.size, 10)]
 
@@ -150,30 +155,33 @@ def check_body(p: np.ndarray, level: str = "pseudo-inertia", body: str = "body",
                tol: float = 0.0) -> BodyConsistency:
     """Check one body's 10-vector against a consistency level.
 
-    ``tol`` is an absolute tolerance on the margins (eigenvalues in kg·m², mass in kg); the
-    verdict is ``m > tol``, ``eig(I_c) > tol``, triangle slack ``≥ −tol``, ``λ_min(J) ≥ −tol``.
+    Every condition is a margin that must exceed ``−tol``: ``eig(I_c) > −tol``, triangle slack
+    ``I_1 + I_2 − I_3 > −tol``, ``λ_min(J) > −tol`` (kg·m²); the mass must be positive whatever
+    ``tol`` (the CoM is undefined otherwise). At the default ``tol = 0`` this is strict: a solid
+    body. A positive ``tol`` forgives round-off (and accepts boundary bodies such as thin rods);
+    a negative one demands that much margin.
     """
     check_option("level", level, CONSISTENCY_LEVELS)
     p = _body(p)
     lam_j = float(np.linalg.eigvalsh(pseudo_inertia(p))[0])
-    if not p[0] > tol:
-        return BodyConsistency(body, False, f"{body}: mass {p[0]:.6g} kg ≤ {tol:g}", p[0], lam_j,
-                               None, "mass")
+    if not p[0] > max(0.0, -tol):
+        return BodyConsistency(body, False, f"{body}: mass {p[0]:.6g} kg ≤ {max(0.0, -tol):g}",
+                               p[0], lam_j, None, "mass")
     _, _, inertia_com = to_mass_com_inertia(p)
     moments = np.linalg.eigvalsh(inertia_com)
-    if moments[0] <= tol:
+    if not moments[0] > -tol:
         return BodyConsistency(body, False,
                                f"{body}: inertia about the CoM not positive definite "
                                f"(smallest principal moment {moments[0]:.3g} kg·m²)",
                                p[0], lam_j, moments, "inertia")
     if level in ("triangle", "pseudo-inertia"):
         slack = moments[0] + moments[1] - moments[2]
-        if slack < -tol:
+        if not slack > -tol:
             return BodyConsistency(body, False,
                                    f"{body}: triangle inequality violated "
                                    f"(I1 + I2 − I3 = {slack:.3g} kg·m²)", p[0], lam_j, moments,
                                    "triangle")
-    if level == "pseudo-inertia" and lam_j < -tol:
+    if level == "pseudo-inertia" and not lam_j > -tol:
         return BodyConsistency(body, False,
                                f"{body}: pseudo-inertia min eigenvalue {lam_j:.3g}",
                                p[0], lam_j, moments, "pseudo-inertia")
@@ -226,18 +234,21 @@ def is_physically_consistent(parameters: np.ndarray, level: str = "pseudo-inerti
     """
     parameters = np.asarray(parameters, dtype=float)
     if parameters.ndim != 1:
-        raise ValueError(f"parameters must be a 1-D vector, got shape {parameters.shape}")
+        raise ParameterShapeError(
+            f"parameters must be a 1-D vector, got shape {parameters.shape}")
     if body_names is None:
         if parameters.size % 10:
-            raise ValueError(f"{parameters.size} parameters are not 10 per body; pass body_names "
-                             "to check the inertial part of a vector with friction entries")
+            raise ParameterShapeError(
+                f"{parameters.size} parameters are not 10 per body; pass body_names to check "
+                "the inertial part of a vector with friction entries")
         n = parameters.size // 10
         names = [f"body{i + 1}" for i in range(n)]
     else:
         names = list(body_names)
         n = len(names)
         if parameters.size < 10 * n:
-            raise ValueError(f"{parameters.size} parameters for {n} bodies; need {10 * n}")
+            raise ParameterShapeError(
+                f"{parameters.size} parameters for {n} bodies; need {10 * n}")
     return ConsistencyReport(level, tuple(
         check_body(parameters[10 * i:10 * i + 10], level, names[i], tol) for i in range(n)))
 
@@ -248,9 +259,14 @@ def perturb(parameters: np.ndarray, relative: float, rng: np.random.Generator) -
     Each body's mass, each CoM coordinate and the inertia about the CoM (one common factor, so
     the triangle inequalities are kept) are multiplied by independent factors drawn uniformly
     from ``[1 − relative, 1 + relative]``. Used to make "true" robots that differ from the CAD
-    prior in simulation.
+    prior in simulation. ``relative`` must lie in ``[0, 1)`` so that masses stay positive.
     """
+    if not 0.0 <= relative < 1.0:
+        raise OptionError(f"perturb: relative = {relative} must lie in [0, 1)")
     out = np.array(parameters, dtype=float)
+    if out.ndim != 1 or out.size % 10:
+        raise ParameterShapeError(
+            f"perturb: a stacked standard vector has 10 entries per body, got shape {out.shape}")
     for i in range(out.size // 10):
         m, c, inertia_com = to_mass_com_inertia(out[10 * i:10 * i + 10])
         f = rng.uniform(1 - relative, 1 + relative, size=5)

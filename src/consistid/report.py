@@ -30,10 +30,9 @@ def table(header: Sequence[str], rows: Sequence[Sequence[object]], floatfmt: str
 def identification_summary(res: "IdentificationResult", max_rows: int | None = None) -> str:
     """Base parameters (prior, estimate, ±σ, %σ), per-joint fit, consistency and notes."""
     prior_beta = res.base.project(res.prior)
-    order = range(res.base.n_base)
     rows = [(res.base.names[i], prior_beta[i], res.base_parameters[i], res.base_std[i],
              f"{res.relative_std[i]:.1f}" if np.isfinite(res.relative_std[i]) else "inf")
-            for i in order]
+            for i in range(res.base.n_base)]
     shown = rows if max_rows is None else rows[:max_rows]
     lines = [f"consistid identification of {res.model.name!r}: method={res.method}, "
              f"{res.n_samples} samples × {res.model.nv} joints, {res.spec.describe()}",
@@ -50,7 +49,7 @@ def identification_summary(res: "IdentificationResult", max_rows: int | None = N
     cons = res.consistency
     notes.append(f"physical consistency: {cons}")
     for key, value in res.details.items():
-        if np.isscalar(value) or isinstance(value, str):
+        if np.isscalar(value):
             notes.append(f"{key}: {value}")
     if res.condition_number > 1e4:
         notes.append("the condition number is large: some base parameters are poorly excited")

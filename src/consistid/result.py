@@ -141,7 +141,13 @@ class IdentificationResult:
 
         return identification_summary(self, max_rows=max_rows)
 
-    report = summary
+    def report(self, path: str | Path | None = None) -> str:
+        """The full :meth:`summary`; also written to ``path`` (a text file) when given, like
+        :meth:`consistid.diagnose.Diagnosis.report` writes its report."""
+        text = self.summary()
+        if path is not None:
+            Path(path).write_text(text + "\n", encoding="utf-8")
+        return text
 
     def __str__(self) -> str:
         return self.summary(max_rows=20)
