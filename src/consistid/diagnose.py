@@ -12,7 +12,8 @@ Method
 3. *Greedy forward selection* (Efroymson 1960; Hastie, Tibshirani, Friedman, *The Elements of
    Statistical Learning*, §3.3.2): at each step every remaining atom is fitted on the training
    data jointly with the atoms already chosen (least squares weighted by ``1/σ_j²``) and scored by
-   its reduction of the held-out weighted sum of squares. The best atom is kept if
+   its reduction of the held-out weighted sum of squares. An atom may be kept if, on the rows
+   it acts on (its joint, or every joint),
 
    * the training BIC decreases (Schwarz 1978, doi:10.1214/aos/1176344136),
      ``N log(SSE₁/SSE₀) + k log N < 0`` with ``N`` the number of training rows,
@@ -33,13 +34,14 @@ Method
    nearly collinear with it (cosine ≥ 0.9 on the held-out data) are *indistinguishable* on these
    data: the one with fewer parameters is kept and the others are listed as alternatives instead
    of being ranked arbitrarily.
-4. *How far it shrinks.* Selected atoms are grouped by effect and the groups ranked by the
-   held-out reductions of their atoms at entry; the groups are added one by one in that order,
-   each time refitted on the training data (the delay refined exactly, ``τ_nom(t − d)``;
-   inertia by the consistent SDP near the nominal, started from the joint least-squares fit)
-   and scored per joint on the held-out data: RMS before → after, shrink, parameters ± standard
-   deviation. A group that no longer reduces the held-out residual in this final fit is left
-   out, with a note.
+4. *How far it shrinks.* Selected atoms are grouped by effect and the groups ranked by how
+   much the held-out residual grows when a group is removed from all the selected atoms (atoms
+   nested in the span of others, e.g. a payload inside inertia, are merged first); the groups
+   are added one by one in that order, each time refitted on the training data (the delay
+   refined exactly, ``τ_nom(t − d)``; inertia by the consistent SDP near the nominal, started
+   from the joint least-squares fit) and scored per joint on the held-out data: RMS before →
+   after, shrink, parameters ± standard deviation. A group that no longer reduces the held-out
+   residual in this final fit is left out, with a note.
 """
 
 from __future__ import annotations
@@ -196,9 +198,9 @@ class Diagnosis:
 
     Attributes
     ----------
-    effects : selected effects, ranked by held-out residual reduction (largest first: the sum
-        of its atoms' reductions when they entered the selection); ``rms_before``/``rms_after``
-        of each are cumulative in this order.
+    effects : selected effects, ranked by held-out residual reduction (largest first: how much
+        the held-out residual grows when the effect is removed from all the selected ones);
+        ``rms_before``/``rms_after`` of each are cumulative in this order.
     where : where the nominal model's residual lies (:class:`~consistid.gap.GapBreakdown`).
     noise_floor : (nv,) torque noise standard deviation per joint (N·m).
     noise_source : ``"given"`` or how it was estimated.
