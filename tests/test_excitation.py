@@ -313,3 +313,68 @@ sphere = {{ radius = 0.2 }}
     assert data.nv == 2 and data.n_samples == 200
     cfg.write_text(cfg.read_text().replace("max_iter = 5", "max_iters = 5"))
     assert main(["excite", str(cfg)]) == 2
+
+
+# ------------------------------------------------------------------------------ unset limits
+def test_urdf_without_efforts_designs_with_torque_unchecked():
+    """The double pendulum's URDF sets no effort (read as inf): no torque columns, no NaN."""
+    model = ci.RobotModel.example("double_pendulum")
+    assert np.all(np.isinf(model.limits.effort))
+    limits = ExcitationLimits.from_model(model)
+    assert limits.torque is None
+    d = design_excitation(model, harmonics=2, period=4.0, friction=None, n_starts=1,
+                          max_iter=5, n_grid=30, n_check=200)
+    assert d.constraints.feasible
+    assert {m.kind for m in d.constraints.margins} == {"acceleration"}
+
+
+def test_torque_columns_only_for_joints_with_a_finite_limit(planar_2r):
+    limits = ExcitationLimits.from_model(planar_2r, torque=[np.inf, 5.0])
+    q, dq, ddq = np.array([[0.3, -0.2]]), np.array([[0.5, 1.0]]), np.array([[2.0, -1.0]])
+    (block,) = ConstraintSet(planar_2r, limits).blocks(q, dq, ddq, derivatives=True,
+                                                       linear=False)
+    assert block.labels == ("joint2 lower", "joint2 upper")
+    tau = planar_2r.rnea(q, dq, ddq)[0, 1]
+    np.testing.assert_allclose(block.values[0], [tau + 5.0, 5.0 - tau])
+    np.testing.assert_allclose(block.scale, [5.0, 5.0])
+    _, _, mass = pin.computeRNEADerivatives(planar_2r.pin_model, planar_2r.pin_model.createData(),
+                                            q[0], dq[0], ddq[0])
+    np.testing.assert_allclose(block.derivative[0, 0, 2], mass[1])     # ∂τ_2/∂q̈
+    np.testing.assert_allclose(block.derivative[0, 1, 2], -mass[1])
+
+
+def test_constraint_report_refuses_nan():
+    from consistid.excitation.limits import ConstraintReport, Margin
+    with pytest.raises(ExcitationError, match="'joint1 upper'"):
+        ConstraintReport((Margin("torque", np.nan, np.nan, "joint1 upper", 0.5),), 10)
+
+
+def test_one_sided_position_limit_is_feasible(planar_2r):
+    """A joint bounded below only: its margin is scaled by one turn (2π), not by inf."""
+    limits = ExcitationLimits.from_model(planar_2r, lower=[-1.0, -1.0], upper=[np.inf, 3.0],
+                                         acceleration=20.0)
+    q = np.array([[0.0, 0.0], [1.0, 2.0]])
+    (pos,) = [b for b in ConstraintSet(planar_2r, limits).blocks(q, q, q, linear=True)
+              if b.kind == "position"]
+    assert pos.labels == ("joint1 lower", "joint2 lower", "joint2 upper")
+    np.testing.assert_allclose(pos.scale, [2 * np.pi, 4.0, 4.0])
+    np.testing.assert_allclose(pos.values[1], [2.0, 3.0, 1.0])
+    d = design_excitation(planar_2r, harmonics=2, period=4.0, friction=None, n_starts=1,
+                          max_iter=5, n_grid=30, n_check=200, limits=limits)
+    margin = d.constraints["position"]
+    assert d.constraints.feasible and 0 < margin.relative < 1
+
+
+def test_limit_vectors_accept_inf_and_refuse_nan(planar_2r):
+    lim = ExcitationLimits.from_model(planar_2r, velocity=[np.inf, 2.0], upper=np.inf,
+                                      torque=np.inf)
+    np.testing.assert_array_equal(lim.velocity, [np.inf, 2.0])
+    np.testing.assert_array_equal(lim.upper, [np.inf, np.inf])
+    assert lim.torque is None
+    for kw in (dict(velocity=np.nan), dict(lower=[0.0, np.nan]), dict(torque=np.nan)):
+        with pytest.raises(ExcitationError, match="NaN"):
+            ExcitationLimits.from_model(planar_2r, **kw)
+    with pytest.raises(ExcitationError, match="not finite"):
+        ExcitationLimits.from_model(planar_2r, acceleration=np.nan)      # scalar path too
+    with pytest.raises(ExcitationError, match="not finite"):
+        BoundaryConditions(q_start=[0.0, np.inf]).resolved(2)

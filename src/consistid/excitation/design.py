@@ -43,7 +43,7 @@ from .criteria import CRITERIA, criteria_values, criterion_and_gradient, prior_c
 from .criteria import regressor_sensitivity
 from .limits import ConstraintBlock, ConstraintReport, ConstraintSet, ExcitationLimits
 from .trajectory import (BoundaryConditions, BSplineParameterisation, FourierPolynomial,
-                         Parameterisation, Trajectory)
+                         Parameterisation, Trajectory, _position_range)
 
 logger = logging.getLogger(__name__)
 
@@ -138,8 +138,7 @@ class _DesignProblem:
         self.prior = prior_vector(model, spec)
         lin = constraints.blocks(self.O[0], self.O[1], self.O[2], derivatives=True, linear=True)
         self.A_lin, self.b_lin = self._stack(lin)
-        self.has_nonlinear = constraints.limits.torque is not None or bool(
-            constraints.cartesian)
+        self.has_nonlinear = constraints.limits.checks_torque or bool(constraints.cartesian)
         self._cache: dict[str, tuple[bytes, object]] = {}
         self.n_evaluations = 0
         self.n_gradients = 0
@@ -252,11 +251,11 @@ def random_feasible(problem: "_DesignProblem", rng: np.random.Generator, max_tri
     """Flat coefficients of a random trajectory that satisfies every constraint on the grid.
 
     A rest pose ``q_c`` is drawn uniformly in the middle half of each joint's range (±π/2 for
-    unbounded joints) and a motion direction ``d_j`` per joint from
-    :meth:`Parameterisation.random_direction`. Each joint's amplitude ``s_j`` is the largest for
-    which its own position/velocity/acceleration limits hold (exact: they are linear in ``s_j``);
-    a common factor ``γ ∈ (0, 1]`` is then reduced by bisection until the torque and Cartesian
-    constraints hold too: ``X = X_rest(q_c) + γ · diag(s) · D``.
+    unbounded joints, of one turn from the bound for one-sided ones) and a motion direction
+    ``d_j`` per joint from :meth:`Parameterisation.random_direction`. Each joint's amplitude
+    ``s_j`` is the largest for which its own position/velocity/acceleration limits hold (exact:
+    they are linear in ``s_j``); a common factor ``γ ∈ (0, 1]`` is then reduced by bisection
+    until the torque and Cartesian constraints hold too: ``X = X_rest(q_c) + γ · diag(s) · D``.
 
     Raises
     ------
@@ -264,8 +263,7 @@ def random_feasible(problem: "_DesignProblem", rng: np.random.Generator, max_tri
     """
     param, lim = problem.param, problem.constraints.limits
     nv, nc = problem.shape
-    lo = np.where(np.isfinite(lim.lower), lim.lower, -np.pi)
-    hi = np.where(np.isfinite(lim.upper), lim.upper, np.pi)
+    lo, hi = _position_range(lim.lower, lim.upper)
     mid, half = 0.5 * (lo + hi), 0.25 * (hi - lo)
     safety, worst = problem.safety, None
     for _ in range(max_tries):

@@ -11,7 +11,7 @@ Following Rackl, Lampariello, Hirzinger 2012 (ICRA, doi:10.1109/ICRA.2012.622527
 
 Every constraint is written as a *margin* that is ≥ 0 when satisfied, in physical units (rad,
 rad/s, rad/s², N·m, m), with a scale that makes it dimensionless for the optimiser (joint range,
-velocity/acceleration/torque limit, 1 m).
+velocity/acceleration/torque limit, 1 m); a joint bounded on one side only has the scale 2π.
 """
 
 from __future__ import annotations
@@ -22,9 +22,9 @@ from typing import Sequence
 import numpy as np
 import pinocchio as pin
 
-from ..errors import InfeasibleExcitationError, ModelError
+from ..errors import ExcitationError, InfeasibleExcitationError, ModelError
 from ..model import RobotModel
-from .trajectory import DEFAULT_ACCELERATION_LIMIT, _joint_vector
+from .trajectory import DEFAULT_ACCELERATION_LIMIT, _joint_vector, _position_range
 
 
 def end_effector_frame(model: RobotModel) -> str:
@@ -68,8 +68,9 @@ class ExcitationLimits:
     Attributes
     ----------
     lower, upper : (nv,) joint position limits (rad or m); ``±inf`` for unbounded joints.
-    velocity, acceleration : (nv,) symmetric limits on ``|q̇|``, ``|q̈|``.
-    torque : (nv,) symmetric limit on ``|τ|`` of the prior model, or ``None`` (not checked).
+    velocity, acceleration : (nv,) symmetric limits on ``|q̇|``, ``|q̈|``; ``inf`` for none.
+    torque : (nv,) symmetric limit on ``|τ|`` of the prior model (``inf``: that joint's torque
+        is not checked), or ``None`` (no torque is checked).
     workspace, floor, sphere : optional Cartesian constraints.
     """
 
@@ -97,7 +98,9 @@ class ExcitationLimits:
         ----------
         acceleration : rad/s² (URDFs have none; default :data:`DEFAULT_ACCELERATION_LIMIT`).
         velocity, lower, upper : override the URDF's values (scalar or per joint).
-        torque : ``True`` for the URDF effort limits, ``False`` for no torque check, or values.
+        torque : ``True`` for the URDF effort limits, ``False`` for no torque check, or values
+            (``inf`` for a joint without one). ``torque`` is ``None`` when no limit is finite
+            (e.g. a URDF without efforts, which :attr:`RobotModel.limits` reads as ``inf``).
         """
         lim, nv = model.limits, model.nv
         if torque is True:
@@ -105,14 +108,21 @@ class ExcitationLimits:
         elif torque is False or torque is None:
             tau = None
         else:
-            tau = _joint_vector("torque limit", torque, nv)
+            tau = _joint_vector("torque limit", torque, nv, allow_infinite=True)
+        if tau is not None and not np.isfinite(tau).any():
+            tau = None
         return cls(
-            lower=lim.lower.copy() if lower is None else _joint_vector("lower", lower, nv),
-            upper=lim.upper.copy() if upper is None else _joint_vector("upper", upper, nv),
+            lower=lim.lower.copy() if lower is None else _joint_vector("lower", lower, nv, True),
+            upper=lim.upper.copy() if upper is None else _joint_vector("upper", upper, nv, True),
             velocity=lim.velocity.copy() if velocity is None else _joint_vector(
-                "velocity limit", velocity, nv),
+                "velocity limit", velocity, nv, allow_infinite=True),
             acceleration=_joint_vector("acceleration limit", acceleration, nv),
             torque=tau, workspace=workspace, floor=floor, sphere=sphere)
+
+    @property
+    def checks_torque(self) -> bool:
+        """Whether some joint has a finite torque limit (the torque block is evaluated)."""
+        return self.torque is not None and bool(np.isfinite(self.torque).any())
 
     def validate(self, model: RobotModel) -> None:
         """Raise :class:`InfeasibleExcitationError` naming the joint when a limit leaves no room
@@ -199,6 +209,13 @@ class ConstraintReport:
     margins: tuple[Margin, ...]
     n_samples: int
 
+    def __post_init__(self) -> None:
+        for m in self.margins:
+            if np.isnan(m.value) or np.isnan(m.relative):
+                raise ExcitationError(f"{m.kind} margin of {m.label!r} at t = {m.time:g} s is "
+                                      f"NaN (value {m.value}, relative {m.relative}): a limit "
+                                      "or the trajectory is not a number")
+
     @property
     def feasible(self) -> bool:
         return all(m.satisfied for m in self.margins)
@@ -249,7 +266,8 @@ class ConstraintSet:
         lim, names, nv = self.limits, self.model.joint_names, self.model.nv
         n = q.shape[0]
         out = []
-        span = lim.upper - lim.lower
+        lo_range, hi_range = _position_range(lim.lower, lim.upper)
+        span = hi_range - lo_range            # 2π for a joint bounded on one side only
         specs = [("position", 0, q, lim.lower, lim.upper, span),
                  ("velocity", 1, dq, -lim.velocity, lim.velocity, lim.velocity),
                  ("acceleration", 2, ddq, -lim.acceleration, lim.acceleration, lim.acceleration)]
@@ -294,10 +312,14 @@ class ConstraintSet:
                 deriv[k, :nv], deriv[k, nv:] = d, -d
             else:
                 tau[k] = pin.rnea(m, data, qk, dq[k], ddq[k])
-        limit = self.limits.torque
-        names = self.model.joint_names
+        # joints without a limit (inf) get no column: their margins would be inf/inf = NaN
+        checked = np.flatnonzero(np.isfinite(self.limits.torque))
+        limit = self.limits.torque[checked]
+        names = [self.model.joint_names[j] for j in checked]
         labels = [f"{j} lower" for j in names] + [f"{j} upper" for j in names]
-        values = np.hstack([tau + limit, limit - tau])
+        values = np.hstack([tau[:, checked] + limit, limit - tau[:, checked]])
+        if deriv is not None:
+            deriv = deriv[:, np.concatenate([checked, nv + checked])]
         return ConstraintBlock("torque", tuple(labels), values, np.concatenate([limit, limit]),
                                deriv)
 
@@ -367,7 +389,7 @@ class ConstraintSet:
         if linear in (None, True):
             out += self._joint_blocks(q, dq, ddq, derivatives)
         if linear in (None, False):
-            if self.limits.torque is not None:
+            if self.limits.checks_torque:
                 out.append(self._torque_block(q, dq, ddq, derivatives))
             if self.cartesian:
                 out += self._cartesian_blocks(q, derivatives)

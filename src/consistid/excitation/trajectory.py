@@ -50,15 +50,37 @@ from ..model import RobotModel
 DEFAULT_ACCELERATION_LIMIT = 10.0
 
 
-def _joint_vector(name: str, value: float | Sequence[float] | np.ndarray, nv: int) -> np.ndarray:
+def _joint_vector(name: str, value: float | Sequence[float] | np.ndarray, nv: int,
+                  allow_infinite: bool = False) -> np.ndarray:
+    """``value`` (a scalar for every joint, or ``nv`` values) as an (nv,) float array.
+
+    Raises :class:`JointCountError` for another shape and :class:`ExcitationError` for NaN, or
+    for ``±inf`` unless ``allow_infinite`` (limits, where ``inf`` means unbounded).
+    """
     a = np.asarray(value, dtype=float)
     if a.ndim == 0:
-        return np.full(nv, float(a))
-    if a.shape != (nv,):
+        a = np.full(nv, float(a))
+    elif a.shape != (nv,):
         raise JointCountError(f"{name} has shape {a.shape}; expected a scalar or ({nv},)")
-    if not np.all(np.isfinite(a)):
-        raise ExcitationError(f"{name} = {a} is not finite")
+    bad = np.isnan(a) if allow_infinite else ~np.isfinite(a)
+    if bad.any():
+        kind = "NaN" if allow_infinite else "not finite"
+        raise ExcitationError(f"{name} = {a} is {kind} (joint {int(np.argmax(bad))})")
     return a.copy()
+
+
+def _position_range(lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Finite stand-ins for position limits, per joint: the limits where both are finite, one
+    turn ``2π`` from the finite one when only one is, ``±π`` when neither is.
+
+    They give unbounded joints a centre and a range to draw from, and one-sided limits a finite
+    scale (``upper − lower = 2π``) for their relative margins.
+    """
+    lower, upper = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
+    has_lo, has_hi = np.isfinite(lower), np.isfinite(upper)
+    lo = np.where(has_lo, lower, np.where(has_hi, upper - 2 * np.pi, -np.pi))
+    hi = np.where(has_hi, upper, np.where(has_lo, lower + 2 * np.pi, np.pi))
+    return lo, hi
 
 
 @dataclass(frozen=True)
@@ -503,12 +525,12 @@ class FourierTrajectory:
         """Random coefficients, scaled per joint to use ``amplitude`` of the position range,
         velocity limit and acceleration limit (whichever binds first), centred in the range.
 
-        Unbounded joints are treated as having the range ±π.
+        Unbounded joints are treated as having the range ±π, joints bounded on one side only as
+        having one turn (2π) from that bound.
         """
         rng = np.random.default_rng(seed)
         lim = model.limits
-        lo = np.where(np.isfinite(lim.lower), lim.lower, -np.pi)
-        hi = np.where(np.isfinite(lim.upper), lim.upper, np.pi)
+        lo, hi = _position_range(lim.lower, lim.upper)
         a = rng.standard_normal((model.nv, harmonics))
         b = rng.standard_normal((model.nv, harmonics))
         q0 = 0.5 * (lo + hi)
