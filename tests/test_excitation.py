@@ -378,3 +378,37 @@ def test_limit_vectors_accept_inf_and_refuse_nan(planar_2r):
         ExcitationLimits.from_model(planar_2r, acceleration=np.nan)      # scalar path too
     with pytest.raises(ExcitationError, match="not finite"):
         BoundaryConditions(q_start=[0.0, np.inf]).resolved(2)
+
+
+# ------------------------------------------------------------------------------ options
+def test_torque_weight_needs_the_cond_criterion(planar_2r):
+    with pytest.raises(ci.errors.OptionError, match="torque_weight.*'d-opt'"):
+        design_excitation(planar_2r, criterion="d-opt", torque_weight=1.0, n_starts=1)
+    with pytest.raises(ci.errors.OptionError, match="torque_weight"):
+        design_excitation(planar_2r, torque_weight=-1.0, n_starts=1)
+
+
+def test_random_excitation_needs_no_base_parameters(planar_2r, monkeypatch):
+    import consistid.excitation.design as design
+
+    def fail(*args, **kwargs):
+        raise AssertionError("random_excitation computed base parameters")
+
+    monkeypatch.setattr(design, "compute_base_parameters", fail)
+    limits = ExcitationLimits.from_model(planar_2r, acceleration=20.0)
+    traj = random_excitation(planar_2r, harmonics=2, period=4.0, seed=1, limits=limits,
+                             n_grid=40)
+    data = traj.sample(100.0)
+    assert np.all(np.abs(data.ddq) <= 20.0 * (1 + 1e-6))
+    assert np.all((data.q >= limits.lower) & (data.q <= limits.upper))
+
+
+def test_config_friction_string_is_one_term(planar_2r, tmp_path):
+    from consistid.excitation.config import load_excitation_config
+    cfg = tmp_path / "excite.toml"
+    cfg.write_text(f'[model]\nurdf = "{planar_2r.source}"\n\n[excite]\nfriction = "viscous"\n')
+    assert load_excitation_config(cfg).options["friction"] == ("viscous",)
+    cfg.write_text(cfg.read_text().replace('"viscous"', '["viscous", "coulomb"]'))
+    assert load_excitation_config(cfg).options["friction"] == ("viscous", "coulomb")
+    cfg.write_text(cfg.read_text().replace('["viscous", "coulomb"]', "[]"))
+    assert load_excitation_config(cfg).options["friction"] is None

@@ -12,7 +12,8 @@ The ``[model]`` table and the path rules are those of every consistid configurat
     harmonics = 5
     period = 10.0                   # s
     criterion = "cond"              # "d-opt", "e-opt"
-    friction = ["coulomb", "viscous", "offset"]   # columns to be identified ([] for none)
+    friction = ["coulomb", "viscous", "offset"]   # columns to be identified ([] for none;
+                                                  # a string is one term)
     seed = 0
     n_starts = 4
     max_iter = 100
@@ -98,7 +99,9 @@ def load_excitation_config(path: str | Path) -> ExcitationConfig:
         **{k: _shape(config, k, lim[k]) for k in SHAPES if k in lim})
     options: dict[str, Any] = {k: ex[k] for k in PASSED_ON if k in ex}
     if "friction" in ex:
-        options["friction"] = tuple(ex["friction"]) or None
+        friction = ex["friction"]
+        options["friction"] = ((friction,) if isinstance(friction, str)   # one term
+                               else tuple(friction)) or None
     if "boundary" in ex:
         options["boundary"] = BoundaryConditions(
             **config.check_table("excite.boundary", ex["boundary"], BOUNDARY_KEYS))

@@ -121,27 +121,20 @@ def _weights(model: RobotModel, base: BaseParameters, spec: RegressorSpec,
 
 
 # --------------------------------------------------------------------------------- the problem
-class _DesignProblem:
-    """Objective, constraints and their gradients on the coarse grid, cached per point."""
+class _FeasibilityProblem:
+    """The constraints on the coarse grid (margins and Jacobians), cached per point."""
 
-    def __init__(self, model: RobotModel, param: Parameterisation, spec: RegressorSpec,
-                 base: BaseParameters, constraints: ConstraintSet, criterion: str,
-                 row_weight: np.ndarray, col_scale: np.ndarray, torque_weight: float,
+    def __init__(self, model: RobotModel, param: Parameterisation, constraints: ConstraintSet,
                  n_grid: int, safety: float) -> None:
-        self.model, self.param, self.spec, self.base = model, param, spec, base
-        self.constraints, self.criterion = constraints, criterion
-        self.row_weight, self.col_scale = row_weight, col_scale
-        self.torque_weight, self.safety = float(torque_weight), float(safety)
+        self.model, self.param, self.constraints = model, param, constraints
+        self.safety = float(safety)
         self.t = _grid(param, n_grid)
         self.G, self.O = param.basis(self.t)
         self.shape = (param.nv, param.n_coefficients)
-        self.prior = prior_vector(model, spec)
         lin = constraints.blocks(self.O[0], self.O[1], self.O[2], derivatives=True, linear=True)
         self.A_lin, self.b_lin = self._stack(lin)
         self.has_nonlinear = constraints.limits.checks_torque or bool(constraints.cartesian)
         self._cache: dict[str, tuple[bytes, object]] = {}
-        self.n_evaluations = 0
-        self.n_gradients = 0
 
     def _chain(self, block: ConstraintBlock) -> np.ndarray:
         """Jacobian of a block's normalised margins w.r.t. the flat coefficients."""
@@ -168,6 +161,44 @@ class _DesignProblem:
             hit = (key, compute(x))
             self._cache[name] = hit
         return hit[1]
+
+    def linear_margins(self, x: np.ndarray) -> np.ndarray:
+        return self.A_lin @ x + self.b_lin
+
+    def nonlinear_margins(self, x: np.ndarray) -> np.ndarray:
+        """Normalised torque and Cartesian margins on the grid."""
+        def compute(x: np.ndarray) -> np.ndarray:
+            s = self.states(x)
+            return self._values(self.constraints.blocks(s[0], s[1], s[2], linear=False))
+        return self._cached("margins", x, compute)
+
+    def nonlinear_jacobian(self, x: np.ndarray) -> np.ndarray:
+        def compute(x: np.ndarray) -> np.ndarray:
+            s = self.states(x)
+            return self._stack(self.constraints.blocks(s[0], s[1], s[2], derivatives=True,
+                                                       linear=False))[0]
+        return self._cached("jacobian", x, compute)
+
+    def min_margin(self, x: np.ndarray) -> float:
+        """Smallest normalised margin on the grid (≥ safety: feasible for the optimiser)."""
+        m = np.concatenate([self.linear_margins(x), self.nonlinear_margins(x)])
+        return float(m.min()) if m.size else np.inf
+
+
+class _DesignProblem(_FeasibilityProblem):
+    """Objective, constraints and their gradients on the coarse grid, cached per point."""
+
+    def __init__(self, model: RobotModel, param: Parameterisation, spec: RegressorSpec,
+                 base: BaseParameters, constraints: ConstraintSet, criterion: str,
+                 row_weight: np.ndarray, col_scale: np.ndarray, torque_weight: float,
+                 n_grid: int, safety: float) -> None:
+        super().__init__(model, param, constraints, n_grid, safety)
+        self.spec, self.base, self.criterion = spec, base, criterion
+        self.row_weight, self.col_scale = row_weight, col_scale
+        self.torque_weight = float(torque_weight)
+        self.prior = prior_vector(model, spec)
+        self.n_evaluations = 0
+        self.n_gradients = 0
 
     def _weighted(self, y: np.ndarray) -> np.ndarray:
         """``Σ^{-1/2} Y_b D`` from per-sample regressors (N, nv, p), as (N·nv, b)."""
@@ -222,31 +253,9 @@ class _DesignProblem:
     def gradient(self, x: np.ndarray) -> np.ndarray:
         return self._cached("gradient", x, self._compute_gradient)
 
-    def linear_margins(self, x: np.ndarray) -> np.ndarray:
-        return self.A_lin @ x + self.b_lin
-
-    def nonlinear_margins(self, x: np.ndarray) -> np.ndarray:
-        """Normalised torque and Cartesian margins on the grid."""
-        def compute(x: np.ndarray) -> np.ndarray:
-            s = self.states(x)
-            return self._values(self.constraints.blocks(s[0], s[1], s[2], linear=False))
-        return self._cached("margins", x, compute)
-
-    def nonlinear_jacobian(self, x: np.ndarray) -> np.ndarray:
-        def compute(x: np.ndarray) -> np.ndarray:
-            s = self.states(x)
-            return self._stack(self.constraints.blocks(s[0], s[1], s[2], derivatives=True,
-                                                       linear=False))[0]
-        return self._cached("jacobian", x, compute)
-
-    def min_margin(self, x: np.ndarray) -> float:
-        """Smallest normalised margin on the grid (≥ safety: feasible for the optimiser)."""
-        m = np.concatenate([self.linear_margins(x), self.nonlinear_margins(x)])
-        return float(m.min()) if m.size else np.inf
-
 
 # --------------------------------------------------------------------------------- starts
-def random_feasible(problem: "_DesignProblem", rng: np.random.Generator, max_tries: int = 25
+def random_feasible(problem: _FeasibilityProblem, rng: np.random.Generator, max_tries: int = 25
                     ) -> np.ndarray:
     """Flat coefficients of a random trajectory that satisfies every constraint on the grid.
 
@@ -489,7 +498,8 @@ def design_excitation(model: RobotModel, harmonics: int = 5, period: float = 10.
     friction, armature : the columns that will be identified (as in :func:`consistid.identify`,
         whose defaults these are); they enter the base regressor.
     column_scale : ``None``, ``"prior"`` (Rackl eq. 15: ``|β_prior|``) or (b,) scales.
-    torque_weight : ``ξ`` of Rackl's term ``ξ / mean|τ|`` added to ``"cond"`` (N·m).
+    torque_weight : ``ξ ≥ 0`` of Rackl's term ``ξ / mean|τ|`` added to ``"cond"`` (N·m); only
+        with ``criterion="cond"``.
     noise_std : per-joint torque noise σ (N·m) weighting the rows (``Σ⁻¹`` in the Fisher
         information); default 1 for all joints.
     n_starts, max_iter, method : starts, iterations per start, ``"SLSQP"`` or ``"trust-constr"``.
@@ -505,7 +515,8 @@ def design_excitation(model: RobotModel, harmonics: int = 5, period: float = 10.
     ------
     InfeasibleExcitationError when a limit leaves no room to move (e.g. a zero velocity limit),
     no feasible rest pose exists, or no start ends feasible on the dense grid.
-    OptionError for an unknown criterion, trajectory or method.
+    OptionError for an unknown criterion, trajectory or method, or a ``torque_weight`` with
+    another criterion than ``"cond"``.
     """
     start_time = time.perf_counter()
     check_option("criterion", criterion, CRITERIA)
@@ -515,6 +526,11 @@ def design_excitation(model: RobotModel, harmonics: int = 5, period: float = 10.
                           f"{n_starts}, {max_iter}, {n_grid}, {n_check}")
     if not 0.0 <= safety < 0.5:
         raise OptionError(f"safety = {safety} must lie in [0, 0.5)")
+    if not torque_weight >= 0:
+        raise OptionError(f"torque_weight = {torque_weight}; it must be ≥ 0 (N·m)")
+    if torque_weight and criterion != "cond":
+        raise OptionError(f"torque_weight = {torque_weight} applies to criterion='cond' only "
+                          f"(Rackl's ξ / mean|τ| term); criterion is {criterion!r}")
     limits = limits or ExcitationLimits.from_model(model)
     constraints = ConstraintSet(model, limits)                           # validates the limits
     param = make_parameterisation(model.nv, trajectory, harmonics, period, via_points, degree,
@@ -523,7 +539,7 @@ def design_excitation(model: RobotModel, harmonics: int = 5, period: float = 10.
     base = compute_base_parameters(model, spec)
     row_w, col_s = _weights(model, base, spec, noise_std, column_scale)
     problem = _DesignProblem(model, param, spec, base, constraints, criterion, row_w, col_s,
-                             torque_weight if criterion == "cond" else 0.0, n_grid, safety)
+                             torque_weight, n_grid, safety)
     rng = np.random.default_rng(seed)
     starts: list[StartResult] = []
     for k in range(n_starts):
@@ -572,9 +588,6 @@ def random_excitation(model: RobotModel, harmonics: int = 5, period: float = 10.
     constraints = ConstraintSet(model, limits)
     param = make_parameterisation(model.nv, trajectory, harmonics, period, via_points, degree,
                                   boundary)
-    spec = RegressorSpec.make(model, None)
-    problem = _DesignProblem(model, param, spec, compute_base_parameters(model, spec),
-                             constraints, "cond", np.ones(model.nv), np.ones(1), 0.0, n_grid,
-                             safety)
+    problem = _FeasibilityProblem(model, param, constraints, n_grid, safety)
     x = random_feasible(problem, np.random.default_rng(seed))
     return param.trajectory(x.reshape(problem.shape))
