@@ -412,3 +412,30 @@ def test_config_friction_string_is_one_term(planar_2r, tmp_path):
     assert load_excitation_config(cfg).options["friction"] == ("viscous", "coulomb")
     cfg.write_text(cfg.read_text().replace('["viscous", "coulomb"]', "[]"))
     assert load_excitation_config(cfg).options["friction"] is None
+
+
+def test_fourier_trajectory_validates_its_fields():
+    from consistid.excitation import FourierTrajectory
+    from consistid.errors import JointCountError
+    a = np.array([[0.1, 0.2], [0.3, -0.1]])
+    traj = FourierTrajectory(a.tolist(), (-a).tolist(), [0.0, 0.5], 2)
+    assert traj.harmonics == 2 and traj.period == 2.0
+    q, dq, _ = traj.evaluate([0.25])                 # the formula, by hand
+    w = np.pi * np.arange(1, 3)
+    np.testing.assert_allclose(q[0], [0.0, 0.5] + (a * np.sin(w / 4) / w).sum(1)
+                               + (a * np.cos(w / 4) / w).sum(1))
+    np.testing.assert_allclose(dq[0], (a * np.cos(w / 4)).sum(1) - (a * np.sin(w / 4)).sum(1))
+    for args, match in [((a, a[:, :1], [0, 0], 2.0), "a .* and b"),
+                        ((a[0], a[0], [0, 0], 2.0), "a .* and b"),
+                        ((a[:, :0], a[:, :0], [0, 0], 2.0), "H ≥ 1"),
+                        ((a, a, [0, 0], 0.0), "period"),
+                        ((a, a, [0, 0], np.nan), "period"),
+                        ((a, a * np.nan, [0, 0], 2.0), "Fourier b")]:
+        with pytest.raises(ExcitationError, match=match):
+            FourierTrajectory(*args)
+    with pytest.raises(JointCountError, match="q0"):
+        FourierTrajectory(a, a, [0.0], 2.0)
+    for rate, duration in [(0.0, None), (-5.0, None), (10.0, -1.0)]:
+        with pytest.raises(ExcitationError, match="rate|duration"):
+            traj.sample(rate, duration)
+    assert traj.sample(10.0).n_samples == 20

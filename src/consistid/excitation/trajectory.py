@@ -485,15 +485,34 @@ class FourierTrajectory:
 
     Attributes
     ----------
-    a, b : (nv, H) sine and cosine coefficients (rad/s).
+    a, b : (nv, H) sine and cosine coefficients (rad/s), ``H ≥ 1``, finite.
     q0 : (nv,) offsets (rad).
-    period : seconds, ``2π/ω_f``.
+    period : seconds, ``2π/ω_f``, > 0.
+
+    Raises :class:`ExcitationError` for other shapes, non-finite values or a period ≤ 0
+    (:class:`JointCountError` when ``q0`` has another joint count than ``a``).
     """
 
     a: np.ndarray
     b: np.ndarray
     q0: np.ndarray
     period: float
+
+    def __post_init__(self) -> None:
+        a, b = np.asarray(self.a, dtype=float), np.asarray(self.b, dtype=float)
+        if a.ndim != 2 or a.shape[1] < 1 or b.shape != a.shape:
+            raise ExcitationError(f"Fourier coefficients a {a.shape} and b {b.shape} must both "
+                                  "be (nv, H) with H ≥ 1 harmonics")
+        q0 = np.asarray(self.q0, dtype=float)
+        if q0.shape != (a.shape[0],):
+            raise JointCountError(f"q0 has shape {q0.shape}; a and b have {a.shape[0]} joints")
+        for name, value in (("a", a), ("b", b), ("q0", q0)):
+            if not np.all(np.isfinite(value)):
+                raise ExcitationError(f"Fourier {name} has non-finite entries")
+        if not (np.isfinite(self.period) and self.period > 0):
+            raise ExcitationError(f"period = {self.period} s; must be positive")
+        for name, value in (("a", a), ("b", b), ("q0", q0), ("period", float(self.period))):
+            object.__setattr__(self, name, value)
 
     @property
     def omega(self) -> float:
@@ -512,7 +531,11 @@ class FourierTrajectory:
 
     def sample(self, rate: float, duration: float | None = None, t0: float = 0.0) -> Dataset:
         """The trajectory sampled at ``rate`` Hz over ``duration`` s (default one period)."""
-        duration = self.period if duration is None else duration
+        if not (np.isfinite(rate) and rate > 0):
+            raise ExcitationError(f"sampling rate = {rate} Hz; must be positive")
+        duration = self.period if duration is None else float(duration)
+        if not (np.isfinite(duration) and duration > 0):
+            raise ExcitationError(f"duration = {duration} s; must be positive")
         t = t0 + np.arange(int(round(duration * rate))) / rate
         q, dq, ddq = self.evaluate(t)
         return Dataset(t=t, q=q, dq=dq, ddq=ddq)
