@@ -2,9 +2,12 @@ import numpy as np
 import pytest
 
 import consistid as ci
+from consistid.compression import SIGMA_FLOOR
 from consistid.errors import PoorExcitationWarning
 from consistid.parameters import perturb
 from consistid.regressor import RegressorSpec, dataset_regressor
+
+from .conftest import PLANAR_2R, PLANAR_2R_VALUES, random_states
 
 
 @pytest.fixture(scope="module")
@@ -63,6 +66,22 @@ def test_wls_estimates_per_joint_noise_and_friction(panda, truth):
     # weighting helps the low-noise wrist: its parameters get smaller standard deviations
     k = names.index("panda_joint7.fv")
     assert res.base_std[k] < ols.base_std[k]
+
+
+def test_wls_floors_sigma_on_noise_free_data(tmp_path):
+    """A noise-free fit leaves round-off residuals (or none): WLS must floor σ_j at
+    SIGMA_FLOOR·RMS(τ_j) as the SDP does, not weight by 1/1e-16 (or divide by zero)."""
+    path = tmp_path / "planar2r.urdf"
+    path.write_text(PLANAR_2R.format(**PLANAR_2R_VALUES))
+    model = ci.RobotModel.from_urdf(path, gravity=(0.0, 0.0, -9.81))
+    q, dq, ddq = random_states(model, 200, seed=0)
+    dq[:120] = ddq[:120] = 0.0                  # at rest, torque and regressor rows exactly 0
+    data = ci.Dataset(t=0.01 * np.arange(200), q=q, dq=dq, ddq=ddq, tau=model.rnea(q, dq, ddq))
+    res = ci.identify(model, data, method="wls", friction=None)
+    np.testing.assert_allclose(res.sigma, SIGMA_FLOOR * np.sqrt(np.mean(data.tau ** 2, axis=0)))
+    expected = res.base.project(model.prior_parameters)
+    assert np.max(np.abs(res.base_parameters - expected)) <= 1e-9 * np.max(np.abs(expected))
+    assert np.all(np.isfinite(res.base_covariance))
 
 
 def test_no_motion_raises_with_the_unexcited_directions(panda):

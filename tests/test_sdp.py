@@ -15,7 +15,7 @@ import pytest
 
 import consistid as ci
 from consistid.base import compute_base_parameters
-from consistid.compression import compress
+from consistid.compression import SIGMA_FLOOR, compress
 from consistid.constraints import Ellipsoid
 from consistid.errors import (IdentificationError, InaccurateSolutionWarning,
                               InconsistentParametersError, InfeasibleError, OptionError,
@@ -26,6 +26,8 @@ from consistid.parameters import (inertia_about_origin, is_physically_consistent
 from consistid.priors import Neighbourhood
 from consistid.regressor import RegressorSpec, dataset_regressor
 from consistid.sdp import default_prior_weight, identify_sdp
+
+from .conftest import PLANAR_2R, PLANAR_2R_VALUES, random_states
 
 SIGMA = 0.1
 FRICTION = ("coulomb", "viscous")
@@ -268,6 +270,30 @@ def test_huber_loss_resists_outliers(panda, truth):
     assert huber.details["sigma_source"] == "huber"
     assert error(huber) < 0.5 * error(squared)
     assert np.all(np.abs(huber.sigma / SIGMA - 1) < 0.2)
+
+
+def _rest_heavy_data(tmp_path):
+    """A planar 2R arm with gravity along its joint axes, at rest in 60 % of the samples: there
+    the torque and the regressor rows are exactly 0, so noise-free residuals have MAD = 0."""
+    path = tmp_path / "planar2r.urdf"
+    path.write_text(PLANAR_2R.format(**PLANAR_2R_VALUES))
+    model = ci.RobotModel.from_urdf(path, gravity=(0.0, 0.0, -9.81))
+    q, dq, ddq = random_states(model, 200, seed=0)
+    dq[:120] = ddq[:120] = 0.0
+    tau = model.rnea(q, dq, ddq)
+    assert np.all(tau[:120] == 0.0)
+    return model, ci.Dataset(t=0.01 * np.arange(200), q=q, dq=dq, ddq=ddq, tau=tau)
+
+
+def test_huber_loss_on_noise_free_data_floors_the_scale(tmp_path):
+    """MAD = 0 used to give σ = 1e-300 and infinite weights (scipy ValueError)."""
+    model, data = _rest_heavy_data(tmp_path)
+    res = ci.identify(model, data, method="sdp", friction=None, loss="huber")
+    expected = res.base.project(model.prior_parameters)
+    assert np.max(np.abs(res.base_parameters - expected)) <= 1e-9 * np.max(np.abs(expected))
+    rms = np.sqrt(np.mean(data.tau ** 2, axis=0))
+    np.testing.assert_allclose(res.sigma, SIGMA_FLOOR * rms)
+    assert res.details["sigma_source"] == "huber"
 
 
 def test_status_is_propagated(panda, sets):

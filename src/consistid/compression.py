@@ -11,6 +11,10 @@ gives every quantity a least-squares fit needs, exactly:
 weighted problem with per-joint noise ``σ_j`` is ``qr([R̄_1/σ_1; …; R̄_nv/σ_nv])``.
 This is the "compression" that makes the SDP size independent of N (Golub & Van Loan,
 *Matrix Computations*, §6.5 on updating QR).
+
+Weighting by ``1/σ_j`` needs ``σ_j > 0``: :func:`floor_sigma` floors every estimated ``σ_j`` at
+:data:`SIGMA_FLOOR` times joint ``j``'s torque RMS (noise-free data fit to round-off, and would
+otherwise get infinite weights). WLS, the SDP and its Huber/IRLS passes all use it.
 """
 
 from __future__ import annotations
@@ -20,8 +24,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from .dataset import Dataset
+from .errors import OptionError
 from .model import RobotModel
 from .regressor import RegressorSpec, iter_regressor
+
+#: Per-joint σ is floored at this fraction of the joint's torque RMS (noise-free data).
+SIGMA_FLOOR = 1e-6
 
 
 def _r_factor(a: np.ndarray, size: int) -> np.ndarray:
@@ -84,7 +92,8 @@ def compress(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
     if weights is not None:
         weights = np.asarray(weights, dtype=float)
         if weights.shape != tau.shape or not np.all(np.isfinite(weights)) or np.any(weights < 0):
-            raise ValueError(f"row weights must be finite, ≥ 0 and of shape {tau.shape}")
+            raise OptionError(f"row weights must be finite, ≥ 0 and of shape {tau.shape}, got "
+                              f"shape {weights.shape}")
     factors = None
     for s, y in iter_regressor(model, dataset, spec, chunk):
         p = y.shape[2]
@@ -96,3 +105,10 @@ def compress(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
                 block *= np.sqrt(weights[s, j])[:, None]
             factors[j] = _r_factor(np.vstack([factors[j], block]), p + 1)
     return CompressedProblem(factors, dataset.n_samples, np.sum(tau ** 2, axis=0))
+
+
+def floor_sigma(sigma: np.ndarray, problem: CompressedProblem) -> np.ndarray:
+    """``max(σ_j, SIGMA_FLOOR · max(RMS(τ_j), 1e-300))`` per joint, so that ``1/σ_j`` weights
+    stay finite on noise-free data."""
+    rms = np.sqrt(problem.tau_sum_squares / max(problem.n_samples, 1))
+    return np.maximum(np.asarray(sigma, dtype=float), SIGMA_FLOOR * np.maximum(rms, 1e-300))

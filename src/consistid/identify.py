@@ -7,8 +7,10 @@ Least squares on the base parameters (Gautier & Khalil 1990; Khalil & Dombre ch.
 
 with ``Σ = σ² 1`` for OLS (``σ² = ‖ρ‖² / (N·nv − b)``) and, for WLS, ``Σ = diag(σ_j²)`` per joint
 estimated from the OLS residuals (``σ_j² = ‖ρ_j‖² / (N − b/nv)``), Gautier 1997, "Dynamic
-identification of robots with power model", ICRA, doi:10.1109/ROBOT.1997.614364. Everything is
-solved on the compressed problem (:mod:`consistid.compression`), never on the N-row regressor.
+identification of robots with power model", ICRA, doi:10.1109/ROBOT.1997.614364; ``σ_j`` is
+floored by :func:`consistid.compression.floor_sigma` so that noise-free data keep finite weights.
+Everything is solved on the compressed problem (:mod:`consistid.compression`), never on the
+N-row regressor.
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ import numpy as np
 import scipy.linalg
 
 from .base import BaseParameters, compute_base_parameters
-from .compression import CompressedProblem, compress
+from .compression import CompressedProblem, compress, floor_sigma
 from .dataset import Dataset
 from .errors import OptionError, PoorExcitationError, PoorExcitationWarning, check_option
 from .model import RobotModel
@@ -78,7 +80,7 @@ def least_squares(model: RobotModel, problem: CompressedProblem, base: BaseParam
     r_inv = scipy.linalg.solve_triangular(r, np.eye(b))
     cov = sigma[0] ** 2 * r_inv @ r_inv.T
     if weighted:
-        sigma = np.sqrt(sse / max(n - b / problem.nv, 1.0))
+        sigma = floor_sigma(np.sqrt(sse / max(n - b / problem.nv, 1.0)), problem)
         r, z, _ = problem.stacked(sigma=sigma, columns=cols)
         cond, _ = check_excitation(r, base.names)
         beta = scipy.linalg.solve_triangular(r, z)

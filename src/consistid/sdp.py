@@ -38,8 +38,9 @@ Park 2019, "Geometric robot dynamic identification: a convex programming approac
   pseudo-inertia (:class:`~consistid.constraints.BodyScaling`). Clarabel's own equilibration is
   then redundant and is switched off. A solve that still ends ``optimal_inaccurate`` is rescaled
   once around its answer and repeated (``details["refinements"]``). Changes of variables only:
-  the optimum is unchanged. Per-joint ``σ`` is floored at :data:`SIGMA_FLOOR` times the joint's
-  torque RMS, so noise-free data do not give infinite weights.
+  the optimum is unchanged. Per-joint ``σ`` (also the Huber scale) is floored at
+  :data:`~consistid.compression.SIGMA_FLOOR` times the joint's torque RMS
+  (:func:`~consistid.compression.floor_sigma`), so noise-free data do not give infinite weights.
 """
 
 from __future__ import annotations
@@ -56,7 +57,7 @@ import scipy.linalg
 from . import constraints as cons
 from . import priors
 from .base import BaseParameters
-from .compression import CompressedProblem, compress
+from .compression import CompressedProblem, compress, floor_sigma
 from .conic import DEFAULT_SOLVER, solve
 from .dataset import Dataset
 from .errors import (IdentificationError, InconsistentParametersError, InfeasibleError,
@@ -70,8 +71,6 @@ from .result import IdentificationResult, SolverReport
 DEFAULT_PRIOR_UNCERTAINTY = 0.3
 PRIORS = (None, "euclidean", "logdet")
 LOSSES = ("squared", "huber")
-#: Per-joint σ is floored at this fraction of the joint's torque RMS (noise-free data).
-SIGMA_FLOOR = 1e-6
 #: A constraint counts as active when its prior-normalised slack is below this …
 ACTIVE_TOL = 1e-6
 #: … and as violated (the answer is rejected) when its slack is below minus this.
@@ -220,7 +219,7 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
         sig, source = np.asarray(sigma, dtype=float), "given"
         if sig.shape != (nv,) or not np.all(np.isfinite(sig)) or np.any(sig <= 0):
             raise OptionError(f"sigma must be {nv} finite values > 0 (one per joint), got {sig}")
-    sig = _floor_sigma(sig, problem)
+    sig = floor_sigma(sig, problem)
 
     work, theta = problem, None
     solve_time = compile_time = 0.0
@@ -247,12 +246,13 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
             break
         t0 = time.perf_counter()
         if loss == "huber":
-            sig, row_weights = _huber_weights(model, dataset, spec, theta, huber_threshold)
+            sig, row_weights = _huber_weights(model, dataset, spec, theta, huber_threshold,
+                                              problem)
             work = compress(model, dataset, spec, weights=row_weights)
             source = "huber"
         else:
-            sig = _floor_sigma(np.sqrt(problem.sum_squares(theta)
-                                       / max(n - base.n_base / nv, 1.0)), problem)
+            sig = floor_sigma(np.sqrt(problem.sum_squares(theta)
+                                      / max(n - base.n_base / nv, 1.0)), problem)
             source = "irls"
         setup_time += time.perf_counter() - t0
 
@@ -376,22 +376,18 @@ def _ols_sigma(problem: CompressedProblem, base: BaseParameters) -> np.ndarray:
     return np.sqrt(sse / max(problem.n_samples - rank / problem.nv, 1.0))
 
 
-def _floor_sigma(sig: np.ndarray, problem: CompressedProblem) -> np.ndarray:
-    rms = np.sqrt(problem.tau_sum_squares / max(problem.n_samples, 1))
-    return np.maximum(sig, SIGMA_FLOOR * np.maximum(rms, 1e-300))
-
-
 def _huber_weights(model: RobotModel, dataset: Dataset, spec: RegressorSpec, theta: np.ndarray,
-                   c: float) -> tuple[np.ndarray, np.ndarray]:
-    """MAD noise scale per joint and Huber IRLS weights ``min(1, c σ / |r|)`` per sample."""
+                   c: float, problem: CompressedProblem) -> tuple[np.ndarray, np.ndarray]:
+    """MAD noise scale per joint (floored as every σ, :func:`floor_sigma`: noise-free data have
+    MAD = 0) and Huber IRLS weights ``min(1, c σ / |r|)`` per sample, in ``[0, 1]``."""
     tau = dataset.require_torque()
     res = np.empty_like(tau)
     for s, y in iter_regressor(model, dataset, spec):
         res[s] = tau[s] - y @ theta
     mad = np.median(np.abs(res - np.median(res, axis=0)), axis=0)
-    sig = np.maximum(1.4826 * mad, 1e-300)
+    sig = floor_sigma(1.4826 * mad, problem)
     u = np.abs(res) / sig
-    return sig, np.where(u <= c, 1.0, c / np.maximum(u, 1e-300))
+    return sig, np.clip(c / np.maximum(u, c), 0.0, 1.0)
 
 
 # ------------------------------------------------------------------------------------ program
