@@ -64,7 +64,8 @@ from .errors import (IdentificationError, InconsistentParametersError, Infeasibl
 from .model import RobotModel
 from .parameters import ConsistencyReport, is_physically_consistent, pseudo_inertia
 from .priors import euclidean, logdet_divergence, logdet_divergence_value
-from .regressor import FrictionArg, RegressorSpec, parameter_names, prior_vector, regressor
+from .regressor import (NONNEGATIVE_TERMS, FrictionArg, RegressorSpec, parameter_names,
+                        prior_vector, regressor)
 from .result import IdentificationResult, SolverReport
 
 MODES = ("exact", "nearest")
@@ -88,8 +89,6 @@ NEAREST_CLARABEL = {"tol_gap_rel": 1e-6, "tol_gap_abs": 1e-9, "tol_feas": 1e-7}
 FLAT_PRIOR = 1e5
 #: Round-off below zero accepted (and set to 0) on entries constrained ≥ 0 (N·m, N·m·s/rad, kg·m²).
 NONNEGATIVE_ROUNDOFF = 1e-7
-#: Per-joint terms kept non-negative when ``joint_constraints`` is on.
-NONNEGATIVE_TERMS = ("coulomb", "viscous", "armature")
 
 
 @dataclass(frozen=True)
@@ -542,7 +541,8 @@ def recover_standard(model: RobotModel, base_params: np.ndarray | Identification
         ``0`` allows bodies on the boundary of consistency.
     slack : nearest mode: extra weighted squared distance (χ² units with a covariance) allowed
         to the prior stage beyond ``d*(1 + 1e-3)``.
-    joint_constraints : keep Coulomb, viscous and armature entries ``≥ 0`` (solver round-off
+    joint_constraints : keep the :data:`~consistid.regressor.NONNEGATIVE_TERMS` entries
+        (Coulomb, viscous, armature) ``≥ 0`` (solver round-off
         down to ``−NONNEGATIVE_ROUNDOFF`` is set to 0; counted in ``details``).
     solver, solver_options : cvxpy solver (default Clarabel) and its options.
 

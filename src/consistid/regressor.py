@@ -64,6 +64,10 @@ FRICTION_TERMS: tuple[str, ...] = JOINT_TERMS[:4]
 TERM_COLUMNS: dict[str, tuple[str, ...]] = {
     "coulomb": ("fc",), "viscous": ("fv",), "offset": ("fo",), "position": ("ps1", "pc1"),
     "armature": ("Ia",)}
+#: The default ``friction=`` of :meth:`RegressorSpec.make`, ``identify``, ``recover_standard`` …
+DEFAULT_FRICTION: tuple[str, ...] = ("coulomb", "viscous", "offset")
+#: Terms whose values are physically ``≥ 0`` (``offset`` and ``position`` have a free sign).
+NONNEGATIVE_TERMS: tuple[str, ...] = ("coulomb", "viscous", "armature")
 
 FrictionArg = Sequence[str] | Mapping[str, Sequence[int | str] | bool] | None
 
@@ -81,7 +85,7 @@ class RegressorSpec:
     masks: tuple[tuple[str, tuple[bool, ...]], ...]
 
     @classmethod
-    def make(cls, model: RobotModel, friction: FrictionArg = ("coulomb", "viscous", "offset"),
+    def make(cls, model: RobotModel, friction: FrictionArg = DEFAULT_FRICTION,
              armature: bool | Sequence[int | str] = False) -> "RegressorSpec":
         """Build a spec.
 

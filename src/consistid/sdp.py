@@ -64,7 +64,8 @@ from .errors import (IdentificationError, InconsistentParametersError, Infeasibl
                      OptionError, PoorExcitationWarning, check_option)
 from .model import RobotModel
 from .parameters import from_pseudo_inertia, pseudo_inertia
-from .regressor import RegressorSpec, iter_regressor, parameter_names, prior_vector
+from .regressor import (NONNEGATIVE_TERMS, RegressorSpec, iter_regressor, parameter_names,
+                        prior_vector)
 from .result import IdentificationResult, SolverReport
 
 #: Relative uncertainty ``r`` of CAD pseudo-inertias assumed by :func:`default_prior_weight`.
@@ -77,8 +78,6 @@ ACTIVE_TOL = 1e-6
 CHECK_TOL = 1e-6
 #: Above this condition number of the weighted base regressor (and without a prior), warn.
 COND_WARN = 1e4
-#: Joint-column terms that must be non-negative (``offset`` and ``position`` are free).
-NONNEGATIVE_TERMS = ("coulomb", "viscous", "armature")
 HUBER_DEFAULT = 1.345
 
 
