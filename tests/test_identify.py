@@ -106,6 +106,19 @@ def test_unknown_options_are_refused(panda, runs):
         ci.identify(panda, runs[0], method="ridge")
     with pytest.raises(ci.OptionError, match="apply to method='sdp' only"):
         ci.identify(panda, runs[0], method="ols", prior="euclidean")
+    # an explicit SDP default is an SDP option too: refused, not ignored
+    for kw in (dict(prior="logdet"), dict(constraints="pseudo-inertia"),
+               dict(constraints={"panda_link1": "none"}), dict(reweight=1)):
+        with pytest.raises(ci.OptionError, match=f"{list(kw)[0]}.*apply to method='sdp' only"):
+            ci.identify(panda, runs[0], method="wls", friction=None, **kw)
+
+
+def test_ols_accepts_saying_no_prior_and_no_constraints(panda, runs):
+    """``prior=None``/``"none"`` and ``constraints="none"`` describe OLS/WLS: accepted."""
+    plain = ci.identify(panda, runs[0], method="ols", friction=None)
+    for kw in (dict(prior=None), dict(prior="none", constraints="none")):
+        res = ci.identify(panda, runs[0], method="ols", friction=None, **kw)
+        np.testing.assert_array_equal(res.base_parameters, plain.base_parameters)
 
 
 def test_report_writes_the_summary(panda, runs, tmp_path):

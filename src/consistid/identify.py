@@ -27,7 +27,7 @@ from .compression import CompressedProblem, compress, floor_sigma
 from .dataset import Dataset
 from .errors import OptionError, PoorExcitationError, PoorExcitationWarning, check_option
 from .model import RobotModel
-from .regressor import FrictionArg, RegressorSpec, parameter_names, prior_vector
+from .regressor import DEFAULT_FRICTION, FrictionArg, RegressorSpec, parameter_names, prior_vector
 from .result import IdentificationResult, SolverReport
 
 METHODS = ("ols", "wls", "sdp")
@@ -102,10 +102,10 @@ def least_squares(model: RobotModel, problem: CompressedProblem, base: BaseParam
 
 
 def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset], method: str = "sdp",
-             friction: FrictionArg = ("coulomb", "viscous", "offset"),
+             friction: FrictionArg = DEFAULT_FRICTION,
              armature: bool | Sequence[int | str] = False,
-             constraints: str | dict[str, str] = "pseudo-inertia",
-             prior: str | None = "logdet",
+             constraints: str | dict[str, str] = "auto",
+             prior: str | None = "auto",
              **options: Any) -> IdentificationResult:
     """Identify a robot's dynamic parameters from measured torques.
 
@@ -117,7 +117,14 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset], method: st
         variance), ``"sdp"`` (physically consistent, see :mod:`consistid.sdp`).
     friction : per-joint friction/offset columns, see :meth:`RegressorSpec.make`.
     armature : rotor-inertia columns (``True`` for all joints, or a list of joints).
-    constraints, prior, **options : for ``method="sdp"`` only (see :func:`consistid.sdp.identify_sdp`).
+    constraints : consistency level(s) of the bodies (:func:`consistid.sdp.identify_sdp`).
+        ``"auto"`` (default): ``"pseudo-inertia"`` for the SDP, none for OLS/WLS, which also
+        accept an explicit ``"none"`` and refuse any level.
+    prior : ``"logdet"``, ``"euclidean"`` or ``None``/``"none"`` (no prior). ``"auto"``
+        (default): ``"logdet"`` for the SDP, none for OLS/WLS, which also accept
+        ``None``/``"none"`` and refuse a prior.
+    **options : keyword options of :func:`consistid.sdp.identify_sdp`, for ``method="sdp"`` only.
+        Options that only the SDP uses are refused for OLS/WLS, never silently ignored.
 
     Returns
     -------
@@ -130,6 +137,14 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset], method: st
     parameters (OLS/WLS); IdentificationError / InfeasibleError when the SDP solver fails.
     """
     check_option("method", method, METHODS)
+    prior = None if prior == "none" else prior
+    if method in ("ols", "wls"):
+        extra = sorted(options) + [k for k, v, none in (("constraints", constraints, ("none",)),
+                                                        ("prior", prior, (None,)))
+                                   if v != "auto" and v not in none]
+        if extra:
+            raise OptionError(f"option(s) {extra} apply to method='sdp' only, not {method!r} "
+                              "(OLS/WLS are unconstrained and have no prior)")
     if not isinstance(dataset, Dataset):
         dataset = Dataset.concatenate(list(dataset))
     dataset.check_joints(model.nv, model.joint_names)
@@ -137,13 +152,9 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset], method: st
     base = compute_base_parameters(model, spec)
     problem = compress(model, dataset, spec)
     if method in ("ols", "wls"):
-        extra = sorted(options) + [k for k, v, d in (("constraints", constraints,
-                                                      "pseudo-inertia"), ("prior", prior, "logdet"))
-                                   if v != d]
-        if extra:
-            raise OptionError(f"option(s) {extra} apply to method='sdp' only, not {method!r}")
         return least_squares(model, problem, base, spec, weighted=method == "wls")
     from .sdp import identify_sdp
 
-    return identify_sdp(model, problem, base, spec, constraints=constraints, prior=prior,
-                        dataset=dataset, **options)
+    return identify_sdp(model, problem, base, spec,
+                        constraints="pseudo-inertia" if constraints == "auto" else constraints,
+                        prior="logdet" if prior == "auto" else prior, dataset=dataset, **options)
