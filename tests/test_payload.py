@@ -131,6 +131,8 @@ def test_bad_inputs(panda, hidden):
         estimate_payload(panda, hidden["loaded_res"], robot=panda.prior_parameters)
     with pytest.raises(ci.ModelError, match="unknown frame"):
         estimate_payload(panda, hidden["loaded_data"], robot=hidden["unloaded"], frame="nope")
+    with pytest.raises(OptionError, match="solver='NOPE'"):   # as identify and recover do
+        estimate_payload(panda, hidden["loaded_data"], robot=hidden["unloaded"], solver="NOPE")
 
 
 def test_cli_payload(panda, hidden, tmp_path, capsys):

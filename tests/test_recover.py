@@ -5,7 +5,7 @@ import pytest
 
 import consistid as ci
 from consistid.cli import main
-from consistid.errors import (IdentificationError, InfeasibleError, ModelError, OptionError,
+from consistid.errors import (InfeasibleError, ModelError, OptionError,
                               UnrealizableCoefficientsError)
 from consistid.identify import nearest_standard
 from consistid.parameters import from_mass_com_inertia, is_physically_consistent, perturb
@@ -119,8 +119,10 @@ def test_friction_coefficients_are_recovered_and_kept_nonnegative(panda, setup):
 def test_status_and_input_errors(panda, setup):
     base, truth = setup
     beta = base.project(truth)
-    with pytest.raises(IdentificationError, match="NOT_A_SOLVER"):
+    with pytest.raises(OptionError, match="solver='NOT_A_SOLVER'.*installed: .*CLARABEL"):
         recover_standard(panda, beta, solver="NOT_A_SOLVER")
+    rec = recover_standard(panda, beta, solver="clarabel")     # names are case-insensitive
+    assert rec.solver[0].name == "CLARABEL"
     with pytest.raises(InfeasibleError):              # J ⪰ 10·J₀ cannot match these masses
         recover_standard(panda, beta, margin=10.0)
     with pytest.raises(ModelError, match="43"):

@@ -4,8 +4,9 @@
 :class:`~consistid.result.SolverReport`; ``optimal_inaccurate`` → the same plus an
 :class:`~consistid.errors.InaccurateSolutionWarning`; infeasible → :class:`InfeasibleError`;
 anything else (or no values) → :class:`IdentificationError`. Never a silent ``None`` (the cvxpy
-behaviour the style guide warns about). Used by :mod:`consistid.recover` and
-:mod:`consistid.payload`.
+behaviour the style guide warns about). An unknown or uninstalled solver name is an
+:class:`~consistid.errors.OptionError` (:func:`check_solver`), never a substitution. Used by
+:mod:`consistid.sdp`, :mod:`consistid.recover` and :mod:`consistid.payload`.
 """
 
 from __future__ import annotations
@@ -16,11 +17,24 @@ from typing import Any
 
 import cvxpy as cp
 
-from .errors import IdentificationError, InaccurateSolutionWarning, InfeasibleError
+from .errors import IdentificationError, InaccurateSolutionWarning, InfeasibleError, OptionError
 from .result import SolverReport
 
 #: Default solver: interior point, accurate on the semidefinite cone (SCS is not; stack notes).
 DEFAULT_SOLVER = "CLARABEL"
+
+
+def check_solver(solver: str) -> str:
+    """The cvxpy name of ``solver`` (case-insensitive, returned upper-case).
+
+    Raises :class:`OptionError` naming the installed solvers unless ``solver`` is one of them.
+    """
+    installed = tuple(cp.installed_solvers())
+    name = str(solver).upper()
+    if name not in installed:
+        raise OptionError(f"solver={solver!r} is not supported (not a cvxpy solver, or not "
+                          f"installed); installed: {', '.join(installed)}")
+    return name
 
 
 def solve(problem: cp.Problem, what: str, solver: str = DEFAULT_SOLVER,
@@ -31,14 +45,17 @@ def solve(problem: cp.Problem, what: str, solver: str = DEFAULT_SOLVER,
     ----------
     problem : the cvxpy problem.
     what : a short description used in messages, e.g. ``"exact recovery"``.
-    solver : a cvxpy solver name; an unknown or uninstalled one raises (no substitution).
+    solver : a cvxpy solver name (any case); an unknown or uninstalled one raises
+        :class:`OptionError` (no substitution).
     options : keyword options passed to the solver.
 
     Raises
     ------
+    OptionError : ``solver`` is not an installed cvxpy solver.
     InfeasibleError : the solver proved (or nearly proved) infeasibility.
     IdentificationError : the solver failed or returned no solution (status named).
     """
+    solver = check_solver(solver)
     start = time.perf_counter()
     try:
         with warnings.catch_warnings():

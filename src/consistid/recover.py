@@ -56,7 +56,7 @@ import cvxpy as cp
 import numpy as np
 
 from .base import BaseParameters, compute_base_parameters
-from .conic import DEFAULT_SOLVER, solve
+from .conic import DEFAULT_SOLVER, check_solver, solve
 from .constraints import BodyScaling
 from .dataset import Dataset
 from .errors import (IdentificationError, InconsistentParametersError, InfeasibleError,
@@ -421,8 +421,7 @@ def _diagnose_infeasibility(problem: _Problem, solver: str = DEFAULT_SOLVER,
     x, constraints, _ = problem.variables()
     change = problem.base.matrix @ x - problem.beta
     # A diagnosis: the L1 optimum is needed to well within the reported moves only.
-    options1 = ({**NEAREST_CLARABEL, **(options or {})} if solver.upper() == "CLARABEL"
-                else options)
+    options1 = {**NEAREST_CLARABEL, **(options or {})} if solver == "CLARABEL" else options
     report = solve(cp.Problem(cp.Minimize(cp.norm1(cp.multiply(1.0 / problem.std, change))),
                               constraints), "infeasibility diagnosis", solver, options1)
     return _moves(problem, problem.base.matrix @ x.value, 1e-4), report
@@ -491,8 +490,7 @@ def _nearest(problem: _Problem, slack: float, solver: str, options: dict[str, An
                            for i in range(problem.model.n_bodies))
     # Both stages end on the boundary of the cone, where Clarabel's gap and residuals stall
     # near 1e-6..1e-8 ("AlmostSolved"); ask for what is needed (NEAREST_CLARABEL).
-    options1 = ({**NEAREST_CLARABEL, **(options or {})} if solver.upper() == "CLARABEL"
-                else options)
+    options1 = {**NEAREST_CLARABEL, **(options or {})} if solver == "CLARABEL" else options
     stage1 = solve(cp.Problem(cp.Minimize(cp.sum_squares(problem.misfit(x1)) + tie),
                               constraints1), "nearest recovery (stage 1: distance)", solver,
                    options1)
@@ -563,6 +561,7 @@ def recover_standard(model: RobotModel, base_params: np.ndarray | Identification
     """
     check_option("mode", mode, MODES)
     check_option("prior", prior, PRIORS)
+    solver = check_solver(solver)
     if isinstance(base_params, IdentificationResult):
         if friction is not None or armature is not False or base is not None:
             raise OptionError("friction/armature/base are taken from the IdentificationResult; "

@@ -58,7 +58,7 @@ from . import constraints as cons
 from . import priors
 from .base import BaseParameters
 from .compression import CompressedProblem, compress, floor_sigma
-from .conic import DEFAULT_SOLVER, solve
+from .conic import DEFAULT_SOLVER, check_solver, solve
 from .dataset import Dataset
 from .errors import (IdentificationError, InconsistentParametersError, InfeasibleError,
                      OptionError, PoorExcitationWarning, check_option)
@@ -190,7 +190,7 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
     start = time.perf_counter()
     check_option("prior", prior, PRIORS)
     check_option("loss", loss, LOSSES)
-    check_option("solver", solver, tuple(cp.installed_solvers()))
+    solver = check_solver(solver)
     nv, n = problem.nv, problem.n_samples
     if problem.n_columns != base.n_standard:
         raise OptionError(f"the compressed problem has {problem.n_columns} columns but the base "
