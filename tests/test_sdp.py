@@ -327,6 +327,36 @@ def test_options_are_validated(panda, sets):
         identify_sdp(panda, problem, compute_base_parameters(panda, spec), spec, loss="huber")
 
 
+@pytest.mark.parametrize("options, message", [
+    (dict(prior=None, prior_weight=1.0), r"\['prior_weight'\] weight a prior"),
+    (dict(prior=None, prior_uncertainty=0.1), r"\['prior_uncertainty'\] weight a prior"),
+    (dict(prior_weight=1.0, prior_uncertainty=0.1), "not both"),
+    (dict(prior_weights=np.ones(70)), "prior='logdet'"),
+    (dict(huber_threshold=2.0), "loss='squared'"),
+    (dict(loss="huber", reweight=0), "reweight ≥ 1"),
+    (dict(ellipsoids={"panda_link3": Ellipsoid.from_semi_axes([0, 0, 0], [1, 1, 1])}),
+     r"ellipsoids given for bodies \['panda_link3'\]"),
+])
+def test_meaningless_option_combinations_are_refused(panda, sets, options, message):
+    """Options that the other options make meaningless raise instead of being ignored."""
+    with pytest.raises(OptionError, match=message):
+        ci.identify(panda, sets["clean"], method="sdp", friction=FRICTION, **options)
+
+
+def test_warnings_of_a_failed_first_solve_are_kept(panda, sets, monkeypatch):
+    """A solve that warns, then raises: the warning reaches the caller with the error."""
+    import consistid.sdp as sdp
+
+    def warn_then_fail(*args, **kwargs):
+        warnings.warn("reduced accuracy before failing", InaccurateSolutionWarning)
+        raise IdentificationError("solver failed")
+
+    monkeypatch.setattr(sdp, "_solve", warn_then_fail)
+    with pytest.warns(InaccurateSolutionWarning, match="before failing"):
+        with pytest.raises(IdentificationError, match="solver failed"):
+            ci.identify(panda, sets["clean"], method="sdp", friction=FRICTION)
+
+
 def test_log_det_prior_needs_realizable_prior_bodies(panda, sets):
     bad = panda.prior_parameters.copy()
     bad[10 * 3 + 9] = 5.0  # panda_link4: Izz far beyond Ixx + Iyy

@@ -62,6 +62,7 @@ from .conic import DEFAULT_SOLVER, check_solver, solve
 from .dataset import Dataset
 from .errors import (IdentificationError, InconsistentParametersError, InfeasibleError,
                      OptionError, PoorExcitationWarning, check_option)
+from .identify import COND_WARN, RANK_RTOL
 from .model import RobotModel
 from .parameters import from_pseudo_inertia, pseudo_inertia
 from .regressor import (NONNEGATIVE_TERMS, RegressorSpec, iter_regressor, parameter_names,
@@ -70,14 +71,14 @@ from .result import IdentificationResult, SolverReport
 
 #: Relative uncertainty ``r`` of CAD pseudo-inertias assumed by :func:`default_prior_weight`.
 DEFAULT_PRIOR_UNCERTAINTY = 0.3
+#: ``None``: constraints only. (Recovery from base coefficients, :data:`consistid.recover.PRIORS`,
+#: has no ``None``: there only a prior picks a point in the null space of the base map.)
 PRIORS = (None, "euclidean", "logdet")
 LOSSES = ("squared", "huber")
 #: A constraint counts as active when its prior-normalised slack is below this …
 ACTIVE_TOL = 1e-6
 #: … and as violated (the answer is rejected) when its slack is below minus this.
 CHECK_TOL = 1e-6
-#: Above this condition number of the weighted base regressor (and without a prior), warn.
-COND_WARN = 1e4
 HUBER_DEFAULT = 1.345
 
 
@@ -115,7 +116,7 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
                  spec: RegressorSpec, constraints: str | Mapping[str, str] = "pseudo-inertia",
                  prior: str | None = "logdet", *,
                  prior_weight: float | None = None,
-                 prior_uncertainty: float = DEFAULT_PRIOR_UNCERTAINTY,
+                 prior_uncertainty: float | None = None,
                  prior_weights: np.ndarray | None = None,
                  neighbourhood: priors.Neighbourhood | None = None,
                  ellipsoids: Mapping[str, cons.Ellipsoid] | None = None,
@@ -124,7 +125,7 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
                  total_mass: tuple[float | None, float | None] | None = None,
                  friction_nonnegative: bool = True, margin: float = 1e-6,
                  sigma: Sequence[float] | None = None, reweight: int | None = None,
-                 loss: str = "squared", huber_threshold: float = HUBER_DEFAULT,
+                 loss: str = "squared", huber_threshold: float | None = None,
                  dataset: Dataset | None = None, solver: str = DEFAULT_SOLVER,
                  solver_options: dict[str, Any] | None = None,
                  scale: bool = True) -> IdentificationResult:
@@ -143,10 +144,13 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
         ``J ≻ 0`` by its domain whatever the level.
     prior : ``None``, ``"euclidean"`` or ``"logdet"``.
     prior_weight : ``γ``; default :func:`default_prior_weight` of ``prior_uncertainty``.
+    prior_uncertainty : ``r`` of :func:`default_prior_weight` (default
+        :data:`DEFAULT_PRIOR_UNCERTAINTY`); give it or ``prior_weight``, not both.
     prior_weights : Euclidean ``W`` on the inertial parameters, (10·nb,) diagonal or
-        (10·nb, 10·nb) full; default the log-det metric at the prior.
+        (10·nb, 10·nb) full; default the log-det metric at the prior (``prior="euclidean"``
+        only).
     neighbourhood : hard bounds around each prior body (:class:`~consistid.priors.Neighbourhood`).
-    ellipsoids : ``{body: Ellipsoid}``, required for bodies at level ``"ellipsoid"``.
+    ellipsoids : ``{body: Ellipsoid}``, for (and only for) the bodies at level ``"ellipsoid"``.
     com_boxes : ``{body: (lower, upper)}`` CoM boxes in the body frame (m).
     mass_bounds : ``{body: (lower, upper)}`` in kg (``None`` for no bound).
     total_mass : ``(lower, upper)`` bounds on the sum of the body masses (kg).
@@ -155,10 +159,11 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
         answers are strictly realisable despite the solver's tolerance.
     sigma : (nv,) per-joint torque-noise standard deviation; default from an OLS pass.
     reweight : re-weighting passes after the first solve: σ re-estimated from the SDP residuals
-        (``loss="squared"``) or Huber weights and MAD scale updated (``loss="huber"``). Default
-        0 for ``"squared"``, 5 for ``"huber"``.
+        (``loss="squared"``) or Huber weights and MAD scale updated (``loss="huber"``, which
+        needs at least 1). Default 0 for ``"squared"``, 5 for ``"huber"``.
     loss : ``"squared"`` or ``"huber"`` (needs ``dataset``: per-sample weights re-compress it).
-    huber_threshold : Huber's ``c`` in units of σ (1.345: 95 % efficiency for Gaussian noise).
+    huber_threshold : Huber's ``c`` in units of σ (``loss="huber"`` only; default
+        :data:`HUBER_DEFAULT` = 1.345: 95 % efficiency for Gaussian noise).
     dataset : the data ``problem`` was compressed from (needed for ``loss="huber"`` only).
     solver, solver_options : cvxpy solver name and options (default Clarabel; with
         ``scale=True`` its own equilibration is off unless ``solver_options`` says otherwise).
@@ -181,7 +186,9 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
 
     Raises
     ------
-    OptionError : unknown option value, body name, or a missing ellipsoid / dataset.
+    OptionError : unknown option value, body name, a missing ellipsoid / dataset, or an option
+        that the other options make meaningless (e.g. ``prior_weight`` with ``prior=None``,
+        ``huber_threshold`` with ``loss="squared"``): refused, never silently ignored.
     InconsistentParametersError : a log-det prior body that is not realisable.
     InfeasibleError : the constraints admit no solution (solver proved it).
     IdentificationError : any other solver failure (status named), or an answer that violates
@@ -195,6 +202,8 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
     if problem.n_columns != base.n_standard:
         raise OptionError(f"the compressed problem has {problem.n_columns} columns but the base "
                           f"parameters are of {base.n_standard} standard ones")
+    _check_combinations(prior, prior_weight, prior_uncertainty, prior_weights, loss,
+                        huber_threshold, reweight)
     if loss == "huber" and dataset is None:
         raise OptionError("loss='huber' re-weights individual samples: pass dataset=")
     passes = (5 if loss == "huber" else 0) if reweight is None else int(reweight)
@@ -202,7 +211,11 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
         raise OptionError(f"reweight must be ≥ 0, got {reweight}")
     if not (np.isfinite(margin) and margin >= 0):
         raise OptionError(f"margin must be a finite number ≥ 0, got {margin}")
-    gamma_default = default_prior_weight(prior_uncertainty)
+    huber_c = HUBER_DEFAULT if huber_threshold is None else float(huber_threshold)
+    if not (np.isfinite(huber_c) and huber_c > 0):
+        raise OptionError(f"huber_threshold must be a finite number > 0, got {huber_threshold}")
+    gamma_default = default_prior_weight(DEFAULT_PRIOR_UNCERTAINTY if prior_uncertainty is None
+                                         else prior_uncertainty)
     gamma = 0.0 if prior is None else (gamma_default if prior_weight is None
                                        else float(prior_weight))
     if not (np.isfinite(gamma) and gamma >= 0):
@@ -245,8 +258,7 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
             break
         t0 = time.perf_counter()
         if loss == "huber":
-            sig, row_weights = _huber_weights(model, dataset, spec, theta, huber_threshold,
-                                              problem)
+            sig, row_weights = _huber_weights(model, dataset, spec, theta, huber_c, problem)
             work = compress(model, dataset, spec, weights=row_weights)
             source = "huber"
         else:
@@ -282,6 +294,27 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
 
 
 # ------------------------------------------------------------------------------------ options
+def _check_combinations(prior: str | None, prior_weight: float | None,
+                        prior_uncertainty: float | None, prior_weights: np.ndarray | None,
+                        loss: str, huber_threshold: float | None, reweight: int | None) -> None:
+    """Refuse options that the other options make meaningless (never ignore them silently)."""
+    if prior is None:
+        given = [k for k, v in (("prior_weight", prior_weight),
+                                ("prior_uncertainty", prior_uncertainty)) if v is not None]
+        if given:
+            raise OptionError(f"{given} weight a prior, but prior=None has none")
+    if prior_weight is not None and prior_uncertainty is not None:
+        raise OptionError("give prior_weight or prior_uncertainty (which sets the default "
+                          "prior_weight = 2/r²), not both")
+    if prior_weights is not None and prior != "euclidean":
+        raise OptionError(f"prior_weights are the Euclidean prior's metric; prior={prior!r}")
+    if huber_threshold is not None and loss != "huber":
+        raise OptionError(f"huber_threshold applies to loss='huber', not loss={loss!r}")
+    if loss == "huber" and reweight is not None and int(reweight) == 0:
+        raise OptionError("loss='huber' needs reweight ≥ 1: the first solve is a squared-loss "
+                          "fit, and the Huber weights come from its residuals")
+
+
 def _body_levels(model: RobotModel, constraints: str | Mapping[str, str]) -> tuple[str, ...]:
     if isinstance(constraints, str):
         check_option("constraints", constraints, cons.LEVELS)
@@ -326,6 +359,11 @@ def _make_setup(model: RobotModel, spec: RegressorSpec, prior_vec: np.ndarray,
                if lvl == "ellipsoid" and b not in ellipsoids]
     if missing:
         raise OptionError(f"bodies {missing} have constraints='ellipsoid' but no ellipsoids[...]")
+    unused = [b for b, lvl in zip(model.body_names, levels)
+              if lvl != "ellipsoid" and b in ellipsoids]
+    if unused:
+        raise OptionError(f"ellipsoids given for bodies {unused}, whose constraints level is not "
+                          "'ellipsoid' (set constraints={body: 'ellipsoid'} for them)")
     nb = model.n_bodies
     bodies = prior_vec[:10 * nb].reshape(nb, 10)
     if prior == "logdet":
@@ -555,9 +593,14 @@ def _solve_pass(program: _Program, model: RobotModel, spec: RegressorSpec, r: np
     first only if its solve succeeds; otherwise the first stands, with its warning."""
     if not scale:
         return program, [_solve(program, model, prior_vec, solver, options, scale)]
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        first = _solve(program, model, prior_vec, solver, options, scale)
+    caught: list[warnings.WarningMessage] = []
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            first = _solve(program, model, prior_vec, solver, options, scale)
+    except Exception:
+        _rewarn(caught)  # what the solver said before failing is part of the diagnosis
+        raise
     if first.status != cp.OPTIMAL_INACCURATE:
         _rewarn(caught)
         return program, [first]
@@ -638,12 +681,12 @@ def _check_answer(program: _Program) -> tuple[str, ...]:
 
 def _base_covariance(r_b: np.ndarray) -> tuple[float, np.ndarray]:
     """Condition number of the weighted base factor and ``(R_bᵀR_b)⁻¹``; parameters touched by
-    directions the data do not excite (singular value below 1e-11 of the largest) get infinite
-    variance."""
+    directions the data do not excite (singular value below
+    :data:`~consistid.identify.RANK_RTOL` of the largest) get infinite variance."""
     _, s, vt = np.linalg.svd(r_b)
     if s[0] == 0:
         return float("inf"), np.full((s.size, s.size), np.inf)
-    keep = s > 1e-11 * s[0]
+    keep = s > RANK_RTOL * s[0]
     cond = float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
     cov = (vt[keep].T / s[keep] ** 2) @ vt[keep]
     if not np.all(keep):
