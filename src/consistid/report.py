@@ -6,6 +6,8 @@ from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
+from .identify import COND_WARN
+
 if TYPE_CHECKING:
     from .result import IdentificationResult
 
@@ -51,7 +53,7 @@ def identification_summary(res: "IdentificationResult", max_rows: int | None = N
     for key, value in res.details.items():
         if np.isscalar(value):
             notes.append(f"{key}: {value}")
-    if res.condition_number > 1e4:
+    if res.condition_number > COND_WARN:
         notes.append("the condition number is large: some base parameters are poorly excited")
     lines += ["", "Notes:"] + [f"  - {n}" for n in notes]
     return "\n".join(lines)
