@@ -1,5 +1,6 @@
 """The MuJoCo robot against Pinocchio, and each effect against its closed form."""
 
+import mujoco
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -252,3 +253,109 @@ def test_record_option_errors(panda, trajectory):
         record(panda, trajectory, Effects(delay=0.5), duration=0.1, settle=0.1)
     with pytest.raises(ModelError):
         TrackingController(bandwidth=-1.0)
+
+
+# ----------------------------------------------------------------------------- review fixes
+def test_effect_torque_keeps_the_payload_on_elastic_joints(panda, trajectory):
+    """An elastic joint's sensor reads the link side: the payload's torque, not the drive's
+    friction and armature; rigid joints read both (Spong's model, MuJoCo as the judge)."""
+    payload = Payload(1.2, (0.02, 0.0, 0.06), np.diag([0.003, 0.002, 0.004]))
+    eff = Effects(stiffness={1: 4000.0, 5: 3000.0}, spring_damping={1: 3.0, 5: 2.0},
+                  viscous=0.4, armature=0.05, payload=payload)
+    rec, _ = run(panda, trajectory, eff)
+    truth = (rec.true_q, rec.true_dq, rec.true_ddq)
+    extra = effect_torque(panda, rec.effects, *truth)
+    np.testing.assert_allclose(rec.tau, panda.rnea(*truth) + extra, atol=1e-6)
+    assert np.min(np.max(np.abs(extra[:, [1, 5]]), axis=0)) > 0.05   # the payload is there
+    data = panda.pin_model.createData()
+    y = np.array([pin.computeJointTorqueRegressor(panda.pin_model, data, q, v, a)[:, 60:70]
+                  for q, v, a in zip(*truth)])
+    np.testing.assert_allclose(extra[:, [1, 5]], (y @ rec.payload_parameters)[:, [1, 5]],
+                               atol=1e-12)
+
+
+def test_thin_rod_payload_is_simulated_as_a_rod(panda, trajectory):
+    """A rod (one zero principal moment, tilted) is accepted and is not made a point mass."""
+    r = pin.rpy.rpyToMatrix(0.3, 0.5, 0.7)
+    rod = Payload(1.0, (0.0, 0.0, 0.1), r @ np.diag([0.01, 0.01, 0.0]) @ r.T)
+    rec, extra = run(panda, trajectory, Effects(payload=rod))
+    data = panda.pin_model.createData()
+    y = np.array([pin.computeJointTorqueRegressor(panda.pin_model, data, q, v, a)[:, 60:70]
+                  for q, v, a in zip(rec.true_q, rec.true_dq, rec.true_ddq)])
+    np.testing.assert_allclose(extra, y @ rec.payload_parameters, atol=1e-9)
+    point = y @ Payload(1.0, (0.0, 0.0, 0.1)).parameters(panda)[1]
+    assert np.max(np.abs(extra - point)) > 1e-3                   # the rod's inertia counts
+    xml = MujocoRobot(panda, Effects(payload=rod)).xml
+    assert 'name="panda_link7__payload"' in xml and 'name="payload"' not in xml
+
+
+def test_payload_inertia_must_satisfy_the_triangle_inequality():
+    with pytest.raises(ModelError, match="payload.inertia violates the triangle"):
+        Payload(1.0, inertia=np.diag([0.001, 0.001, 0.01]))
+    with pytest.raises(ModelError, match="symmetric"):
+        Payload(1.0, inertia=[[0.01, 0.001, 0], [0, 0.01, 0], [0, 0, 0.01]])
+    Payload(1.0, inertia=np.diag([0.0, 0.02, 0.02]))               # a rod along x: accepted
+
+
+class _Fold:
+    """Panda from stretched out (large M_11) to folded (small M_11) in one second."""
+
+    period = 1.0
+    a = np.array([0.0, 1.5, 0.0, -0.1, 0.0, 1.6, 0.0])
+    b = np.array([0.0, -0.3, 0.0, -3.0, 0.0, 3.0, 0.0])
+
+    def evaluate(self, t):
+        t = np.clip(np.atleast_1d(t), 0.0, 1.0)[:, None]
+        s, ds, dds = ((1 - np.cos(np.pi * t)) / 2, np.pi / 2 * np.sin(np.pi * t),
+                      np.pi ** 2 / 2 * np.cos(np.pi * t))
+        d = self.b - self.a
+        return self.a + s * d, ds * d, dds * d
+
+
+def test_tanh_step_check_covers_the_whole_trajectory(panda):
+    mj = MujocoRobot(panda).mj_model
+    full = np.zeros((7, 7))
+    m11 = []
+    for q in (_Fold.a, _Fold.b):
+        data = mujoco.MjData(mj)
+        data.qpos[:] = q
+        mujoco.mj_forward(mj, data)
+        mujoco.mj_fullM(mj, data, full)
+        m11.append(full[0, 0])
+    assert m11[0] > 4 * m11[1]
+    fc = 1.5 * m11[1] * 0.05 / 1e-3          # h·fc/(v_s·M_11) = 1.5 folded, < 0.4 stretched
+    eff = Effects(coulomb={0: fc}, coulomb_model="tanh", coulomb_speed=0.05)
+    with pytest.raises(ModelError, match="panda_joint1.*coulomb_speed"):
+        record(panda, _Fold(), eff, settle=0.0)
+
+
+def test_open_trajectory_is_held_at_its_start_while_settling(planar_2r):
+    from consistid.excitation import BoundaryConditions, FourierPolynomial
+    fp = FourierPolynomial(2, 2, 2.0, BoundaryConditions(q_start=[0.2, -0.3], q_end=[0.5, 0.1]))
+    traj = fp.trajectory(0.2 * np.ones((2, fp.n_coefficients)))
+    assert not traj.periodic
+    rec = record(planar_2r, traj, settle=0.5)               # was: ExcitationError at t < 0
+    np.testing.assert_allclose(rec.desired_q[0], [0.2, -0.3], atol=1e-12)
+    np.testing.assert_allclose(rec.true_q[0], [0.2, -0.3], atol=1e-6)   # settled on the start
+    assert rec.n_samples == 2000 and np.all(rec.tracking_error < 1e-3)
+    moving = BoundaryConditions(q_start=[0.2, -0.3], q_end=[0.5, 0.1], dq_start=0.1)
+    fp = FourierPolynomial(2, 2, 2.0, moving)
+    with pytest.raises(ModelError, match="settle"):
+        record(planar_2r, fp.trajectory(np.zeros((2, fp.n_coefficients))), settle=0.5)
+    record(planar_2r, fp.trajectory(np.zeros((2, fp.n_coefficients))), settle=0.0)
+
+
+def test_tracking_error_is_reported_and_warns_above_the_bound(panda, trajectory):
+    from consistid.errors import TrackingWarning
+    eff = Effects(coulomb={6: 2.0})
+    with pytest.warns(TrackingWarning, match="panda_joint7"):
+        rec = record(panda, trajectory, eff, max_tracking_error=0.05, **SHORT)
+    np.testing.assert_allclose(rec.tracking_error,
+                               np.max(np.abs(rec.true_q - rec.desired_q), axis=0))
+    assert np.argmax(rec.tracking_error) == 6 and rec.tracking_error[6] > 0.05
+    assert rec == rec and rec != record(panda, trajectory, eff, **SHORT)   # no array ==
+
+
+def test_excitation_run_parameter_shape_is_a_model_error(panda):
+    with pytest.raises(ModelError, match="true parameters have shape"):
+        ci.simulate.excitation_run(panda, np.zeros(5), duration=1.0)

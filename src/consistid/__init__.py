@@ -15,7 +15,7 @@ from .errors import (ConfigError, ConsistidError, DatasetError, ExcitationError,
                      IdentificationError, InaccurateSolutionWarning, InconsistentParametersError,
                      InfeasibleError, InfeasibleExcitationError, JointCountError, JointNameError,
                      MissingColumnsError, ModelError, OptionError, PoorExcitationError,
-                     PoorExcitationWarning, UnrealizableCoefficientsError)
+                     PoorExcitationWarning, TrackingWarning, UnrealizableCoefficientsError)
 from .excitation import (BoundaryConditions, ExcitationDesign, ExcitationLimits, FourierTrajectory,
                          design_excitation)
 from .identify import identify
@@ -40,7 +40,8 @@ __all__ = [
     "InaccurateSolutionWarning", "InconsistentParametersError", "InfeasibleError",
     "JointCountError", "MissingColumnsError", "ModelError", "Neighbourhood", "OptionError",
     "Payload", "PoorExcitationError", "PoorExcitationWarning", "RecoveryResult",
-    "RegressorSpec", "RobotModel", "UnrealizableCoefficientsError", "compute_base_parameters",
+    "RegressorSpec", "RobotModel", "TrackingWarning", "UnrealizableCoefficientsError",
+    "compute_base_parameters",
     "default_prior_weight", "design_excitation", "estimate_payload", "identify",
     "is_physically_consistent", "load_recording",
     "payload_from_base_change", "recover_standard", "regressor", "simulate",

@@ -95,3 +95,8 @@ class PoorExcitationWarning(UserWarning):
 
 class InaccurateSolutionWarning(UserWarning):
     """The solver stopped at reduced accuracy (status ``optimal_inaccurate``)."""
+
+
+class TrackingWarning(UserWarning):
+    """A simulated robot did not follow its reference: the tracking error exceeds the bound of
+    :func:`consistid.simulate.record` (``max_tracking_error``)."""

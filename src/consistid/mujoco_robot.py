@@ -8,7 +8,9 @@ merged into their parent by :meth:`RobotModel.from_urdf`, and no meshes are invo
   joint frame), with a ``hinge`` or ``slide`` joint along the axis read from the joint's motion
   subspace;
 * its ``<inertial>`` is mass, CoM and the full inertia about the CoM of ``model.inertias``
-  (MuJoCo diagonalises it into ``body_ipos``/``body_iquat``);
+  (MuJoCo diagonalises it into ``body_ipos``/``body_iquat``); a payload is a jointless child
+  body ``<body>__payload`` whose inertial is given in its principal axes, so that a thin rod
+  (one zero moment, which MuJoCo's ``fullinertia`` refuses) is simulated as one;
 * ``dof_armature`` is Pinocchio's ``model.armature`` (which ``pinocchio.rnea`` includes) plus the
   armature effect.
 
@@ -50,7 +52,7 @@ import pinocchio as pin
 
 from .errors import ModelError, check_option
 from .model import RobotModel
-from .robot_effects import Effects
+from .robot_effects import Effects, Payload
 
 INTEGRATORS = ("Euler", "RK4", "implicitfast")
 #: Impedance of the friction-loss constraint (``solimpfriction``); with the time constant at its
@@ -61,6 +63,9 @@ FRICTION_SOLIMP = (0.99, 0.99, 0.001, 0.5, 2.0)
 #: Mass (kg) and principal moments (kg·m²) of a rotor body: MuJoCo needs a positive mass; the
 #: rotor's inertia about its axis is its joint's armature.
 ROTOR_MASS, ROTOR_INERTIA = 1e-9, 1e-12
+#: The tanh-friction stability check reads the mass matrix at up to this many evenly spaced
+#: samples of the desired trajectory.
+TANH_CHECK_SAMPLES = 1000
 
 
 def _num(values) -> str:
@@ -102,17 +107,46 @@ def _inertial(inertia: pin.Inertia, name: str) -> str:
             f'fullinertia="{_num(full)}"/>')
 
 
+def _payload_inertial(payload: Payload, parameters: np.ndarray) -> str:
+    """The ``<inertial>`` of a payload from its 10-vector in the carrying joint's frame.
+
+    A point mass (``payload.inertia`` all zero) gets zero moments. Otherwise the inertia about
+    the CoM is written in its principal axes (``quat`` + ``diaginertia``): MuJoCo's
+    ``fullinertia`` needs positive moments, a thin rod has a zero one. Round-off from the frame
+    change (below :data:`~consistid.robot_effects.PAYLOAD_INERTIA_TOL`, the payload was
+    checked) is removed so that MuJoCo's ``I_1 + I_2 ≥ I_3`` holds exactly.
+    """
+    inertia = pin.Inertia.FromDynamicParameters(parameters)
+    where = f'pos="{_num(inertia.lever)}" mass="{inertia.mass:.17g}"'
+    if not np.any(payload.inertia):
+        return f'<inertial {where} diaginertia="0 0 0"/>'
+    moments, axes = np.linalg.eigh(np.asarray(inertia.inertia))
+    if np.linalg.det(axes) < 0:
+        axes[:, 0] *= -1.0                                       # a rotation, not a reflection
+    moments = np.maximum(moments, 0.0)
+    moments[2] = min(moments[2], moments[0] + moments[1])
+    quat = pin.Quaternion(axes)
+    return (f'<inertial {where} quat="{_num([quat.w, quat.x, quat.y, quat.z])}" '
+            f'diaginertia="{_num(moments)}"/>')
+
+
 def to_mjcf(model: RobotModel, effects: Effects, timestep: float = 1e-3,
             integrator: str = "Euler") -> str:
     """The MJCF text of ``model`` (its current inertias) with ``effects`` (resolved or not)."""
+    eff = effects if effects.resolved else effects.for_model(model)
+    payload = eff.payload.parameters(model) if eff.payload is not None else None
+    return _mjcf(model, eff, payload, timestep, integrator)
+
+
+def _mjcf(model: RobotModel, eff: Effects, payload: tuple[int, np.ndarray] | None,
+          timestep: float, integrator: str) -> str:
+    """:func:`to_mjcf` for resolved effects and the payload's ``(joint, 10-vector)``."""
     check_option("integrator", integrator, INTEGRATORS)
-    eff = effects.for_model(model)
     pm = model.pin_model
     kinds, axes = joint_axes(model)
     elastic = eff.elastic
     frictionloss = eff.coulomb if eff.coulomb_model == "frictionloss" else np.zeros(model.nv)
     armature = np.asarray(pm.armature, dtype=float)
-    payload = eff.payload.parameters(model) if eff.payload is not None else None
     friction_solver = (f'solreffriction="{2 * timestep:.17g} 1" '
                        f'solimpfriction="{_num(FRICTION_SOLIMP)}"')
     children: dict[int, list[int]] = {j: [] for j in range(pm.njoints)}
@@ -149,12 +183,8 @@ def to_mjcf(model: RobotModel, effects: Effects, timestep: float = 1e-3,
                   f'axis="{_num(axes[i])}" {joint_attrs}/>',
                   f"{indent}  {_inertial(pm.inertias[j], body_name)}"]
         if payload is not None and payload[0] == i:
-            p = pin.Inertia.FromDynamicParameters(payload[1])
-            moments = np.linalg.eigvalsh(np.asarray(p.inertia))
-            inertial = (_inertial(p, "payload") if moments[0] > 0 else
-                        f'<inertial pos="{_num(p.lever)}" mass="{p.mass:.17g}" '
-                        f'diaginertia="0 0 0"/>')
-            lines += [f'{indent}  <body name="payload">', f"{indent}    {inertial}",
+            lines += [f"{indent}  <body name={quoteattr(body_name + '__payload')}>",
+                      f"{indent}    {_payload_inertial(eff.payload, payload[1])}",
                       f"{indent}  </body>"]
         for c in children[j]:
             lines += body(c, indent + "  ")
@@ -181,7 +211,7 @@ def to_mjcf(model: RobotModel, effects: Effects, timestep: float = 1e-3,
         "</mujoco>", ""])
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Trace:
     """Raw output of :meth:`MujocoRobot.run`: logged and per-physics-step arrays.
 
@@ -223,6 +253,8 @@ class MujocoRobot:
     Attributes
     ----------
     xml : the MJCF text; ``mj_model`` : ``mujoco.MjModel``.
+    payload : ``(joint index, 10-vector)`` of the payload (:meth:`Payload.parameters`), or
+        ``None``.
     link_dof, motor_dof : (nv,) MuJoCo dof index of each link joint and of its drive (the rotor
         dof of an elastic joint, else the link dof); every joint has one coordinate, so these
         index ``qpos`` as well.
@@ -236,7 +268,9 @@ class MujocoRobot:
         self.model = model if parameters is None else model.with_parameters(parameters)
         self.effects = (effects or Effects()).for_model(model)
         self.timestep = float(timestep)
-        self.xml = to_mjcf(self.model, self.effects, timestep, integrator)
+        self.payload = (self.effects.payload.parameters(model)
+                        if self.effects.payload is not None else None)
+        self.xml = _mjcf(self.model, self.effects, self.payload, timestep, integrator)
         try:
             self.mj_model = mujoco.MjModel.from_xml_string(self.xml)
         except ValueError as exc:  # MuJoCo's compiler errors name the element
@@ -279,22 +313,35 @@ class MujocoRobot:
             out[k] = data.qfrc_inverse[self.link_dof]
         return out
 
-    def _check_tanh_step(self, data: mujoco.MjData) -> None:
+    def _check_tanh_step(self, q: np.ndarray) -> None:
         """The tanh friction is applied explicitly, once per step: it is stable only while
-        ``h·f_c / (v_s·M_jj) < 1`` (its linearisation about 0 must not overshoot)."""
+        ``h·f_c / (v_s·M_jj(q)) < 1`` (its linearisation about 0 must not overshoot), checked
+        with each drive's smallest ``M_jj`` over the link positions ``q`` (S, nv), e.g. the
+        desired trajectory (at most :data:`TANH_CHECK_SAMPLES` of them, evenly spaced)."""
         e = self.effects
         if e.coulomb_model != "tanh" or not np.any(e.coulomb):
             return
-        full = np.zeros((self.mj_model.nv, self.mj_model.nv))
-        mujoco.mj_fullM(self.mj_model, data, full)
-        diag = np.diag(full)[self.motor_dof]
+        mj = self.mj_model
+        data = mujoco.MjData(mj)
+        full = np.zeros((mj.nv, mj.nv))
+        rows = np.unique(np.linspace(0, q.shape[0] - 1, min(q.shape[0], TANH_CHECK_SAMPLES))
+                         .round().astype(int))
+        diag = np.full(self.nv, np.inf)
+        for k in rows:
+            data.qpos[self.link_dof] = q[k]
+            data.qpos[self.motor_dof] = q[k]          # a rotor's angle does not change M
+            mujoco.mj_kinematics(mj, data)
+            mujoco.mj_comPos(mj, data)
+            mujoco.mj_crb(mj, data)
+            mujoco.mj_fullM(mj, data, full)
+            diag = np.minimum(diag, np.diag(full)[self.motor_dof])
         ratio = self.timestep * np.asarray(e.coulomb) / (e.coulomb_speed * diag)
         worst = int(np.argmax(ratio))
         if ratio[worst] >= 1.0:
             raise ModelError(
                 f"tanh Coulomb friction on {self.model.joint_names[worst]!r} is too stiff for the "
-                f"physics step: h·fc/(v_s·M_jj) = {ratio[worst]:.3g} ≥ 1 (M_jj = "
-                f"{diag[worst]:.3g} kg·m²); raise effects.coulomb_speed above "
+                f"physics step: h·fc/(v_s·M_jj) = {ratio[worst]:.3g} ≥ 1 (smallest M_jj along "
+                f"the trajectory {diag[worst]:.3g} kg·m²); raise effects.coulomb_speed above "
                 f"{e.coulomb_speed * ratio[worst]:.3g} rad/s, add armature, or shorten the step")
 
     def _check_stable(self, data: mujoco.MjData, t: float) -> None:
@@ -311,18 +358,20 @@ class MujocoRobot:
                 "damping D·h/M_jj ≥ 2, explicit here), or the controller is too stiff for it; "
                 "raise physics_rate or soften the effect")
 
-    def run(self, gains: tuple[float, float], nominal: RobotModel, t0: float,
+    def run(self, gains: tuple[float, float], nominal: RobotModel, t: np.ndarray,
             desired: tuple[np.ndarray, np.ndarray, np.ndarray], log_every: int,
             log_from: int = 0, progress: Callable[[float], None] | None = None) -> Trace:
-        """Track ``desired = (q_d, dq_d, ddq_d)``, one row per physics step from time ``t0``,
-        with the computed-torque law of :class:`consistid.simulate.TrackingController` on the
-        ``nominal`` model, ``gains = (K_p, K_d)``.
+        """Track ``desired = (q_d, dq_d, ddq_d)``, one row per physics step at the times ``t``
+        (spaced by the time step), with the computed-torque law of
+        :class:`consistid.simulate.TrackingController` on the ``nominal`` model,
+        ``gains = (K_p, K_d)``.
 
         The robot starts on the desired state (an elastic joint's motor pre-deflected by the
         true static torque). Every ``log_every``-th step from ``log_from`` is logged; the
         acceleration is MuJoCo's at the logged state (``mj_forward`` with the step's torques).
         ``progress`` (if given) is called with the fraction done every 1000 steps. Raises
-        :class:`ModelError` if the simulation diverges.
+        :class:`ModelError` if the simulation diverges, or before it starts if a tanh friction
+        is too stiff for the step anywhere along ``q_d``.
         """
         qd, dqd, ddqd = desired
         steps = qd.shape[0]
@@ -338,7 +387,7 @@ class MujocoRobot:
                 eff.stiffness)[elastic]
             data.qvel[drive[elastic]] = dqd[0, elastic]
         mujoco.mj_forward(mj, data)
-        self._check_tanh_step(data)
+        self._check_tanh_step(qd)
         kp, kd = gains
         pm = nominal.pin_model
         pdata = pm.createData()
@@ -372,8 +421,7 @@ class MujocoRobot:
                 row += 1
             mujoco.mj_step(mj, data)
             if k % 1000 == 999 or k == steps - 1:
-                self._check_stable(data, t0 + (k + 1) * self.timestep)
+                self._check_stable(data, t[k] + self.timestep)
                 if progress is not None:
                     progress((k + 1) / steps)
-        t_fine = t0 + np.arange(steps) * self.timestep
-        return Trace(t=t_fine[logged], t_fine=t_fine, tau_fine=tau_fine, **out)
+        return Trace(t=t[logged], t_fine=t, tau_fine=tau_fine, **out)

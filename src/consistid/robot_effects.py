@@ -66,7 +66,6 @@ import pinocchio as pin
 
 from .errors import ModelError, OptionError, check_option
 from .model import RobotModel
-from .parameters import check_body
 
 JointValues = float | Sequence[float] | Mapping[str | int, float] | np.ndarray
 
@@ -89,6 +88,8 @@ COULOMB_MODELS = ("frictionloss", "tanh")
 POSITION_SENSORS = ("motor", "link")
 #: Motor inertia (kg·m², reflected to the link side) of an elastic joint when none is given.
 DEFAULT_MOTOR_INERTIA = 0.5
+#: Round-off (kg·m²) forgiven in the triangle inequalities of a :class:`Payload`'s inertia.
+PAYLOAD_INERTIA_TOL = 1e-12
 
 
 @dataclass(frozen=True)
@@ -99,10 +100,15 @@ class Payload:
     ----------
     mass : kg, > 0.
     com : (3,) centre of mass in ``frame`` (m).
-    inertia : (3, 3) rotational inertia about the CoM in the axes of ``frame`` (kg·m²); default
-        zero (a point mass).
+    inertia : (3, 3) symmetric rotational inertia about the CoM in the axes of ``frame``
+        (kg·m²); default zero (a point mass). Its principal moments must satisfy the triangle
+        inequalities ``I_1 + I_2 ≥ I_3`` (to :data:`PAYLOAD_INERTIA_TOL`), which make it
+        positive *semi*-definite: a thin rod (one zero moment) and a point mass are accepted,
+        and MuJoCo simulates both.
     frame : a frame of the Pinocchio model (e.g. ``"panda_hand"``); default the frame of the
         last joint. The payload moves with that frame's parent joint.
+
+    Raises :class:`ModelError` naming the field for a bad mass, CoM or inertia.
     """
 
     mass: float
@@ -120,6 +126,14 @@ class Payload:
                    else np.asarray(self.inertia, dtype=float))
         if inertia.shape != (3, 3) or not np.allclose(inertia, inertia.T, atol=1e-12):
             raise ModelError(f"payload.inertia must be a symmetric 3×3 matrix, got {inertia}")
+        if not np.isfinite(inertia).all():
+            raise ModelError(f"payload.inertia has non-finite entries: {inertia.tolist()}")
+        moments = np.linalg.eigvalsh(inertia)                         # ascending
+        slack = moments[0] + moments[1] - moments[2]
+        if slack < -PAYLOAD_INERTIA_TOL:
+            raise ModelError(f"payload.inertia violates the triangle inequality: principal "
+                             f"moments {moments.tolist()} kg·m² have I1 + I2 − I3 = {slack:.3g} "
+                             "< 0 (no rigid body has them)")
         object.__setattr__(self, "com", com)
         object.__setattr__(self, "inertia", inertia)
 
@@ -141,17 +155,12 @@ class Payload:
         """``(joint index, 10-vector)``: the payload's standard parameters in the frame of the
         joint that carries it (Pinocchio order), i.e. what it adds to that body's parameters.
 
-        Raises :class:`ModelError` if the inertia violates the triangle inequalities (a point
-        mass, zero inertia, is accepted).
+        Raises :class:`ModelError` for a ``frame`` that is not in ``model`` or is fixed to the
+        base (the inertia is checked when the payload is made).
         """
         joint, placement = self.placement(model)
         local = pin.Inertia(float(self.mass), np.asarray(self.com), np.asarray(self.inertia))
-        p = np.array(placement.act(local).toDynamicParameters())
-        if np.any(self.inertia):
-            verdict = check_body(p, "triangle", "payload", tol=1e-12)
-            if not verdict.ok:
-                raise ModelError(verdict.reason)
-        return joint, p
+        return joint, np.array(placement.act(local).toDynamicParameters())
 
 
 def _joint_array(name: str, value: JointValues, model: RobotModel) -> np.ndarray:
@@ -184,7 +193,7 @@ def _joint_array(name: str, value: JointValues, model: RobotModel) -> np.ndarray
     return out
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Effects:
     """What the simulated robot adds to the nominal rigid-body model; all zero = nothing.
 
@@ -298,7 +307,7 @@ class Effects:
         values["motor_inertia"] = np.where(elastic & (values["motor_inertia"] == 0),
                                            DEFAULT_MOTOR_INERTIA, values["motor_inertia"])
         if self.payload is not None:
-            self.payload.parameters(model)  # validates the frame and the inertia
+            self.payload.parameters(model)  # validates the frame
         return replace(self, **values)
 
     @property
@@ -385,14 +394,16 @@ def effect_torque(model: RobotModel, effects: Effects, q: np.ndarray, dq: np.nda
 
     with ``s = sign`` for ``"frictionloss"`` (what MuJoCo applies once ``|q̇|`` ≳ 0.01 rad/s)
     or ``tanh(·/v_s)``, and ``Y_p π_p`` the payload through the regressor of the body that
-    carries it. Zero on elastic joints, whose torque sensor reads the link-side torque only.
-    Sensor effects are not included (see :func:`sensor_torque`).
+    carries it. On an elastic joint the drive-side terms ``f_v q̇ + f_c s + I_a q̈`` are zero:
+    they act on the motor, and the torque sensor at the spring reads the link-side torque
+    (rigid body and payload) only. Sensor effects are not included (see :func:`sensor_torque`).
     """
     eff = effects if effects.resolved else effects.for_model(model)
     q, dq, ddq = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (q, dq, ddq))
     fc = np.asarray(eff.coulomb)
     s = np.sign(dq) if eff.coulomb_model == "frictionloss" else np.tanh(dq / eff.coulomb_speed)
-    out = np.asarray(eff.viscous) * dq + fc * s + np.asarray(eff.armature) * ddq
+    drive = np.asarray(eff.viscous) * dq + fc * s + np.asarray(eff.armature) * ddq
+    out = np.where(eff.elastic, 0.0, drive)
     if eff.payload is not None:
         joint, p = eff.payload.parameters(model)
         pm = model.pin_model
@@ -401,7 +412,7 @@ def effect_torque(model: RobotModel, effects: Effects, q: np.ndarray, dq: np.nda
         for k in range(q.shape[0]):
             y = pin.computeJointTorqueRegressor(pm, data, model.configuration(q[k]), dq[k], ddq[k])
             out[k] += y[:, cols] @ p
-    return np.where(eff.elastic, 0.0, out)
+    return out
 
 
 def sensor_torque(effects: Effects, tau: np.ndarray) -> np.ndarray:

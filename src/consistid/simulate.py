@@ -15,6 +15,7 @@ sensor effects of :class:`~consistid.robot_effects.Effects` switched on or off, 
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, replace
 from typing import Callable, Protocol
 
@@ -22,7 +23,7 @@ import numpy as np
 
 from .dataset import Dataset
 from .robot_effects import Effects, Payload, measure_position, measure_torque
-from .errors import ModelError
+from .errors import ModelError, TrackingWarning
 from .excitation import FourierTrajectory
 from .model import RobotModel
 from .regressor import FrictionArg, RegressorSpec, regressor
@@ -31,7 +32,7 @@ __all__ = ["Effects", "Payload", "Recording", "SimulatedRun", "TrackingControlle
            "excitation_run", "nominal_residual", "record"]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class SimulatedRun:
     """A simulated recording and the truth it was made from."""
 
@@ -65,7 +66,7 @@ def excitation_run(model: RobotModel, parameters: np.ndarray | None = None,
     truth = (np.concatenate([model.prior_parameters, np.zeros(spec.n_joint_columns)])
              if parameters is None else np.asarray(parameters, dtype=float))
     if truth.shape != (p,):
-        raise ValueError(f"true parameters have shape {truth.shape}; the regressor "
+        raise ModelError(f"true parameters have shape {truth.shape}; the regressor "
                          f"({spec.describe()}) has {p} columns")
     rng = np.random.default_rng(seed)
     trajectory = trajectory or FourierTrajectory.random(model, harmonics, period, rng)
@@ -78,7 +79,11 @@ def excitation_run(model: RobotModel, parameters: np.ndarray | None = None,
 
 
 class Trajectory(Protocol):
-    """Anything that gives the desired ``(q, dq, ddq)``, each (len(t), nv), at times ``t``."""
+    """Anything that gives the desired ``(q, dq, ddq)``, each (len(t), nv), at times ``t``.
+
+    :func:`record` also reads two optional attributes: ``period`` (the default duration) and
+    ``periodic``; a trajectory with ``periodic = False`` is evaluated on ``t ≥ 0`` only.
+    """
 
     def evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
 
@@ -101,8 +106,8 @@ class TrackingController:
     ----------
     bandwidth : ω (rad/s), the closed-loop natural frequency. The gains are scaled by the
         nominal mass matrix, so a light wrist joint gets a small stiffness ``M̂_jj ω²``: the
-        default 50 rad/s keeps the Panda's tracking error under ~0.1 rad with 2 N·m of
-        unmodelled dry friction.
+        default 50 rad/s keeps the Panda's tracking error under ~0.2 rad with 0.5–2 N·m of
+        unmodelled dry friction (the most on the wrist, ``panda_joint7``).
     damping_ratio : ζ.
     """
 
@@ -120,7 +125,7 @@ class TrackingController:
         return self.bandwidth ** 2, 2.0 * self.damping_ratio * self.bandwidth
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Recording:
     """A simulated robot log and the truth behind it.
 
@@ -143,6 +148,8 @@ class Recording:
     control : (N, nv) the controller's torque ``u`` (the motor torque; on a rigid joint it is
         ``true_tau``).
     desired_q : (N, nv) the controller's reference.
+    tracking_error : (nv,) ``max |true_q − desired_q|`` per joint over the log (rad / m); on an
+        elastic joint it includes the spring's deflection (the controller tracks the motor).
     effects : the :class:`Effects`, resolved per joint (``(nv,)`` arrays).
     true_parameters : (10·nbodies,) inertial parameters of the simulated robot, payload excluded.
     payload_parameters : (10,) the payload in the frame of the joint that carries it (what it
@@ -161,6 +168,7 @@ class Recording:
     motor_dq: np.ndarray
     control: np.ndarray
     desired_q: np.ndarray
+    tracking_error: np.ndarray
     effects: Effects
     true_parameters: np.ndarray
     payload_parameters: np.ndarray | None
@@ -189,11 +197,37 @@ class Recording:
         return out
 
 
+#: Default bound (rad, or m on a prismatic joint) on the tracking error of :func:`record`, above
+#: which it warns that the robot did not follow its reference. The default controller leaves
+#: up to ~0.2 rad on the Panda's light wrist with 2 N·m of unmodelled dry friction, and 0.55
+#: rad on the UR3's last joint with 1 N·m (which warns).
+MAX_TRACKING_ERROR = 0.5
+
+
+def _desired(trajectory: Trajectory, t: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The reference at the physics steps ``t``. A trajectory that says it is not periodic
+    (``periodic = False``) is held at its start state before ``t = 0``, which needs it to
+    start at rest."""
+    if getattr(trajectory, "periodic", True) or t[0] >= 0:
+        return trajectory.evaluate(t)
+    before = t < 0
+    q, dq, ddq = trajectory.evaluate(np.where(before, 0.0, t))
+    start = np.max(np.abs(np.concatenate([dq[0], ddq[0]])))
+    if start > 1e-9:
+        raise ModelError(f"the trajectory is not periodic and does not start at rest (|q̇(0)|, "
+                         f"|q̈(0)| up to {start:.3g}): it cannot be held during settle = "
+                         f"{-t[0]:g} s before t = 0; give settle=0, or a trajectory that starts "
+                         "at rest")
+    dq[before], ddq[before] = 0.0, 0.0
+    return q, dq, ddq
+
+
 def record(model: RobotModel, trajectory: Trajectory, effects: Effects | None = None,
            true_parameters: np.ndarray | None = None, duration: float | None = None,
            rate: float = 1000.0, physics_rate: float = 1000.0, settle: float = 1.0,
            controller: TrackingController | None = None, seed: int = 0,
-           integrator: str = "Euler",
+           integrator: str = "Euler", max_tracking_error: float = MAX_TRACKING_ERROR,
            progress: Callable[[float], None] | None = None) -> Recording:
     """Run the MuJoCo robot through ``trajectory`` and log ``(t, q, tau)`` like a real robot.
 
@@ -210,10 +244,16 @@ def record(model: RobotModel, trajectory: Trajectory, effects: Effects | None = 
     rate : log rate (Hz); ``physics_rate / rate`` must be an integer.
     physics_rate : physics and control rate (Hz).
     settle : seconds simulated before ``t = 0`` (the controller settles, and a delayed torque
-        channel has history); must cover the largest ``effects.delay``.
+        channel has history); must cover the largest ``effects.delay``. A periodic trajectory
+        is followed backwards in time over it; one with ``periodic = False`` (e.g. an
+        :class:`~consistid.excitation.Trajectory` whose end state differs from its start)
+        is held at its start state, which must be at rest.
     controller : default :class:`TrackingController()` (ω = 50 rad/s, ζ = 1).
     seed : seeds the sensor noise.
     integrator : MuJoCo integrator (see :class:`~consistid.mujoco_robot.MujocoRobot`).
+    max_tracking_error : warn (:class:`~consistid.errors.TrackingWarning`) when some joint's
+        ``max |true_q − desired_q|`` over the log exceeds this (rad / m; default
+        :data:`MAX_TRACKING_ERROR`); ``inf`` never warns.
     progress : called with the fraction of physics steps done.
 
     Returns
@@ -223,7 +263,8 @@ def record(model: RobotModel, trajectory: Trajectory, effects: Effects | None = 
     Raises
     ------
     ModelError : bad rates, a delay longer than ``settle``, effects that do not fit the model,
-        or a ``tanh`` friction too stiff for the physics step.
+        a ``tanh`` friction too stiff for the physics step, a diverging simulation, or a
+        non-periodic trajectory that does not start at rest with ``settle > 0``.
     """
     from .mujoco_robot import MujocoRobot  # MuJoCo is imported only when simulating
 
@@ -235,6 +276,8 @@ def record(model: RobotModel, trajectory: Trajectory, effects: Effects | None = 
     if not (rate > 0 and physics_rate > 0 and duration > 0 and settle >= 0):
         raise ModelError(f"rate = {rate}, physics_rate = {physics_rate}, duration = {duration} "
                          f"and settle = {settle} must be positive (settle ≥ 0)")
+    if not max_tracking_error > 0:
+        raise ModelError(f"max_tracking_error = {max_tracking_error}; it must be positive")
     ratio = physics_rate / rate
     if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
         raise ModelError(f"physics_rate / rate = {physics_rate} / {rate} must be a positive "
@@ -245,25 +288,31 @@ def record(model: RobotModel, trajectory: Trajectory, effects: Effects | None = 
     if np.max(eff.delay) > settle:
         raise ModelError(f"effects.delay up to {np.max(eff.delay)} s needs settle ≥ that; "
                          f"settle = {settle} s")
-    h = 1.0 / physics_rate
     every = int(round(ratio))
-    n_settle = int(np.ceil(settle / h - 1e-9))
+    n_settle = int(np.ceil(settle * physics_rate - 1e-9))
     n_log = int(round(duration * rate))
     steps = n_settle + (n_log - 1) * every + 1
-    t0 = -n_settle * h
-    desired = trajectory.evaluate(t0 + np.arange(steps) * h)
-    trace = robot.run(controller.gains, model, t0, desired, every, n_settle, progress)
+    t_fine = (np.arange(steps) - n_settle) / physics_rate        # t = 0 at the first log
+    desired = _desired(trajectory, t_fine)
+    trace = robot.run(controller.gains, model, t_fine, desired, every, n_settle, progress)
     rng = np.random.default_rng(seed)
-    t = np.arange(n_log) / rate  # = trace.t up to rounding
-    q_meas = measure_position(trace.sensed_q, eff, rng)
-    tau_true = trace.tau_fine[n_settle::every]
-    tau_meas = measure_torque(t, trace.t_fine, trace.tau_fine, eff, rng)
-    payload = eff.payload.parameters(model) if eff.payload is not None else (None, None)
+    desired_q = desired[0][n_settle::every]
+    tracking = np.max(np.abs(trace.q - desired_q), axis=0)
+    worst = int(np.argmax(tracking))
+    if not tracking[worst] <= max_tracking_error:
+        warnings.warn(f"{model.name} did not follow the trajectory: tracking error "
+                      f"{tracking[worst]:.3g} on {model.joint_names[worst]!r} exceeds "
+                      f"max_tracking_error = {max_tracking_error:g} (a controller too soft "
+                      "for the effects, or an unstable simulation); the log is not the "
+                      "intended motion", TrackingWarning, stacklevel=2)
+    payload = robot.payload or (None, None)
     return Recording(
-        t=t, q=q_meas, tau=tau_meas, true_q=trace.q, true_dq=trace.dq,
-        true_ddq=trace.ddq, true_tau=tau_true, motor_q=trace.motor_q,
-        motor_dq=trace.motor_dq, control=trace.control, desired_q=desired[0][n_settle::every],
-        effects=eff, true_parameters=robot.model.prior_parameters,
+        t=trace.t, q=measure_position(trace.sensed_q, eff, rng),
+        tau=measure_torque(trace.t, trace.t_fine, trace.tau_fine, eff, rng),
+        true_q=trace.q, true_dq=trace.dq, true_ddq=trace.ddq,
+        true_tau=trace.tau_fine[n_settle::every], motor_q=trace.motor_q,
+        motor_dq=trace.motor_dq, control=trace.control, desired_q=desired_q,
+        tracking_error=tracking, effects=eff, true_parameters=robot.model.prior_parameters,
         payload_parameters=payload[1], payload_joint=payload[0],
         joint_names=tuple(model.joint_names), rate=float(rate),
         physics_rate=float(physics_rate), controller=controller, trajectory=trajectory)

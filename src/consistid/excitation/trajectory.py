@@ -436,6 +436,11 @@ class Trajectory:
     def nv(self) -> int:
         return self.parameterisation.nv
 
+    @property
+    def periodic(self) -> bool:
+        """End state = start state: the trajectory repeats beyond ``duration`` (and before 0)."""
+        return self.parameterisation.periodic
+
     def evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(q, dq, ddq)`` at times ``t`` (s), each (len(t), nv)."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
@@ -521,6 +526,11 @@ class FourierTrajectory:
     @property
     def harmonics(self) -> int:
         return int(self.a.shape[1])
+
+    @property
+    def periodic(self) -> bool:
+        """Always: a Fourier series repeats with its period."""
+        return True
 
     def evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(q, dq, ddq)`` at times ``t`` (s), each (len(t), nv)."""
