@@ -6,10 +6,12 @@ import cvxpy as cp
 import numpy as np
 import pinocchio as pin
 import pytest
+import scipy.linalg
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from consistid import constraints as cons
+from consistid.errors import InconsistentParametersError
 from consistid.parameters import (from_mass_com_inertia, from_pseudo_inertia,
                                   pseudo_inertia)
 
@@ -46,18 +48,42 @@ def test_matrices_match_their_definitions(values):
 
 @pytest.mark.parametrize("seed", range(4))
 def test_scaled_lmis_are_the_same_sets(seed):
-    """``L⁻¹JL⁻ᵀ ⪰ eps L⁻¹L⁻ᵀ`` and the D-scaled 6×6 LMI hold exactly when the raw ones do."""
+    """``L⁻¹JL⁻ᵀ ⪰ L⁻¹EL⁻ᵀ`` and the D-scaled 6×6 LMI hold exactly when the raw ones do, for
+    a scalar bound ``eps·1`` and for a matrix bound (the relative margin)."""
     ref = body(seed)
     scaling = cons.BodyScaling.from_reference(ref)
-    for candidate in (body(seed + 10), body(seed + 20, triangle_excess=0.5)):
-        for builder in (cons.pseudo_inertia_lmi, cons.mass_inertia_lmi):
+    for candidate in (body(seed + 10), body(seed + 20, triangle_excess=0.5), 0.5 * ref):
+        for builder, level in ((cons.pseudo_inertia_lmi, "pseudo-inertia"),
+                               (cons.mass_inertia_lmi, "mass-inertia")):
+            for eps in (1e-6, cons.relative_bound(ref, level, 0.6)):
+                x = cp.Variable(10)
+                x.value = candidate
+                raw = builder(x, eps)[0]
+                scaled = builder(x, eps, scaling)[0]
+                lam_raw = np.linalg.eigvalsh(raw.expr.value)[0]
+                lam_scaled = np.linalg.eigvalsh(scaled.expr.value)[0]
+                assert np.sign(lam_raw) == np.sign(lam_scaled)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_relative_bound_is_a_margin_relative_to_the_reference(seed):
+    """``J ⪰ margin·J_ref`` ⟺ every generalised eigenvalue of ``(J, J_ref)`` is ≥ margin; in the
+    reference's scaled form the bound is ``margin·1``. Likewise for the 6×6 matrix."""
+    ref, other = body(seed), body(seed + 30)
+    scaling = cons.BodyScaling.from_reference(ref)
+    bound = cons.relative_bound(ref, "pseudo-inertia", 0.3)
+    np.testing.assert_allclose(bound, 0.3 * pseudo_inertia(ref))
+    np.testing.assert_allclose(scaling.pseudo_inertia_eps(bound), 0.3 * np.eye(4), atol=1e-12)
+    for level, matrix in (("pseudo-inertia", pseudo_inertia),
+                          ("mass-inertia", lambda p: value(cons.mass_inertia_matrix, p))):
+        lowest = scipy.linalg.eigh(matrix(other), matrix(ref), eigvals_only=True)[0]
+        for margin in (0.9 * lowest, 1.1 * lowest):
             x = cp.Variable(10)
-            x.value = candidate
-            raw = builder(x, 1e-6)[0]
-            scaled = builder(x, 1e-6, scaling)[0]
-            lam_raw = np.linalg.eigvalsh(raw.expr.value)[0]
-            lam_scaled = np.linalg.eigvalsh(scaled.expr.value)[0]
-            assert np.sign(lam_raw) == np.sign(lam_scaled)
+            x.value = other
+            (con,) = cons.body_constraints(x, level, cons.relative_bound(ref, level, margin),
+                                           scaling=scaling)
+            assert (np.linalg.eigvalsh(con.expr.value)[0] >= 0) == (margin < lowest)
+    assert cons.relative_bound(ref, "none", 0.3) == 0.0
 
 
 def test_parameter_map_normalises_the_reference():
@@ -69,7 +95,7 @@ def test_parameter_map_normalises_the_reference():
     l_mat = np.linalg.inv(scaling.l_inv)
     np.testing.assert_allclose(pseudo_inertia(t @ y), l_mat @ pseudo_inertia(y) @ l_mat.T,
                                atol=1e-12)
-    with pytest.raises(ValueError, match="not positive definite"):
+    with pytest.raises(InconsistentParametersError, match="not positive definite"):
         cons.BodyScaling.from_reference(body(3, triangle_excess=0.5))
 
 

@@ -9,6 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from consistid import priors
+from consistid.errors import InconsistentParametersError, OptionError
 from consistid.parameters import from_mass_com_inertia, pseudo_inertia
 
 SETTINGS = settings(max_examples=25, deadline=None)
@@ -36,6 +37,8 @@ def test_logdet_divergence_expression_matches_definition(seed):
     x.value = p
     expected = divergence(pseudo_inertia(p), pseudo_inertia(p0))
     assert priors.logdet_divergence(x, p0).value == pytest.approx(expected, rel=1e-9, abs=1e-9)
+    raw = priors.logdet_divergence(x, p0, normalised=False).value
+    assert raw == pytest.approx(expected, rel=1e-9, abs=1e-9)
     assert priors.logdet_divergence_value(p, p0) == pytest.approx(expected, rel=1e-9, abs=1e-9)
     assert priors.logdet_divergence_value(p0, p0) == pytest.approx(0.0, abs=1e-9)
 
@@ -67,5 +70,16 @@ def test_neighbourhood_bounds_hold_when_minimising_against_them():
     assert abs(v[0] / p0[0] - 1) == pytest.approx(0.1, abs=1e-6)
     c, c0 = v[1:4] / v[0], p0[1:4] / p0[0]
     assert np.linalg.norm(c - c0) <= 0.02 + 1e-6
-    with pytest.raises(ValueError, match="Neighbourhood.com"):
+    # inertia about the body origin, by its definition from the 10-vector (not the library's)
+    def inertia(p):
+        return np.array([[p[4], p[5], p[7]], [p[5], p[6], p[8]], [p[7], p[8], p[9]]])
+
+    i0 = inertia(p0)
+    assert np.linalg.norm(inertia(v) - i0) <= (0.2 + 1e-6) * np.linalg.norm(i0)
+    # the far body is outside each bound, so the optimum presses against every one of them
+    assert np.linalg.norm(inertia(far) - i0) > 0.2 * np.linalg.norm(i0)
+    assert np.linalg.norm(inertia(v) - i0) == pytest.approx(0.2 * np.linalg.norm(i0), rel=1e-5)
+    with pytest.raises(OptionError, match="Neighbourhood.com"):
         priors.Neighbourhood(com=-1.0)
+    with pytest.raises(InconsistentParametersError, match="positive mass"):
+        priors.neighbourhood_constraints(x, np.zeros(10), bounds)

@@ -12,6 +12,7 @@ import warnings
 
 import numpy as np
 import pytest
+import scipy.linalg
 
 import consistid as ci
 from consistid.base import compute_base_parameters
@@ -192,6 +193,22 @@ def test_levels_hold_on_the_answer(panda, sets):
                                                  "panda_link3=pseudo-inertia")
     fr = ci.identify(panda, sets["train"], method="sdp", friction=FRICTION)
     assert np.all(fr.parameters[panda.n_inertial:] >= 0)  # Coulomb and viscous ≥ 0
+
+
+def test_margin_is_relative_to_the_prior_body(panda, sets):
+    """``margin`` means ``J ⪰ margin·J₀`` (as in recover_standard): every generalised eigenvalue
+    of ``(J, J₀)`` is ≥ margin, and bodies the weak prior lets go sit on that bound."""
+    margin = 0.05
+    res = ci.identify(panda, sets["poor"], method="sdp", friction=None, prior="euclidean",
+                      prior_weight=1e-4 * default_prior_weight(), margin=margin)
+    prior = panda.prior_parameters
+    lowest = np.array([scipy.linalg.eigh(j_matrix(res.parameters[10 * i:10 * i + 10]),
+                                         j_matrix(prior[10 * i:10 * i + 10]),
+                                         eigvals_only=True)[0] for i in range(panda.n_bodies)])
+    assert np.all(lowest >= margin * (1 - 1e-5))
+    assert np.any(lowest <= margin * (1 + 1e-4))
+    np.testing.assert_allclose(list(res.details["relative_margins"].values()), lowest,
+                               rtol=1e-6)
 
 
 def test_bounds_are_enforced_and_reported_active(panda, truth, sets):

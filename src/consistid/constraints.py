@@ -2,7 +2,9 @@ r"""cvxpy constraint builders for physical consistency of one body's standard pa
 
 Each builder takes a cvxpy expression ``x`` of shape (10,) in Pinocchio order
 ``[m, hx, hy, hz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz]`` (``h = m c``, inertia about the body origin)
-and returns a plain list of constraints for the caller to combine.
+and returns a plain list of constraints for the caller to combine. An LMI's lower bound ``eps``
+is a number (``⪰ eps·1``) or a matrix ``E`` (``⪰ E``); :func:`relative_bound` gives the bound
+``margin × (the reference body's matrix)`` that the SDP and recovery use as their margin.
 
 Pseudo-inertia (Wensing, Kim, Slotine 2017, RA-L 3(1), doi:10.1109/LRA.2017.2729659, eq. 7):
 
@@ -33,7 +35,7 @@ from typing import Sequence
 import cvxpy as cp
 import numpy as np
 
-from .errors import OptionError, check_option
+from .errors import InconsistentParametersError, OptionError, check_option
 from .parameters import inertia_about_origin, pseudo_inertia_map
 from .parameters import pseudo_inertia as pseudo_inertia_numeric
 
@@ -99,8 +101,9 @@ class BodyScaling:
         try:
             chol = np.linalg.cholesky(j_ref)
         except np.linalg.LinAlgError as exc:
-            raise ValueError("the reference body's pseudo-inertia is not positive definite "
-                             f"(min eigenvalue {np.linalg.eigvalsh(j_ref)[0]:.3g})") from exc
+            raise InconsistentParametersError(
+                "the reference body's pseudo-inertia is not positive definite (min eigenvalue "
+                f"{np.linalg.eigvalsh(j_ref)[0]:.3g})") from exc
         i_bar = np.trace(inertia_about_origin(reference)) / 3.0
         d = np.concatenate([np.full(3, i_bar ** -0.5), np.full(3, reference[0] ** -0.5)])
         return cls(np.linalg.inv(chol), d)
@@ -109,8 +112,10 @@ class BodyScaling:
         """``L⁻¹ J(x) L⁻ᵀ``."""
         return self.l_inv @ pseudo_inertia(x) @ self.l_inv.T
 
-    def pseudo_inertia_eps(self, eps: float) -> np.ndarray:
-        return eps * self.l_inv @ self.l_inv.T
+    def pseudo_inertia_eps(self, eps: float | np.ndarray) -> np.ndarray:
+        """The bound ``eps·1`` (or ``E``) of ``J`` in scaled form: ``L⁻¹ (eps·1 | E) L⁻ᵀ``."""
+        bound = eps * np.eye(4) if np.ndim(eps) == 0 else np.asarray(eps, dtype=float)
+        return self.l_inv @ bound @ self.l_inv.T
 
     def parameter_map(self) -> np.ndarray:
         """The (10, 10) ``T`` with ``J(T y) = L J(y) Lᵀ``: normalised → standard parameters
@@ -123,9 +128,10 @@ class BodyScaling:
 _NO_SCALING = BodyScaling(np.eye(4), np.ones(6))
 
 
-def pseudo_inertia_lmi(x: cp.Expression, eps: float = 0.0,
+def pseudo_inertia_lmi(x: cp.Expression, eps: float | np.ndarray = 0.0,
                        scaling: BodyScaling | None = None) -> list[cp.Constraint]:
-    """``J(x) ⪰ eps·1``: density realizability (also covers ``"triangle"``).
+    """``J(x) ⪰ eps·1`` (or ``⪰ E``, a 4×4 ``eps``): density realizability (also covers
+    ``"triangle"``).
 
     ``scaling`` (from a reference body) imposes the same set in a well-scaled form.
     """
@@ -133,11 +139,31 @@ def pseudo_inertia_lmi(x: cp.Expression, eps: float = 0.0,
     return [sc.pseudo_inertia(x) >> sc.pseudo_inertia_eps(eps)]
 
 
-def mass_inertia_lmi(x: cp.Expression, eps: float = 0.0,
+def mass_inertia_lmi(x: cp.Expression, eps: float | np.ndarray = 0.0,
                      scaling: BodyScaling | None = None) -> list[cp.Constraint]:
-    """``[[I, S(h)ᵀ], [S(h), m·1]] ⪰ eps·1``: positive mass and ``I_c ⪰ 0``."""
+    """``[[I, S(h)ᵀ], [S(h), m·1]] ⪰ eps·1`` (or ``⪰ E``, a 6×6 ``eps``): positive mass and
+    ``I_c ⪰ 0``. Scaled: ``D M D ⪰ D (eps·1 | E) D``."""
     d = (scaling or _NO_SCALING).d
-    return [cp.multiply(np.outer(d, d), mass_inertia_matrix(x)) >> eps * np.diag(d ** 2)]
+    bound = eps * np.eye(6) if np.ndim(eps) == 0 else np.asarray(eps, dtype=float)
+    return [cp.multiply(np.outer(d, d), mass_inertia_matrix(x)) >> np.outer(d, d) * bound]
+
+
+def relative_bound(reference: np.ndarray, level: str, margin: float) -> np.ndarray | float:
+    """``margin`` times the reference body's matrix of ``level``: ``margin·J(ref)`` (4×4) for
+    the pseudo-inertia levels, ``margin·M(ref)`` (6×6) for ``"mass-inertia"``, 0 for ``"none"``.
+
+    As the ``eps`` of :func:`body_constraints` it reads "the body's matrix ⪰ ``margin`` × the
+    reference's": a margin relative to the reference in every direction, independent of units
+    and of how flat the reference is; in the scaled form of a :class:`BodyScaling` built from
+    the same reference, the pseudo-inertia bound is exactly ``margin·1``.
+    """
+    check_option("constraints", level, LEVELS)
+    reference = np.asarray(reference, dtype=float)
+    if level == "none":
+        return 0.0
+    if level == "mass-inertia":
+        return margin * (_MASS_INERTIA_MAP @ reference).reshape(6, 6, order="F")
+    return margin * pseudo_inertia_numeric(reference)
 
 
 @dataclass(frozen=True)
@@ -164,9 +190,10 @@ class Ellipsoid:
         return bool(d @ np.linalg.solve(self.shape, d) <= 1.0 + 1e-12)
 
 
-def ellipsoid_lmi(x: cp.Expression, ellipsoid: Ellipsoid, eps: float = 0.0,
+def ellipsoid_lmi(x: cp.Expression, ellipsoid: Ellipsoid, eps: float | np.ndarray = 0.0,
                   scaling: BodyScaling | None = None) -> list[cp.Constraint]:
-    """``J ⪰ eps·1`` and ``tr(J Q) ≥ 0``: a density supported in the ellipsoid exists.
+    """``J ⪰ eps·1`` (or ``⪰ E``) and ``tr(J Q) ≥ 0``: a density supported in the ellipsoid
+    exists.
 
     With ``scaling``, ``tr(J Q) = tr(Ĵ Q̂)`` for ``Ĵ = L⁻¹JL⁻ᵀ``, ``Q̂ = LᵀQL`` (normalised).
     """
@@ -195,10 +222,11 @@ def mass_bounds(x: cp.Expression, lower: float | None = None, upper: float | Non
     return out
 
 
-def body_constraints(x: cp.Expression, level: str, eps: float = 0.0,
+def body_constraints(x: cp.Expression, level: str, eps: float | np.ndarray = 0.0,
                      ellipsoid: Ellipsoid | None = None,
                      scaling: BodyScaling | None = None) -> list[cp.Constraint]:
-    """The constraints of one consistency level (see :data:`LEVELS`).
+    """The constraints of one consistency level (see :data:`LEVELS`); ``eps`` is the LMI's
+    lower bound (a number, or the level's matrix, e.g. from :func:`relative_bound`).
 
     ``"triangle"`` and ``"pseudo-inertia"`` give the same LMI: for one body, ``J ⪰ 0`` is
     exactly ``m ≥ 0`` plus the triangle inequalities of ``I_c`` (module docstring).

@@ -18,6 +18,8 @@ import cvxpy as cp
 import numpy as np
 
 from .constraints import BodyScaling, inertia_matrix
+from .constraints import pseudo_inertia as pseudo_inertia_expression
+from .errors import InconsistentParametersError, OptionError
 from .parameters import inertia_about_origin, pseudo_inertia_map
 from .parameters import pseudo_inertia as pseudo_inertia_numeric
 
@@ -26,20 +28,27 @@ def _check_prior_body(prior: np.ndarray) -> np.ndarray:
     j0 = pseudo_inertia_numeric(prior)
     eig = np.linalg.eigvalsh(j0)
     if eig[0] <= 0:
-        raise ValueError(f"the prior pseudo-inertia is not positive definite (min eigenvalue "
-                         f"{eig[0]:.3g}); the log-det prior needs a realizable prior body")
+        raise InconsistentParametersError(
+            f"the prior pseudo-inertia is not positive definite (min eigenvalue {eig[0]:.3g}); "
+            "the log-det prior needs a realizable prior body")
     return j0
 
 
-def logdet_divergence(x: cp.Expression, prior: np.ndarray) -> cp.Expression:
+def logdet_divergence(x: cp.Expression, prior: np.ndarray, normalised: bool = True
+                      ) -> cp.Expression:
     r"""``d(J(x) ‖ J(prior))`` for one body; ``prior`` must have a positive definite ``J``.
 
     Built in the normalised form ``d = −log det Ĵ + tr Ĵ − 4`` with ``Ĵ = L⁻¹ J L⁻ᵀ``,
     ``J₀ = L Lᵀ`` (identical value, since ``log det J₀ = 2 log det L`` and
     ``tr(J₀⁻¹J) = tr Ĵ``), so that the cone the solver sees is ``1`` at the prior whatever the
-    body's size and units.
+    body's size and units. ``normalised=False`` builds the defining form on the raw ``J``
+    instead (same value; it exists to measure what the normalisation buys, ``sdp`` with
+    ``scale=False``).
     """
-    _check_prior_body(prior)
+    j0 = _check_prior_body(prior)
+    if not normalised:
+        return (-cp.log_det(pseudo_inertia_expression(x)) + float(np.linalg.slogdet(j0)[1])
+                + cp.trace(np.linalg.inv(j0) @ pseudo_inertia_expression(x)) - 4.0)
     j_hat = BodyScaling.from_reference(np.asarray(prior, dtype=float)).pseudo_inertia(x)
     return -cp.log_det(j_hat) + cp.trace(j_hat) - 4.0
 
@@ -100,7 +109,7 @@ class Neighbourhood:
         for name in ("mass", "com", "inertia"):
             value = getattr(self, name)
             if value is not None and not (np.isfinite(value) and value >= 0):
-                raise ValueError(f"Neighbourhood.{name} must be a finite number ≥ 0, got {value}")
+                raise OptionError(f"Neighbourhood.{name} must be a finite number ≥ 0, got {value}")
 
 
 def neighbourhood_constraints(x: cp.Expression, prior: np.ndarray,
@@ -109,7 +118,8 @@ def neighbourhood_constraints(x: cp.Expression, prior: np.ndarray,
     prior = np.asarray(prior, dtype=float)
     m0 = prior[0]
     if not m0 > 0:
-        raise ValueError(f"neighbourhood bounds need a prior body with positive mass, got {m0}")
+        raise InconsistentParametersError(
+            f"neighbourhood bounds need a prior body with positive mass, got {m0}")
     out = []
     if bounds.mass is not None:
         out.append(cp.abs(x[0] / m0 - 1.0) <= bounds.mass)

@@ -9,7 +9,8 @@ Park 2019, "Geometric robot dynamic identification: a convex programming approac
 .. math::
 
     \min_\theta \; \|\Sigma^{-1/2}(Y\theta - \tau)\|^2 + \gamma \sum_i d(J_i(\theta) \,\|\, J_i(\pi_0))
-    \quad\text{s.t.}\quad J_i(\theta) \succeq \varepsilon_i 1 \;(\text{or body } i\text{'s level}),
+    \quad\text{s.t.}\quad J_i(\theta) \succeq \epsilon\, J_{\text{ref},i}
+    \;(\text{or body } i\text{'s level}),
     \quad f_c, f_v, I_a \ge 0,
 
 * **Fisher weighting**: ``Σ = diag(σ_j²)`` per joint, from an OLS pass
@@ -100,7 +101,7 @@ class _Setup:
     levels: tuple[str, ...]
     references: np.ndarray          # (10·nb,) realisable reference bodies (= prior if realisable)
     scalings: tuple[cons.BodyScaling, ...]
-    eps: np.ndarray                 # (nb,) absolute LMI margins
+    bounds: tuple[np.ndarray | float, ...]  # per body: LMI lower bound, margin × J_ref (M_ref)
     ellipsoids: tuple[cons.Ellipsoid | None, ...]
     nonnegative: np.ndarray         # (p,) bool
     euclid_w: np.ndarray | None     # (p_inertial, p_inertial) Euclidean prior weights
@@ -155,8 +156,12 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
     mass_bounds : ``{body: (lower, upper)}`` in kg (``None`` for no bound).
     total_mass : ``(lower, upper)`` bounds on the sum of the body masses (kg).
     friction_nonnegative : constrain Coulomb, viscous friction and armature to be ``≥ 0``.
-    margin : ``J_i ⪰ margin·λ_min(J_ref,i)·1`` for LMI levels (``J_ref`` the prior body), so that
-        answers are strictly realisable despite the solver's tolerance.
+    margin : ``J_i ⪰ margin·J_ref,i`` for the pseudo-inertia levels (``M_i ⪰ margin·M_ref,i``,
+        the 6×6 matrix, for ``"mass-inertia"``), ``J_ref`` the prior body (or its realisable
+        stand-in when the prior is not realisable): a margin relative to the prior in every
+        direction (:func:`consistid.constraints.relative_bound`), the definition
+        :func:`consistid.recover.recover_standard` uses, so that answers are strictly realisable
+        despite the solver's tolerance. ``details["relative_margins"]`` reports it.
     sigma : (nv,) per-joint torque-noise standard deviation; default from an OLS pass.
     reweight : re-weighting passes after the first solve: σ re-estimated from the SDP residuals
         (``loss="squared"``) or Huber weights and MAD scale updated (``loss="huber"``, which
@@ -378,8 +383,8 @@ def _make_setup(model: RobotModel, spec: RegressorSpec, prior_vec: np.ndarray,
     refs = np.concatenate([_reference(b, 1e-3 * max(lam_max, 1e-12)) for b in bodies])
     scalings = tuple(cons.BodyScaling.from_reference(refs[10 * i:10 * i + 10])
                      for i in range(nb))
-    eps = np.array([margin * np.linalg.eigvalsh(pseudo_inertia(refs[10 * i:10 * i + 10]))[0]
-                    for i in range(nb)])
+    bounds = tuple(cons.relative_bound(refs[10 * i:10 * i + 10], levels[i], margin)
+                   for i in range(nb))
     nonneg = np.zeros(prior_vec.size, dtype=bool)
     if friction_nonnegative:
         for c, (term, _, _) in enumerate(spec.columns):
@@ -398,9 +403,9 @@ def _make_setup(model: RobotModel, spec: RegressorSpec, prior_vec: np.ndarray,
                 raise OptionError(f"prior_weights must be finite, of shape ({p_in},) or "
                                   f"({p_in}, {p_in}), got {np.shape(prior_weights)}")
             euclid_w = w
-    return _Setup(levels, refs, scalings, eps, tuple(ellipsoids.get(b) for b in model.body_names),
-                  nonneg, euclid_w, prior, gamma, neighbourhood, dict(com_boxes or {}),
-                  dict(mass_bounds or {}), total_mass)
+    return _Setup(levels, refs, scalings, bounds,
+                  tuple(ellipsoids.get(b) for b in model.body_names), nonneg, euclid_w, prior,
+                  gamma, neighbourhood, dict(com_boxes or {}), dict(mass_bounds or {}), total_mass)
 
 
 # ------------------------------------------------------------------------------------ noise
@@ -535,15 +540,14 @@ def _build(model: RobotModel, spec: RegressorSpec, r: np.ndarray, z: np.ndarray,
     for i, body in enumerate(model.body_names):
         x = theta[10 * i:10 * i + 10]
         body_prior = prior_vec[10 * i:10 * i + 10]
-        for con in cons.body_constraints(x, setup.levels[i], float(setup.eps[i]),
+        for con in cons.body_constraints(x, setup.levels[i], setup.bounds[i],
                                          setup.ellipsoids[i],
                                          setup.scalings[i] if scale else None):
             level = "pseudo-inertia" if setup.levels[i] == "ellipsoid" else setup.levels[i]
             kind = f"{level} LMI" if isinstance(con, cp.constraints.PSD) else "bounding ellipsoid"
             labelled.append((con, (f"{body}: {kind}",)))
         if prior == "logdet":
-            prior_terms.append(priors.logdet_divergence(x, body_prior) if scale
-                               else _raw_logdet(x, body_prior))
+            prior_terms.append(priors.logdet_divergence(x, body_prior, normalised=scale))
         if neighbourhood is not None:
             kinds = [k for k in ("mass", "com", "inertia") if getattr(neighbourhood, k) is not None]
             labelled += [(con, (f"{body}: {k} neighbourhood",)) for con, k in zip(
@@ -656,14 +660,6 @@ def _solve(program: _Program, model: RobotModel, prior_vec: np.ndarray, solver: 
                 "bounds directions the data leave free; solver_options={'max_iter': ...} or "
                 "another solver may help")
         raise IdentificationError(f"{exc}. Hint: {hint}") from exc
-
-
-def _raw_logdet(x: cp.Expression, prior: np.ndarray) -> cp.Expression:
-    """The log-det divergence on the raw pseudo-inertia (``scale=False`` only)."""
-    j0 = pseudo_inertia(prior)
-    j = cons.pseudo_inertia(x)
-    return (-cp.log_det(j) + float(np.linalg.slogdet(j0)[1])
-            + cp.trace(np.linalg.inv(j0) @ j) - 4.0)
 
 
 # ------------------------------------------------------------------------------------ answer
