@@ -6,6 +6,7 @@ import pytest
 from consistid.cli import main
 from consistid.errors import OptionError
 from consistid.residual_demo import parse_effects, run
+from consistid.robot_effects import Effects
 
 
 def test_residual_is_explained_by_the_injected_effects():
@@ -27,6 +28,7 @@ def test_parse_effects(panda):
         parse_effects(["ripple=1"], panda)
 
 
+@pytest.mark.filterwarnings("ignore::consistid.errors.TrackingWarning")   # UR3's light wrist
 def test_cli_simulate_prints_and_plots(tmp_path, capsys):
     png = tmp_path / "residual.png"
     assert main(["simulate", "--robot", "ur3", "--duration", "1.5", "--plot", str(png)]) == 0
@@ -34,3 +36,22 @@ def test_cli_simulate_prints_and_plots(tmp_path, capsys):
     assert "no-effect floor" in out and "wrist_3_joint" in out
     assert png.stat().st_size > 10_000
     assert main(["simulate", "--effect", "bogus=1"]) == 2
+
+
+def test_torque_noise_is_overridden_only_when_given(tmp_path):
+    effects = Effects(viscous=0.5, torque_noise=0.2)
+    demo = run("ur3", effects, duration=1.5)
+    np.testing.assert_allclose(demo.recording.effects.torque_noise, 0.2)     # kept
+    noise = demo.recording.tau - demo.recording.true_tau
+    assert np.std(noise) == pytest.approx(0.2, rel=0.1)
+    demo = run("ur3", effects, duration=1.5, torque_noise=0.01)
+    np.testing.assert_allclose(demo.recording.effects.torque_noise, 0.01)    # replaced
+    # the plot leaves matplotlib's global state alone: no backend switch, no pyplot figure
+    import matplotlib
+    before = matplotlib.get_backend()
+    matplotlib.use("pdf")
+    try:
+        assert demo.plot(tmp_path / "r.png").stat().st_size > 10_000
+        assert matplotlib.get_backend() == "pdf"
+    finally:
+        matplotlib.use(before)

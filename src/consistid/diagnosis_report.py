@@ -109,10 +109,7 @@ def diagnosis_text(diag: "Diagnosis") -> str:
 
 # --------------------------------------------------------------------------------- plots
 def _figures(diag: "Diagnosis") -> dict[str, object]:
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    from matplotlib.figure import Figure
+    from matplotlib.figure import Figure     # no pyplot, no backend switch: no global state
 
     w, names = diag.where, diag.joint_names
     nv = len(names)

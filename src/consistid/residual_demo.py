@@ -113,14 +113,12 @@ class ResidualDemo:
 
     def plot(self, path: str | Path) -> Path:
         """Residual against time and against velocity, one column per joint, to a PNG."""
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        from matplotlib.figure import Figure     # no pyplot, no backend switch: no global state
 
         path = Path(path)
         nv = self.model.nv
-        fig, axes = plt.subplots(2, nv, figsize=(2.4 * nv, 5.0), squeeze=False)
+        fig = Figure(figsize=(2.4 * nv, 5.0))
+        axes = fig.subplots(2, nv, squeeze=False)
         d = self.dataset
         for j in range(nv):
             top, bottom = axes[0, j], axes[1, j]
@@ -139,19 +137,23 @@ class ResidualDemo:
                      f"{', '.join(self.recording.effects.active())}", fontsize=9)
         fig.tight_layout()
         fig.savefig(path, dpi=120)
-        plt.close(fig)
         return path
 
 
 def run(robot: str | RobotModel = "panda", effects: Effects | Sequence[str] = DEFAULT_EFFECTS,
-        duration: float = 20.0, torque_noise: float = 0.05, seed: int = 0,
+        duration: float = 20.0, torque_noise: float | None = None, seed: int = 0,
         progress: Callable[[str], None] | None = None) -> ResidualDemo:
-    """Record ``robot`` with ``effects`` (plus ``torque_noise``), and without them, along one
-    random Fourier excitation (5 harmonics, period 10 s), at 1 kHz; see the module notes."""
+    """Record ``robot`` with ``effects``, and without them, along one random Fourier
+    excitation (5 harmonics, period 10 s), at 1 kHz; see the module notes.
+
+    ``torque_noise`` (N·m), when given, replaces the torque noise of ``effects`` (which is
+    otherwise kept: an :class:`Effects` value's own, or a ``torque_noise=VALUE`` string's).
+    """
     model = robot if isinstance(robot, RobotModel) else RobotModel.example(robot)
     if not isinstance(effects, Effects):
         effects = parse_effects(effects, model)
-    effects = replace(effects, torque_noise=torque_noise)
+    if torque_noise is not None:
+        effects = replace(effects, torque_noise=torque_noise)
     sensors = Effects(**{EFFECT_FIELDS[n]: getattr(effects, EFFECT_FIELDS[n])
                          for n in SENSOR_ONLY})
     trajectory = FourierTrajectory.random(model, 5, 10.0, seed=seed)
