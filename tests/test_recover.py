@@ -1,11 +1,13 @@
 """Base → consistent standard recovery: exact reproduction, nearest mode, diagnostics, statuses."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 import consistid as ci
 from consistid.cli import main
-from consistid.errors import (InfeasibleError, ModelError, OptionError,
+from consistid.errors import (InfeasibleError, JointCountError, ModelError, OptionError,
                               UnrealizableCoefficientsError)
 from consistid.identify import nearest_standard
 from consistid.parameters import from_mass_com_inertia, is_physically_consistent, perturb
@@ -17,6 +19,7 @@ from .conftest import random_states
 
 @pytest.fixture(scope="module")
 def setup(panda):
+    """Rigid-body coefficients (``friction=None`` below: the default is identify's friction)."""
     base = ci.compute_base_parameters(panda)
     truth = perturb(panda.prior_parameters, 0.2, np.random.default_rng(1))
     return base, truth
@@ -35,7 +38,7 @@ def noisy_ols(panda, setup):
 def test_exact_reproduces_truth_coefficients(panda, setup, prior):
     base, truth = setup
     beta = base.project(truth)
-    rec = recover_standard(panda, beta, prior=prior)
+    rec = recover_standard(panda, beta, prior=prior, friction=None)
     assert [s.status for s in rec.solver] == ["optimal"]
     assert np.max(np.abs(rec.residual) / np.maximum(np.abs(beta), 1.0)) < 1e-6
     assert rec.check(tol=1e-6).ok
@@ -58,7 +61,7 @@ def test_bodies_with_vanishing_columns_are_constrained(panda, setup):
     beta = base.project(rod)
     naive = nearest_standard(base, beta, panda.prior_parameters)   # ignores consistency
     assert not is_physically_consistent(naive, body_names=panda.body_names).bodies[0].ok
-    rec = recover_standard(panda, beta, prior="euclidean")
+    rec = recover_standard(panda, beta, prior="euclidean", friction=None)
     assert rec.consistency.bodies[0].ok and np.all(rec.margins > 0)
     assert np.max(np.abs(rec.residual)) < 1e-6
 
@@ -96,10 +99,29 @@ def test_infeasibility_names_the_unrealisable_coefficient(panda, setup):
     k = base.groupings.index("panda_link7.Izz")
     beta[k] = -0.01
     with pytest.raises(UnrealizableCoefficientsError) as info:
-        recover_standard(panda, beta)
+        recover_standard(panda, beta, friction=None)
     moves = {m.index: m for m in info.value.moves}
     assert k in moves and moves[k].change >= 0.01 - 1e-6
     assert "panda_link7.Izz" in str(info.value)
+
+
+def test_sdp_result_with_unexcited_directions(planar_2r):
+    """Static data leave the Izz groupings unexcited: the SDP's covariance gives them infinite
+    variance. Recovery weights them with pseudo standard deviations (and says so) instead of
+    refusing a non-finite covariance."""
+    q, _, _ = random_states(planar_2r, 50, seed=2)
+    still = np.zeros_like(q)
+    data = ci.Dataset(t=0.1 * np.arange(50), q=q, dq=still, ddq=still,
+                      tau=planar_2r.rnea(q, still, still))
+    res = ci.identify(planar_2r, data, method="sdp", friction=None)
+    free = ~np.isfinite(np.diag(res.base_covariance))
+    assert free.any() and not free.all()
+    rec = recover_standard(planar_2r, res)
+    assert rec.details["pseudo_std"] == tuple(np.array(res.base.names)[free])
+    np.testing.assert_allclose(rec.std[free], 0.01 * np.abs(res.base_parameters[free]) + 1e-6)
+    np.testing.assert_allclose(rec.std[~free], res.base_std[~free])
+    assert rec.check(tol=1e-6).ok and rec.is_consistent
+    assert "undetermined (infinite variance: link1.Izz" in rec.summary()
 
 
 def test_friction_coefficients_are_recovered_and_kept_nonnegative(panda, setup):
@@ -114,23 +136,62 @@ def test_friction_coefficients_are_recovered_and_kept_nonnegative(panda, setup):
     friction = rec.parameters[panda.n_inertial:panda.n_inertial + 14]
     assert np.all(friction >= -1e-9)
     assert np.allclose(friction, theta[70:84], atol=0.05)
+    # the bare vector of identify's default spec needs no friction= (both default alike), and a
+    # friction= that describes the result's columns is accepted, another one refused
+    bare = recover_standard(panda, res.base_parameters, mode="nearest",
+                            covariance=res.base_covariance)
+    np.testing.assert_allclose(bare.parameters, rec.parameters, rtol=1e-6, atol=1e-9)
+    assert recover_standard(panda, res, mode="nearest", friction=fr).spec == res.spec
+    with pytest.raises(OptionError, match="other per-joint columns.*taken from the result"):
+        recover_standard(panda, res, friction=("coulomb",))
+    with pytest.raises(OptionError, match=r"\['armature'\]"):
+        recover_standard(panda, res, armature=True)
 
 
 def test_status_and_input_errors(panda, setup):
     base, truth = setup
     beta = base.project(truth)
+    kw = dict(friction=None)
     with pytest.raises(OptionError, match="solver='NOT_A_SOLVER'.*installed: .*CLARABEL"):
-        recover_standard(panda, beta, solver="NOT_A_SOLVER")
-    rec = recover_standard(panda, beta, solver="clarabel")     # names are case-insensitive
+        recover_standard(panda, beta, solver="NOT_A_SOLVER", **kw)
+    rec = recover_standard(panda, beta, solver="clarabel", **kw)  # names are case-insensitive
     assert rec.solver[0].name == "CLARABEL"
     with pytest.raises(InfeasibleError):              # J ⪰ 10·J₀ cannot match these masses
-        recover_standard(panda, beta, margin=10.0)
-    with pytest.raises(ModelError, match="43"):
-        recover_standard(panda, beta[:-1])
+        recover_standard(panda, beta, margin=10.0, **kw)
+    with pytest.raises(ModelError, match="42 base coefficients.*has 43"):
+        recover_standard(panda, beta[:-1], **kw)
     with pytest.raises(OptionError):
-        recover_standard(panda, beta, mode="closest")
+        recover_standard(panda, beta, mode="closest", **kw)
     with pytest.raises(OptionError, match="positive definite"):
-        recover_standard(panda, beta, covariance=-np.eye(beta.size))
+        recover_standard(panda, beta, covariance=-np.eye(beta.size), **kw)
+
+
+def test_is_consistent_means_what_consistency_says(panda, setup):
+    """One definition for both results: a body on the boundary (a point mass: J ⪰ 0 but I_c
+    singular) is not consistent, whatever the solver's round-off."""
+    base, truth = setup
+    rec = recover_standard(panda, base.project(truth), friction=None)
+    assert rec.is_consistent and rec.consistency.ok
+    point = rec.parameters.copy()
+    point[60:70] = from_mass_com_inertia(1.0, [0.0, 0.0, 0.1], np.zeros((3, 3)))
+    margins = rec.margins.copy()
+    margins[6] = np.linalg.eigvalsh(ci.parameters.pseudo_inertia(point[60:70]))[0]
+    assert margins[6] > -1e-12                       # ⪰ 0 to round-off
+    boundary = dataclasses.replace(rec, parameters=point, margins=margins)
+    assert not boundary.consistency.ok and not boundary.is_consistent
+    assert not boundary.check().ok
+    with pytest.raises(JointCountError):             # the dataset must match the model
+        q = np.zeros((3, 6))
+        rec.check(ci.Dataset(t=np.arange(3.0), q=q, dq=q, ddq=q, tau=q))
+
+
+def test_bare_coefficients_default_to_identify_s_columns(panda, setup):
+    """43 rigid-body coefficients under the default (identify's 64-coefficient friction spec):
+    the error names the settings that would match, not just the count."""
+    base, truth = setup
+    with pytest.raises(ModelError, match=r"43 base coefficients.*has 64.*friction=None, "
+                                         r"armature=False"):
+        recover_standard(panda, base.project(truth))
 
 
 def test_cli_recover_writes_a_consistent_urdf(panda, setup, tmp_path):
@@ -139,7 +200,8 @@ def test_cli_recover_writes_a_consistent_urdf(panda, setup, tmp_path):
     (tmp_path / "recover.toml").write_text(
         f'[model]\nurdf = "{panda.source}"\n'
         'locked_joints = ["panda_finger_joint1", "panda_finger_joint2"]\n'
-        '[recover]\ncoefficients = "beta.npz"\nprior = "euclidean"\nurdf = "out.urdf"\n')
+        '[recover]\ncoefficients = "beta.npz"\nfriction = []\nprior = "euclidean"\n'
+        'urdf = "out.urdf"\n')
     assert main(["recover", str(tmp_path / "recover.toml")]) == 0
     back = ci.RobotModel.from_urdf(tmp_path / "out.urdf", locked_joints=panda.locked_joints)
     assert np.max(np.abs(base.project(back.prior_parameters) - base.project(truth))) < 1e-6

@@ -14,8 +14,9 @@ positive semidefinite (Wensing, Kim, Slotine 2017, RA-L 3(1), doi:10.1109/LRA.20
     This is the problem Gaz, Flacco, De Luca ("Extracting feasible robot parameters from dynamic
     coefficients using nonlinear optimization methods", ICRA 2016, pp. 2075–2081) and Gaz et al.
     (Panda identification, RA-L 4(4), 2019, pp. 4147–4154) solve by nonlinear, penalty-based
-    search; here it is convex and solved globally by one SDP. **Every** body is constrained, including bodies some (or all) of
-    whose columns vanish from the regressor: their parameters are then set by the prior.
+    search; here it is convex and solved globally by one SDP. **Every** body is constrained,
+    including bodies some (or all) of whose columns vanish from the regressor: their parameters
+    are then set by the prior.
 
 ``mode="nearest"``
     when ``β̂`` itself is not realisable (noisy OLS), two convex stages:
@@ -57,18 +58,20 @@ import numpy as np
 
 from .base import BaseParameters, compute_base_parameters
 from .conic import DEFAULT_SOLVER, check_solver, solve
-from .constraints import BodyScaling
+from .constraints import BodyScaling, body_constraints, relative_bound
 from .dataset import Dataset
 from .errors import (IdentificationError, InconsistentParametersError, InfeasibleError,
                      ModelError, OptionError, UnrealizableCoefficientsError, check_option)
 from .model import RobotModel
 from .parameters import ConsistencyReport, is_physically_consistent, pseudo_inertia
 from .priors import euclidean, logdet_divergence, logdet_divergence_value
-from .regressor import (NONNEGATIVE_TERMS, FrictionArg, RegressorSpec, parameter_names,
-                        prior_vector, regressor)
+from .regressor import (FRICTION_TERMS, NONNEGATIVE_TERMS, FrictionArg, RegressorSpec,
+                        dataset_regressor, parameter_names, prior_vector, resolve_spec)
 from .result import IdentificationResult, SolverReport
 
 MODES = ("exact", "nearest")
+#: Unlike the SDP's (:data:`consistid.sdp.PRIORS`), no ``None``: the coefficients leave the null
+#: space of the base map free, and only a prior picks a point there.
 PRIORS = ("logdet", "euclidean")
 #: Without a covariance, coefficient ``i`` gets the pseudo standard deviation
 #: ``RELATIVE_STD·|β̂_i| + ABSOLUTE_STD`` (SI units of the coefficient).
@@ -214,21 +217,18 @@ class RecoveryResult:
 
     @cached_property
     def consistency(self) -> ConsistencyReport:
-        """Per-body verdict at the pseudo-inertia level (tolerance 0)."""
+        """Per-body verdict at the pseudo-inertia level
+        (:func:`consistid.parameters.is_physically_consistent`)."""
         return is_physically_consistent(self.inertial_parameters, "pseudo-inertia",
                                         self.model.body_names)
 
     @property
     def is_consistent(self) -> bool:
-        """Every body's pseudo-inertia ``⪰ 0`` (to ``1e-12`` relative to the body's largest
-        eigenvalue, the solver's floating-point floor)."""
-        return all(self.margins >= -1e-12 * self._scales)
-
-    @cached_property
-    def _scales(self) -> np.ndarray:
-        n = self.model.n_bodies
-        return np.array([np.abs(np.linalg.eigvalsh(pseudo_inertia(
-            self.parameters[10 * i:10 * i + 10]))).max() for i in range(n)])
+        """``consistency.ok``: the definition of
+        :attr:`IdentificationResult.is_consistent <consistid.result.IdentificationResult>`
+        (:func:`consistid.parameters.is_physically_consistent`, pseudo-inertia level, its
+        tolerance)."""
+        return self.consistency.ok
 
     def check(self, dataset: Dataset | None = None, tol: float = 1e-6) -> RecoveryCheck:
         """Compare ``B π`` with ``β̂`` and, given a dataset, ``Y π`` with ``W_b β̂``.
@@ -239,7 +239,7 @@ class RecoveryResult:
         scaled = float(np.max(res / np.maximum(np.abs(self.given), 1.0)))
         torque = None
         if dataset is not None:
-            y = regressor(self.model, dataset.q, dataset.dq, dataset.ddq, self.spec)
+            y = dataset_regressor(self.model, dataset, self.spec)
             diff = y @ self.parameters - self.base.base_columns(y) @ self.given
             torque = np.max(np.abs(diff.reshape(dataset.n_samples, self.model.nv)), axis=0)
         ok = self.is_consistent and (self.mode == "nearest" or scaled <= tol)
@@ -256,8 +256,9 @@ class RecoveryResult:
 
         return write_urdf(self.model, path, self.parameters, self.parameter_names, merged)
 
-    def summary(self, max_rows: int | None = 20) -> str:
-        """Solver, residual, per-body margins and (nearest mode) the moved coefficients."""
+    def summary(self, max_rows: int | None = None) -> str:
+        """Solver, residual, per-body margins and (nearest mode) the moved coefficients (at most
+        ``max_rows`` of them; ``None``: all, as :meth:`IdentificationResult.summary`)."""
         from .report import table
 
         lines = [f"consistid recovery of {self.model.name!r}: mode={self.mode}, "
@@ -279,6 +280,13 @@ class RecoveryResult:
             if len(shown) < len(self.moves):
                 lines.append(f"… {len(self.moves) - len(shown)} more")
         lines += ["", "Notes:", f"  - physical consistency: {self.consistency}"]
+        if self.details.get("pseudo_std"):
+            lines.append(f"  - the covariance leaves {len(self.details['pseudo_std'])} "
+                         f"coefficient(s) undetermined (infinite variance: "
+                         f"{', '.join(self.details['pseudo_std'][:6])}"
+                         f"{' …' if len(self.details['pseudo_std']) > 6 else ''}); they are "
+                         f"weighted with pseudo standard deviations {RELATIVE_STD:g}·|β| + "
+                         f"{ABSOLUTE_STD:g}")
         flat = _flat_bodies(self.model, self.prior_parameters)
         if flat:
             lines.append(f"  - nearly flat prior bodies {flat} (cond(J₀) > {FLAT_PRIOR:.0e}): a "
@@ -287,7 +295,7 @@ class RecoveryResult:
         return "\n".join(lines)
 
     def __str__(self) -> str:
-        return self.summary()
+        return self.summary(max_rows=20)
 
 
 def _shorten(text: str, width: int) -> str:
@@ -309,6 +317,7 @@ class _Problem:
     prior_kind: str
     margin: float
     joint_constraints: bool
+    undetermined: tuple[str, ...]  # coefficients weighted by pseudo std (infinite variance)
 
     @property
     def n_inertial(self) -> int:
@@ -321,10 +330,10 @@ class _Problem:
         objective: cp.Expression = cp.Constant(0.0)
         for i, body in enumerate(self.model.body_names):
             xi, pi = x[10 * i:10 * i + 10], self.prior[10 * i:10 * i + 10]
-            # J ⪰ margin·J₀ ⟺ L₀⁻¹ J L₀⁻ᵀ ⪰ margin·1: the scaled LMI of pseudo_inertia_lmi with a
-            # margin relative to the prior body rather than absolute.
-            constraints.append(BodyScaling.from_reference(pi).pseudo_inertia(xi)
-                               >> self.margin * np.eye(4))
+            # J ⪰ margin·J₀ (⟺ L₀⁻¹ J L₀⁻ᵀ ⪰ margin·1): the SDP's relative margin
+            constraints += body_constraints(xi, "pseudo-inertia",
+                                            relative_bound(pi, "pseudo-inertia", self.margin),
+                                            scaling=BodyScaling.from_reference(pi))
             objective = objective + (logdet_divergence(xi, pi) if self.prior_kind == "logdet"
                                      else euclidean(xi, pi, euclidean_weights(pi)))
         n_joint = self.base.n_standard - self.n_inertial
@@ -379,25 +388,63 @@ def _nonnegative_joint_columns(spec: RegressorSpec) -> np.ndarray:
                      if term in NONNEGATIVE_TERMS], dtype=int)
 
 
-def _weights(beta: np.ndarray, covariance: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-    """``(std, L)`` from a covariance (full or variances), else pseudo standard deviations."""
+def _weights(beta: np.ndarray, covariance: np.ndarray | None
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(std, L, undetermined)`` from a covariance (full or variances), else pseudo standard
+    deviations.
+
+    Coefficients with infinite variance (an SDP's covariance marks the directions its data do
+    not excite so, :func:`consistid.sdp.identify_sdp`) get the pseudo standard deviation and no
+    correlation; ``undetermined`` flags them.
+    """
     b = beta.size
+    pseudo = RELATIVE_STD * np.abs(beta) + ABSOLUTE_STD
     if covariance is None:
-        std = RELATIVE_STD * np.abs(beta) + ABSOLUTE_STD
-        return std, np.diag(1.0 / std)
-    cov = np.asarray(covariance, dtype=float)
+        return pseudo, np.diag(1.0 / pseudo), np.zeros(b, dtype=bool)
+    cov = np.array(covariance, dtype=float)
     if cov.shape == (b,):
         cov = np.diag(cov)
-    if cov.shape != (b, b) or not np.all(np.isfinite(cov)):
-        raise OptionError(f"covariance must be finite with shape ({b}, {b}) or ({b},), got "
+    if cov.shape != (b, b) or np.any(np.isnan(cov)):
+        raise OptionError(f"covariance must have shape ({b}, {b}) or ({b},) and no NaN, got "
                           f"{cov.shape}")
+    undetermined = np.isposinf(np.diag(cov))
+    if not np.all(np.isfinite(cov[np.ix_(~undetermined, ~undetermined)])):
+        raise OptionError("covariance has infinite entries outside the rows and columns of "
+                          "coefficients with infinite variance")
+    cov[undetermined, :] = 0.0
+    cov[:, undetermined] = 0.0
+    cov[undetermined, undetermined] = pseudo[undetermined] ** 2
     cov = 0.5 * (cov + cov.T)
     try:
         chol = np.linalg.cholesky(cov)
     except np.linalg.LinAlgError as exc:
         raise OptionError("covariance is not positive definite (min eigenvalue "
                           f"{np.linalg.eigvalsh(cov)[0]:.3g})") from exc
-    return np.sqrt(np.diag(cov)), np.linalg.inv(chol)
+    return np.sqrt(np.diag(cov)), np.linalg.inv(chol), undetermined
+
+
+def _matching_settings(model: RobotModel, n_base: int) -> str:
+    """Which common ``friction``/``armature`` settings give ``n_base`` base coefficients.
+
+    One base map with every per-joint column suffices: ``rank Y[:, S] = rank B[:, S]`` for any
+    column subset ``S`` (``Y = W_b B`` with ``W_b`` of full column rank).
+    """
+    full_spec = RegressorSpec.make(model, FRICTION_TERMS, True)
+    full = compute_base_parameters(model, full_spec)
+    index = {name: k for k, name in enumerate(parameter_names(model, full_spec))}
+    matches = []
+    for k in range(2 ** len(FRICTION_TERMS)):
+        terms = tuple(t for i, t in enumerate(FRICTION_TERMS) if k >> i & 1)
+        for armature in (False, True):
+            cols = [index[n] for n in parameter_names(model, RegressorSpec.make(model, terms,
+                                                                                armature))]
+            if np.linalg.matrix_rank(full.matrix[:, cols]) == n_base:
+                matches.append(f"friction={terms or None}, armature={armature}")
+    if not matches:
+        return ("No combination of per-joint terms gives that many: are these coefficients "
+                f"of {model.name!r}, in consistid's base map?")
+    return "Settings that give that many: " + "; ".join(matches[:4]) + (
+        " …" if len(matches) > 4 else "") + " (pass base= for another base map)"
 
 
 def _moves(problem: _Problem, recovered: np.ndarray, threshold: float
@@ -442,6 +489,8 @@ def _finish(problem: _Problem, mode: str, x: np.ndarray, reports: tuple[SolverRe
                 f"{low.min():.3g} despite the constraint ≥ 0")
         details["clipped_to_zero"] = int(np.sum(low < 0))
         x[keep] = np.maximum(low, 0.0)
+    if problem.undetermined:
+        details["pseudo_std"] = problem.undetermined
     margins, divergences = np.empty(model.n_bodies), np.empty(model.n_bodies)
     for i in range(model.n_bodies):
         xi, pi = x[10 * i:10 * i + 10], problem.prior[10 * i:10 * i + 10]
@@ -509,7 +558,8 @@ def recover_standard(model: RobotModel, base_params: np.ndarray | Identification
                      prior: str = "logdet", mode: str = "exact", *,
                      base: BaseParameters | None = None,
                      covariance: np.ndarray | None = None,
-                     friction: FrictionArg = None, armature: bool | Sequence[int | str] = False,
+                     friction: FrictionArg | str = "auto",
+                     armature: bool | Sequence[int | str] | str = "auto",
                      prior_parameters: np.ndarray | None = None, margin: float = 1e-6,
                      slack: float = 1.0, joint_constraints: bool = True,
                      solver: str = DEFAULT_SOLVER,
@@ -528,9 +578,13 @@ def recover_standard(model: RobotModel, base_params: np.ndarray | Identification
         ``compute_base_parameters(model, RegressorSpec.make(model, friction, armature))``.
         Coefficients from elsewhere must be expressed in this map (check ``base.groupings``).
     covariance : (b, b) or (b,) covariance of ``β̂``; default that of the result, else pseudo
-        standard deviations ``1 % |β̂| + 1e-6`` (see :data:`RELATIVE_STD`).
-    friction, armature : per-joint columns when ``base_params`` is an array (see
-        :meth:`RegressorSpec.make`); taken from the result otherwise.
+        standard deviations ``1 % |β̂| + 1e-6`` (see :data:`RELATIVE_STD`). Coefficients with
+        infinite variance (e.g. an SDP result's unexcited directions) get the pseudo ones too
+        (named in ``details["pseudo_std"]`` and the summary).
+    friction, armature : per-joint columns (see :meth:`RegressorSpec.make`). ``"auto"``
+        (default): the result's columns, or for an array those of ``identify``'s default
+        (``friction=("coulomb", "viscous", "offset")``, no armature); with a result, an explicit
+        value must describe its columns (:func:`consistid.regressor.resolve_spec`).
     prior_parameters : (p,) prior ``π₀`` (default the URDF, zero friction/armature); every body
         must be realisable (``J₀ ≻ 0``).
     margin : require ``J_i ⪰ margin · J_i(π₀)``: a relative margin, by default ``1e-6``, so that
@@ -563,21 +617,26 @@ def recover_standard(model: RobotModel, base_params: np.ndarray | Identification
     check_option("prior", prior, PRIORS)
     solver = check_solver(solver)
     if isinstance(base_params, IdentificationResult):
-        if friction is not None or armature is not False or base is not None:
-            raise OptionError("friction/armature/base are taken from the IdentificationResult; "
-                              "do not pass them as well")
+        if base is not None:
+            raise OptionError("base is taken from the IdentificationResult; do not pass it")
         res = base_params
         if tuple(res.parameter_names[: model.n_inertial]) != tuple(model.parameter_names):
             raise ModelError(f"the identification result is for {res.model.name!r}, whose "
                              f"parameters differ from {model.name!r}'s")
-        spec, base, beta = res.spec, res.base, np.asarray(res.base_parameters, dtype=float)
+        spec = resolve_spec(model, friction, armature, given=res.spec)
+        base, beta = res.base, np.asarray(res.base_parameters, dtype=float)
         if covariance is None:
             covariance = res.base_covariance
         default_prior = res.prior
     else:
-        spec = RegressorSpec.make(model, friction, armature)
-        base = base or compute_base_parameters(model, spec)
+        spec = resolve_spec(model, friction, armature)
         beta = np.asarray(base_params, dtype=float)
+        if base is None:
+            base = compute_base_parameters(model, spec)
+            if beta.ndim == 1 and beta.size != base.n_base:
+                raise ModelError(
+                    f"{beta.size} base coefficients, but {model.name!r} with {spec.describe()} "
+                    f"has {base.n_base}. {_matching_settings(model, beta.size)}")
         default_prior = prior_vector(model, spec)
     names = parameter_names(model, spec)
     if tuple(base.standard_names) != tuple(names):
@@ -599,8 +658,9 @@ def recover_standard(model: RobotModel, base_params: np.ndarray | Identification
         raise InconsistentParametersError(
             f"prior bodies {bad} have a singular or indefinite pseudo-inertia ({prior_check}); "
             "recovery needs a realisable prior with positive volume: pass prior_parameters")
-    std, weight = _weights(beta, covariance)
-    problem = _Problem(model, spec, base, beta, std, weight, pi0, prior, margin, joint_constraints)
+    std, weight, undetermined = _weights(beta, covariance)
+    problem = _Problem(model, spec, base, beta, std, weight, pi0, prior, margin, joint_constraints,
+                       tuple(str(n) for n, u in zip(base.names, undetermined) if u))
     if mode == "exact":
         return _exact(problem, solver, solver_options)
     return _nearest(problem, slack, solver, solver_options)

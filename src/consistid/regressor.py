@@ -54,7 +54,7 @@ import numpy as np
 import pinocchio as pin
 
 from .dataset import Dataset
-from .errors import JointCountError, check_option
+from .errors import JointCountError, OptionError, check_option
 from .model import RobotModel
 
 JOINT_TERMS: tuple[str, ...] = ("coulomb", "viscous", "offset", "position", "armature")
@@ -145,6 +145,36 @@ class RegressorSpec:
     def describe(self) -> str:
         parts = [f"{term} on {sum(m)}/{self.nv}" for term, m in self.masks if any(m)]
         return ", ".join(parts) if parts else "rigid body only"
+
+
+def _is_auto(value: object) -> bool:
+    return isinstance(value, str) and value == "auto"
+
+
+def resolve_spec(model: RobotModel, friction: FrictionArg | str,
+                 armature: bool | Sequence[int | str] | str,
+                 given: RegressorSpec | None = None) -> RegressorSpec:
+    """The spec of ``friction``/``armature`` arguments whose default is ``"auto"``.
+
+    Without ``given`` (a bare parameter vector), ``"auto"`` means :data:`DEFAULT_FRICTION` and
+    no armature, the defaults of ``identify``. With ``given`` (the spec of an identification
+    result), ``"auto"`` takes its columns, and an explicit value must describe the same columns
+    for its terms: otherwise :class:`~consistid.errors.OptionError`, never a silent choice.
+    """
+    if given is None:
+        return RegressorSpec.make(model, DEFAULT_FRICTION if _is_auto(friction) else friction,
+                                  False if _is_auto(armature) else armature)
+    probe = RegressorSpec.make(model, None if _is_auto(friction) else friction,
+                               False if _is_auto(armature) else armature)
+    own = dict(given.masks)
+    stated = [t for t, _ in probe.masks
+              if not _is_auto(armature if t == "armature" else friction)]
+    differs = [t for t, m in probe.masks if t in stated and m != own[t]]
+    if differs:
+        raise OptionError(f"friction/armature describe other per-joint columns ({differs}: "
+                          f"{probe.describe()}) than the identification result's "
+                          f"({given.describe()}); leave them out: they are taken from the result")
+    return given
 
 
 def parameter_names(model: RobotModel, spec: RegressorSpec) -> list[str]:
