@@ -206,3 +206,42 @@ def test_chain_errors_name_the_problem(excitation):
         signals.preprocess(exact.t, exact.q, exact.q, derivative="fourier")
     with pytest.raises(OptionError, match="derivative"):
         signals.preprocess(exact.t, exact.q, exact.q, derivative="magic")
+
+
+# ----------------------------------------------------------------------------- review fixes
+@pytest.mark.parametrize("cutoff, polyorder", [(3.0, 5), (20.0, 3), (30.0, 5), (100.0, 5)])
+def test_savgol_window_puts_minus_3_db_at_the_cutoff(cutoff, polyorder):
+    """A sine at the cut-off comes out of scipy's smoother at 1/√2 of its amplitude, up to what
+    the next odd window would change."""
+    t = np.arange(int(20 * RATE / cutoff) + 2000) / RATE
+    w = signals.savgol_window(cutoff, RATE, polyorder)
+    out = {}
+    for n in (w - 2, w, w + 2):
+        x = np.sin(2 * np.pi * cutoff * t)[:, None]
+        y = signals.savgol_derivatives(x, RATE, n, polyorder)[0][1000:-1000, 0]
+        out[n] = np.sqrt(2 * np.mean(y ** 2))                      # amplitude of the output
+    gain = 1 / np.sqrt(2)
+    assert abs(out[w] - gain) <= min(abs(out[w - 2] - gain), abs(out[w + 2] - gain))
+    assert out[w] == pytest.approx(gain, abs=0.03)
+
+
+def test_savgol_refuses_numerically_broken_windows():
+    x = np.ones((3000, 1))
+    with pytest.raises(OptionError, match="broken"):
+        signals.savgol_derivatives(x, RATE, signals.savgol_window(1.0, RATE, 5), 5)
+    np.testing.assert_allclose(signals.savgol_derivatives(x, RATE, 901, 3)[0], 1.0)
+
+
+def test_fourier_chain_refuses_a_trim(excitation):
+    _, exact = excitation
+    with pytest.raises(OptionError, match="trim"):
+        signals.preprocess(exact.t, exact.q, exact.q, derivative="fourier", period=10.0,
+                           bandwidth=0.5, trim=0.5)
+
+
+def test_rate_below_the_log_rate_is_refused(excitation):
+    _, exact = excitation
+    with pytest.raises(OptionError, match="decimate"):
+        signals.preprocess(exact.t, exact.q, exact.q, bandwidth=0.5, rate=500.0)
+    pre = signals.preprocess(exact.t, exact.q, exact.q, bandwidth=0.5, decimate=2)
+    assert pre.rate == 500.0

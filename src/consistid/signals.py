@@ -8,15 +8,17 @@ Van Brussel 1997, "Optimal robot excitation and identification", IEEE T-RA 13(5)
 doi:10.1109/70.631234). The building blocks, each usable alone:
 
 :func:`lowpass`
-    zero-phase Butterworth (``scipy.signal.sosfiltfilt``): magnitude ``|H(f)|² =
-    1/(1 + (f/f_c)^{2n})²``, no phase lag.
+    zero-phase Butterworth (``scipy.signal.sosfiltfilt``): the forward-backward filter's power
+    (squared magnitude) is ``|H(f)|² = 1/(1 + (f/f_c)^{2n})²``, −6 dB in magnitude at ``f_c``;
+    no phase lag.
 :func:`central_difference`
     ``q̇_k = (q_{k+1} − q_{k−1}) / 2h``, ``q̈_k = (q_{k+1} − 2q_k + q_{k−1}) / h²``.
 :func:`savgol_derivatives`
     Savitzky–Golay local polynomial fits (Savitzky & Golay 1964, Anal. Chem. 36(8),
-    doi:10.1021/ac60214a047); window from the cut-off by Schafer's rule
+    doi:10.1021/ac60214a047); the window whose −3 dB point is nearest the cut-off, found from
+    the filter's frequency response starting at Schafer's rule
     ``f_c ≈ (p + 1) / (3.2 w − 4.6) · f_s`` (Schafer 2011, IEEE Signal Proc. Mag. 28(4),
-    doi:10.1109/MSP.2011.941097).
+    doi:10.1109/MSP.2011.941097), which alone puts it at 0.8–0.9 × the cut-off.
 :func:`fourier_derivatives`
     for periodic excitations: average the whole periods, keep the harmonics below the cut-off,
     differentiate by multiplying harmonic ``k`` by ``(i k ω_f)`` (Swevers et al. 1997).
@@ -51,7 +53,7 @@ doi:10.1109/70.631234). The building blocks, each usable alone:
    * ``"fourier"``: ``q`` and ``τ`` averaged over whole periods of ``period`` and truncated to
      the harmonics below the cut-off; the dataset is the one averaged period;
 4. **edges**: ``trim`` seconds cut at both ends of each segment (default ``3 / f_c``; none for
-   ``"fourier"``), where the filters' transients sit;
+   ``"fourier"``, which refuses a ``trim``), where the filters' transients sit;
 5. optional **decimation** (``decimate``, after the low-pass, so it does not alias) and
    **low-speed removal** (``min_speed``).
 """
@@ -166,12 +168,58 @@ def central_difference(x: np.ndarray, rate: float) -> tuple[np.ndarray, np.ndarr
     return dx, ddx
 
 
+def savgol_cutoff(window: int, rate: float, polyorder: int = 3) -> float:
+    """The −3 dB frequency (Hz) of the Savitzky–Golay smoother of ``window`` samples.
+
+    Its weights are the centre value of the least-squares polynomial fit, ``e_0ᵀ V⁺`` with
+    ``V`` the Vandermonde matrix of the window's sample offsets scaled to ``[−1, 1]`` (exact in
+    floating point for any window length); the cut-off is the first frequency where the
+    magnitude response falls to ``1/√2``, interpolated linearly on a grid of 2048 steps up to
+    3 × Schafer's estimate, then up to Nyquist (Nyquist if it never falls that low).
+    """
+    x = np.linspace(-1.0, 1.0, window)
+    weights = np.linalg.pinv(np.vander(x, polyorder + 1, increasing=True))[0]
+    estimate = (polyorder + 1) * rate / max(3.2 * window - 4.6, 1e-9)
+    for top in (min(3.0 * estimate, 0.5 * rate), 0.5 * rate):
+        f = np.linspace(0.0, top, 2049)
+        mag = np.abs(scipy.signal.freqz(weights, worN=f, fs=rate)[1])
+        below = np.flatnonzero(mag < 1.0 / np.sqrt(2.0))
+        if below.size:
+            i = below[0]
+            return float(f[i - 1] + (mag[i - 1] - 1.0 / np.sqrt(2.0)) / (mag[i - 1] - mag[i])
+                         * (f[i] - f[i - 1]))
+    return 0.5 * rate
+
+
 def savgol_window(cutoff: float, rate: float, polyorder: int = 3) -> int:
-    """Odd window length whose Savitzky–Golay smoother has its −3 dB point near ``cutoff``:
-    ``w = ((p + 1) f_s / f_c + 4.6) / 3.2`` (Schafer 2011)."""
-    w = int(round(((polyorder + 1) * rate / cutoff + 4.6) / 3.2))
-    w = max(w, polyorder + 2)
-    return w + 1 if w % 2 == 0 else w
+    """The odd window length whose Savitzky–Golay smoother has its −3 dB point
+    (:func:`savgol_cutoff`) closest to ``cutoff``.
+
+    Schafer's rule ``w = ((p + 1) f_s / f_c + 4.6) / 3.2`` (Schafer 2011) alone puts the −3 dB
+    point at 0.8–0.9 × ``cutoff`` (0.6–0.8 × below 25 samples); the window is rescaled by that
+    ratio (the cut-off is nearly ∝ 1/w) and then moved by 2 while that brings it closer.
+    """
+    if not 0 < cutoff < 0.5 * rate:
+        raise OptionError(f"cutoff = {cutoff} Hz must lie in (0, {0.5 * rate:g}) Hz")
+    smallest = polyorder + 2 if polyorder % 2 else polyorder + 1      # odd, > polyorder
+
+    def odd(n: float) -> int:
+        k = max(int(round(n)), smallest)
+        return k + 1 if k % 2 == 0 else k
+
+    w = odd(((polyorder + 1) * rate / cutoff + 4.6) / 3.2)
+    w = odd(w * savgol_cutoff(w, rate, polyorder) / cutoff)
+    error = {}
+
+    def miss(n: int) -> float:
+        if n not in error:
+            error[n] = abs(savgol_cutoff(n, rate, polyorder) - cutoff)
+        return error[n]
+
+    for step in (2, -2):
+        while w + step >= smallest and miss(w + step) < miss(w):
+            w += step
+    return w
 
 
 def savgol_derivatives(x: np.ndarray, rate: float, window: int, polyorder: int = 3
@@ -181,6 +229,12 @@ def savgol_derivatives(x: np.ndarray, rate: float, window: int, polyorder: int =
     if window > x.shape[0]:
         raise DatasetError(f"Savitzky–Golay window {window} is longer than the {x.shape[0]} "
                            "samples")
+    total = scipy.signal.savgol_coeffs(window, polyorder).sum()
+    if not abs(total - 1.0) < 1e-6:        # scipy's weights break for long windows, high orders
+        raise OptionError(f"scipy's Savitzky–Golay weights for {window} samples at order "
+                          f"{polyorder} are numerically broken (they sum to {total:.3g}, not 1; "
+                          "order 5 breaks beyond ~700 samples): use a lower polyorder, a higher "
+                          "cut-off, or derivative='central'")
     kw = dict(window_length=window, polyorder=polyorder, axis=0, mode="interp")
     return (scipy.signal.savgol_filter(x, **kw),
             scipy.signal.savgol_filter(x, deriv=1, delta=1.0 / rate, **kw),
@@ -341,7 +395,16 @@ def _segments(t: np.ndarray, gap: float, steps: list[Step]) -> list[slice]:
 
 def _uniform(t: np.ndarray, x: np.ndarray, rate: float, jitter: float, label: str,
              steps: list[Step]) -> tuple[np.ndarray, np.ndarray]:
+    """The segment on a uniform grid at ``rate`` (cubic spline) if its steps vary by more than
+    ``jitter``; refuses to go more than 1 % below the segment's own rate (a spline does not
+    low-pass first, so that would alias)."""
     dt = np.diff(t)
+    own = 1.0 / float(np.median(dt))
+    if rate < 0.99 * own:
+        raise OptionError(f"{label}: resampling from its {own:.6g} Hz to rate = {rate:.6g} Hz by "
+                          "spline would alias (nothing low-passes before it); resample at the "
+                          "log's rate and reduce it with decimate=, which comes after the "
+                          "low-pass")
     h = 1.0 / rate
     worst = float(np.max(np.abs(dt / h - 1.0)))
     if worst <= jitter:
@@ -379,11 +442,12 @@ def preprocess(t: np.ndarray, q: np.ndarray, tau: np.ndarray, *,
     order : Butterworth order (one direction).
     period : the excitation period (s), needed by ``derivative="fourier"``.
     rate : sampling rate to resample jittered time stamps to; default ``1 / median Δt`` (to 9
-        significant digits).
+        significant digits). Not below a segment's own rate (that would alias): use
+        ``decimate`` to lower the rate.
     outliers : Hampel threshold in robust σ, or ``None`` to skip outlier rejection.
     outlier_window : Hampel window (odd, samples).
-    trim : seconds dropped at both ends of each segment; default ``3 / cutoff`` (0 for
-        ``"fourier"``).
+    trim : seconds dropped at both ends of each segment; default ``3 / cutoff``. Not with
+        ``"fourier"``, whose result is one averaged period (no edges).
     min_speed : drop samples where some joint's ``|q̇|`` is below this (rad/s, scalar or per
         joint); default keep all.
     decimate : keep every ``decimate``-th sample after filtering; the cut-off must stay below
@@ -422,6 +486,9 @@ def preprocess(t: np.ndarray, q: np.ndarray, tau: np.ndarray, *,
         raise DatasetError(f"q has {q.shape[1]} joints, tau has {tau.shape[1]}")
     if decimate < 1 or int(decimate) != decimate:
         raise OptionError(f"decimate = {decimate}; it must be a positive integer")
+    if derivative == "fourier" and trim:
+        raise OptionError(f"trim = {trim} s does not apply to derivative='fourier': its dataset "
+                          "is one averaged period, which has no filter edges")
     nv = q.shape[1]
     steps: list[Step] = []
     t, x = _fix_time(t, np.hstack([q, tau]), duplicate_tol, steps)
@@ -498,15 +565,14 @@ def preprocess(t: np.ndarray, q: np.ndarray, tau: np.ndarray, *,
                                      ", differentiated in the frequency domain"))
         out_t.append(ts[:p]), out_q.append(qf), out_dq.append(dqf), out_ddq.append(ddqf)
         out_tau.append(tauf), out_seg.append(np.zeros(p, dtype=int))
-        trim = 0.0 if trim is None else trim
     else:
         trim = TRIM_PERIODS / cutoff if trim is None else trim
-        window = savgol_window(cutoff, rate, polyorder)
         if derivative == "central":
             steps.append(Step("low-pass", f"zero-phase Butterworth, order {order}, {cutoff:.4g} Hz"
                                           f" on q{' and τ' if filter_torque else ''}; central "
                                           "differences of the filtered q"))
         else:
+            window = savgol_window(cutoff, rate, polyorder)
             steps.append(Step("savitzky-golay", f"window {window} samples "
                                                 f"({window / rate * 1e3:.4g} ms), order "
                                                 f"{polyorder}, on q{' and τ' if filter_torque else ''}"))
