@@ -1,5 +1,6 @@
 """Payload estimation: both routes on a hidden payload, identifiability, constraints, frames."""
 
+import re
 import warnings
 
 import numpy as np
@@ -13,7 +14,7 @@ from consistid.cli import main
 from consistid.constraints import Ellipsoid
 from consistid.errors import OptionError, PoorExcitationWarning
 from consistid.parameters import from_mass_com_inertia, perturb
-from consistid.payload import estimate_payload, frame_transform
+from consistid.payload import estimate_payload, frame_transform, payload_from_base_change
 
 from .conftest import random_states
 
@@ -43,8 +44,8 @@ def hidden(panda):
         warnings.simplefilter("ignore", PoorExcitationWarning)
         unloaded_res = ci.identify(panda, runs[0], method="ols", friction=None)
         loaded_res = ci.identify(panda, runs[1], method="ols", friction=None)
-    return dict(payload=payload, unloaded=unloaded_res, loaded_data=runs[1],
-                loaded_res=loaded_res, held=runs[2])
+    return dict(payload=payload, unloaded=unloaded_res, unloaded_data=runs[0],
+                loaded_data=runs[1], loaded_res=loaded_res, held=runs[2])
 
 
 @pytest.mark.parametrize("route", ["torque", "base-change"])
@@ -109,7 +110,7 @@ def test_static_data_warn_and_report_minimum_states(panda):
     tau = (ci.regressor(panda, q, zero, zero) @ theta).reshape(q.shape)
     data = ci.Dataset(t=np.arange(6.0), q=q, dq=zero, ddq=zero, tau=tau)
     with pytest.warns(PoorExcitationWarning, match="rank 4"):
-        pay = estimate_payload(panda, data, robot=panda.prior_parameters)
+        pay = estimate_payload(panda, data, robot=panda.prior_parameters, friction=None)
     assert pay.rank == 4 and pay.identifiable == (True,) * 4 + (False,) * 6
     assert pay.mass == pytest.approx(1.2, rel=1e-6)
     assert pay.com == pytest.approx([0.0, 0.02, 0.05], abs=1e-6)
@@ -133,18 +134,45 @@ def test_bad_inputs(panda, hidden):
         estimate_payload(panda, hidden["loaded_data"], robot=hidden["unloaded"], frame="nope")
     with pytest.raises(OptionError, match="solver='NOPE'"):   # as identify and recover do
         estimate_payload(panda, hidden["loaded_data"], robot=hidden["unloaded"], solver="NOPE")
+    # options that would be ignored are refused: columns other than the result's, base= with
+    # two results (whose own maps are used)
+    for loaded in (hidden["loaded_data"], hidden["loaded_res"]):
+        with pytest.raises(OptionError, match="other per-joint columns"):
+            estimate_payload(panda, loaded, robot=hidden["unloaded"], friction=("coulomb",))
+    with pytest.raises(OptionError, match="base= is for coefficient vectors"):
+        payload_from_base_change(panda, hidden["unloaded"], hidden["loaded_res"],
+                                 base=hidden["unloaded"].base)
+    # a bare robot vector is read with identify's default columns; a 70-vector names its setting
+    with pytest.raises(ci.ModelError, match=r"needs \(91,\).*friction=None, armature=False"):
+        estimate_payload(panda, hidden["loaded_data"], robot=panda.prior_parameters)
+
+
+def test_one_covariance_only_is_noted(panda, hidden):
+    """Loaded coefficients as a bare vector: they have no covariance, so only the unloaded
+    result's weights the fit, and the payload says the loaded set was treated as exact."""
+    pay = payload_from_base_change(panda, hidden["unloaded"],
+                                   hidden["loaded_res"].base_parameters, frame="panda_link8")
+    assert any("only the unloaded coefficients have a covariance: the loaded ones are treated "
+               "as exact" in n for n in pay.notes)
+    assert abs(pay.mass - MASS) / MASS < 0.05
 
 
 def test_cli_payload(panda, hidden, tmp_path, capsys):
+    """The CLI identifies the unloaded robot on the unloaded run and finds the hidden 1.5 kg."""
     hidden["loaded_data"].save(tmp_path / "loaded.npz")
-    hidden["held"].save(tmp_path / "unloaded.npz")      # any data: the CLI re-identifies
+    hidden["unloaded_data"].save(tmp_path / "unloaded.npz")
     (tmp_path / "payload.toml").write_text(
         f'[model]\nurdf = "{panda.source}"\n'
         'locked_joints = ["panda_finger_joint1", "panda_finger_joint2"]\n'
         '[data]\ntrain = ["unloaded.npz"]\n[identify]\nfriction = []\n'
         '[payload]\nloaded = ["loaded.npz"]\nframe = "panda_link8"\nroute = "torque"\n')
     assert main(["payload", str(tmp_path / "payload.toml")]) == 0
-    assert "payload on 'panda_link7' in frame 'panda_link8'" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "payload on 'panda_link7' in frame 'panda_link8'" in out
+    mass = float(re.search(r"^mass\s+(\S+) ±", out, re.M).group(1))
+    com = np.array(re.search(r"^CoM\s+\[([^\]]*)\]", out, re.M).group(1).split(), dtype=float)
+    assert abs(mass - MASS) / MASS < 0.03
+    assert np.linalg.norm(com - COM) < 0.005
 
 
 @settings(max_examples=25, deadline=None)

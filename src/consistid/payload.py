@@ -45,11 +45,13 @@ from .errors import (ModelError, OptionError, PoorExcitationError, PoorExcitatio
                      check_option)
 from .model import RobotModel
 from .parameters import INERTIAL_NAMES, from_mass_com_inertia, pseudo_inertia, to_mass_com_inertia
-from .regressor import FrictionArg, RegressorSpec, regressor
+from .regressor import FRICTION_TERMS, FrictionArg, RegressorSpec, regressor, resolve_spec
 from .result import IdentificationResult, SolverReport
 
-#: Singular values below this fraction of the largest (columns normalised) are unidentified.
-RANK_RTOL = 1e-6
+#: A payload direction is unidentified when its singular value of the column-normalised payload
+#: regressor is below this fraction of the largest (looser than identify's numerical rank
+#: tolerance: a payload direction seen this weakly is not worth reporting as determined).
+IDENTIFIABLE_RTOL = 1e-6
 #: Reference size used only to scale the SDP (m): a payload is about this big.
 REFERENCE_RADIUS = 0.1
 
@@ -228,7 +230,7 @@ def _identifiability(y: np.ndarray) -> tuple[int, float, np.ndarray, tuple[bool,
     _, s, vt = np.linalg.svd(y / scale, full_matrices=True)
     s_full = np.zeros(10)
     s_full[: s.size] = s
-    keep = s_full > RANK_RTOL * max(s_full[0], 1e-300)
+    keep = s_full > IDENTIFIABLE_RTOL * max(s_full[0], 1e-300)
     rank = int(keep.sum())
     cond = float(s_full[0] / s_full[rank - 1]) if rank else float("inf")
     null = vt[~keep].T / scale[:, None]            # back to unnormalised parameters
@@ -346,8 +348,8 @@ def _payload_result(theta: np.ndarray, cov: np.ndarray, frame: str, body: str, m
 # ------------------------------------------------------------------------------- route 1
 def estimate_payload(model: RobotModel, loaded: Dataset | IdentificationResult,
                      robot: IdentificationResult | np.ndarray, *, frame: str | None = None,
-                     body: str | None = None, friction: FrictionArg = None,
-                     armature: bool | Sequence[int | str] = False,
+                     body: str | None = None, friction: FrictionArg | str = "auto",
+                     armature: bool | Sequence[int | str] | str = "auto",
                      ellipsoid: Ellipsoid | None = None,
                      com_bounds: tuple[Sequence[float], Sequence[float]] | None = None,
                      mass_range: tuple[float | None, float | None] | None = None,
@@ -374,7 +376,10 @@ def estimate_payload(model: RobotModel, loaded: Dataset | IdentificationResult,
     frame : the frame the payload parameters are expressed in (a Pinocchio frame fixed to the
         last body, e.g. the flange ``"panda_link8"``); default the last body's joint frame.
     body : the body carrying the payload; default the frame's body, else the last one.
-    friction, armature : the spec of a ``robot`` vector (route 1 only).
+    friction, armature : the per-joint columns of a ``robot`` vector; ``"auto"`` (default):
+        ``identify``'s default (Coulomb, viscous, offset; no armature), or the columns of a
+        ``robot`` result, which an explicit value must then describe
+        (:func:`consistid.regressor.resolve_spec`).
     ellipsoid : the payload lies in this ellipsoid (in ``frame``).
     com_bounds : ``(lower, upper)`` box on the CoM (in ``frame``, m).
     mass_range : ``(lower, upper)`` kg, either may be ``None``.
@@ -393,6 +398,7 @@ def estimate_payload(model: RobotModel, loaded: Dataset | IdentificationResult,
         if not isinstance(robot, IdentificationResult):
             raise OptionError("route 2 (loaded identification) needs robot= the unloaded "
                               "IdentificationResult")
+        resolve_spec(model, friction, armature, given=robot.spec)  # refuses other columns
         return payload_from_base_change(model, robot, loaded, frame=frame, body=body,
                                         ellipsoid=ellipsoid, com_bounds=com_bounds,
                                         mass_range=mass_range, solver=solver,
@@ -403,15 +409,16 @@ def estimate_payload(model: RobotModel, loaded: Dataset | IdentificationResult,
     loaded.check_joints(model.nv, model.joint_names)
     tau = loaded.require_torque()
     if isinstance(robot, IdentificationResult):
-        spec = robot.spec
+        spec = resolve_spec(model, friction, armature, given=robot.spec)
         predicted = robot.predict(loaded)
     else:
-        spec = RegressorSpec.make(model, friction, armature)
+        spec = resolve_spec(model, friction, armature)
         theta = np.asarray(robot, dtype=float)
         expected = model.n_inertial + spec.n_joint_columns
         if theta.shape != (expected,):
             raise ModelError(f"robot parameters have shape {theta.shape}; {model.name} with "
-                             f"{spec.describe()} needs ({expected},)")
+                             f"{spec.describe()} needs ({expected},). "
+                             f"{_matching_settings(model, theta.size - model.n_inertial)}")
         predicted = (regressor(model, loaded.q, loaded.dq, loaded.ddq, spec) @ theta
                      ).reshape(loaded.n_samples, model.nv)
     index, frame_name, transform = _resolve_frame(model, frame, body)
@@ -445,6 +452,20 @@ def estimate_payload(model: RobotModel, loaded: Dataset | IdentificationResult,
     return _payload_result(theta, cov, frame_name, model.body_names[index], "torque", ident,
                            report, notes, n_samples=n, residual_rms=rms,
                            details={"sigma": sigma})
+
+
+def _matching_settings(model: RobotModel, n_joint_columns: int) -> str:
+    """Which ``friction``/``armature`` settings give ``n_joint_columns`` per-joint entries."""
+    matches = []
+    for k in range(2 ** len(FRICTION_TERMS)):
+        terms = tuple(t for i, t in enumerate(FRICTION_TERMS) if k >> i & 1)
+        for armature in (False, True):
+            if RegressorSpec.make(model, terms, armature).n_joint_columns == n_joint_columns:
+                matches.append(f"friction={terms or None}, armature={armature}")
+    if not matches:
+        return f"No friction/armature setting gives {n_joint_columns} per-joint entries."
+    return ("Settings with that many per-joint entries: " + "; ".join(matches[:4])
+            + (" …" if len(matches) > 4 else ""))
 
 
 def _robot_covariance(problem: CompressedProblem, sigma: np.ndarray, cols: np.ndarray,
@@ -504,9 +525,11 @@ def payload_from_base_change(model: RobotModel, unloaded: IdentificationResult |
 
     Parameters
     ----------
-    unloaded, loaded : :class:`IdentificationResult` or (b,) coefficient vectors (then ``base``
-        is required, and the covariances default to the identity: unweighted).
-    base : the base map of coefficient vectors.
+    unloaded, loaded : :class:`IdentificationResult` or (b,) coefficient vectors (the covariances
+        default to the results'; with none at all the fit is unweighted, with one the other set
+        is treated as exact, both noted in ``notes``).
+    base : the base map of coefficient vectors (default: that of the other argument if it is a
+        result; refused when both are results, whose own maps are used).
     covariance_unloaded, covariance_loaded : (b, b) covariances (default: the results').
     frame, body, ellipsoid, com_bounds, mass_range, solver, solver_options : as in
         :func:`estimate_payload`.
@@ -519,8 +542,10 @@ def payload_from_base_change(model: RobotModel, unloaded: IdentificationResult |
     """
     beta_u, cov_u, base_u = _as_coefficients(unloaded, covariance_unloaded, "unloaded")
     beta_l, cov_l, base_l = _as_coefficients(loaded, covariance_loaded, "loaded")
-    base_u = base_u or base
-    base_l = base_l or base_u
+    if base is not None and base_u is not None and base_l is not None:
+        raise OptionError("base= is for coefficient vectors; both arguments are "
+                          "IdentificationResults, whose own base maps are used")
+    base_u, base_l = base_u or base or base_l, base_l or base or base_u
     if base_u is None:
         raise OptionError("coefficient vectors need base= (the BaseParameters they refer to)")
     if base_l is not base_u:
@@ -547,6 +572,12 @@ def payload_from_base_change(model: RobotModel, unloaded: IdentificationResult |
                             "unweighted and the standard deviations assume unit variance")
     else:
         cov = sum(c for c in (cov_u, cov_l) if c is not None)
+        if cov_u is None or cov_l is None:
+            exact = "unloaded" if cov_u is None else "loaded"
+            notes_weight.append(f"only the {'loaded' if cov_u is None else 'unloaded'} "
+                                f"coefficients have a covariance: the {exact} ones are treated "
+                                "as exact (their uncertainty is in neither the weights nor the "
+                                "standard deviations)")
     try:
         weight = np.linalg.inv(np.linalg.cholesky(0.5 * (cov + cov.T)))
     except np.linalg.LinAlgError as exc:
