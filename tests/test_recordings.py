@@ -99,6 +99,9 @@ def test_npz_layouts_ignored_arrays_and_missing_ones(tmp_path, planar_2r):
     custom = load_recording(path, keys={"t": "times", "q": "positions", "dq": "velocities",
                                         "ddq": "accelerations", "tau": "target_positions"})
     np.testing.assert_array_equal(custom.dataset.tau, a["q"] * 0.0174)
+    names = np.array(["joint2", "joint1"])                  # a numpy array of names
+    swapped = load_recording(path, joint_names=names, model=planar_2r)
+    np.testing.assert_array_equal(swapped.dataset.tau, a["tau"][:, ::-1])
     bad = tmp_path / "bad.npz"
     np.savez(bad, times=a["t"], positions=a["q"])
     with pytest.raises(MissingColumnsError, match="match no known layout"):

@@ -81,5 +81,7 @@ def test_unknown_terms_and_joints_are_named(panda):
         RegressorSpec.make(panda, ("stribeck",))
     with pytest.raises(ci.OptionError, match="joint='elbow'"):
         RegressorSpec.make(panda, {"coulomb": ["elbow"]})
+    with pytest.raises(ci.OptionError, match="joint index 9 out of range"):
+        RegressorSpec.make(panda, {"coulomb": [9]})
     with pytest.raises(ci.JointCountError):
         regressor(panda, np.zeros((2, 6)), np.zeros((2, 6)), np.zeros((2, 6)))

@@ -347,7 +347,9 @@ def load_recording(path: str | Path, keys: str | Mapping[str, str] = "auto", *,
     read = ", ".join(f"{k}←{layout[k]!r}" for k in ("t", "q", "dq", "ddq", "tau") if k in arrays)
     first = f"read {path.name}: {read}" + (f"; ignored arrays {ignored}" if ignored else "")
     rec = from_arrays(arrays["t"], arrays["q"], arrays["tau"], arrays.get("dq"),
-                      arrays.get("ddq"), joint_names=joint_names or file_names, model=model,
+                      arrays.get("ddq"),
+                      joint_names=joint_names if joint_names is not None else file_names,
+                      model=model,
                       trim_start=trim_start, trim_end=trim_end, duplicates=duplicates,
                       source=path.name, **signal_options)
     return Recording(rec.dataset, (first, *rec.steps), str(path), rec.time_origin)

@@ -110,7 +110,7 @@ class RegressorSpec:
                     check_option("joint", j, model.joint_names)
                     j = model.joint_names.index(j)
                 if not 0 <= int(j) < nv:
-                    raise ValueError(f"joint index {j} out of range 0..{nv - 1}")
+                    raise OptionError(f"joint index {j} out of range 0..{nv - 1}")
                 out[int(j)] = True
             return tuple(out)
 
