@@ -39,7 +39,7 @@ def recovery_rows(model: ci.RobotModel, seed: int) -> list[tuple]:
     beta = base.project(truth)
     rows = []
     for prior in ("logdet", "euclidean"):
-        rec, dt = _timed(ci.recover_standard, model, beta, prior=prior)
+        rec, dt = _timed(ci.recover_standard, model, beta, prior=prior, friction=None)
         rows.append((seed, f"exact/{prior}", "-", np.abs(rec.residual).max(), rec.margins.min(),
                      "-", "-", _mass_error(rec, truth), dt))
     run = ci.simulate.excitation_run(model, truth, duration=10.0, rate=200.0, torque_noise=1.0,
