@@ -1,10 +1,14 @@
 import numpy as np
 import pytest
 
+import consistid as ci
 from consistid import cli
 from consistid.base import random_states
-from consistid.config import config_model, config_recordings, load_config
+from consistid.config import (config_identify, config_model, config_recordings, identify_keys,
+                              load_config)
+from consistid.constraints import Ellipsoid
 from consistid.errors import ConfigError
+from consistid.priors import Neighbourhood
 
 from .conftest import PLANAR_2R, PLANAR_2R_VALUES
 
@@ -75,3 +79,59 @@ def test_cli_identify_runs_from_a_config(project, capsys):
     assert "method=ols" in out and "held-out" in out
     held_row = next(line for line in out.splitlines() if line.startswith("held-out"))
     assert float(held_row.split()[3]) < 1.0          # total relative error (%) of a good fit
+
+
+def test_misspelled_tables_and_identify_keys_are_named(project, capsys):
+    with pytest.raises(ConfigError, match=r"unknown table\(s\) or top-level key\(s\) "
+                                          r"\['identfy'\]"):
+        load_config(write(project, GOOD.replace("[identify]", "[identfy]")))
+    # an unknown [identify] key used to reach identify_sdp as a TypeError (traceback)
+    path = write(project, GOOD.replace('method = "ols"', 'method = "sdp"\npriorr = "euclidean"'))
+    assert cli.main(["identify", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "unknown key(s) ['priorr'] in [identify]" in err and "'prior'" in err
+    assert {"method", "friction", "prior", "margin", "solver"} <= set(identify_keys())
+    assert "dataset" not in identify_keys()
+
+
+def test_identify_tables_become_objects(project):
+    text = GOOD + ('neighbourhood = {mass = 0.2, com = 0.05}\n'
+                   'ellipsoids = {link2 = {center = [0.3, 0, 0], semi_axes = [0.4, 0.1, 0.1]}}\n')
+    options = config_identify(load_config(write(project, text)))
+    assert options["neighbourhood"] == Neighbourhood(mass=0.2, com=0.05)
+    ell = options["ellipsoids"]["link2"]
+    assert isinstance(ell, Ellipsoid) and ell.contains([0.65, 0.0, 0.0])
+    assert not ell.contains([0.3, 0.15, 0.0])
+    with pytest.raises(ConfigError, match=r"unknown key\(s\) \['radius'\] in "
+                                          r"\[identify.ellipsoids.link2\]"):
+        config_identify(load_config(write(project, GOOD + "ellipsoids = {link2 = {radius = 1}}\n")))
+
+
+def test_cli_payload_checks_its_table(project, capsys):
+    base = GOOD.replace("[identify]", "[payload]\nloaded = [\"data/run2.npz\"]\n[identify]")
+    assert cli.main(["payload", str(write(project, base.replace(
+        "[identify]", 'route = "base_change"\n[identify]')))]) == 2
+    assert "route='base_change' is not supported; allowed: 'torque', 'base-change'" in (
+        capsys.readouterr().err)
+    assert cli.main(["payload", str(write(project, base.replace(
+        'loaded = ["data/run2.npz"]', 'frame = "link2"')))]) == 2
+    assert "[payload] needs loaded" in capsys.readouterr().err
+
+
+def test_cli_recover_has_one_default_for_both_branches(project, tmp_path, capsys):
+    """OLS on the logs and a coefficients file of the same (default) columns both work."""
+    recover = GOOD.replace("[identify]\nmethod = \"ols\"\nfriction = [\"coulomb\"]\n",
+                           '[recover]\nmode = "nearest"\n')
+    assert cli.main(["recover", str(write(project, recover))]) == 0
+    from_logs = capsys.readouterr().out
+    cfg = load_config(write(project, recover))
+    model = config_model(cfg)
+    res = ci.identify(model, config_recordings(cfg, model)[0].dataset, method="ols")
+    np.savez(project / "beta.npz", beta=res.base_parameters, covariance=res.base_covariance)
+    path = write(project, recover.replace('mode = "nearest"',
+                                          'mode = "nearest"\ncoefficients = "beta.npz"'))
+    assert cli.main(["recover", str(path)]) == 0
+    from_file = capsys.readouterr().out
+    # the same columns: 2 bodies × 10 + 2 joints × (Coulomb, viscous, offset)
+    assert from_file.splitlines()[0] == from_logs.splitlines()[0]
+    assert "→ 26 standard parameters" in from_file

@@ -60,16 +60,16 @@ def demo(args: argparse.Namespace) -> int:
 def identify(args: argparse.Namespace) -> int:
     """Identify from the recordings of a TOML configuration (:mod:`consistid.config`)."""
     import consistid as ci
-    from consistid.config import config_model, config_recordings, load_config
+    from consistid.config import config_identify, config_model, config_recordings, load_config
     from consistid.validation import score, scores_table
 
     config = load_config(args.config)
     model = config_model(config)
+    options = config_identify(config)
     train, held = config_recordings(config, model)
     _log(str(train))
     if held is not None:
         _log(str(held))
-    options = config.table("identify", required=False)
     _log(f"identifying {model.name} on {train.dataset.n_samples} samples "
          f"({', '.join(f'{k}={v!r}' for k, v in options.items()) or 'defaults'})")
     t0 = time.perf_counter()
@@ -114,6 +114,7 @@ def simulate(args: argparse.Namespace) -> int:
 RECOVER_KEYS = ("coefficients", "friction", "armature", "mode", "prior", "margin", "slack",
                 "urdf", "merged")
 PAYLOAD_KEYS = ("loaded", "route", "frame", "body", "ellipsoid", "mass_range")
+PAYLOAD_ROUTES = ("torque", "base-change")
 
 
 def recover(args: argparse.Namespace) -> int:
@@ -122,25 +123,27 @@ def recover(args: argparse.Namespace) -> int:
     import consistid as ci
     from consistid.config import config_model, config_recordings, load_config
     from consistid.errors import ConfigError
+    from consistid.regressor import DEFAULT_FRICTION
 
     config = load_config(args.config)
     model = config_model(config)
     t = config.table("recover", RECOVER_KEYS, required=False)
     options = {k: t[k] for k in ("mode", "prior", "margin", "slack") if k in t}
+    # the same columns in both branches: identify's default unless [recover] says otherwise
+    friction, armature = t.get("friction", DEFAULT_FRICTION), t.get("armature", False)
     if "coefficients" in t:
         with np.load(config.resolve(t["coefficients"])) as f:
             if "beta" not in f.files:
                 raise ConfigError(f"{t['coefficients']}: needs an array 'beta'")
             beta = f["beta"]
             cov = f["covariance"] if "covariance" in f.files else None
-        rec = ci.recover_standard(model, beta, covariance=cov, friction=t.get("friction"),
-                                  armature=t.get("armature", False), **options)
+        rec = ci.recover_standard(model, beta, covariance=cov, friction=friction,
+                                  armature=armature, **options)
     else:
         train, _ = config_recordings(config, model)
         _log(f"identifying base coefficients by OLS on {train.dataset.n_samples} samples")
-        res = ci.identify(model, train.dataset, method="ols",
-                          friction=t.get("friction", ("coulomb", "viscous", "offset")),
-                          armature=t.get("armature", False))
+        res = ci.identify(model, train.dataset, method="ols", friction=friction,
+                          armature=armature)
         rec = ci.recover_standard(model, res, **options)
     print(rec.summary(max_rows=None if args.all else 20))
     if "urdf" in t:
@@ -154,31 +157,30 @@ def payload(args: argparse.Namespace) -> int:
     import dataclasses
 
     import consistid as ci
-    from consistid.config import config_model, config_recordings, load_config
-    from consistid.constraints import Ellipsoid
-    from consistid.errors import ConfigError
+    from consistid.config import (config_ellipsoid, config_identify, config_model,
+                                  config_recordings, load_config)
+    from consistid.errors import ConfigError, check_option
 
     config = load_config(args.config)
     model = config_model(config)
     t = config.table("payload", PAYLOAD_KEYS)
+    route = t.get("route", "torque")
+    check_option("[payload] route", route, PAYLOAD_ROUTES)
+    if not t.get("loaded"):
+        raise ConfigError(f"{config.path.name}: [payload] needs loaded = [\"file.npz\", ...] "
+                          "(the logs recorded with the payload)")
+    ellipsoid = (config_ellipsoid(config, "payload.ellipsoid", t["ellipsoid"])
+                 if "ellipsoid" in t else None)
+    options = {"method": "ols", **config_identify(config)}
     loaded_config = dataclasses.replace(config, tables={
-        **config.tables, "data": {**config.table("data"), "train": t.get("loaded", []),
+        **config.tables, "data": {**config.table("data"), "train": t["loaded"],
                                   "held_out": []}})
     unloaded, _ = config_recordings(config, model)
     loaded, _ = config_recordings(loaded_config, model)
-    options = {"method": "ols", **config.table("identify", required=False)}
     _log(f"identifying the unloaded robot ({options})")
     robot = ci.identify(model, unloaded.dataset, **options)
-    route = t.get("route", "torque")
     target = (loaded.dataset if route == "torque"
               else ci.identify(model, loaded.dataset, **options))
-    ellipsoid = None
-    if "ellipsoid" in t:
-        e = t["ellipsoid"]
-        if not isinstance(e, dict) or set(e) != {"center", "semi_axes"}:
-            raise ConfigError(f"{config.path.name}: [payload] ellipsoid must be "
-                              f"{{center = [x, y, z], semi_axes = [a, b, c]}}, got {e!r}")
-        ellipsoid = Ellipsoid.from_semi_axes(e["center"], e["semi_axes"])
     result = ci.estimate_payload(model, target, robot=robot, frame=t.get("frame"),
                                  body=t.get("body"), ellipsoid=ellipsoid,
                                  mass_range=t.get("mass_range"))
@@ -186,8 +188,11 @@ def payload(args: argparse.Namespace) -> int:
     return 0
 
 
-DIAGNOSE_KEYS = ("effects", "sigma", "alpha", "min_gain", "tie", "max_steps", "split",
-                 "inertia_solver", "nominal_urdf", "output")
+#: ``[diagnose]`` keys passed to :func:`consistid.diagnose` as they are …
+DIAGNOSE_OPTIONS = ("effects", "sigma", "alpha", "min_gain", "tie", "max_steps", "split",
+                    "inertia_solver")
+#: … and all ``[diagnose]`` keys (``nominal_urdf`` and ``output`` are read by the command).
+DIAGNOSE_KEYS = DIAGNOSE_OPTIONS + ("nominal_urdf", "output")
 
 
 def diagnose(args: argparse.Namespace) -> int:
@@ -201,7 +206,7 @@ def diagnose(args: argparse.Namespace) -> int:
     model = config_model(config)
     train, held = config_recordings(config, model)
     t = config.table("diagnose", DIAGNOSE_KEYS, required=False)
-    options = {k: t[k] for k in DIAGNOSE_KEYS[:8] if k in t}
+    options = {k: t[k] for k in DIAGNOSE_OPTIONS if k in t}
     nominal = None
     if "nominal_urdf" in t:  # same joints, locks and gravity as [model], other inertias
         nominal = model_without_dynamics(config.resolve(t["nominal_urdf"]),

@@ -24,14 +24,18 @@ code. Example (``examples/kuka_lwr4/identify.toml``)::
     [identify]                            # keyword arguments of consistid.identify
     method = "sdp"
     friction = ["coulomb", "viscous", "offset"]
+    # neighbourhood = {mass = 0.2, com = 0.02, inertia = 0.3}
+    # ellipsoids = {lwr_6_link = {center = [0, 0, 0.05], semi_axes = [0.1, 0.1, 0.1]}}
 
 Relative paths are resolved against ``root``, itself relative to the configuration file's folder
 (default: that folder), never against the current directory, so a configuration works from
-anywhere. Unknown keys raise :class:`~consistid.errors.ConfigError` naming the table and the key.
+anywhere. Unknown tables (:data:`TABLES`) and unknown keys raise
+:class:`~consistid.errors.ConfigError` naming the table and the key.
 """
 
 from __future__ import annotations
 
+import inspect
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -46,6 +50,8 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - exercised on Python 3.10 only
     import tomli as tomllib
 
+#: The top-level tables a configuration may have (besides the ``root`` key), one per command.
+TABLES = ("model", "data", "identify", "diagnose", "recover", "payload", "excite")
 MODEL_KEYS = ("urdf", "example", "strip_dynamics", "locked_joints", "gravity", "name")
 DATA_KEYS = ("dir", "keys", "joint_names", "trim_start", "trim_end", "duplicates", "train",
              "held_out")
@@ -113,6 +119,10 @@ def load_config(path: str | Path) -> RunConfig:
     root = tables.pop("root", ".")
     if not isinstance(root, str):
         raise ConfigError(f"{path.name}: root must be a path string, got {root!r}")
+    unknown = sorted(set(tables) - set(TABLES))
+    if unknown:
+        raise ConfigError(f"{path.name}: unknown table(s) or top-level key(s) {unknown}; "
+                          f"allowed: root and the tables {list(TABLES)}")
     return RunConfig(path.resolve(), (path.resolve().parent / root).resolve(), tables)
 
 
@@ -160,3 +170,48 @@ def config_recordings(config: RunConfig, model: RobotModel | None = None
 
     held = t.get("held_out")
     return read(t["train"], "train"), (read(held, "held_out") if held else None)
+
+
+def identify_keys() -> tuple[str, ...]:
+    """The keys of ``[identify]``: the keyword arguments of :func:`consistid.identify` and of the
+    SDP (:func:`consistid.sdp.identify_sdp`), read from their signatures."""
+    from .identify import identify
+    from .sdp import identify_sdp
+
+    own = [n for n, p in inspect.signature(identify).parameters.items()
+           if n not in ("model", "dataset") and p.kind is not p.VAR_KEYWORD]
+    sdp = [n for n, p in inspect.signature(identify_sdp).parameters.items()
+           if p.kind is p.KEYWORD_ONLY and n != "dataset"]
+    return tuple(own + sdp)
+
+
+def config_identify(config: RunConfig) -> dict[str, Any]:
+    """The keyword arguments of ``[identify]`` for :func:`consistid.identify` (unknown keys raise
+    :class:`ConfigError`). TOML tables become objects: ``neighbourhood = {mass, com, inertia}``
+    a :class:`~consistid.priors.Neighbourhood`, ``ellipsoids = {body = {center, semi_axes}}``
+    :class:`~consistid.constraints.Ellipsoid` objects."""
+    options = config.table("identify", identify_keys(), required=False)
+    if "neighbourhood" in options:
+        from .priors import Neighbourhood
+
+        t = config.check_table("identify.neighbourhood", options["neighbourhood"],
+                               ("mass", "com", "inertia"))
+        options["neighbourhood"] = Neighbourhood(**t)
+    if "ellipsoids" in options:
+        options["ellipsoids"] = {
+            body: config_ellipsoid(config, f"identify.ellipsoids.{body}", value)
+            for body, value in config.check_table("identify.ellipsoids",
+                                                  options["ellipsoids"]).items()}
+    return options
+
+
+def config_ellipsoid(config: RunConfig, name: str, value: Any) -> Any:
+    """An :class:`~consistid.constraints.Ellipsoid` from ``{center = [x, y, z], semi_axes = [a, b,
+    c]}`` (table ``[name]``)."""
+    from .constraints import Ellipsoid
+
+    t = config.check_table(name, value, ("center", "semi_axes"))
+    if set(t) != {"center", "semi_axes"}:
+        raise ConfigError(f"{config.path.name}: [{name}] must be {{center = [x, y, z], "
+                          f"semi_axes = [a, b, c]}}, got {value!r}")
+    return Ellipsoid.from_semi_axes(t["center"], t["semi_axes"])
