@@ -57,3 +57,26 @@ def test_refit_recovers_friction_and_offset_within_their_std(planar_2r):
     still = ci.Dataset(t=d.t, q=q, dq=np.zeros_like(dq), ddq=ddq, tau=tau)
     with pytest.raises(ci.ModelError, match="cannot separate"):
         refit_joint_terms(planar_2r, still)
+
+
+def test_refit_groups_columns_by_joint_index_not_name_prefix(tmp_path):
+    """Joint names ``j`` and ``j.b``: a name-prefix match ("j.") would give joint ``j`` the
+    columns of ``j.b`` as well."""
+    from .conftest import PLANAR_2R, PLANAR_2R_VALUES
+
+    path = tmp_path / "dotted.urdf"
+    path.write_text(PLANAR_2R.format(**PLANAR_2R_VALUES).replace('"joint1"', '"j"')
+                    .replace('"joint2"', '"j.b"'))
+    model = ci.RobotModel.from_urdf(path, gravity=(0.0, -9.81, 0.0))
+    assert model.joint_names == ["j", "j.b"]
+    q, dq, ddq = states(model, n=500, seed=5)
+    fc = np.array([0.3, 0.1])
+    tau = model.rnea(q, dq, ddq) + fc * np.sign(dq)
+    fit = refit_joint_terms(model, ci.Dataset(t=np.arange(len(q)) * 0.01, q=q, dq=dq, ddq=ddq,
+                                              tau=tau), friction=("coulomb",))
+    assert fit.parameter_names == ["j.fc", "j.b.fc"]
+    np.testing.assert_allclose(fit.joint_parameters, fc, atol=1e-9)
+    with pytest.raises(ci.DatasetError, match="prediction has shape"):
+        score_prediction(np.zeros((3, 2)), ci.Dataset(t=np.arange(4.0), q=np.zeros((4, 2)),
+                                                      dq=np.zeros((4, 2)), ddq=np.zeros((4, 2)),
+                                                      tau=np.zeros((4, 2))))

@@ -97,6 +97,10 @@ class InaccurateSolutionWarning(UserWarning):
     """The solver stopped at reduced accuracy (status ``optimal_inaccurate``)."""
 
 
+class ExportWarning(UserWarning):
+    """Some identified values have no place in the target format (named in the message)."""
+
+
 class TrackingWarning(UserWarning):
     """A simulated robot did not follow its reference: the tracking error exceeds the bound of
     :func:`consistid.simulate.record` (``max_tracking_error``)."""

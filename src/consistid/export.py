@@ -46,18 +46,15 @@ from typing import Sequence
 import numpy as np
 import pinocchio as pin
 
-from .errors import InconsistentParametersError, ModelError, check_option
+from .errors import ExportWarning, InconsistentParametersError, ModelError, check_option
 from .model import RobotModel
 from .parameters import check_body
 from .regressor import TERM_COLUMNS
+from .urdf import remove_dynamics
 
 MERGED = ("auto", "lump", "subtract")
 #: Per-joint parameter name suffixes (``"<joint>.<suffix>"``); only fc and fv have URDF tags.
 SUFFIXES = tuple(s for suffixes in TERM_COLUMNS.values() for s in suffixes)
-
-
-class ExportWarning(UserWarning):
-    """Some identified values have no place in the target format (named in the message)."""
 
 
 @dataclass(frozen=True)
@@ -102,10 +99,7 @@ def _read_inertial(link: ET.Element, source: str) -> pin.Inertia | None:
 def _kinematic_model(root: ET.Element) -> pin.Model:
     """The full Pinocchio model of the URDF tree, ``<dynamics>`` stripped (Pinocchio refuses
     negative values there, and only the kinematics are needed)."""
-    copy = ET.fromstring(ET.tostring(root))
-    for joint in copy.iter("joint"):
-        for tag in joint.findall("dynamics"):
-            joint.remove(tag)
+    copy = remove_dynamics(ET.fromstring(ET.tostring(root)))
     return pin.buildModelFromXML(ET.tostring(copy, encoding="unicode"))
 
 

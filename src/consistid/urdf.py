@@ -64,12 +64,18 @@ def joint_dynamics(path: str | Path) -> dict[str, JointDynamics]:
     return out
 
 
+def remove_dynamics(root: ET.Element) -> ET.Element:
+    """Remove every joint ``<dynamics>`` tag from a parsed URDF tree, in place; returns ``root``."""
+    for joint in root.iter("joint"):
+        for tag in joint.findall("dynamics"):
+            joint.remove(tag)
+    return root
+
+
 def strip_dynamics(path: str | Path, out: str | Path) -> Path:
     """Write a copy of the URDF at ``path`` to ``out`` without any joint ``<dynamics>`` tag."""
     tree = _parse(Path(path))
-    for joint in tree.getroot().iter("joint"):
-        for tag in joint.findall("dynamics"):
-            joint.remove(tag)
+    remove_dynamics(tree.getroot())
     out = Path(out)
     tree.write(out, encoding="utf-8", xml_declaration=True)
     return out

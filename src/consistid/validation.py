@@ -29,10 +29,10 @@ from typing import Mapping, Protocol, Sequence
 import numpy as np
 
 from .dataset import Dataset
-from .errors import ModelError
+from .errors import DatasetError, ModelError
 from .model import RobotModel
 from .parameters import ConsistencyReport, is_physically_consistent
-from .regressor import TERM_COLUMNS, FrictionArg, RegressorSpec, joint_columns
+from .regressor import DEFAULT_FRICTION, TERM_COLUMNS, FrictionArg, RegressorSpec, joint_columns
 from .report import table
 from .urdf import JointDynamics
 
@@ -73,8 +73,8 @@ def score_prediction(predicted: np.ndarray, dataset: Dataset, label: str = "",
     tau = dataset.require_torque()
     predicted = np.asarray(predicted, dtype=float)
     if predicted.shape != tau.shape:
-        raise ValueError(f"prediction has shape {predicted.shape}; the dataset's torques have "
-                         f"{tau.shape}")
+        raise DatasetError(f"prediction has shape {predicted.shape}; the dataset's torques have "
+                           f"{tau.shape}")
     r = tau - predicted
     names = tuple(joint_names or dataset.joint_names or
                   (f"joint{j + 1}" for j in range(dataset.nv)))
@@ -169,7 +169,7 @@ def with_urdf_friction(model: RobotModel, dynamics: Mapping[str, JointDynamics],
 
 
 def refit_joint_terms(model: RobotModel, dataset: Dataset,
-                      friction: FrictionArg = ("coulomb", "viscous", "offset"),
+                      friction: FrictionArg = DEFAULT_FRICTION,
                       armature: bool | Sequence[int | str] = False,
                       label: str = "") -> FixedModel:
     r"""Fit only the per-joint terms, keeping the model's rigid body fixed.
@@ -188,8 +188,8 @@ def refit_joint_terms(model: RobotModel, dataset: Dataset,
     std = np.zeros(spec.n_joint_columns)
     names = spec.joint_column_names(model.joint_names)
     for j in range(model.nv):
-        own = np.array([c for c in range(spec.n_joint_columns)
-                        if names[c].startswith(model.joint_names[j] + ".")], dtype=int)
+        own = np.array([c for c, (_, joint, _) in enumerate(spec.columns) if joint == j],
+                       dtype=int)
         if own.size == 0:
             continue
         a = cols[:, j, own]
