@@ -43,7 +43,7 @@ from consistid.diagnose import GapModel, diagnose
 from consistid.errors import ModelError
 from consistid.excitation import FourierTrajectory
 from consistid.parameters import perturb
-from consistid.robot_effects import Effects, Payload
+from consistid.robot_effects import Effects, MountedPayload
 from consistid.signals import lowpass, preprocess
 from consistid.simulate import record
 
@@ -105,7 +105,7 @@ def simulator_setup(model: ci.RobotModel, truths: list[Truth]
             eff = eff.with_effect("delay", t.value)
         elif t.name == "payload":
             mass, com = t.value
-            eff = eff.with_payload(Payload(mass, com=com))
+            eff = eff.with_payload(MountedPayload(mass, com=com))
         elif t.name == "inertia":
             scale, seed = t.value
             params = perturb(model.prior_parameters, scale, np.random.default_rng(seed))

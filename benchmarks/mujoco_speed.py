@@ -14,14 +14,14 @@ import time
 import consistid as ci
 from consistid.excitation import FourierTrajectory
 from consistid.report import table
-from consistid.simulate import Effects, Payload, record
+from consistid.simulate import Effects, MountedPayload, record
 
 CASES = {
     "no effects": Effects(),
     "viscous + Coulomb (frictionloss)": Effects(viscous=0.3, coulomb=1.0),
     "Coulomb tanh (v_s = 0.5 rad/s)": Effects(coulomb=1.0, coulomb_model="tanh",
                                               coulomb_speed=0.5),
-    "payload + armature": Effects(armature=0.1, payload=Payload(1.0, (0, 0, 0.1))),
+    "payload + armature": Effects(armature=0.1, payload=MountedPayload(1.0, (0, 0, 0.1))),
     "elastic joints (K = 5000)": Effects(stiffness=5000.0),
     "all sensor effects": Effects(torque_offset=0.3, torque_gain=0.02, delay=0.003,
                                   torque_noise=0.05, position_noise=1e-5,

@@ -17,7 +17,7 @@ from consistid.diagnose import _solve, diagnose, exact_delay
 from consistid.errors import ModelError, OptionError
 from consistid.excitation import FourierTrajectory
 from consistid.gap import autocorrelation_time, noise_floor
-from consistid.robot_effects import Effects, Payload
+from consistid.robot_effects import Effects, MountedPayload
 from consistid.signals import lowpass
 from consistid.simulate import excitation_run, record
 
@@ -47,7 +47,7 @@ SCENARIOS = {
     "offset": (Effects(torque_noise=0.05).with_effect("offset", -0.8, joints=[5]), 5),
     "gain": (Effects(torque_noise=0.05).with_effect("gain", 0.08, joints=[1]), 1),
     "armature": (Effects(torque_noise=0.05).with_effect("armature", 0.15, joints=[4]), 4),
-    "payload": (Effects(torque_noise=0.05).with_payload(Payload(2.0, com=(0.0, 0.03, 0.06))),
+    "payload": (Effects(torque_noise=0.05).with_payload(MountedPayload(2.0, com=(0.0, 0.03, 0.06))),
                 None),
     "delay": (Effects(torque_noise=0.05).with_effect("delay", 0.008), None),
     "elasticity": (Effects(torque_noise=0.05).with_effect("elasticity", 4000.0, joints=[1]), 1),

@@ -12,7 +12,7 @@ from consistid.errors import ModelError, OptionError
 from consistid.excitation import FourierTrajectory
 from consistid.mujoco_robot import MujocoRobot
 from consistid.parameters import perturb
-from consistid.robot_effects import Effects, Payload, effect_torque, sensor_torque
+from consistid.robot_effects import Effects, MountedPayload, effect_torque, sensor_torque
 from consistid.simulate import TrackingController, record
 
 from .conftest import random_states
@@ -134,7 +134,7 @@ def test_armature(panda, trajectory):
 def test_payload(panda, trajectory):
     """The extra torque is the flange body's regressor times the payload's 10-vector, which is
     the payload's (m, c, I_c) moved from the hand frame to joint 7's frame."""
-    payload = Payload(1.5, (0.01, -0.02, 0.08), np.diag([0.004, 0.005, 0.003]),
+    payload = MountedPayload(1.5, (0.01, -0.02, 0.08), np.diag([0.004, 0.005, 0.003]),
                       frame="panda_hand")
     rec, extra = run(panda, trajectory, Effects(payload=payload))
     pm = panda.pin_model
@@ -204,7 +204,7 @@ def test_noise(panda, trajectory):
 
 
 def test_effect_torque_is_the_closed_form_of_several_effects_at_once(panda, trajectory):
-    payload = Payload(0.8, (0.0, 0.02, 0.05))
+    payload = MountedPayload(0.8, (0.0, 0.02, 0.05))
     eff = Effects(viscous=0.3, coulomb=0.4, armature=0.1, payload=payload,
                   torque_offset=0.2, torque_gain=-0.03)
     rec, _ = run(panda, trajectory, eff)
@@ -241,9 +241,9 @@ def test_effects_errors_name_field_and_joint(panda):
     with pytest.raises(ModelError, match="not elastic"):
         Effects(motor_inertia=0.2).for_model(panda)
     with pytest.raises(ModelError, match="payload.mass"):
-        Payload(-1.0)
+        MountedPayload(-1.0)
     with pytest.raises(ModelError, match="payload.frame"):
-        Effects(payload=Payload(1.0, frame="gripper")).for_model(panda)
+        Effects(payload=MountedPayload(1.0, frame="gripper")).for_model(panda)
 
 
 def test_record_option_errors(panda, trajectory):
@@ -259,7 +259,7 @@ def test_record_option_errors(panda, trajectory):
 def test_effect_torque_keeps_the_payload_on_elastic_joints(panda, trajectory):
     """An elastic joint's sensor reads the link side: the payload's torque, not the drive's
     friction and armature; rigid joints read both (Spong's model, MuJoCo as the judge)."""
-    payload = Payload(1.2, (0.02, 0.0, 0.06), np.diag([0.003, 0.002, 0.004]))
+    payload = MountedPayload(1.2, (0.02, 0.0, 0.06), np.diag([0.003, 0.002, 0.004]))
     eff = Effects(stiffness={1: 4000.0, 5: 3000.0}, spring_damping={1: 3.0, 5: 2.0},
                   viscous=0.4, armature=0.05, payload=payload)
     rec, _ = run(panda, trajectory, eff)
@@ -277,13 +277,13 @@ def test_effect_torque_keeps_the_payload_on_elastic_joints(panda, trajectory):
 def test_thin_rod_payload_is_simulated_as_a_rod(panda, trajectory):
     """A rod (one zero principal moment, tilted) is accepted and is not made a point mass."""
     r = pin.rpy.rpyToMatrix(0.3, 0.5, 0.7)
-    rod = Payload(1.0, (0.0, 0.0, 0.1), r @ np.diag([0.01, 0.01, 0.0]) @ r.T)
+    rod = MountedPayload(1.0, (0.0, 0.0, 0.1), r @ np.diag([0.01, 0.01, 0.0]) @ r.T)
     rec, extra = run(panda, trajectory, Effects(payload=rod))
     data = panda.pin_model.createData()
     y = np.array([pin.computeJointTorqueRegressor(panda.pin_model, data, q, v, a)[:, 60:70]
                   for q, v, a in zip(rec.true_q, rec.true_dq, rec.true_ddq)])
     np.testing.assert_allclose(extra, y @ rec.payload_parameters, atol=1e-9)
-    point = y @ Payload(1.0, (0.0, 0.0, 0.1)).parameters(panda)[1]
+    point = y @ MountedPayload(1.0, (0.0, 0.0, 0.1)).parameters(panda)[1]
     assert np.max(np.abs(extra - point)) > 1e-3                   # the rod's inertia counts
     xml = MujocoRobot(panda, Effects(payload=rod)).xml
     assert 'name="panda_link7__payload"' in xml and 'name="payload"' not in xml
@@ -291,10 +291,10 @@ def test_thin_rod_payload_is_simulated_as_a_rod(panda, trajectory):
 
 def test_payload_inertia_must_satisfy_the_triangle_inequality():
     with pytest.raises(ModelError, match="payload.inertia violates the triangle"):
-        Payload(1.0, inertia=np.diag([0.001, 0.001, 0.01]))
+        MountedPayload(1.0, inertia=np.diag([0.001, 0.001, 0.01]))
     with pytest.raises(ModelError, match="symmetric"):
-        Payload(1.0, inertia=[[0.01, 0.001, 0], [0, 0.01, 0], [0, 0, 0.01]])
-    Payload(1.0, inertia=np.diag([0.0, 0.02, 0.02]))               # a rod along x: accepted
+        MountedPayload(1.0, inertia=[[0.01, 0.001, 0], [0, 0.01, 0], [0, 0, 0.01]])
+    MountedPayload(1.0, inertia=np.diag([0.0, 0.02, 0.02]))               # a rod along x: accepted
 
 
 class _Fold:

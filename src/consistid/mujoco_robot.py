@@ -52,7 +52,7 @@ import pinocchio as pin
 
 from .errors import ModelError, check_option
 from .model import RobotModel
-from .robot_effects import Effects, Payload
+from .robot_effects import Effects, MountedPayload
 
 INTEGRATORS = ("Euler", "RK4", "implicitfast")
 #: Impedance of the friction-loss constraint (``solimpfriction``); with the time constant at its
@@ -107,7 +107,7 @@ def _inertial(inertia: pin.Inertia, name: str) -> str:
             f'fullinertia="{_num(full)}"/>')
 
 
-def _payload_inertial(payload: Payload, parameters: np.ndarray) -> str:
+def _payload_inertial(payload: MountedPayload, parameters: np.ndarray) -> str:
     """The ``<inertial>`` of a payload from its 10-vector in the carrying joint's frame.
 
     A point mass (``payload.inertia`` all zero) gets zero moments. Otherwise the inertia about
@@ -253,7 +253,7 @@ class MujocoRobot:
     Attributes
     ----------
     xml : the MJCF text; ``mj_model`` : ``mujoco.MjModel``.
-    payload : ``(joint index, 10-vector)`` of the payload (:meth:`Payload.parameters`), or
+    payload : ``(joint index, 10-vector)`` of the payload (:meth:`MountedPayload.parameters`), or
         ``None``.
     link_dof, motor_dof : (nv,) MuJoCo dof index of each link joint and of its drive (the rotor
         dof of an elastic joint, else the link dof); every joint has one coordinate, so these

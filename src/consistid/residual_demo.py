@@ -26,8 +26,8 @@ from .errors import OptionError
 from .excitation import FourierTrajectory
 from .model import RobotModel
 from .report import table
-from .robot_effects import EFFECT_FIELDS, Effects, Payload, effect_torque, sensor_torque
-from .simulate import Recording, nominal_residual, record
+from .robot_effects import EFFECT_FIELDS, Effects, MountedPayload, effect_torque, sensor_torque
+from .simulate import SimulatedRecording, nominal_residual, record
 
 #: Default of ``consistid simulate``: two effects, 1 N·m dry friction on every joint and a 1 kg
 #: payload 10 cm out along the last joint's axis.
@@ -57,7 +57,7 @@ def parse_effects(specs: Sequence[str], model: RobotModel) -> Effects:
             raise OptionError(f"effect {spec!r} is not NAME=NUMBER (e.g. coulomb=1.0)")
         if name == "payload":
             axis = joint_axes(model)[1][-1]
-            effects = effects.with_payload(Payload(magnitude, com=0.1 * axis))
+            effects = effects.with_payload(MountedPayload(magnitude, com=0.1 * axis))
         elif name in EFFECT_FIELDS:
             effects = effects.with_effect(name, magnitude)
         else:
@@ -82,7 +82,7 @@ class ResidualDemo:
     """
 
     model: RobotModel
-    recording: Recording
+    recording: SimulatedRecording
     dataset: Dataset
     residual: np.ndarray
     baseline: np.ndarray

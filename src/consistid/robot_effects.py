@@ -23,7 +23,7 @@ name            field(s)                      added drive torque
                                               torque (``coulomb_model="tanh"``, ``v_s`` =
                                               ``coulomb_speed``)
 ``armature``    ``armature`` (kg·m²)          :math:`I_a\,\ddot q` (MuJoCo ``dof_armature``)
-``payload``     ``payload``                   a rigid body on the flange (:class:`Payload`)
+``payload``     ``payload``                   a rigid body on the flange (:class:`MountedPayload`)
 ``elasticity``  ``stiffness`` K (N·m/rad),    a motor inertia B coupled to the link by a spring
                 ``motor_inertia`` B (kg·m²),  (Spong 1987, "Modeling and control of elastic
                 ``spring_damping`` D          joint robots", J. Dyn. Sys. Meas. Control 109(4),
@@ -88,12 +88,12 @@ COULOMB_MODELS = ("frictionloss", "tanh")
 POSITION_SENSORS = ("motor", "link")
 #: Motor inertia (kg·m², reflected to the link side) of an elastic joint when none is given.
 DEFAULT_MOTOR_INERTIA = 0.5
-#: Round-off (kg·m²) forgiven in the triangle inequalities of a :class:`Payload`'s inertia.
+#: Round-off (kg·m²) forgiven in the triangle inequalities of a :class:`MountedPayload`'s inertia.
 PAYLOAD_INERTIA_TOL = 1e-12
 
 
 @dataclass(frozen=True)
-class Payload:
+class MountedPayload:
     """A rigid body fixed to the flange.
 
     Parameters
@@ -208,7 +208,7 @@ class Effects:
     coulomb_model : ``"frictionloss"`` (MuJoCo's dry friction) or ``"tanh"``.
     coulomb_speed : rad/s, > 0, the smoothing speed ``v_s`` of the ``"tanh"`` model.
     armature : kg·m², ≥ 0, rotor inertia reflected to the joint.
-    payload : a :class:`Payload` or ``None``.
+    payload : a :class:`MountedPayload` or ``None``.
     stiffness : N·m/rad, ≥ 0; > 0 makes the joint elastic.
     motor_inertia : kg·m², motor inertia of elastic joints (link side); 0 on an elastic joint
         means :data:`DEFAULT_MOTOR_INERTIA`.
@@ -231,7 +231,7 @@ class Effects:
     coulomb_model: str = "frictionloss"
     coulomb_speed: float = 0.05
     armature: JointValues = 0.0
-    payload: Payload | None = None
+    payload: MountedPayload | None = None
     stiffness: JointValues = 0.0
     motor_inertia: JointValues = 0.0
     spring_damping: JointValues = 0.0
@@ -249,8 +249,8 @@ class Effects:
         if not (np.isfinite(self.coulomb_speed) and self.coulomb_speed > 0):
             raise ModelError(f"effects.coulomb_speed = {self.coulomb_speed!r}; it must be > 0 "
                              "rad/s")
-        if self.payload is not None and not isinstance(self.payload, Payload):
-            raise ModelError("effects.payload must be a consistid.robot_effects.Payload (the "
+        if self.payload is not None and not isinstance(self.payload, MountedPayload):
+            raise ModelError("effects.payload must be a consistid.simulate.MountedPayload (the "
                              "simulator's payload: mass, com, inertia, frame), got "
                              f"{type(self.payload).__module__}.{type(self.payload).__name__}")
 
@@ -265,7 +265,8 @@ class Effects:
         (otherwise they are switched off for it).
         """
         if name == "payload":
-            raise OptionError("use Effects.with_payload(Payload(...)) for the payload effect")
+            raise OptionError("use Effects.with_payload(MountedPayload(...)) for the payload "
+                              "effect")
         check_option("effect", name, tuple(EFFECT_FIELDS))
         attr = EFFECT_FIELDS[name]
         if joints is None:
@@ -277,7 +278,7 @@ class Effects:
         value.update({j: float(magnitude) for j in joints})
         return replace(self, **{attr: value})
 
-    def with_payload(self, payload: Payload | None) -> "Effects":
+    def with_payload(self, payload: MountedPayload | None) -> "Effects":
         """A copy with ``payload`` on the flange (``None`` removes it)."""
         return replace(self, payload=payload)
 

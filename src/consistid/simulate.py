@@ -7,7 +7,8 @@ their assumptions.
 :func:`record` runs the MuJoCo "real robot" (:mod:`consistid.mujoco_robot`), whose data do not
 come from our equations, through a trajectory under a tracking controller, with the physical and
 sensor effects of :class:`~consistid.robot_effects.Effects` switched on or off, and returns a
-:class:`Recording`: the log ``(t, q, tau)`` a real robot would give, plus the truth for scoring.
+:class:`SimulatedRecording`: the log ``(t, q, tau)`` a real robot would give, plus the truth for
+scoring.
 
 >>> rec = record(model, trajectory, Effects(viscous=0.5, torque_noise=0.05), duration=20.0)
 >>> data = Dataset.from_recording(rec.t, rec.q, rec.tau)       # filter + differentiate
@@ -22,14 +23,14 @@ from typing import Callable, Protocol
 import numpy as np
 
 from .dataset import Dataset
-from .robot_effects import Effects, Payload, measure_position, measure_torque
+from .robot_effects import Effects, MountedPayload, measure_position, measure_torque
 from .errors import ModelError, TrackingWarning
 from .excitation import FourierTrajectory
 from .model import RobotModel
 from .regressor import FrictionArg, RegressorSpec, regressor
 
-__all__ = ["Effects", "Payload", "Recording", "SimulatedRun", "TrackingController", "Trajectory",
-           "excitation_run", "nominal_residual", "record"]
+__all__ = ["DesiredMotion", "Effects", "MountedPayload", "SimulatedRecording", "SimulatedRun",
+           "TrackingController", "excitation_run", "nominal_residual", "record"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -78,7 +79,7 @@ def excitation_run(model: RobotModel, parameters: np.ndarray | None = None,
     return SimulatedRun(dataset, truth, spec, trajectory, torque_noise, position_noise)
 
 
-class Trajectory(Protocol):
+class DesiredMotion(Protocol):
     """Anything that gives the desired ``(q, dq, ddq)``, each (len(t), nv), at times ``t``.
 
     :func:`record` also reads two optional attributes: ``period`` (the default duration) and
@@ -126,7 +127,7 @@ class TrackingController:
 
 
 @dataclass(frozen=True, eq=False)
-class Recording:
+class SimulatedRecording:
     """A simulated robot log and the truth behind it.
 
     The log, as a real robot would give it:
@@ -177,7 +178,7 @@ class Recording:
     rate: float
     physics_rate: float
     controller: TrackingController
-    trajectory: Trajectory
+    trajectory: DesiredMotion
 
     @property
     def n_samples(self) -> int:
@@ -204,7 +205,7 @@ class Recording:
 MAX_TRACKING_ERROR = 0.5
 
 
-def _desired(trajectory: Trajectory, t: np.ndarray
+def _desired(trajectory: DesiredMotion, t: np.ndarray
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The reference at the physics steps ``t``. A trajectory that says it is not periodic
     (``periodic = False``) is held at its start state before ``t = 0``, which needs it to
@@ -223,12 +224,12 @@ def _desired(trajectory: Trajectory, t: np.ndarray
     return q, dq, ddq
 
 
-def record(model: RobotModel, trajectory: Trajectory, effects: Effects | None = None,
+def record(model: RobotModel, trajectory: DesiredMotion, effects: Effects | None = None,
            true_parameters: np.ndarray | None = None, duration: float | None = None,
            rate: float = 1000.0, physics_rate: float = 1000.0, settle: float = 1.0,
            controller: TrackingController | None = None, seed: int = 0,
            integrator: str = "Euler", max_tracking_error: float = MAX_TRACKING_ERROR,
-           progress: Callable[[float], None] | None = None) -> Recording:
+           progress: Callable[[float], None] | None = None) -> SimulatedRecording:
     """Run the MuJoCo robot through ``trajectory`` and log ``(t, q, tau)`` like a real robot.
 
     Parameters
@@ -258,7 +259,7 @@ def record(model: RobotModel, trajectory: Trajectory, effects: Effects | None = 
 
     Returns
     -------
-    Recording
+    SimulatedRecording
 
     Raises
     ------
@@ -306,7 +307,7 @@ def record(model: RobotModel, trajectory: Trajectory, effects: Effects | None = 
                       "for the effects, or an unstable simulation); the log is not the "
                       "intended motion", TrackingWarning, stacklevel=2)
     payload = robot.payload or (None, None)
-    return Recording(
+    return SimulatedRecording(
         t=trace.t, q=measure_position(trace.sensed_q, eff, rng),
         tau=measure_torque(trace.t, trace.t_fine, trace.tau_fine, eff, rng),
         true_q=trace.q, true_dq=trace.dq, true_ddq=trace.ddq,
