@@ -113,11 +113,16 @@ def test_unknown_options_are_refused(panda, runs):
             ci.identify(panda, runs[0], method="wls", friction=None, **kw)
 
 
-def test_ols_accepts_saying_no_prior_and_no_constraints(panda, runs):
+def test_ols_accepts_saying_no_prior_and_no_constraints(planar_2r):
     """``prior=None``/``"none"`` and ``constraints="none"`` describe OLS/WLS: accepted."""
-    plain = ci.identify(panda, runs[0], method="ols", friction=None)
+    q, dq, ddq = random_states(planar_2r, 100, seed=1)
+    data = ci.Dataset(t=0.01 * np.arange(100), q=q, dq=dq, ddq=ddq,
+                      tau=planar_2r.rnea(q, dq, ddq) + 0.01 * np.sin(np.arange(100))[:, None])
+    plain = ci.identify(planar_2r, data, method="ols", friction=None)
     for kw in (dict(prior=None), dict(prior="none", constraints="none")):
-        res = ci.identify(panda, runs[0], method="ols", friction=None, **kw)
+        res = ci.identify(planar_2r, data, method="wls", friction=None, **kw)
+        assert res.method == "wls"
+        res = ci.identify(planar_2r, data, method="ols", friction=None, **kw)
         np.testing.assert_array_equal(res.base_parameters, plain.base_parameters)
 
 
