@@ -80,6 +80,8 @@ LOSSES = ("squared", "huber")
 ACTIVE_TOL = 1e-6
 #: … and as violated (the answer is rejected) when its slack is below minus this.
 CHECK_TOL = 1e-6
+#: Huber's ``c`` (units of σ) when ``huber_threshold`` is not given: 95 % efficiency for Gaussian
+#: noise (Huber 1964).
 HUBER_DEFAULT = 1.345
 
 
