@@ -50,10 +50,15 @@ def test_logdet_metric_is_the_second_order_expansion(seed):
     w = priors.logdet_metric(p0)
     d = np.random.default_rng(seed).normal(size=10)
     d *= 1e-3 * np.linalg.norm(p0) / np.linalg.norm(d)
-    for step in (1.0, 0.1):  # third-order remainder: the ratio tends to 1 linearly
+    # The even part (d(J₀ + sΔ) + d(J₀ − sΔ))/2 = s²‖WΔ‖² + O(s⁴) has no third-order term, so
+    # its ratio to the quadratic form tends to 1 quadratically (over 3000 seeds the worst errors
+    # are 3.3e-3 at s = 0.1 and 3.3e-5 at s = 0.01); a one-sided ratio converges only linearly,
+    # with a seed-dependent constant, which made a fixed bound flaky.
+    for step, tol in ((0.1, 1e-2), (0.01, 1e-4)):
         quad = np.sum((w @ (step * d)) ** 2)
-        ratio = priors.logdet_divergence_value(p0 + step * d, p0) / quad
-        assert abs(ratio - 1) < (0.3 if step == 1.0 else 0.03)
+        even = 0.5 * (priors.logdet_divergence_value(p0 + step * d, p0)
+                      + priors.logdet_divergence_value(p0 - step * d, p0))
+        assert abs(even / quad - 1) < tol
 
 
 def test_neighbourhood_bounds_hold_when_minimising_against_them():
