@@ -366,8 +366,10 @@ class MujocoRobot:
         :class:`consistid.simulate.TrackingController` on the ``nominal`` model,
         ``gains = (K_p, K_d)``.
 
-        The robot starts on the desired state (an elastic joint's motor pre-deflected by the
-        true static torque). Every ``log_every``-th step from ``log_from`` is logged; the
+        The robot starts on the desired state, an elastic joint's motor pre-deflected by
+        ``τ_J/K``, where ``τ_J`` is MuJoCo's own link-side torque there (``mj_inverse`` at
+        ``(q_d, q̇_d, q̈_d)`` with the springs relaxed: true inertias, payload, armature), so
+        that the springs alone give the link ``q̈_d`` at the first step. Every ``log_every``-th step from ``log_from`` is logged; the
         acceleration is MuJoCo's at the logged state (``mj_forward`` with the step's torques).
         ``progress`` (if given) is called with the fraction done every 1000 steps. Raises
         :class:`ModelError` if the simulation diverges, or before it starts if a tanh friction
@@ -380,12 +382,12 @@ class MujocoRobot:
         elastic = eff.elastic
         sense_dof = self.motor_dof if eff.position_sensor == "motor" else self.link_dof
         drive, link = self.motor_dof, self.link_dof
-        data.qpos[link], data.qvel[link] = qd[0], dqd[0]
+        for dof in (link, drive):
+            data.qpos[dof], data.qvel[dof], data.qacc[dof] = qd[0], dqd[0], ddqd[0]
         if elastic.any():
-            static = self.model.rnea(qd[0], dqd[0], ddqd[0])[0]
-            data.qpos[drive[elastic]] = qd[0, elastic] + static[elastic] / np.asarray(
-                eff.stiffness)[elastic]
-            data.qvel[drive[elastic]] = dqd[0, elastic]
+            mujoco.mj_inverse(mj, data)           # springs relaxed: the link side's torque
+            data.qpos[drive[elastic]] += (data.qfrc_inverse[link[elastic]]
+                                          / np.asarray(eff.stiffness)[elastic])
         mujoco.mj_forward(mj, data)
         self._check_tanh_step(qd)
         kp, kd = gains
