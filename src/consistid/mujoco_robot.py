@@ -369,8 +369,9 @@ class MujocoRobot:
         The robot starts on the desired state, an elastic joint's motor pre-deflected by
         ``τ_J/K``, where ``τ_J`` is MuJoCo's own link-side torque there (``mj_inverse`` at
         ``(q_d, q̇_d, q̈_d)`` with the springs relaxed: true inertias, payload, armature), so
-        that the springs alone give the link ``q̈_d`` at the first step. Every ``log_every``-th step from ``log_from`` is logged; the
-        acceleration is MuJoCo's at the logged state (``mj_forward`` with the step's torques).
+        that the springs alone give the link ``q̈_d`` at the first step. Every
+        ``log_every``-th step from ``log_from`` is logged; the acceleration is MuJoCo's at the
+        logged state (``mj_forward`` with the step's torques).
         ``progress`` (if given) is called with the fraction done every 1000 steps. Raises
         :class:`ModelError` if the simulation diverges, or before it starts if a tanh friction
         is too stiff for the step anywhere along ``q_d``.
