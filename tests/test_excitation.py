@@ -16,7 +16,8 @@ from consistid.errors import (ExcitationError, InfeasibleExcitationError,
                              PoorExcitationWarning)
 from consistid.excitation import (BoundaryConditions, BSplineParameterisation, CartesianBox,
                                   ExcitationLimits, FloorPlane, FourierPolynomial, KeepOutSphere,
-                                  assess_excitation, design_excitation, random_excitation)
+                                  assess_excitation, design_excitation, end_effector_frame,
+                                  random_excitation)
 from consistid.excitation.criteria import criterion_and_gradient, regressor_sensitivity
 from consistid.excitation.design import _DesignProblem
 from consistid.excitation.limits import ConstraintSet
@@ -197,6 +198,26 @@ def test_empty_position_range_and_unreachable_floor_raise(panda):
     lim = ExcitationLimits.from_model(panda, floor=FloorPlane(3.0))
     with pytest.raises(InfeasibleExcitationError, match="no feasible rest pose"):
         design_excitation(panda, harmonics=1, n_starts=1, max_iter=1, limits=lim, n_grid=20)
+
+
+@pytest.mark.parametrize("name, frame", [("panda", "panda_hand_tcp"), ("ur5", "tool0"),
+                                         ("kinova", "j2s6s200_end_effector")])
+def test_end_effector_is_the_outermost_frame_of_the_last_joint(name, frame):
+    """Not the last body frame of the URDF: on the Kinova that is a finger tip, 5 mm nearer
+    the wrist than the end-effector frame."""
+    model = ci.RobotModel.example(name)
+    assert end_effector_frame(model) == frame
+    pm = model.pin_model
+    data = pm.createData()
+    pin.framesForwardKinematics(pm, data, pin.randomConfiguration(pm))
+    wrist = data.oMi[pm.njoints - 1].translation
+    reach = {f.name: np.linalg.norm(data.oMf[k].translation - wrist)
+             for k, f in enumerate(pm.frames) if f.parentJoint == pm.njoints - 1}
+    assert reach[frame] >= max(reach.values()) - 1e-9
+    tool = pin.Frame("tool_tip", pm.njoints - 1, pm.frames[pm.getFrameId(frame)].parentFrame,
+                     pin.SE3(np.eye(3), np.array([0.0, 0.0, 0.3])), pin.FrameType.OP_FRAME)
+    pm.addFrame(tool)
+    assert end_effector_frame(model) == "tool_tip"
 
 
 # ------------------------------------------------------------------------------ the design

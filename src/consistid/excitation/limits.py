@@ -28,9 +28,27 @@ from .trajectory import DEFAULT_ACCELERATION_LIMIT, _joint_vector, _position_ran
 
 
 def end_effector_frame(model: RobotModel) -> str:
-    """The default end-effector frame: the model's last body frame (e.g. ``panda_hand_tcp``)."""
-    bodies = [f.name for f in model.pin_model.frames if f.type == pin.FrameType.BODY]
-    return bodies[-1]
+    """The default end-effector frame: the outermost frame carried by the last joint.
+
+    Among the ``BODY`` and ``OP_FRAME`` frames whose parent joint is the model's last joint,
+    the one furthest from that joint's origin (a tie, within 1 nm, goes to the frame defined
+    last). So fingers, which sit nearer the wrist than the tool point, are not picked: Panda
+    ``panda_hand_tcp``, UR ``tool0``, Kinova ``j2s6s200_end_effector`` (not a finger tip, the
+    last body frame in the URDF).
+
+    Raises
+    ------
+    ModelError : no body or operational frame is attached to the last joint.
+    """
+    pm = model.pin_model
+    last = pm.njoints - 1
+    kinds = (pin.FrameType.BODY, pin.FrameType.OP_FRAME)
+    candidates = [(round(float(np.linalg.norm(f.placement.translation)), 9), k)
+                  for k, f in enumerate(pm.frames) if f.parentJoint == last and f.type in kinds]
+    if not candidates:
+        raise ModelError(f"{model.name}: no body or operational frame is attached to the last "
+                         f"joint {pm.names[last]!r}; name the end-effector frame (frames=...)")
+    return pm.frames[max(candidates)[1]].name
 
 
 @dataclass(frozen=True)
