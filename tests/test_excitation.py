@@ -460,3 +460,16 @@ def test_fourier_trajectory_validates_its_fields():
         with pytest.raises(ExcitationError, match="rate|duration"):
             traj.sample(rate, duration)
     assert traj.sample(10.0).n_samples == 20
+
+
+def test_array_holding_values_compare_by_identity_instead_of_raising(planar_2r):
+    """A field-wise ``==`` on ndarray fields raises ('truth value of an array is ambiguous')."""
+    import dataclasses
+    from consistid.excitation import FourierTrajectory
+    fourier = FourierTrajectory.random(planar_2r, 2, 2.0, seed=0)
+    fp = FourierPolynomial(2, 2, 2.0)
+    limits = ExcitationLimits.from_model(planar_2r)
+    for value in (fourier, fp.trajectory(0.1 * np.ones((2, fp.n_coefficients))), limits,
+                  BoundaryConditions(q_start=np.zeros(2))):
+        twin = dataclasses.replace(value)
+        assert value == value and value != twin and len({value, twin}) == 2

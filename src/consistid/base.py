@@ -40,7 +40,7 @@ def _format_term(coef: float, name: str) -> str:
     return name if abs(abs(coef) - 1.0) < 1e-9 else f"{abs(coef):.4g}·{name}"
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class BaseParameters:
     """The map from standard to base parameters, ``β = B π``.
 

@@ -39,7 +39,7 @@ def _r_factor(a: np.ndarray, size: int) -> np.ndarray:
     return r
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class CompressedProblem:
     """Per-joint R factors ``R̄_j`` of ``[Y_j | τ_j]``, shape ``(nv, p + 1, p + 1)``."""
 

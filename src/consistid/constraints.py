@@ -82,7 +82,7 @@ def mass_inertia_matrix(x: cp.Expression) -> cp.Expression:
     return cp.reshape(_MASS_INERTIA_MAP @ x, (6, 6), order="F")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class BodyScaling:
     """Congruences that make one body's LMIs well scaled, from a realizable reference body.
 
@@ -166,7 +166,7 @@ def relative_bound(reference: np.ndarray, level: str, margin: float) -> np.ndarr
     return margin * pseudo_inertia_numeric(reference)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Ellipsoid:
     """``{p : (p − center)ᵀ shape⁻¹ (p − center) ≤ 1}`` in the body frame (m, m²)."""
 

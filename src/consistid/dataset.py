@@ -38,7 +38,7 @@ def _check_finite(name: str, a: np.ndarray, joint_names: Sequence[str] | None) -
                            f"in {name})")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Dataset:
     """Samples of ``(t, q, dq, ddq, tau)``; validated on construction.
 

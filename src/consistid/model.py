@@ -54,7 +54,7 @@ def example_robot_data_dir() -> Path:
     )
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class JointLimits:
     """Joint limits read from the URDF, one entry per velocity DoF (SI units)."""
 

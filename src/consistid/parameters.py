@@ -136,7 +136,7 @@ def inertias_from_vector(parameters: np.ndarray) -> list[pin.Inertia]:
             for i in range(0, parameters.size, 10)]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class BodyConsistency:
     """The verdict for one body: ``ok``, the first violated condition, and the margins."""
 

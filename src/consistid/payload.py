@@ -56,7 +56,7 @@ IDENTIFIABLE_RTOL = 1e-6
 REFERENCE_RADIUS = 0.1
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Payload:
     """An estimated payload, expressed in ``frame``.
 

@@ -133,7 +133,7 @@ class CoefficientMove:
                 f"({self.change:+.3g}, {self.sigmas:+.2f} σ)")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class RecoveryCheck:
     """Does a recovered set reproduce the coefficients and predict the same torques?
 
@@ -162,7 +162,7 @@ class RecoveryCheck:
                 f"{self.min_margin:.3g}{torque}")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class RecoveryResult:
     """Standard parameters recovered from base coefficients.
 
@@ -303,7 +303,7 @@ def _shorten(text: str, width: int) -> str:
 
 
 # --------------------------------------------------------------------------------- the problem
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class _Problem:
     """Everything the conic stages share (built once)."""
 

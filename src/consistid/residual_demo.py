@@ -66,7 +66,7 @@ def parse_effects(specs: Sequence[str], model: RobotModel) -> Effects:
     return effects
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ResidualDemo:
     """A recording with effects and what the nominal model makes of it.
 

@@ -33,7 +33,7 @@ class SolverReport:
                 f"setup {self.compile_time * 1e3:.1f} ms{it})")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class IdentificationResult:
     """Identified parameters of a robot, with the numbers needed to trust them.
 

@@ -92,7 +92,7 @@ DEFAULT_MOTOR_INERTIA = 0.5
 PAYLOAD_INERTIA_TOL = 1e-12
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class MountedPayload:
     """A rigid body fixed to the flange.
 

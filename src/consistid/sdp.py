@@ -96,7 +96,7 @@ def default_prior_weight(uncertainty: float = DEFAULT_PRIOR_UNCERTAINTY) -> floa
     return 2.0 / uncertainty ** 2
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class _Setup:
     """Everything the program needs that does not change between re-weighting passes."""
 
@@ -494,7 +494,7 @@ def _whitening(r: np.ndarray, z: np.ndarray, prior_vec: np.ndarray, setup: _Setu
     return t @ y_c, phi
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class _Program:
     """A built program: the cvxpy problem, its variable, ``θ(w) = θ_c + Φ w`` and the labelled
     constraints (one label per constraint, or one per row of a vector constraint)."""

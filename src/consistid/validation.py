@@ -43,7 +43,7 @@ class Predictor(Protocol):
     def predict(self, dataset: Dataset) -> np.ndarray: ...
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class TorqueScores:
     """How well a prediction matches measured torques (module docstring for the formulas).
 
@@ -109,7 +109,7 @@ def scores_table(scores: Sequence[TorqueScores], percent: bool = True) -> str:
     return table(header, rows, floatfmt=".3g")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class FixedModel:
     """A torque model with given parameters: ``τ̂ = rnea(q, q̇, q̈) + C(q̇, q̈) φ``.
 

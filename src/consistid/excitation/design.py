@@ -311,7 +311,7 @@ def random_feasible(problem: _FeasibilityProblem, rng: np.random.Generator, max_
         f"(normalised margin {value:.3g} < safety {safety:g}); relax the limits")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class StartResult:
     """One optimisation start.
 
@@ -392,7 +392,7 @@ def _optimise(problem: _DesignProblem, x0: np.ndarray, method: str, max_iter: in
 
 
 # --------------------------------------------------------------------------------- the design
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ExcitationDesign:
     """An optimised excitation trajectory with the evidence that it is good and safe.
 

@@ -79,7 +79,7 @@ class KeepOutSphere:
     frames: tuple[str, ...] | None = None
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ExcitationLimits:
     """All limits of an excitation design, per joint in SI units.
 
@@ -181,7 +181,7 @@ class ExcitationLimits:
             raise InfeasibleExcitationError(f"keep-out sphere radius {self.sphere.radius} < 0")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ConstraintBlock:
     """Margins of one kind of constraint at N samples.
 

@@ -83,7 +83,7 @@ def _position_range(lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, n
     return lo, hi
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class BoundaryConditions:
     """Joint states imposed at the start (``t = 0``) and the end (``t = T``) of a trajectory.
 
@@ -413,7 +413,7 @@ class BSplineParameterisation(Parameterisation):
                 f"degree={self.degree}, duration={self.duration:g})")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Trajectory:
     """A joint trajectory: a :class:`Parameterisation` and its coefficients (nv, n).
 
@@ -481,7 +481,7 @@ class Trajectory:
         return path
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class FourierTrajectory:
     """A periodic joint trajectory ``q(t)`` as a finite Fourier series (no polynomial term).
 
