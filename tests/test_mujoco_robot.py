@@ -361,15 +361,23 @@ def test_excitation_run_parameter_shape_is_a_model_error(panda):
         ci.simulate.excitation_run(panda, np.zeros(5), duration=1.0)
 
 
-def test_elastic_start_is_deflected_by_mujocos_own_link_torque(panda, trajectory):
-    """At t = 0 the link sits on the desired state and only the springs act on it (every
-    joint elastic): the link's acceleration is q̈_d iff each deflection is the true link-side
-    torque over K, payload included (the nominal RNEA left it out: 19 rad/s² off at t = 0)."""
+def test_elastic_start_is_the_deflection_under_mujocos_own_link_torque(panda, trajectory):
+    """At t = 0 the motors sit on the desired state (the collocated controller sees no error)
+    and only the springs act on the links (every joint elastic): the links accelerate at q̈_d
+    iff each deflection is the true link-side torque over K, payload included (the nominal
+    RNEA left it out: 19 rad/s² off at t = 0)."""
     payload = MountedPayload(2.0, (0.02, 0.0, 0.08), np.diag([0.004, 0.003, 0.005]))
     eff = Effects(stiffness=4000.0, spring_damping=2.0, payload=payload)
     rec = record(panda, trajectory, eff, duration=0.005, settle=0.0)
     q, dq, ddq = trajectory.evaluate(rec.t[:1])
-    np.testing.assert_allclose(rec.true_q[0], q[0], atol=1e-12)
+    np.testing.assert_allclose(rec.motor_q[0], q[0], atol=1e-12)
     np.testing.assert_allclose(rec.true_ddq[0], ddq[0], atol=1e-6)
-    static = panda.rnea(q, dq, ddq)[0] + effect_torque(panda, rec.effects, q, dq, ddq)[0]
-    np.testing.assert_allclose(rec.motor_q[0] - rec.true_q[0], static / 4000.0, atol=1e-9)
+    link = (rec.true_q[:1], dq, ddq)
+    static = panda.rnea(*link)[0] + effect_torque(panda, rec.effects, *link)[0]
+    np.testing.assert_allclose(q[0] - rec.true_q[0], static / 4000.0, atol=1e-12)
+    assert np.max(np.abs(static / 4000.0)) > 5e-3
+
+
+def test_too_soft_a_spring_cannot_hold_the_start(panda, trajectory):
+    with pytest.raises(ModelError, match="panda_joint2.*too soft"):
+        record(panda, trajectory, Effects(stiffness={1: 20.0}), duration=0.005, settle=0.0)

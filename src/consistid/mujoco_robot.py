@@ -66,6 +66,9 @@ ROTOR_MASS, ROTOR_INERTIA = 1e-9, 1e-12
 #: The tanh-friction stability check reads the mass matrix at up to this many evenly spaced
 #: samples of the desired trajectory.
 TANH_CHECK_SAMPLES = 1000
+#: Fixed-point iterations allowed for the start deflection of the elastic joints, and the
+#: change (rad) below which it has converged (it contracts by ~‖∂τ_J/∂q‖/K per iteration).
+START_ITERATIONS, START_TOL = 100, 1e-13
 
 
 def _num(values) -> str:
@@ -313,6 +316,49 @@ class MujocoRobot:
             out[k] = data.qfrc_inverse[self.link_dof]
         return out
 
+    def _start_state(self, data: mujoco.MjData, q: np.ndarray, dq: np.ndarray,
+                     ddq: np.ndarray) -> None:
+        """Put ``data`` in the state the robot has while tracking ``(q, q̇, q̈)``.
+
+        Every drive (the motor of an elastic joint) is on ``(q, q̇)``, where the collocated
+        controller holds it, so that it sees no error at the start. On an elastic joint the
+        link lags by the spring's deflection ``δ = τ_J(q − δ)/K``, with ``τ_J`` MuJoCo's own
+        link-side torque (``mj_inverse`` at ``(q − δ, q̇, q̈)``, springs relaxed: the true
+        inertias, payload and armature), solved by fixed-point iteration. Then the springs
+        alone give every elastic link the acceleration ``q̈`` (Spong's model, cited in
+        :mod:`consistid.robot_effects`: the link side is ``M(q)q̈ + h(q, q̇) = τ_J``).
+
+        Raises
+        ------
+        ModelError : the iteration does not converge (a spring too soft for its load).
+        """
+        mj, link, drive = self.mj_model, self.link_dof, self.motor_dof
+        elastic = self.effects.elastic
+        for dof in (link, drive):
+            data.qpos[dof], data.qvel[dof] = q, dq
+        if not elastic.any():
+            return
+        stiffness = np.asarray(self.effects.stiffness)[elastic]
+        deflection = np.zeros(int(elastic.sum()))
+        for _ in range(START_ITERATIONS):
+            data.qpos[drive] = data.qpos[link]                   # springs relaxed
+            data.qacc[link], data.qacc[drive] = ddq, ddq
+            mujoco.mj_inverse(mj, data)
+            new = data.qfrc_inverse[link[elastic]] / stiffness
+            data.qpos[link[elastic]] = q[elastic] - new
+            change, deflection = np.max(np.abs(new - deflection)), new
+            if change < START_TOL:
+                break
+        else:
+            worst = np.flatnonzero(elastic)[int(np.argmax(np.abs(deflection)))]
+            raise ModelError(
+                "the elastic joints cannot hold the start state: the deflection "
+                f"δ = τ_J(q − δ)/K did not converge in {START_ITERATIONS} iterations (last "
+                f"change {change:.3g} rad; largest on {self.model.joint_names[worst]!r}, "
+                f"stiffness {self.effects.stiffness[worst]:g}); the spring is too soft for its "
+                "load")
+        data.qpos[drive] = q
+
     def _check_tanh_step(self, q: np.ndarray) -> None:
         """The tanh friction is applied explicitly, once per step: it is stable only while
         ``h·f_c / (v_s·M_jj(q)) < 1`` (its linearisation about 0 must not overshoot), checked
@@ -366,15 +412,13 @@ class MujocoRobot:
         :class:`consistid.simulate.TrackingController` on the ``nominal`` model,
         ``gains = (K_p, K_d)``.
 
-        The robot starts on the desired state, an elastic joint's motor pre-deflected by
-        ``τ_J/K``, where ``τ_J`` is MuJoCo's own link-side torque there (``mj_inverse`` at
-        ``(q_d, q̇_d, q̈_d)`` with the springs relaxed: true inertias, payload, armature), so
-        that the springs alone give the link ``q̈_d`` at the first step. Every
-        ``log_every``-th step from ``log_from`` is logged; the acceleration is MuJoCo's at the
-        logged state (``mj_forward`` with the step's torques).
-        ``progress`` (if given) is called with the fraction done every 1000 steps. Raises
-        :class:`ModelError` if the simulation diverges, or before it starts if a tanh friction
-        is too stiff for the step anywhere along ``q_d``.
+        The robot starts as it tracks (:meth:`_start_state`): the drives on the desired state,
+        the links of elastic joints deflected by the springs' load. Every ``log_every``-th step
+        from ``log_from`` is logged; the acceleration is MuJoCo's at the logged state
+        (``mj_forward`` with the step's torques). ``progress`` (if given) is called with the
+        fraction done every 1000 steps. Raises :class:`ModelError` if the simulation diverges,
+        or before it starts if a tanh friction is too stiff for the step anywhere along ``q_d``
+        or the elastic joints cannot hold the start state.
         """
         qd, dqd, ddqd = desired
         steps = qd.shape[0]
@@ -383,12 +427,7 @@ class MujocoRobot:
         elastic = eff.elastic
         sense_dof = self.motor_dof if eff.position_sensor == "motor" else self.link_dof
         drive, link = self.motor_dof, self.link_dof
-        for dof in (link, drive):
-            data.qpos[dof], data.qvel[dof], data.qacc[dof] = qd[0], dqd[0], ddqd[0]
-        if elastic.any():
-            mujoco.mj_inverse(mj, data)           # springs relaxed: the link side's torque
-            data.qpos[drive[elastic]] += (data.qfrc_inverse[link[elastic]]
-                                          / np.asarray(eff.stiffness)[elastic])
+        self._start_state(data, qd[0], dqd[0], ddqd[0])
         mujoco.mj_forward(mj, data)
         self._check_tanh_step(qd)
         kp, kd = gains
