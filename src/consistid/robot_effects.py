@@ -27,7 +27,7 @@ name            field(s)                      added drive torque
 ``elasticity``  ``stiffness`` K (N·m/rad),    a motor inertia B coupled to the link by a spring
                 ``motor_inertia`` B (kg·m²),  (Spong 1987, "Modeling and control of elastic
                 ``spring_damping`` D          joint robots", J. Dyn. Sys. Meas. Control 109(4),
-                (N·m·s/rad)                   doi:10.1115/1.3143866):
+                (N·m·s/rad)                   pp. 310–318):
                                               :math:`M(q)\ddot q + h = \tau_J`,
                                               :math:`B\ddot\theta + \tau_J = u`,
                                               :math:`\tau_J = K(\theta-q) + D(\dot\theta-\dot q)`
