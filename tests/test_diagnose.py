@@ -26,8 +26,8 @@ RATE = 200.0
 
 def mujoco_pair(model, effects, params=None, ripple=None):
     """Training (10 s) and held-out (6 s) datasets of the MuJoCo robot on two different
-    excitations, through the default signal chain; ``ripple = (joint, amp, k)`` is added to the
-    logged torque."""
+    excitations, through the default signal chain; ``ripple = (joint, amp, k)``,
+    ``amp·sin(k q_j + 0.4)``, is added to the logged torque (``k = 1``: once per revolution)."""
     out = []
     for seed, duration in ((11, 10.0), (12, 6.0)):
         traj = FourierTrajectory.random(model, 5, 10.0, seed)
@@ -53,7 +53,10 @@ SCENARIOS = {
     "elasticity": (Effects(torque_noise=0.05).with_effect("elasticity", 4000.0, joints=[1]), 1),
     "inertia": (Effects(torque_noise=0.05), None),
     "ripple": (Effects(torque_noise=0.05), 6),
+    "position": (Effects(torque_noise=0.05), 6),
 }
+#: Injected on the logged torque: (amplitude N·m, cycles per radian).
+INJECTED = {"ripple": (0.8, 23), "position": (0.4, 1)}
 
 
 @pytest.mark.parametrize("effect", list(SCENARIOS))
@@ -62,7 +65,7 @@ def test_effect_injected_alone_is_named_first(panda, effect):
     params = (ci.parameters.perturb(panda.prior_parameters, 0.2, np.random.default_rng(3))
               if effect == "inertia" else None)
     train, held = mujoco_pair(panda, effects, params,
-                              ripple=(joint, 0.8, 23) if effect == "ripple" else None)
+                              ripple=(joint, *INJECTED[effect]) if effect in INJECTED else None)
     diag = diagnose(panda, train, held_out=held)
     assert diag.effects, f"{effect}: nothing named"
     top = diag.effects[0]
@@ -76,6 +79,44 @@ def test_effect_injected_alone_is_named_first(panda, effect):
         assert top.parameters[0].value == pytest.approx(2.0, rel=0.05)
     if effect == "delay":
         assert top.parameters[0].value == pytest.approx(0.008, rel=0.05)
+    if effect == "inertia":  # the last body's block and link 2's a sin q₂ + b cos q₂ lie inside
+        (note,) = [n for n in diag.notes if n.startswith("contained in the selected effects")]
+        assert "payload (all joints)" in note and "position (panda_joint2)" in note
+    if effect == "position":  # 0.4 sin(q + 0.4) = p_s sin q + p_c cos q
+        ps, pc = top.parameters
+        assert (ps.name, pc.name) == ("panda_joint7.ps1", "panda_joint7.pc1")
+        for p, truth in ((ps, 0.4 * np.cos(0.4)), (pc, 0.4 * np.sin(0.4))):
+            assert abs(p.value - truth) < 4 * p.std, (p, truth)
+
+
+def test_position_on_a_joint_whose_gravity_torque_has_the_same_form(panda):
+    """On the Panda's joint 2 (horizontal, meeting the vertical axis 1) link 2's gravity torque is
+    ``a sin q₂ + b cos q₂``: the once-per-revolution atom lies in the span of ``inertia``. The
+    injected torque is named once, as ``position`` (fewer parameters) with ``inertia`` as its
+    indistinguishable alternative, never as both effects."""
+    train, held = mujoco_pair(panda, Effects(torque_noise=0.05), ripple=(1, 0.4, 1))
+    diag = diagnose(panda, train, held_out=held)
+    assert [e.name for e in diag.effects] == ["position"], [str(e) for e in diag.effects]
+    (found,) = diag.effects
+    assert found.joints == ("panda_joint2",)
+    assert found.alternatives == ("inertia (all joints)",)
+    assert found.shrink[1] > 0.5
+
+
+def test_ripple_order_two_is_searched_only_over_a_full_revolution(panda):
+    """The periodogram finds k = 2 when the joint turns through 2π (two periods); over 3 rad it
+    starts at ⌈4π/3⌉ = 5, two periods of the lowest order searched (order 1 is ``position``)."""
+    rng = np.random.default_rng(2)
+    t = np.arange(4000) / RATE
+    lib = EffectLibrary(panda, ("ripple",))
+    for span, expect in ((6.6, 2), (3.0, int(np.ceil(4 * np.pi / 3.0)))):
+        q = np.zeros((t.size, 7))
+        q[:, 4] = span * (t / t[-1] - 0.5)
+        dq = np.zeros_like(q)
+        dq[:, 4] = span / t[-1]
+        data = Dataset(t=t, q=q, dq=dq, ddq=np.zeros_like(q), tau=np.zeros_like(q))
+        r = 0.5 * np.sin(2 * q[:, 4] + 1.0) + 0.05 * rng.standard_normal(t.size)
+        assert lib.ripple_order(GapData(panda, data, panda.prior_parameters), r, 4) == expect
 
 
 def test_no_effect_names_nothing_and_is_at_the_noise_floor(panda):

@@ -46,11 +46,25 @@ Effects and their signatures (what each looks like in the residual ``r = τ − 
     frequency towards the joint resonance.
 ``ripple``
     Position-dependent torque ripple (cogging, gear-tooth or encoder eccentricity), periodic in
-    the joint angle: ``r_j = L[a sin(k q_j) + b cos(k q_j)]`` with integer ``k ≥ 3`` cycles per
-    radian found by a periodogram search (orders 1–2 are left to ``inertia``, whose gravity
-    terms are harmonics of the same order), and ``L`` the identity or, for low-pass filtered
-    torques, the chain's filter at a cut-off chosen from :data:`FILTER_CUTOFFS` and refined
-    between its grid neighbours: ``k q̇_j / 2π`` easily exceeds the cut-off.
+    the joint angle: ``r_j = L[a sin(k q_j) + b cos(k q_j)]`` with integer ``k ≥ 2`` cycles per
+    radian, seen at least twice over the joint's range of motion, found by a periodogram search,
+    and ``L`` the identity or, for low-pass filtered torques, the chain's filter at a cut-off
+    chosen from :data:`FILTER_CUTOFFS` and refined between its grid neighbours: ``k q̇_j / 2π``
+    easily exceeds the cut-off. Order 2 (twice per revolution) thus needs a joint range of a
+    full revolution; over less, the data do not tell it from ``position`` plus ``offset``.
+``position``
+    A torque that turns with the joint, once per revolution: ``r_j = p_s sin q_j + p_c cos q_j``,
+    the identification's ``position`` columns (:mod:`consistid.regressor`, names
+    ``<joint>.ps1``, ``.pc1``), offered on every joint without a search. Physically:
+    cross-talk of the bending moments a joint torque sensor carries, whose direction in the
+    sensor frame turns with the joint (Lee, Kim & Song 2010, doi:10.1007/s12541-010-0025-0), or
+    a mounting eccentricity or misalignment of sensor or bearing. Unlike ``ripple`` it needs no
+    full period in the data: over part of a revolution it is a slow, smooth function of ``q_j``
+    alone (nearly ``offset`` when the joint moves little). Gravity torques are harmonics of the
+    same order: where a link's gravity torque on its joint is exactly ``a sin q_j + b cos q_j``
+    (a joint whose axis keeps its direction to gravity), the atom lies in the span of
+    ``inertia``, and :mod:`consistid.diagnose` reports the two as indistinguishable
+    alternatives. The torque filter is ignored: ``|q̇_j| / 2π`` stays far below the cut-offs.
 """
 
 from __future__ import annotations
@@ -69,11 +83,11 @@ from .dataset import Dataset
 from .errors import DatasetError, ModelError, check_option
 from .model import RobotModel
 from .parameters import INERTIAL_NAMES
-from .regressor import rigid_body_regressor
+from .regressor import TERM_COLUMNS, RegressorSpec, joint_columns, rigid_body_regressor
 
 #: Effect names in the order reports list them (the names of the design document).
 EFFECT_NAMES: tuple[str, ...] = ("inertia", "coulomb", "viscous", "offset", "gain", "armature",
-                                 "payload", "delay", "elasticity", "ripple")
+                                 "payload", "delay", "elasticity", "ripple", "position")
 
 SIGNATURES: dict[str, str] = {
     "inertia": "follows the rigid-body regressor: scales with q̈ and gravity poses, couples joints",
@@ -86,11 +100,12 @@ SIGNATURES: dict[str, str] = {
     "delay": "≈ −d·τ̇: in quadrature with the torque, grows with frequency",
     "elasticity": "spring deflection τ/k: grows with frequency towards a resonance",
     "ripple": "periodic in the joint angle (k cycles per radian)",
+    "position": "turns with the joint, once per revolution: a sin q_j + b cos q_j",
 }
 
 UNITS = {"inertia": "", "coulomb": "N·m", "viscous": "N·m·s/rad", "offset": "N·m", "gain": "",
          "armature": "kg·m²", "payload": "", "delay": "s", "elasticity": "rad/(N·m)",
-         "ripple": "N·m"}
+         "ripple": "N·m", "position": "N·m"}
 
 INERTIAL_UNITS = dict(zip(INERTIAL_NAMES, ("kg", "kg·m", "kg·m", "kg·m", *["kg·m²"] * 6)))
 
@@ -310,13 +325,14 @@ class EffectLibrary:
     effects : names among :data:`EFFECT_NAMES`.
     base : base parameters of the rigid body (computed when ``None``); the ``inertia`` atom's
         columns are the base regressor.
-    ripple_orders : (min, max) integer ripple orders ``k`` searched (max is further limited by the
-        sampling rate and speed so that ``k·|q̇|·Δt < π/2``).
+    ripple_orders : (min, max) integer ripple orders ``k`` searched (min is further raised so that
+        the joint's range holds two periods, max lowered by the sampling rate and speed so that
+        ``k·|q̇|·Δt < π/2``; order 1 is the ``position`` effect).
     """
 
     def __init__(self, model: RobotModel, effects: tuple[str, ...] | list[str] = EFFECT_NAMES,
                  base: BaseParameters | None = None,
-                 ripple_orders: tuple[int, int] = (3, 400)) -> None:
+                 ripple_orders: tuple[int, int] = (2, 400)) -> None:
         for e in effects:
             check_option("effect", e, EFFECT_NAMES)
         if len(set(effects)) != len(effects):
@@ -329,7 +345,7 @@ class EffectLibrary:
             "inertia": self._inertia, "coulomb": self._coulomb, "viscous": self._viscous,
             "offset": self._offset, "gain": self._gain, "armature": self._armature,
             "payload": self._payload, "delay": self._delay, "elasticity": self._elasticity,
-            "ripple": self._ripple,
+            "ripple": self._ripple, "position": self._position,
         }
 
     # ----------------------------------------------------------------------------- atoms
@@ -347,6 +363,9 @@ class EffectLibrary:
             elif e == "payload":
                 out.append(Atom(e, None, tuple(f"payload.{p}" for p in INERTIAL_NAMES),
                                 tuple(INERTIAL_UNITS[p] for p in INERTIAL_NAMES)))
+            elif e == "position":
+                out += [Atom(e, j, tuple(f"{names[j]}.{c}" for c in TERM_COLUMNS[e]),
+                             (UNITS[e],) * 2) for j in range(self.model.nv)]
             elif e == "ripple":
                 if tuning is None or tuning_residual is None:
                     raise ModelError("ripple atoms need tuning data and a residual")
@@ -410,6 +429,11 @@ class EffectLibrary:
         phase = atom.setting * data.dataset.q[:, atom.joint]
         cols = np.column_stack([np.sin(phase), np.cos(phase)])
         return _on_row(data, atom.joint, lowpass_segments(data.dataset, cols, atom.cutoff))
+
+    def _position(self, atom: Atom, data: GapData) -> np.ndarray:
+        d = data.dataset
+        spec = RegressorSpec.make(self.model, {"position": [atom.joint]})
+        return joint_columns(d.q, d.dq, d.ddq, spec)
 
     # ----------------------------------------------------------------------------- tuning
     def tune_cutoff(self, data: GapData, residual: np.ndarray, atom: Atom

@@ -34,6 +34,9 @@ Method
    nearly collinear with it (cosine ≥ 0.9 on the held-out data) are *indistinguishable* on these
    data: the one with fewer parameters is kept and the others are listed as alternatives instead
    of being ranked arbitrarily.
+   Candidates left out whose columns lie in the span of the selected ones (a ``payload`` or a
+   once-per-revolution ``position`` torque inside ``inertia``) are named in a note: such an
+   effect is in the fit, but these data cannot tell it apart.
 4. *How far it shrinks.* Selected atoms are grouped by effect and the groups ranked by how
    much the held-out residual grows when a group is removed from all the selected atoms (atoms
    nested in the span of others, e.g. a payload inside inertia, are merged first); the groups
@@ -88,7 +91,7 @@ class EffectParameter:
         what = words.get(self.effect, self.name)
         scale, unit = (1e3, "ms") if self.unit == "s" else (1.0, self.unit)
         where = f"{self.joint} " if self.joint else ""
-        if self.effect in ("inertia", "payload", "ripple"):
+        if self.effect in ("inertia", "payload", "ripple", "position"):
             what, where = self.name, ""
         return (f"{where}{what} {self.value * scale:.4g} ± {self.std * scale:.2g}"
                 + (f" {unit}" if unit else "") + (f" ({self.note})" if self.note else ""))
@@ -826,6 +829,7 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
         lst += _parameters(atom, th, sd, joint, fit, library)
     findings = [replace(f, parameters=tuple(params_by_effect.get(f.name, ()))) for f in findings]
     notes += _asymmetric_friction(fit, names)
+    notes += _contained(prob, cumulative, names)
     if inertia_solver == "ls" and "inertia" in order:
         notes.append("inertia re-identified by least squares on base parameters "
                      "(inertia_solver='ls': not checked for physical consistency)")
@@ -868,6 +872,21 @@ def _prune_nested(prob: _Problem, chosen: list[int], alts: list, bics: list, pva
                          "selected effects (its columns lie in their span): merged into them")
     return ([chosen[k] for k in keep], [alts[k] for k in keep], [bics[k] for k in keep],
             [pvals[k] for k in keep])
+
+
+def _contained(prob: _Problem, chosen: list[int], names: list[str]) -> list[str]:
+    """A note naming the candidates left out whose columns lie in the span of the selected atoms
+    (e.g. ``position`` on a joint whose link's gravity torque is ``a sin q_j + b cos q_j``,
+    inside ``inertia``): an effect of that form is in the fit, but not told apart from them."""
+    if not chosen:
+        return []
+    _, _, rank = prob.fit(chosen)
+    inside = [prob.atoms[i].label(names) for i in range(len(prob.atoms))
+              if i not in chosen and prob.fit(chosen + [i])[2] == rank]
+    if not inside:
+        return []
+    return [f"contained in the selected effects (their columns span it, so the data cannot tell "
+            f"it apart from them): {', '.join(inside)}"]
 
 
 def _asymmetric_friction(fit: GapModel, names: list[str]) -> list[str]:
