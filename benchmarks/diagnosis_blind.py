@@ -24,8 +24,11 @@ offset ±0.3–2 N·m, gain ±3–15 %, armature 0.02–0.2 kg·m², payload 0.5
 joints 1–4 with stiffness 1500–8000 N·m/rad (motor-side encoder, torque at the spring), the rigid
 bodies perturbed by ±10–30 % ("inertia"), and position ripple 0.3–1.5 N·m at k = 5–60 cycles/rad
 (added to the logged torque by this script: the simulator has no ripple). Torque noise 0.05 N·m.
+Not drawn by default (``--pool`` adds it): ``position``, a once-per-revolution torque
+0.3–1.5 N·m·sin(q_j + φ), added to the logged torque like the ripple.
 
-Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/diagnosis_blind.py [--single 30 --double 8]``.
+Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/diagnosis_blind.py [--single 30 --double 8]
+[--pool position,inertia]``.
 """
 
 from __future__ import annotations
@@ -50,6 +53,8 @@ from consistid.simulate import MAX_TRACKING_ERROR, record
 
 EFFECTS = ("inertia", "coulomb", "viscous", "offset", "gain", "armature", "payload", "delay",
            "elasticity", "ripple")
+#: Effects the script can inject (``--pool``); the default pool is :data:`EFFECTS`.
+INJECTABLE = (*EFFECTS, "position")
 ARM_WIDE = ("inertia", "payload", "delay")
 NOISE = 0.05
 RATE = 200.0
@@ -89,6 +94,8 @@ def draw(rng: np.random.Generator, name: str, nv: int, scale: float = 1.0) -> Tr
     if name == "ripple":
         return Truth(name, joint, (scale * rng.uniform(0.3, 1.5), int(rng.integers(5, 61)),
                                    rng.uniform(0, 2 * np.pi)))
+    if name == "position":
+        return Truth(name, joint, (scale * rng.uniform(0.3, 1.5), 1, rng.uniform(0, 2 * np.pi)))
     raise ValueError(name)
 
 
@@ -114,9 +121,10 @@ def simulator_setup(model: ci.RobotModel, truths: list[Truth]
 
 
 def ripple_torque(truths: list[Truth], q: np.ndarray) -> np.ndarray:
+    """Ripple and once-per-revolution (``position``) torques added to the logged torque."""
     out = np.zeros_like(q)
     for t in truths:
-        if t.name == "ripple":
+        if t.name in ("ripple", "position"):
             amp, k, phase = t.value
             out[:, t.joint] += amp * np.sin(k * q[:, t.joint] + phase)
     return out
@@ -129,7 +137,7 @@ def true_model(model: ci.RobotModel, library: EffectLibrary, truths: list[Truth]
     names = model.joint_names
     atoms, theta, delays, inertial = [], [], {}, None
     for t in truths:
-        if t.name in ("coulomb", "ripple"):
+        if t.name in ("coulomb", "ripple", "position"):
             continue  # through the signal chain, see chain_effects
         if t.name in ("viscous", "offset", "gain", "armature"):
             atoms.append(Atom(t.name, t.joint, (f"{names[t.joint]}.{t.name}",), ("",)))
@@ -154,13 +162,14 @@ def true_model(model: ci.RobotModel, library: EffectLibrary, truths: list[Truth]
 
 
 def chain_effects(truths: list[Truth], rec, cutoff: float, t_out: np.ndarray) -> np.ndarray:
-    """Coulomb friction and ripple as the processed torque holds them: evaluated on the raw log
-    (true velocity, measured angle), low-passed like the torques, at the dataset's times."""
+    """Coulomb friction, ripple and position torques as the processed torque holds them:
+    evaluated on the raw log (true velocity, measured angle), low-passed like the torques, at the
+    dataset's times."""
     raw = np.zeros_like(rec.q)
     for t in truths:
         if t.name == "coulomb":
             raw[:, t.joint] += t.value * np.sign(rec.true_dq[:, t.joint])
-        elif t.name == "ripple":
+        elif t.name in ("ripple", "position"):
             amp, k, phase = t.value
             raw[:, t.joint] += amp * np.sin(k * rec.q[:, t.joint] + phase)
     if not raw.any():
@@ -177,9 +186,10 @@ def shrink_on(rms_before: np.ndarray, rms_after: np.ndarray, sigma: np.ndarray,
 
 
 def run_scenario(model: ci.RobotModel, library: EffectLibrary, seed: int, n_effects: int,
-                 inertia_solver: str = "sdp", scale: float = 1.0) -> dict:
+                 inertia_solver: str = "sdp", scale: float = 1.0,
+                 pool: tuple[str, ...] = EFFECTS) -> dict:
     rng = np.random.default_rng(seed)
-    names = list(rng.choice(EFFECTS, size=n_effects, replace=False))
+    names = list(rng.choice(pool, size=n_effects, replace=False))
     truths = [draw(rng, str(n), model.nv, scale) for n in names]
     if n_effects == 2 and truths[0].joint is not None and truths[0].joint == truths[1].joint:
         truths[1].joint = (truths[1].joint + 1 + int(rng.integers(model.nv - 1))) % model.nv
@@ -250,6 +260,8 @@ def describe(t: Truth) -> str:
         v = f"±{100 * t.value[0]:.0f} %"
     elif t.name == "ripple":
         v = f"{t.value[0]:.2f} N·m k={t.value[1]}"
+    elif t.name == "position":
+        v = f"{t.value[0]:.2f} N·m"
     elif t.name == "delay":
         v = f"{1e3 * t.value:.1f} ms"
     else:
@@ -267,7 +279,15 @@ def main() -> None:
     parser.add_argument("--scale", type=float, default=1.0,
                         help="multiply every effect magnitude (divide the stiffness): < 1 "
                              "for effects closer to the noise")
+    parser.add_argument("--pool", default=",".join(EFFECTS),
+                        help=f"comma-separated effects to draw from, among {', '.join(INJECTABLE)}"
+                             " (default: all but position)")
     args = parser.parse_args()
+    pool = tuple(args.pool.split(","))
+    unknown = sorted(set(pool) - set(INJECTABLE))
+    if unknown or len(pool) < max(1, 2 * (args.double > 0)):
+        parser.error(f"--pool {args.pool!r}: unknown {unknown} or fewer effects than a scenario "
+                     "draws")
     logging.disable(logging.WARNING)
     model = ci.RobotModel.example(args.robot)
     library = EffectLibrary(model)
@@ -280,7 +300,7 @@ def main() -> None:
         print(f"\n{'single' if n_eff == 1 else 'two'}-effect scenarios\n{header}")
         for k in range(count):
             seed = args.seed + 1000 * n_eff + k
-            r = run_scenario(model, library, seed, n_eff, args.inertia_solver, args.scale)
+            r = run_scenario(model, library, seed, n_eff, args.inertia_solver, args.scale, pool)
             injected = ", ".join(describe(t) for t in r["truth"])
             if r["failed"]:
                 skipped[n_eff].append(seed)
