@@ -238,7 +238,11 @@ COMMANDS: dict[str, tuple[Callable[[argparse.Namespace], int], str]] = {
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="consistid", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        prog="consistid",
+        description="Physically consistent identification of robot dynamics, and sim-to-real gap "
+                    "diagnosis. Each command takes a TOML configuration (see examples/), except "
+                    "demo and simulate.")
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("demo", help=COMMANDS["demo"][1])
     p.add_argument("--robot", default="panda", help="example-robot-data arm (default panda)")
