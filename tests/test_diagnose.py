@@ -162,6 +162,31 @@ def test_coulomb_parameters_and_friction_regimes(panda, tmp_path):
                                                   "residual_spectrum.png", "joint_bars.png"}
 
 
+def test_parameter_std_is_honest_for_an_ar1_coloured_residual(panda):
+    """Ideal data with f_c = 0.7 N·m on joint 2 plus AR(1) noise, φ = 0.95 (τ = 39 samples, as
+    low-pass filtered torques): over ten noise seeds on one trajectory, the reported standard
+    deviation of f_c is within a factor 2 of the spread of the estimates (counting rows as
+    independent reported ≈ 1/7 of it)."""
+    phi, sd = 0.95, 0.05
+    base = excitation_run(panda, duration=16.0, rate=RATE, torque_noise=0.0, seed=4).dataset
+    friction = np.outer(np.sign(base.dq[:, 1]), np.eye(7)[1]) * 0.7
+    est, reported = [], []
+    for seed in range(10):
+        e = np.random.default_rng(100 + seed).standard_normal(base.tau.shape)
+        x = np.empty_like(e)
+        x[0] = sd * e[0]
+        for k in range(1, e.shape[0]):
+            x[k] = phi * x[k - 1] + sd * np.sqrt(1 - phi ** 2) * e[k]
+        diag = diagnose(panda, base.with_torque(base.tau + friction + x), sigma=sd,
+                        effects=("coulomb",))
+        (fc,) = [p for f in diag.effects for p in f.parameters if p.joint == "panda_joint2"]
+        est.append(fc.value)
+        reported.append(fc.std)
+    spread = np.std(est, ddof=1)
+    assert 0.5 < np.mean(reported) / spread < 2.0, (np.mean(reported), spread)
+    assert abs(np.mean(est) - 0.7) < 3 * spread
+
+
 def test_time_split_and_a_nominal_that_already_has_the_effect(panda):
     """Without held-out data the last 30 % of the recording scores; an identified nominal model
     that already carries the Coulomb friction leaves nothing to explain."""

@@ -43,8 +43,9 @@ Method
    are added one by one in that order, each time refitted on the training data (the delay
    refined exactly, ``τ_nom(t − d)``; inertia by the consistent SDP near the nominal, started
    from the joint least-squares fit) and scored per joint on the held-out data: RMS before →
-   after, shrink, parameters ± standard deviation. A group that no longer reduces the held-out
-   residual in this final fit is left out, with a note.
+   after, shrink, parameters ± standard deviation (each joint's rows counted as ``N / τ_j``
+   independent ones, as in the tests: :func:`_coloured_covariance`). A group that no longer
+   reduces the held-out residual in this final fit is left out, with a note.
 """
 
 from __future__ import annotations
@@ -526,6 +527,33 @@ def _cand_table(prob: _Problem, scores: list, joint_names: list[str], top: int =
 
 
 # --------------------------------------------------------------------------------- refit
+def _coloured_covariance(prob: _Problem, cols: np.ndarray, pinv: np.ndarray, s2: float
+                         ) -> np.ndarray:
+    r"""Covariance of the weighted least-squares parameters when each joint's residual is
+    coloured with integrated autocorrelation time ``τ_j`` (samples).
+
+    .. math::
+
+        \operatorname{Cov}(\hat θ) = s^2\, G^{+} \Big(\sum_j τ_j\, w_j\, Φ_j^\top Φ_j\Big) G^{+},
+        \qquad G = \sum_j w_j\, Φ_j^\top Φ_j,
+
+    ``s²`` the weighted residual variance. It is the sandwich covariance of least squares with
+    serially correlated errors, ``G⁻¹ (Σ_j w_j² Φ_jᵀ Cov(e_j) Φ_j) G⁻¹``, with
+    ``Φ_jᵀ Cov(e_j) Φ_j ≈ σ_j² τ_j Φ_jᵀΦ_j`` for columns that vary slowly against the residual's
+    correlation time (the variance of a mean of ``N`` correlated samples is ``τ σ²/N``: each
+    joint's ``N`` rows count as ``N_eff = N / τ_j``; Bayley & Hammersley, "The 'effective' number
+    of independent observations in an autocorrelated time series", J. R. Stat. Soc. Suppl. 8(2),
+    184–197, 1946; the general form with a lag-window estimate is Newey & West, Econometrica
+    55(3), 703–708, 1987). Parameters of one joint are thus ``√τ_j`` times less certain than
+    independent rows say, arm-wide ones by a mixture of the joints' ``τ``; ``τ`` is the one the
+    selection counts ``N_eff`` with (:func:`consistid.gap.autocorrelation_time` of the residual
+    that no candidate explains). With ``τ_j = 1`` this is ``s² G⁺``.
+    """
+    tau = np.broadcast_to(np.asarray(prob.tau_corr, dtype=float), prob.w.shape)
+    meat = np.einsum("j,jpq->pq", tau * prob.w, prob.train.G[:, cols][:, :, cols])
+    return s2 * pinv @ meat @ pinv
+
+
 def _refit(prob: _Problem, chosen: Sequence[int], train: GapData, model: RobotModel,
            nominal: np.ndarray, nominal_extra, inertia_solver: str,
            ) -> tuple[GapModel, list[np.ndarray], list[str]]:
@@ -533,7 +561,9 @@ def _refit(prob: _Problem, chosen: Sequence[int], train: GapData, model: RobotMo
     (``τ_nom(t − d)``) and, when ``inertia_solver == "sdp"``, the rigid body by the consistent
     SDP near the nominal, alternating with the linear atoms (block coordinate descent).
 
-    Returns the fitted model, the standard deviation of each atom's parameters, and notes.
+    Returns the fitted model, the standard deviation of each atom's parameters (coloured
+    residual counted, :func:`_coloured_covariance`; the SDP inertia's base-parameter deviations
+    widened by the same per-parameter factor as the least-squares ones), and notes.
     """
     notes: list[str] = []
     atoms = [prob.atoms[i] for i in chosen]
@@ -542,12 +572,17 @@ def _refit(prob: _Problem, chosen: Sequence[int], train: GapData, model: RobotMo
     _, rank, pinv = _solve(g, prob.train.weighted(prob.w, cols)[1])
     sse = float(prob.w @ prob.train.sse(cols, theta))
     dof = max(prob.train.n * prob.w.size - rank, 1)
-    cov = pinv * sse / dof
+    cov = _coloured_covariance(prob, cols, pinv, sse / dof)
     std_all = np.sqrt(np.clip(np.diag(cov), 0, None))
-    thetas, stds, o = [], [], 0
+    # What the coloured residual adds to each standard deviation, for the SDP inertia below
+    # (whose own base-parameter deviations count rows as independent).
+    white = np.sqrt(np.clip(np.diag(pinv) * sse / dof, 0, None))
+    inflation_all = np.where(white > 0, std_all / np.where(white > 0, white, 1.0), 1.0)
+    thetas, stds, inflation, o = [], [], [], 0
     for a in atoms:
         thetas.append(theta[o:o + a.n_parameters])
         stds.append(std_all[o:o + a.n_parameters])
+        inflation.append(inflation_all[o:o + a.n_parameters])
         o += a.n_parameters
     fit = GapModel(model, prob.library, nominal, tuple(atoms), tuple(thetas), {}, None,
                    nominal_extra)
@@ -591,7 +626,7 @@ def _refit(prob: _Problem, chosen: Sequence[int], train: GapData, model: RobotMo
             delays[k] = float(res.x)
         if sdp:
             inertial, note, base_std = _sdp_inertia(model, train, nominal, others(inertia_idx))
-            stds[inertia_idx[0]] = base_std
+            stds[inertia_idx[0]] = base_std * inflation[inertia_idx[0]]
             if note not in notes:
                 notes.append(note)
         if linear:
