@@ -30,6 +30,8 @@ from pathlib import Path
 import numpy as np
 
 import consistid as ci
+from consistid.compression import compress
+from consistid.identify import with_covariance
 from consistid.recordings import Recording, load_recording
 from consistid.report import table
 from consistid.urdf import joint_dynamics, model_without_dynamics
@@ -193,11 +195,20 @@ def main() -> int:
                 [[k, *c.min_eigenvalues, "yes" if c.ok else "no"] for k, c in cons.items()],
                 floatfmt=".2e"))
 
-    print("\n== Friction and offset per joint (estimate ± standard deviation) ==")
+    # Residuals of the filtered logs are correlated over tens of samples: the same fits with
+    # each joint's rows counted as N/τ_j independent ones (identify(..., covariance="coloured")).
+    problem = compress(prior, train.dataset, ols.spec)
+    ols_c, sdp_c = (with_covariance(r, problem, train.dataset, "coloured") for r in (ols, sdp))
+    print("\n== Friction and offset per joint (estimate ± standard deviation; 'coloured': rows "
+          "counted as N/τ_j independent samples) ==")
+    print("residual autocorrelation time τ_j (samples), OLS: " + ", ".join(
+        f"{t:.0f}" for t in ols_c.details["autocorrelation_time"]) + "; SDP: " + ", ".join(
+        f"{t:.0f}" for t in sdp_c.details["autocorrelation_time"]))
     for term, unit in (("fc", "N·m"), ("fv", "N·m·s/rad"), ("fo", "N·m")):
         names = [f"{j}.{term}" for j in JOINTS]
         print(f"-- {term} [{unit}]")
-        print(joint_terms_table({"OLS": ols, "SDP": sdp,
+        print(joint_terms_table({"OLS": ols, "SDP": sdp, "OLS coloured": ols_c,
+                                 "SDP coloured": sdp_c,
                                  "a-priori + refit": models[
                                      "a-priori URDF + fc,fv,fo refit on training"],
                                  "FloBaRoID + refit": models[
@@ -205,7 +216,8 @@ def main() -> int:
     print("\nbase-parameter relative standard deviation (%, Pressé & Gautier): "
           + "; ".join(f"{k} median {np.median(r.relative_std):.1f}, "
                       f"{int(np.sum(r.relative_std < 10))}/{r.base.n_base} below 10 %"
-                      for k, r in (("OLS", ols), ("SDP", sdp))))
+                      for k, r in (("OLS", ols), ("SDP", sdp), ("OLS coloured", ols_c),
+                                   ("SDP coloured", sdp_c))))
     print(f"cond(W_b) = {ols.condition_number:.4g}; {ols.base.n_base} base parameters "
           f"(rigid {ols.base.n_base - 21} + 21 friction/offset)")
 

@@ -16,7 +16,8 @@ from consistid.dataset import Dataset
 from consistid.diagnose import _solve, diagnose, exact_delay
 from consistid.errors import ModelError, OptionError
 from consistid.excitation import FourierTrajectory
-from consistid.gap import autocorrelation_time, noise_floor
+from consistid.gap import noise_floor
+from consistid.statistics import autocorrelation_time
 from consistid.robot_effects import Effects, MountedPayload
 from consistid.signals import lowpass
 from consistid.simulate import excitation_run, record

@@ -131,3 +131,54 @@ def test_report_writes_the_summary(panda, runs, tmp_path):
     text = res.report(tmp_path / "report.txt")
     assert text == res.summary()
     assert (tmp_path / "report.txt").read_text().startswith("consistid identification")
+
+
+def _ar1(shape: tuple[int, int], phi: float, std: float, rng: np.random.Generator) -> np.ndarray:
+    """AR(1) noise ``e_k = φ e_{k−1} + √(1−φ²)·std·ξ_k`` (stationary standard deviation ``std``)."""
+    e = rng.standard_normal(shape) * std * np.sqrt(1.0 - phi ** 2)
+    e[0] /= np.sqrt(1.0 - phi ** 2)
+    for k in range(1, shape[0]):
+        e[k] += phi * e[k - 1]
+    return e
+
+
+@pytest.mark.parametrize("method", ["ols", "sdp"])
+def test_coloured_covariance_matches_spread_over_seeds(panda, method):
+    # Ideal data on one fixed trajectory plus AR(1) torque noise (φ = 0.95, τ = 39 samples):
+    # the reported σ of well-determined base parameters must match their spread over seeds.
+    from dataclasses import replace
+
+    ideal = ci.simulate.excitation_run(panda, duration=10.0, rate=200.0, torque_noise=0.0,
+                                       seed=0).dataset
+    est, iid, col = [], [], []
+    for seed in range(8):
+        noisy = replace(ideal, tau=ideal.tau + _ar1(ideal.tau.shape, 0.95, 0.05,
+                                                    np.random.default_rng(100 + seed)))
+        a = ci.identify(panda, noisy, method=method, friction=None)
+        b = ci.identify(panda, noisy, method=method, friction=None, covariance="coloured")
+        assert np.allclose(a.base_parameters, b.base_parameters)
+        assert "iid" in a.details["covariance"] and "coloured" in b.details["covariance"]
+        assert np.all(b.details["autocorrelation_time"] > 10)
+        est.append(a.base_parameters), iid.append(a.base_std), col.append(b.base_std)
+    est, iid, col = np.array(est), np.mean(iid, axis=0), np.mean(col, axis=0)
+    spread = np.std(est, axis=0, ddof=1)
+    best = np.argsort(iid / np.abs(est.mean(axis=0)))[:6]
+    assert np.all((col[best] / spread[best] > 0.5) & (col[best] / spread[best] < 2.0))
+    assert np.all(iid[best] / spread[best] < 0.35)
+
+
+def test_coloured_covariance_on_white_noise_equals_iid(panda):
+    run = ci.simulate.excitation_run(panda, duration=10.0, rate=200.0, torque_noise=0.05, seed=3)
+    a = ci.identify(panda, run.dataset, method="wls", friction=None)
+    b = ci.identify(panda, run.dataset, method="wls", friction=None, covariance="coloured")
+    assert np.all(b.details["autocorrelation_time"] < 1.5)
+    assert np.allclose(b.base_std / a.base_std, 1.0, atol=0.25)
+    assert "τ_j in samples" in b.summary()
+
+
+def test_coloured_covariance_refuses_unknown_choice_and_huber(panda, runs):
+    train, _ = runs
+    with pytest.raises(ci.errors.OptionError, match="covariance"):
+        ci.identify(panda, train, method="ols", covariance="newey-west")
+    with pytest.raises(ci.errors.OptionError, match="huber"):
+        ci.identify(panda, train, method="sdp", loss="huber", covariance="coloured")

@@ -26,7 +26,7 @@ Method
 
    The best atom (largest held-out reduction) that passes is kept. Rows are counted as
    ``N / τ`` effectively independent samples, ``τ`` the integrated autocorrelation time of the
-   residual that no candidate explains (:func:`consistid.gap.autocorrelation_time`): filtered
+   residual that no candidate explains (:func:`consistid.statistics.autocorrelation_time`): filtered
    torques make neighbouring samples nearly equal, and tests counting every row would accept
    any wiggle.
 
@@ -60,10 +60,11 @@ import scipy.stats
 from .candidates import EFFECT_NAMES, SIGNATURES, Atom, EffectLibrary, GapData
 from .dataset import Dataset
 from .errors import ModelError, OptionError, check_option
-from .gap import (FILTERED_ROLLOFF, GapBreakdown, autocorrelation_time, gap_breakdown,
+from .gap import (FILTERED_ROLLOFF, GapBreakdown, gap_breakdown,
                   high_band_rolloff, noise_floor)
 from .model import RobotModel
 from .parameters import pseudo_inertia
+from .statistics import autocorrelation_time, coloured_covariance
 
 #: A held-out shrink below this fraction does not list a joint under an arm-wide effect.
 JOINT_SHRINK_FLOOR = 0.05
@@ -546,12 +547,13 @@ def _coloured_covariance(prob: _Problem, cols: np.ndarray, pinv: np.ndarray, s2:
     184–197, 1946; the general form with a lag-window estimate is Newey & West, Econometrica
     55(3), 703–708, 1987). Parameters of one joint are thus ``√τ_j`` times less certain than
     independent rows say, arm-wide ones by a mixture of the joints' ``τ``; ``τ`` is the one the
-    selection counts ``N_eff`` with (:func:`consistid.gap.autocorrelation_time` of the residual
-    that no candidate explains). With ``τ_j = 1`` this is ``s² G⁺``.
+    selection counts ``N_eff`` with (:func:`consistid.statistics.autocorrelation_time` of the
+    residual that no candidate explains). With ``τ_j = 1`` this is ``s² G⁺``
+    (:func:`consistid.statistics.coloured_covariance` with ``C = s² G⁺``, ``w_j / s²``).
     """
     tau = np.broadcast_to(np.asarray(prob.tau_corr, dtype=float), prob.w.shape)
-    meat = np.einsum("j,jpq->pq", tau * prob.w, prob.train.G[:, cols][:, :, cols])
-    return s2 * pinv @ meat @ pinv
+    return coloured_covariance(s2 * pinv, prob.train.G[:, cols][:, :, cols],
+                               prob.w / s2 if s2 > 0 else prob.w, tau)
 
 
 def _refit(prob: _Problem, chosen: Sequence[int], train: GapData, model: RobotModel,

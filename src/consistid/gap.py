@@ -195,40 +195,6 @@ def high_band_rolloff(dataset: Dataset, residual: np.ndarray, tau_nom: np.ndarra
     return np.mean(p_res[top], axis=0) / np.maximum(np.mean(p_res[band], axis=0), 1e-300)
 
 
-def autocorrelation_time(dataset: Dataset, residual: np.ndarray, c: float = 5.0,
-                         max_lag: int = 2000) -> np.ndarray:
-    r"""Integrated autocorrelation time per joint, ``τ = 1 + 2 Σ_k ρ_k`` (in samples).
-
-    ``N / τ`` is the number of effectively independent samples of a correlated residual (e.g.
-    low-pass filtered noise): least-squares tests that count rows as independent are ``τ`` times
-    too confident. Autocorrelations are pooled over recordings (FFT, mean removed per recording),
-    and the sum is truncated by Sokal's automatic window, the first lag ``M ≥ c·τ(M)`` (Sokal
-    1997, "Monte Carlo methods in statistical mechanics", doi:10.1007/978-1-4899-0319-8_6).
-    """
-    nv = residual.shape[1]
-    acf_sum, count = None, 0
-    for s in np.unique(dataset.segment):
-        idx = np.flatnonzero(dataset.segment == s)
-        if idx.size < 16:
-            continue
-        x = residual[idx] - residual[idx].mean(axis=0)
-        n = x.shape[0]
-        f = np.fft.rfft(x, n=2 * n, axis=0)
-        acov = np.fft.irfft(np.abs(f) ** 2, axis=0)[: min(n, max_lag + 1)]
-        acf_sum = acov if acf_sum is None else acf_sum[: acov.shape[0]] + acov[: acf_sum.shape[0]]
-        count += 1
-    if acf_sum is None:
-        return np.ones(nv)
-    rho = acf_sum / np.where(acf_sum[0] > 0, acf_sum[0], 1.0)
-    tau = np.ones(nv)
-    for j in range(nv):
-        running = 1.0 + 2.0 * np.cumsum(rho[1:, j])
-        lags = np.arange(1, rho.shape[0])
-        stop = np.flatnonzero(lags >= c * running)
-        tau[j] = max(1.0, running[stop[0]] if stop.size else running[-1])
-    return tau
-
-
 def _regime_masks(data: GapData) -> np.ndarray:
     """Boolean masks (R, N, nv) of the regimes of :data:`REGIMES`."""
     dq, ddq = data.dataset.dq, data.dataset.ddq

@@ -11,10 +11,24 @@ identification of robots with power model", ICRA, doi:10.1109/ROBOT.1997.614364;
 floored by :func:`consistid.compression.floor_sigma` so that noise-free data keep finite weights.
 Everything is solved on the compressed problem (:mod:`consistid.compression`), never on the
 N-row regressor.
+
+Both covariances count the ``N`` rows of each joint as independent. Filtered torque logs have
+residuals correlated over tens of samples, which makes them far too small; with
+``covariance="coloured"`` each joint's rows count as ``N / τ_j`` independent ones, ``τ_j`` the
+integrated autocorrelation time of its residual (:func:`consistid.statistics.autocorrelation_time`,
+one extra pass over the data), through the sandwich
+:func:`consistid.statistics.coloured_covariance`
+
+.. math::  \operatorname{cov}(\hat\beta) = C \Big(\sum_j τ_j w_j R_{jb}^\top R_{jb}\Big) C,
+
+``C`` the covariance above, ``w_j = 1/σ_j²`` the weights it was computed with and ``R_{jb}`` joint
+``j``'s R factor restricted to the base columns (``Y_{jb}^\top Y_{jb} = R_{jb}^\top R_{jb}``).
+The estimate itself is unchanged.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import time
 import warnings
 from typing import Any, Sequence
@@ -29,8 +43,11 @@ from .errors import OptionError, PoorExcitationError, PoorExcitationWarning, che
 from .model import RobotModel
 from .regressor import DEFAULT_FRICTION, FrictionArg, RegressorSpec, parameter_names, prior_vector
 from .result import IdentificationResult, SolverReport
+from .statistics import autocorrelation_time, coloured_covariance
 
 METHODS = ("ols", "wls", "sdp")
+#: ``covariance=`` choices: rows counted as independent, or as ``N / τ_j`` per joint.
+COVARIANCES = ("iid", "coloured")
 #: Above this condition number of the (weighted) base regressor, a PoorExcitationWarning is issued.
 COND_WARN = 1e4
 #: Below this ratio of the smallest to the largest singular value, the base regressor is singular.
@@ -106,6 +123,7 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset], method: st
              armature: bool | Sequence[int | str] = False,
              constraints: str | dict[str, str] = "auto",
              prior: str | None = "auto",
+             covariance: str = "iid",
              **options: Any) -> IdentificationResult:
     """Identify a robot's dynamic parameters from measured torques.
 
@@ -123,6 +141,13 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset], method: st
     prior : ``"logdet"``, ``"euclidean"`` or ``None``/``"none"`` (no prior). ``"auto"``
         (default): ``"logdet"`` for the SDP, none for OLS/WLS, which also accept
         ``None``/``"none"`` and refuse a prior.
+    covariance : ``"iid"`` (default) counts every row as an independent sample; ``"coloured"``
+        widens ``base_covariance`` for residuals correlated in time (filtered torques), each
+        joint's rows counting as ``N / τ_j`` (module docstring; one extra pass over the data;
+        the estimate is unchanged). Not with ``loss="huber"``. ``"iid"`` stays the default: on
+        white noise ``τ_j ≈ 1`` and both agree, while the extra pass costs time.
+        ``details["covariance"]`` names the choice; with ``"coloured"``,
+        ``details["autocorrelation_time"]`` gives ``τ_j`` (samples, per joint).
     **options : keyword options of :func:`consistid.sdp.identify_sdp`, for ``method="sdp"`` only.
         Options that only the SDP uses are refused for OLS/WLS, never silently ignored.
 
@@ -137,6 +162,9 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset], method: st
     parameters (OLS/WLS); IdentificationError / InfeasibleError when the SDP solver fails.
     """
     check_option("method", method, METHODS)
+    check_option("covariance", covariance, COVARIANCES)
+    if covariance == "coloured" and options.get("loss") == "huber":
+        raise OptionError("covariance='coloured' needs the unweighted rows: not with loss='huber'")
     prior = None if prior == "none" else prior
     if method in ("ols", "wls"):
         extra = sorted(options) + [k for k, v, none in (("constraints", constraints, ("none",)),
@@ -152,9 +180,39 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset], method: st
     base = compute_base_parameters(model, spec)
     problem = compress(model, dataset, spec)
     if method in ("ols", "wls"):
-        return least_squares(model, problem, base, spec, weighted=method == "wls")
-    from .sdp import identify_sdp
+        result = least_squares(model, problem, base, spec, weighted=method == "wls")
+    else:
+        from .sdp import identify_sdp
 
-    return identify_sdp(model, problem, base, spec,
-                        constraints="pseudo-inertia" if constraints == "auto" else constraints,
-                        prior="logdet" if prior == "auto" else prior, dataset=dataset, **options)
+        result = identify_sdp(model, problem, base, spec,
+                              constraints="pseudo-inertia" if constraints == "auto"
+                              else constraints,
+                              prior="logdet" if prior == "auto" else prior, dataset=dataset,
+                              **options)
+    return with_covariance(result, problem, dataset, covariance)
+
+
+def with_covariance(result: IdentificationResult, problem: CompressedProblem, dataset: Dataset,
+                    covariance: str) -> IdentificationResult:
+    """``result`` with its base covariance counted as ``covariance`` says (module docstring)
+    and ``details["covariance"]``, ``details["autocorrelation_time"]`` recorded.
+
+    ``problem`` is the (unweighted) compressed ``dataset`` the result was fitted on; its weights
+    are ``w_j = 1/σ_j²`` from ``result.sigma`` (OLS: one ``σ`` for all joints).
+    """
+    check_option("covariance", covariance, COVARIANCES)
+    if covariance == "iid":
+        return dataclasses.replace(result, details={
+            **result.details, "covariance": "iid (every row an independent sample)"})
+    tau = autocorrelation_time(dataset, result.residual(dataset))
+    cols = result.base.independent
+    r_b = problem.factors[:, :-1, :-1][:, :, cols]
+    grams = np.einsum("jkp,jkq->jpq", r_b, r_b)
+    sigma = np.asarray(result.sigma, dtype=float)
+    weights = np.where(sigma > 0, 1.0 / np.where(sigma > 0, sigma, 1.0) ** 2, 1.0)
+    cov = coloured_covariance(result.base_covariance, grams, weights, tau)
+    shown = ", ".join(f"{n} {t:.3g}" for n, t in zip(result.model.joint_names, tau))
+    return dataclasses.replace(result, base_covariance=cov, details={
+        **result.details,
+        "covariance": f"coloured (sandwich, N/τ_j effective rows; τ_j in samples: {shown})",
+        "autocorrelation_time": tau})
