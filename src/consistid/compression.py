@@ -71,14 +71,12 @@ class CompressedProblem:
     def sum_squares(self, theta: np.ndarray, columns: np.ndarray | None = None) -> np.ndarray:
         """Per-joint residual sum of squares ``‖Y_j[:, columns] θ − τ_j‖²``, shape (nv,)."""
         cols = np.arange(self.n_columns) if columns is None else np.asarray(columns)
-        out = np.empty(self.nv)
-        for j in range(self.nv):
-            r = self.factors[j]
-            # Only the full-column factor gives the exact residual: ‖R θ − z‖² + ρ² with θ padded.
-            full = np.zeros(self.n_columns)
-            full[cols] = theta
-            out[j] = np.sum((r[:-1, :-1] @ full - r[:-1, -1]) ** 2) + r[-1, -1] ** 2
-        return out
+        # Only the full-column factor gives the exact residual: ‖R θ − z‖² + ρ² with θ padded.
+        full = np.zeros(self.n_columns)
+        full[cols] = theta
+        r = self.factors
+        return (np.sum((r[:, :-1, :-1] @ full - r[:, :-1, -1]) ** 2, axis=1)
+                + r[:, -1, -1] ** 2)
 
 
 def compress(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
