@@ -542,6 +542,7 @@ def design_excitation(model: RobotModel, harmonics: int = 5, period: float = 10.
                              torque_weight, n_grid, safety)
     rng = np.random.default_rng(seed)
     starts: list[StartResult] = []
+    qualities: list[ExcitationQuality] = []
     for k in range(n_starts):
         t0 = time.perf_counter()
         evals0, grads0 = problem.n_evaluations, problem.n_gradients
@@ -549,7 +550,8 @@ def design_excitation(model: RobotModel, harmonics: int = 5, period: float = 10.
         initial = problem.value(x0)
         x, nit, status = _optimise(problem, x0, method, max_iter)
         quality = assess_excitation(model, param.trajectory(x.reshape(problem.shape)), limits,
-                                    friction, armature, n_check, base)
+                                    friction, armature, n_check, base, noise_std, column_scale)
+        qualities.append(quality)
         result = StartResult(k, initial, problem.value(x), quality.cond,
                              quality.constraints.feasible,
                              quality.constraints.min_relative_margin, nit,
@@ -568,10 +570,8 @@ def design_excitation(model: RobotModel, harmonics: int = 5, period: float = 10.
             "safety or n_grid, or relax the limits")
     best = min(feasible, key=lambda s: s.value)
     traj = param.trajectory(best.coefficients)
-    quality = assess_excitation(model, traj, limits, friction, armature, n_check, base,
-                                noise_std, column_scale)
-    return ExcitationDesign(traj, criterion, best.value, quality, tuple(starts), best.index,
-                            base, spec, limits, tuple(model.joint_names),
+    return ExcitationDesign(traj, criterion, best.value, qualities[best.index], tuple(starts),
+                            best.index, base, spec, limits, tuple(model.joint_names),
                             time.perf_counter() - start_time)
 
 
