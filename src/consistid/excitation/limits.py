@@ -316,20 +316,21 @@ class ConstraintSet:
     # ----------------------------------------------------------------------------- torque
     def _torque_block(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray,
                       derivatives: bool) -> ConstraintBlock:
-        m = self.model.pin_model
-        data = m.createData()
         n, nv = q.shape
-        tau = np.empty((n, nv))
-        deriv = np.empty((n, 2 * nv, 3, nv)) if derivatives else None
-        for k in range(n):
-            qk = self.model.configuration(q[k])
-            if derivatives:
+        deriv = None
+        if derivatives:
+            m = self.model.pin_model
+            data = m.createData()
+            tau = np.empty((n, nv))
+            deriv = np.empty((n, 2 * nv, 3, nv))
+            for k in range(n):
+                qk = self.model.configuration(q[k])
                 dtau_dq, dtau_dv, mass = pin.computeRNEADerivatives(m, data, qk, dq[k], ddq[k])
                 tau[k] = data.tau
                 d = np.stack([dtau_dq, dtau_dv, mass], axis=1)        # (nv, 3, nv)
                 deriv[k, :nv], deriv[k, nv:] = d, -d
-            else:
-                tau[k] = pin.rnea(m, data, qk, dq[k], ddq[k])
+        else:
+            tau = self.model.rnea(q, dq, ddq)
         # joints without a limit (inf) get no column: their margins would be inf/inf = NaN
         checked = np.flatnonzero(np.isfinite(self.limits.torque))
         limit = self.limits.torque[checked]
