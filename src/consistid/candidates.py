@@ -502,8 +502,3 @@ class EffectLibrary:
             if explained[i] > best:
                 best, best_k = float(explained[i]), int(ks[i])
         return best_k
-
-
-def payload_standard(theta: np.ndarray) -> np.ndarray:
-    """The payload's 10 standard parameters (last body frame) from the payload atom's θ."""
-    return np.asarray(theta, dtype=float)

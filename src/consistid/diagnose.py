@@ -782,8 +782,7 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
         o += a.n_parameters
     prob = _Problem(library, atoms, slices, _Grams.build(phi_tr, train.residual),
                     _Grams.build(phi_ho, held.residual), 1.0 / floor ** 2)
-    everything_cols = prob.cols(list(range(len(atoms))))
-    _, theta_all, _ = prob.fit(list(range(len(atoms))))
+    everything_cols, theta_all, _ = prob.fit(list(range(len(atoms))))
     library_floor = np.sqrt(prob.held.sse(everything_cols, theta_all) / held.n)
     # Rows are not independent when the residual is coloured (filtered noise): count effective
     # samples with the autocorrelation time of what no candidate explains.
@@ -809,8 +808,8 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     # Group the atoms by effect and rank the groups by how much the held-out residual grows
     # when the group is removed from all the selected atoms; add them one by one in that order.
     groups = list(dict.fromkeys(prob.atoms[i].effect for i in chosen))
-    _, th_all, _ = prob.fit(chosen)
-    sse_all = float(prob.w @ prob.held.sse(prob.cols(chosen), th_all))
+    cols_all, th_all, _ = prob.fit(chosen)
+    sse_all = float(prob.w @ prob.held.sse(cols_all, th_all))
     importance = {}
     for g in groups:
         rest = [i for i in chosen if prob.atoms[i].effect != g]
@@ -828,7 +827,7 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
         trial = cumulative + [chosen[k] for k in members]
         trial_fit, stds, fit_notes = _refit(prob, trial, train, model, pi0, extra_fn,
                                             inertia_solver)
-        after = np.sqrt(np.mean((held.tau - held.tau_nom - trial_fit.correction(held)) ** 2,
+        after = np.sqrt(np.mean((held.residual - trial_fit.correction(held)) ** 2,
                                 axis=0))
         shrink = 1.0 - after / np.where(before > 0, before, 1.0)
         total = 1.0 - np.linalg.norm(after / floor) / max(np.linalg.norm(before / floor), 1e-300)

@@ -29,8 +29,6 @@ from .report import table
 if TYPE_CHECKING:
     from .diagnose import Diagnosis
 
-PLOTS = ("residual_vs_velocity", "residual_spectrum", "joint_bars")
-
 
 def _pct(x: float) -> str:
     return f"{100 * x:.1f} %"
