@@ -93,17 +93,18 @@ def least_squares(model: RobotModel, problem: CompressedProblem, base: BaseParam
     cond, _ = check_excitation(r, base.names)
     beta = scipy.linalg.solve_triangular(r, z)
     sse = problem.sum_squares(beta, cols)
-    sigma = np.full(problem.nv, np.sqrt(sse.sum() / dof))
-    r_inv = scipy.linalg.solve_triangular(r, np.eye(b))
-    cov = sigma[0] ** 2 * r_inv @ r_inv.T
     if weighted:
         sigma = floor_sigma(np.sqrt(sse / max(n - b / problem.nv, 1.0)), problem)
         r, z, _ = problem.stacked(sigma=sigma, columns=cols)
         cond, _ = check_excitation(r, base.names)
         beta = scipy.linalg.solve_triangular(r, z)
         sse = problem.sum_squares(beta, cols)
-        r_inv = scipy.linalg.solve_triangular(r, np.eye(b))
-        cov = r_inv @ r_inv.T
+        scale = 1.0                       # the weights already whiten the residual
+    else:
+        sigma = np.full(problem.nv, np.sqrt(sse.sum() / dof))
+        scale = sigma[0] ** 2
+    r_inv = scipy.linalg.solve_triangular(r, np.eye(b))
+    cov = scale * r_inv @ r_inv.T
     if cond > COND_WARN:
         warnings.warn(f"base regressor condition number {cond:.3g} > {COND_WARN:.0e}: the data "
                       "excite some base parameters poorly; check relative_std",

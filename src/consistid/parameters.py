@@ -104,18 +104,8 @@ def pseudo_inertia_map() -> np.ndarray:
     for k in range(10):
         e = np.zeros(10)
         e[k] = 1.0
-        out[:, k] = _pseudo_inertia_linear(e).ravel(order="F")
+        out[:, k] = pseudo_inertia(e).ravel(order="F")
     return out
-
-
-def _pseudo_inertia_linear(p: np.ndarray) -> np.ndarray:
-    """``J(p)`` by its defining linear formula, valid for any 10-vector (no realizability)."""
-    inertia = inertia_about_origin(p)
-    J = np.empty((4, 4))
-    J[:3, :3] = 0.5 * np.trace(inertia) * np.eye(3) - inertia
-    J[:3, 3] = J[3, :3] = p[1:4]
-    J[3, 3] = p[0]
-    return J
 
 
 def from_pseudo_inertia(J: np.ndarray) -> np.ndarray:

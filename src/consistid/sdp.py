@@ -66,7 +66,7 @@ from .errors import (IdentificationError, InconsistentParametersError, Infeasibl
 from .identify import COND_WARN, RANK_RTOL
 from .model import RobotModel
 from .parameters import from_pseudo_inertia, pseudo_inertia
-from .regressor import (NONNEGATIVE_TERMS, RegressorSpec, iter_regressor, parameter_names,
+from .regressor import (NONNEGATIVE_TERMS, RegressorSpec, parameter_names, predict_torque,
                         prior_vector)
 from .result import IdentificationResult, SolverReport
 
@@ -424,10 +424,7 @@ def _huber_weights(model: RobotModel, dataset: Dataset, spec: RegressorSpec, the
                    c: float, problem: CompressedProblem) -> tuple[np.ndarray, np.ndarray]:
     """MAD noise scale per joint (floored as every σ, :func:`floor_sigma`: noise-free data have
     MAD = 0) and Huber IRLS weights ``min(1, c σ / |r|)`` per sample, in ``[0, 1]``."""
-    tau = dataset.require_torque()
-    res = np.empty_like(tau)
-    for s, y in iter_regressor(model, dataset, spec):
-        res[s] = tau[s] - y @ theta
+    res = dataset.require_torque() - predict_torque(model, dataset, spec, theta)
     mad = np.median(np.abs(res - np.median(res, axis=0)), axis=0)
     sig = floor_sigma(1.4826 * mad, problem)
     u = np.abs(res) / sig
@@ -698,13 +695,12 @@ def _details(model: RobotModel, theta: np.ndarray, setup: _Setup, prior_vec: np.
              gamma_default: float, given: float | None, active: tuple[str, ...],
              chi2: float) -> dict[str, Any]:
     nb, prior, gamma = model.n_bodies, setup.prior, setup.gamma
-    lam = {b: float(np.linalg.eigvalsh(pseudo_inertia(theta[10 * i:10 * i + 10]))[0])
-           for i, b in enumerate(model.body_names)}
-    rel = {}
+    lam, rel = {}, {}
     for i, b in enumerate(model.body_names):
+        j = pseudo_inertia(theta[10 * i:10 * i + 10])
         l_inv = setup.scalings[i].l_inv
-        rel[b] = float(np.linalg.eigvalsh(l_inv @ pseudo_inertia(theta[10 * i:10 * i + 10])
-                                          @ l_inv.T)[0])
+        lam[b] = float(np.linalg.eigvalsh(j)[0])
+        rel[b] = float(np.linalg.eigvalsh(l_inv @ j @ l_inv.T)[0])
     divergence = float("nan")
     if prior == "logdet":
         divergence = sum(priors.logdet_divergence_value(theta[10 * i:10 * i + 10],
