@@ -260,3 +260,13 @@ def iter_regressor(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
         y = buffer[: s.stop - s.start]
         regressor(model, dataset.q[s], dataset.dq[s], dataset.ddq[s], spec, out=y)
         yield s, y
+
+
+def predict_torque(model: RobotModel, dataset: Dataset, spec: RegressorSpec, theta: np.ndarray,
+                   chunk: int = 4096) -> np.ndarray:
+    """``Y(q, q̇, q̈) θ`` for a dataset's samples, shape (N, nv), built chunk by chunk
+    (:func:`iter_regressor`): memory O(chunk·nv·p), never the N-row regressor."""
+    out = np.empty((dataset.n_samples, model.nv))
+    for s, y in iter_regressor(model, dataset, spec, chunk):
+        out[s] = y @ theta
+    return out

@@ -14,7 +14,7 @@ from .base import BaseParameters
 from .dataset import Dataset
 from .model import RobotModel
 from .parameters import ConsistencyReport, is_physically_consistent
-from .regressor import RegressorSpec, dataset_regressor
+from .regressor import RegressorSpec, predict_torque
 
 
 @dataclass(frozen=True)
@@ -117,8 +117,7 @@ class IdentificationResult:
     # ----------------------------------------------------------------------------- prediction
     def predict(self, dataset: Dataset) -> np.ndarray:
         """Predicted joint torques ``Y(q, q̇, q̈) π`` for a dataset's samples, shape (N, nv)."""
-        y = dataset_regressor(self.model, dataset, self.spec)
-        return (y @ self.parameters).reshape(dataset.n_samples, self.model.nv)
+        return predict_torque(self.model, dataset, self.spec, self.parameters)
 
     def residual(self, dataset: Dataset) -> np.ndarray:
         """Measured minus predicted torque, (N, nv)."""
