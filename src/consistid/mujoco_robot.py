@@ -133,17 +133,10 @@ def _payload_inertial(payload: MountedPayload, parameters: np.ndarray) -> str:
             f'diaginertia="{_num(moments)}"/>')
 
 
-def to_mjcf(model: RobotModel, effects: Effects, timestep: float = 1e-3,
-            integrator: str = "Euler") -> str:
-    """The MJCF text of ``model`` (its current inertias) with ``effects`` (resolved or not)."""
-    eff = effects if effects.resolved else effects.for_model(model)
-    payload = eff.payload.parameters(model) if eff.payload is not None else None
-    return _mjcf(model, eff, payload, timestep, integrator)
-
-
 def _mjcf(model: RobotModel, eff: Effects, payload: tuple[int, np.ndarray] | None,
           timestep: float, integrator: str) -> str:
-    """:func:`to_mjcf` for resolved effects and the payload's ``(joint, 10-vector)``."""
+    """The MJCF text of ``model`` (its current inertias) with the resolved effects ``eff`` and
+    the payload's ``(joint, 10-vector)``."""
     check_option("integrator", integrator, INTEGRATORS)
     pm = model.pin_model
     kinds, axes = joint_axes(model)

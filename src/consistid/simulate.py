@@ -190,13 +190,6 @@ class SimulatedRecording:
         return Dataset(t=self.t, q=self.true_q, dq=self.true_dq, ddq=self.true_ddq,
                        tau=self.tau, joint_names=self.joint_names)
 
-    def true_loaded_parameters(self) -> np.ndarray:
-        """``true_parameters`` with the payload added to the body that carries it."""
-        out = np.array(self.true_parameters)
-        if self.payload_parameters is not None:
-            out[10 * self.payload_joint:10 * self.payload_joint + 10] += self.payload_parameters
-        return out
-
 
 #: Default bound (rad, or m on a prismatic joint) on the tracking error of :func:`record`, above
 #: which it warns that the robot did not follow its reference. The default controller leaves
