@@ -308,7 +308,7 @@ class Effects:
         values["motor_inertia"] = np.where(elastic & (values["motor_inertia"] == 0),
                                            DEFAULT_MOTOR_INERTIA, values["motor_inertia"])
         if self.payload is not None:
-            self.payload.parameters(model)  # validates the frame
+            self.payload.placement(model)  # validates the frame
         return replace(self, **values)
 
     @property
