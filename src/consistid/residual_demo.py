@@ -26,7 +26,8 @@ from .errors import OptionError
 from .excitation import FourierTrajectory
 from .model import RobotModel
 from .report import table
-from .robot_effects import EFFECT_FIELDS, Effects, MountedPayload, effect_torque, sensor_torque
+from .robot_effects import (EFFECT_FIELDS, EFFECT_NAMES, Effects, MountedPayload, effect_torque,
+                            sensor_torque)
 from .simulate import SimulatedRecording, nominal_residual, record
 
 #: Default of ``consistid simulate``: two effects, 1 N·m dry friction on every joint and a 1 kg
@@ -62,7 +63,7 @@ def parse_effects(specs: Sequence[str], model: RobotModel) -> Effects:
             effects = effects.with_effect(name, magnitude)
         else:
             raise OptionError(f"unknown effect {name!r}; known: "
-                              f"{', '.join([*EFFECT_FIELDS, 'payload'])}")
+                              f"{', '.join(EFFECT_NAMES)}")
     return effects
 
 
@@ -96,8 +97,9 @@ class ResidualDemo:
         """Per joint: torque RMS, the nominal residual RMS with and without the effects, and
         after removing the effects' closed forms (N·m)."""
         tau = self._rms(self.dataset.require_torque())
-        rows = [(name, tau[j], self._rms(self.residual)[j], self._rms(self.baseline)[j],
-                 self._rms(self.explained)[j])
+        residual, baseline = self._rms(self.residual), self._rms(self.baseline)
+        explained = self._rms(self.explained)
+        rows = [(name, tau[j], residual[j], baseline[j], explained[j])
                 for j, name in enumerate(self.model.joint_names)]
         header = ["joint", "τ RMS", "residual", "no-effect floor", "after closed forms"]
         return table(header, rows, ".3g")
