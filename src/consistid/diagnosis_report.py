@@ -159,17 +159,26 @@ def _png(fig) -> bytes:
 
 def diagnosis_html(diag: "Diagnosis") -> str:
     """The report as one self-contained HTML page (plots embedded as base64 PNG)."""
-    figs = _figures(diag)
+    return _html(diag, diagnosis_text(diag), _pngs(diag))
+
+
+def _pngs(diag: "Diagnosis") -> dict[str, bytes]:
+    """Each plot of :func:`_figures` rendered once as PNG bytes."""
+    return {name: _png(fig) for name, fig in _figures(diag).items()}
+
+
+def _html(diag: "Diagnosis", text: str, pngs: dict[str, bytes]) -> str:
+    """The HTML page of :func:`diagnosis_html` from the already built text and PNG plots."""
     imgs = "\n".join(
         f'<h3>{html.escape(k.replace("_", " "))}</h3><img alt="{k}" '
-        f'src="data:image/png;base64,{base64.b64encode(_png(f)).decode()}"/>'
-        for k, f in figs.items())
+        f'src="data:image/png;base64,{base64.b64encode(png).decode()}"/>'
+        for k, png in pngs.items())
     return ("<!DOCTYPE html><html><head><meta charset='utf-8'>"
             f"<title>consistid diagnosis: {html.escape(diag.model_name)}</title>"
             "<style>body{font-family:sans-serif;max-width:1100px;margin:auto}"
             "pre{font-size:12px;background:#f6f6f6;padding:8px;overflow-x:auto}</style>"
             f"</head><body><h1>Sim-to-real diagnosis: {html.escape(diag.model_name)}</h1>"
-            f"<pre>{html.escape(diagnosis_text(diag))}</pre>{imgs}</body></html>\n")
+            f"<pre>{html.escape(text)}</pre>{imgs}</body></html>\n")
 
 
 def write_report(diag: "Diagnosis", path: str | Path) -> Path:
@@ -182,8 +191,9 @@ def write_report(diag: "Diagnosis", path: str | Path) -> Path:
         path.write_text(diagnosis_text(diag), encoding="utf-8")
     else:
         path.mkdir(parents=True, exist_ok=True)
-        (path / "report.txt").write_text(diagnosis_text(diag), encoding="utf-8")
-        (path / "report.html").write_text(diagnosis_html(diag), encoding="utf-8")
-        for name, fig in _figures(diag).items():
-            (path / f"{name}.png").write_bytes(_png(fig))
+        text, pngs = diagnosis_text(diag), _pngs(diag)
+        (path / "report.txt").write_text(text, encoding="utf-8")
+        (path / "report.html").write_text(_html(diag, text, pngs), encoding="utf-8")
+        for name, png in pngs.items():
+            (path / f"{name}.png").write_bytes(png)
     return path
