@@ -376,8 +376,8 @@ class EffectLibrary:
                                     ("N·m", "N·m"), float(k))
                         out.append(self.tune_cutoff(tuning, tuning_residual[:, j], atom)[0])
             else:
-                suffix = {"coulomb": "fc", "viscous": "fv", "offset": "fo", "gain": "gain",
-                          "armature": "Ia", "delay": "delay", "elasticity": "compliance"}[e]
+                suffix = (TERM_COLUMNS[e][0] if e in TERM_COLUMNS else
+                          {"gain": "gain", "delay": "delay", "elasticity": "compliance"}[e])
                 if e == "delay":
                     out.append(Atom(e, None, ("delay",), ("s",)))
                 out += [Atom(e, j, (f"{names[j]}.{suffix}",), (UNITS[e],))

@@ -63,7 +63,7 @@ from .errors import ModelError, OptionError, check_option
 from .gap import (FILTERED_ROLLOFF, GapBreakdown, gap_breakdown,
                   high_band_rolloff, noise_floor)
 from .model import RobotModel
-from .parameters import pseudo_inertia
+from .parameters import is_physically_consistent
 from .statistics import autocorrelation_time, coloured_covariance
 
 #: A held-out shrink below this fraction does not list a joint under an arm-wide effect.
@@ -659,8 +659,9 @@ def _sdp_inertia(model: RobotModel, train: GapData, nominal: np.ndarray, others:
                                              else train.nominal_extra))
     # The log-det prior needs every nominal body realisable (J ≻ 0); otherwise say so and use
     # the Euclidean prior around the same nominal values.
-    bad = [name for name, i in zip(model.body_names, range(0, nominal.size, 10))
-           if not np.linalg.eigvalsh(pseudo_inertia(nominal[i:i + 10]))[0] > 0]
+    check = is_physically_consistent(nominal[:model.n_inertial], "pseudo-inertia",
+                                     model.body_names)
+    bad = [b.body for b in check.bodies if not b.min_pseudo_inertia_eigenvalue > 0]
     prior = "euclidean" if bad else "logdet"
     res = identify(model.with_parameters(nominal), corrected, method="sdp", friction=None,
                    prior=prior)
