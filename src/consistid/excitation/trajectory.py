@@ -569,10 +569,9 @@ class FourierTrajectory:
         q0 = 0.5 * (lo + hi)
         trial = cls(a, b, np.zeros(model.nv), period)
         q, dq, ddq = trial.evaluate(np.linspace(0.0, period, 50 * harmonics * 4, endpoint=False))
-        vel = np.where(lim.velocity > 0, lim.velocity, np.inf)
         acc = np.broadcast_to(np.asarray(acceleration_limit, dtype=float), (model.nv,))
         scale = amplitude * np.minimum.reduce([
             0.5 * (hi - lo) / np.max(np.abs(q), axis=0),
-            vel / np.max(np.abs(dq), axis=0),
+            lim.velocity / np.max(np.abs(dq), axis=0),
             acc / np.max(np.abs(ddq), axis=0)])
         return cls(a * scale[:, None], b * scale[:, None], q0, period)
