@@ -424,6 +424,7 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
     sse_tr = prob.w * prob.train.sse(cols, theta)
     sse_ho = prob.w * prob.held.sse(cols, theta)
     full_p = sum(s.size for s in prob.slices)
+    g_ho = np.einsum("j,jpq->pq", prob.w, prob.held.G)
     for _ in range(max_steps):
         scores = []
         for i, atom in enumerate(prob.atoms):
@@ -439,7 +440,8 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
             u[c2] = th2
             u[cols] -= theta
             own = th2[-atom.n_parameters:]
-            scores.append((i, float(sse_ho.sum() - ho2.sum()), k, tr2, ho2, u, own))
+            scores.append((i, float(sse_ho.sum() - ho2.sum()), k, tr2, ho2, u, own,
+                           (c2, th2, r2)))
         if not scores:
             break
         scores.sort(key=lambda s: -s[1])
@@ -490,7 +492,6 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
             break
         # Indistinguishable candidates: similar held-out gain and collinear corrections; the one
         # with the fewest parameters (that passes) is kept, the others are its alternatives.
-        g_ho = np.einsum("j,jpq->pq", prob.w, prob.held.G)
         ub = passing[5]
         nb = float(ub @ g_ho @ ub)
         group = [passing]
@@ -516,9 +517,8 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
                                   if sc[0] != i))
         bics.append(float(dbic))
         pvals.append(p)
-        cols, theta, rank = prob.fit(chosen)
-        sse_tr = prob.w * prob.train.sse(cols, theta)
-        sse_ho = prob.w * prob.held.sse(cols, theta)
+        # The fit of chosen + [i] was made when scoring it.
+        (cols, theta, rank), sse_tr, sse_ho = pick[7], pick[3], pick[4]
     return chosen, alternatives, steps, bics, pvals
 
 
@@ -569,9 +569,8 @@ def _refit(prob: _Problem, chosen: Sequence[int], train: GapData, model: RobotMo
     """
     notes: list[str] = []
     atoms = [prob.atoms[i] for i in chosen]
-    cols, theta, _ = prob.fit(list(chosen))
-    g, _ = prob.train.weighted(prob.w, cols)
-    _, rank, pinv = _solve(g, prob.train.weighted(prob.w, cols)[1])
+    cols = prob.cols(chosen)
+    theta, rank, pinv = _solve(*prob.train.weighted(prob.w, cols))
     sse = float(prob.w @ prob.train.sse(cols, theta))
     dof = max(prob.train.n * prob.w.size - rank, 1)
     cov = _coloured_covariance(prob, cols, pinv, sse / dof)
@@ -612,6 +611,9 @@ def _refit(prob: _Problem, chosen: Sequence[int], train: GapData, model: RobotMo
         return sum((contribution(m) for m in range(len(atoms)) if m not in skip),
                    np.zeros_like(r))
 
+    if linear:
+        a_mat = np.concatenate([phi[k] for k in linear], axis=2)
+        gl = np.einsum("j,njp,njq->pq", w, a_mat, a_mat)
     # Block coordinate descent started from the joint least-squares fit (where the linearised
     # delay and the unconstrained inertia already sit near the answer).
     for _ in range(3):
@@ -632,8 +634,6 @@ def _refit(prob: _Problem, chosen: Sequence[int], train: GapData, model: RobotMo
             if note not in notes:
                 notes.append(note)
         if linear:
-            a_mat = np.concatenate([phi[k] for k in linear], axis=2)
-            gl = np.einsum("j,njp,njq->pq", w, a_mat, a_mat)
             cl = np.einsum("j,njp,nj->p", w, a_mat, r - others(linear))
             th, _, _ = _solve(gl, cl)
             o = 0
