@@ -418,6 +418,7 @@ class MujocoRobot:
         mj, data = self.mj_model, mujoco.MjData(self.mj_model)
         eff, nv = self.effects, self.nv
         elastic = eff.elastic
+        any_elastic = bool(elastic.any())
         sense_dof = self.motor_dof if eff.position_sensor == "motor" else self.link_dof
         drive, link = self.motor_dof, self.link_dof
         self._start_state(data, qd[0], dqd[0], ddqd[0])
@@ -444,7 +445,7 @@ class MujocoRobot:
             if use_tanh:
                 applied[drive] -= tanh_fc * np.tanh(data.qvel[drive] / eff.coulomb_speed)
             data.qfrc_applied[:] = applied
-            tau_fine[k] = np.where(elastic, self.spring_torque(data), u)
+            tau_fine[k] = np.where(elastic, self.spring_torque(data), u) if any_elastic else u
             if row < n and k == logged[row]:
                 mujoco.mj_forward(mj, data)
                 for key, value in (("q", data.qpos[link]), ("dq", data.qvel[link]),
