@@ -5,7 +5,7 @@ import consistid as ci
 from consistid.compression import SIGMA_FLOOR
 from consistid.errors import PoorExcitationWarning
 from consistid.parameters import perturb
-from consistid.regressor import RegressorSpec, dataset_regressor
+from consistid.regressor import dataset_regressor
 
 from .conftest import PLANAR_2R, PLANAR_2R_VALUES, random_states
 
@@ -47,7 +47,6 @@ def test_compressed_solution_equals_lstsq_on_all_rows(panda, runs):
 
 
 def test_wls_estimates_per_joint_noise_and_friction(panda, truth):
-    spec = RegressorSpec.make(panda, ("coulomb", "viscous", "offset"))
     rng = np.random.default_rng(3)
     friction = np.concatenate([rng.uniform(0.2, 1.0, 7), rng.uniform(0.05, 0.3, 7),
                                rng.uniform(-0.5, 0.5, 7)])

@@ -50,7 +50,7 @@ from .errors import ExportWarning, InconsistentParametersError, ModelError, chec
 from .model import RobotModel
 from .parameters import check_body
 from .regressor import TERM_COLUMNS
-from .urdf import remove_dynamics
+from .urdf import parse_urdf, remove_dynamics
 
 MERGED = ("auto", "lump", "subtract")
 #: Per-joint parameter name suffixes (``"<joint>.<suffix>"``); only fc and fv have URDF tags.
@@ -213,10 +213,7 @@ def write_urdf(model: RobotModel, path: str | Path, parameters: np.ndarray | Non
         raise ModelError(f"parameters must be a finite vector of at least {model.n_inertial} "
                          f"entries, got shape {params.shape}")
     terms = _joint_terms(model, params, parameter_names)
-    try:
-        tree = ET.parse(source)
-    except ET.ParseError as exc:
-        raise ModelError(f"{source.name} is not well-formed XML: {exc}") from exc
+    tree = parse_urdf(source)
     root = tree.getroot()
     links = _links(model, _kinematic_model(root), root)
     elements = {link.get("name"): link for link in root.iter("link")}

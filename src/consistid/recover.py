@@ -65,7 +65,7 @@ from .errors import (IdentificationError, InconsistentParametersError, Infeasibl
 from .model import RobotModel
 from .parameters import ConsistencyReport, is_physically_consistent, pseudo_inertia
 from .priors import euclidean, logdet_divergence, logdet_divergence_value
-from .regressor import (FRICTION_TERMS, NONNEGATIVE_TERMS, FrictionArg, RegressorSpec,
+from .regressor import (FRICTION_TERMS, FrictionArg, RegressorSpec,
                         dataset_regressor, parameter_names, prior_vector, resolve_spec)
 from .result import IdentificationResult, SolverReport
 
@@ -341,7 +341,7 @@ class _Problem:
             f, f0 = x[self.n_inertial:], self.prior[self.n_inertial:]
             objective = objective + euclidean(f, f0)
             if self.joint_constraints:
-                keep = _nonnegative_joint_columns(self.spec)
+                keep = self.spec.nonnegative_columns
                 if keep.size:
                     constraints.append(f[keep] >= 0)
         return x, constraints, objective
@@ -382,10 +382,6 @@ def euclidean_weights(prior: np.ndarray) -> np.ndarray:
     ell2 = (prior[4] + prior[6] + prior[9]) / (2.0 * m0)
     return 1.0 / np.concatenate([[m0], np.full(3, m0 * np.sqrt(ell2)), np.full(6, m0 * ell2)])
 
-
-def _nonnegative_joint_columns(spec: RegressorSpec) -> np.ndarray:
-    return np.array([c for c, (term, _, _) in enumerate(spec.columns)
-                     if term in NONNEGATIVE_TERMS], dtype=int)
 
 
 def _weights(beta: np.ndarray, covariance: np.ndarray | None
@@ -481,7 +477,7 @@ def _finish(problem: _Problem, mode: str, x: np.ndarray, reports: tuple[SolverRe
     if problem.joint_constraints:
         # Entries constrained ≥ 0 come back within the solver's feasibility tolerance, e.g.
         # −8e-10; set those (only those) to 0 so that exporters see the sign the constraint gave.
-        keep = model.n_inertial + _nonnegative_joint_columns(problem.spec)
+        keep = model.n_inertial + problem.spec.nonnegative_columns
         low = x[keep]
         if np.any(low < -NONNEGATIVE_ROUNDOFF):
             raise IdentificationError(

@@ -139,6 +139,13 @@ class RegressorSpec:
     def n_joint_columns(self) -> int:
         return len(self.columns)
 
+    @property
+    def nonnegative_columns(self) -> np.ndarray:
+        """Indices, among the per-joint columns, of the terms that are ≥ 0 physically
+        (:data:`NONNEGATIVE_TERMS`: Coulomb, viscous, armature)."""
+        return np.array([c for c, (term, _, _) in enumerate(self.columns)
+                         if term in NONNEGATIVE_TERMS], dtype=int)
+
     def joint_column_names(self, joint_names: Sequence[str]) -> list[str]:
         return [f"{joint_names[j]}.{suffix}" for _, j, suffix in self.columns]
 

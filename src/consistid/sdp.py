@@ -66,8 +66,7 @@ from .errors import (IdentificationError, InconsistentParametersError, Infeasibl
 from .identify import COND_WARN, RANK_RTOL
 from .model import RobotModel
 from .parameters import from_pseudo_inertia, pseudo_inertia
-from .regressor import (NONNEGATIVE_TERMS, RegressorSpec, parameter_names, predict_torque,
-                        prior_vector)
+from .regressor import RegressorSpec, parameter_names, predict_torque, prior_vector
 from .result import IdentificationResult, SolverReport
 
 #: Relative uncertainty ``r`` of CAD pseudo-inertias assumed by :func:`default_prior_weight`.
@@ -389,8 +388,7 @@ def _make_setup(model: RobotModel, spec: RegressorSpec, prior_vec: np.ndarray,
                    for i in range(nb))
     nonneg = np.zeros(prior_vec.size, dtype=bool)
     if friction_nonnegative:
-        for c, (term, _, _) in enumerate(spec.columns):
-            nonneg[10 * nb + c] = term in NONNEGATIVE_TERMS
+        nonneg[10 * nb + spec.nonnegative_columns] = True
     euclid_w = None
     if prior == "euclidean":
         p_in = 10 * nb

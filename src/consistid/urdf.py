@@ -34,7 +34,8 @@ class JointDynamics:
     friction: float
 
 
-def _parse(path: Path) -> ET.ElementTree:
+def parse_urdf(path: Path) -> ET.ElementTree:
+    """The URDF's XML tree; :class:`ModelError` for a missing file or malformed XML."""
     if not path.is_file():
         raise ModelError(f"URDF file {str(path)!r} does not exist")
     try:
@@ -47,7 +48,7 @@ def joint_dynamics(path: str | Path) -> dict[str, JointDynamics]:
     """The ``<dynamics>`` tag of every joint that has one, by joint name (file order)."""
     path = Path(path)
     out: dict[str, JointDynamics] = {}
-    for joint in _parse(path).getroot().iter("joint"):
+    for joint in parse_urdf(path).getroot().iter("joint"):
         tag = joint.find("dynamics")
         if tag is None:
             continue
@@ -74,7 +75,7 @@ def remove_dynamics(root: ET.Element) -> ET.Element:
 
 def strip_dynamics(path: str | Path, out: str | Path) -> Path:
     """Write a copy of the URDF at ``path`` to ``out`` without any joint ``<dynamics>`` tag."""
-    tree = _parse(Path(path))
+    tree = parse_urdf(Path(path))
     remove_dynamics(tree.getroot())
     out = Path(out)
     tree.write(out, encoding="utf-8", xml_declaration=True)
