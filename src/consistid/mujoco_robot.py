@@ -427,7 +427,6 @@ class MujocoRobot:
         kp, kd = gains
         pm = nominal.pin_model
         pdata = pm.createData()
-        to_config = (lambda q: q) if pm.nq == pm.nv else nominal.configuration
         tanh_fc = np.asarray(eff.coulomb) if eff.coulomb_model == "tanh" else np.zeros(nv)
         use_tanh = bool(np.any(tanh_fc))
         logged = np.arange(log_from, steps, log_every)
@@ -439,7 +438,7 @@ class MujocoRobot:
         row = 0
         for k in range(steps):
             qs, vs = data.qpos[drive], data.qvel[drive]  # collocated feedback
-            u = pin.rnea(pm, pdata, to_config(qs), vs,
+            u = pin.rnea(pm, pdata, nominal.configuration(qs), vs,
                          ddqd[k] + kp * (qd[k] - qs) + kd * (dqd[k] - vs))
             applied[drive] = u
             if use_tanh:

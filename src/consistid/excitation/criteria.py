@@ -101,17 +101,15 @@ def regressor_sensitivity(model: RobotModel, q: np.ndarray, dq: np.ndarray, ddq:
     y = np.zeros((n, nv, p))
     dy = np.zeros((n, 3 * nv, nv, p))
     eye = np.eye(nv)
-    same = m.nq == m.nv
     for i in range(n):
         qi, vi, ai = q[i], dq[i], ddq[i]
-        cfg = qi if same else model.configuration(qi)
+        cfg = model.configuration(qi)
         y0 = pin.computeJointTorqueRegressor(m, data, cfg, vi, ai).copy()
         y[i, :, :ni] = y0
         for k in range(nv):
-            qk = qi + step * eye[k]
-            cfg = qk if same else model.configuration(qk)
-            dy[i, k, :, :ni] = (pin.computeJointTorqueRegressor(m, data, cfg, vi, ai) - y0) / step
-        cfg = qi if same else model.configuration(qi)
+            cfg_k = model.configuration(qi + step * eye[k])
+            dy[i, k, :, :ni] = (pin.computeJointTorqueRegressor(m, data, cfg_k, vi, ai)
+                                - y0) / step
         for k in range(nv):
             dy[i, nv + k, :, :ni] = (pin.computeJointTorqueRegressor(
                 m, data, cfg, vi + step * eye[k], ai) - y0) / step
