@@ -61,7 +61,7 @@ from .candidates import EFFECT_NAMES, SIGNATURES, Atom, EffectLibrary, GapData
 from .dataset import Dataset
 from .errors import ModelError, OptionError, check_option
 from .gap import (FILTERED_ROLLOFF, GapBreakdown, gap_breakdown,
-                  high_band_rolloff, noise_floor)
+                  high_band_rolloff, noise_floor, residual_spectra)
 from .model import RobotModel
 from .parameters import is_physically_consistent
 from .statistics import autocorrelation_time, coloured_covariance
@@ -765,11 +765,12 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     train, held = gap_data(train_ds), gap_data(held_ds)
     everything = gap_data(Dataset.concatenate([train_ds, held_ds]))
     filtered = np.zeros(model.nv, dtype=bool)
+    spectra = residual_spectra(everything.dataset, everything.residual, everything.tau_nom)
     if sigma is None:
         floor, noise_source = noise_floor(everything.dataset, everything.residual,
-                                          everything.tau_nom)
+                                          everything.tau_nom, spectra)
         filtered = high_band_rolloff(everything.dataset, everything.residual,
-                                     everything.tau_nom) < FILTERED_ROLLOFF
+                                     everything.tau_nom, spectra) < FILTERED_ROLLOFF
     else:
         floor, noise_source = _sigma(sigma, model.nv), "given"
     library = EffectLibrary(model, tuple(effects))
@@ -874,12 +875,12 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     if sigma is None and fit.atoms and not substitute.all():
         # The nominal residual's high band also holds the tails of steps and spikes that the
         # effects explain (a Coulomb step has a 1/f² spectrum); estimate again without them.
-        again, _ = noise_floor(everything.dataset,
-                               everything.residual - fit.correction(everything),
-                               everything.tau_nom)
+        unexplained = everything.residual - fit.correction(everything)
+        again, _ = noise_floor(everything.dataset, unexplained, everything.tau_nom,
+                               spectra.with_residual(everything.dataset, unexplained))
         floor = np.where(substitute, floor, again)
         noise_source += " (re-estimated on the residual with the selected effects)"
-    where = gap_breakdown(everything, floor)
+    where = gap_breakdown(everything, floor, spectra=spectra)
     low = np.flatnonzero(floor < 0.5 * library_floor)
     if low.size:
         notes.append(

@@ -23,7 +23,7 @@ Noise floor
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.signal
@@ -142,8 +142,44 @@ def _signal_band(freqs: np.ndarray, p_nominal: np.ndarray) -> float:
     return float(freqs[1:][np.searchsorted(cum, 0.999)])
 
 
-def noise_floor(dataset: Dataset, residual: np.ndarray, tau_nom: np.ndarray
-                ) -> tuple[np.ndarray, str]:
+@dataclass(frozen=True, eq=False)
+class Spectra:
+    """The spectra :func:`noise_floor`, :func:`high_band_rolloff` and :func:`gap_breakdown` work
+    on, computed once by :func:`residual_spectra`.
+
+    Attributes
+    ----------
+    freqs : (F,) frequencies (Hz).
+    residual, nominal : (F, nv) power spectral densities of the residual and the nominal torque.
+    signal_band : ``f_s``, the frequency below which the nominal torque has 99.9 % of its power.
+    """
+
+    freqs: np.ndarray
+    residual: np.ndarray
+    nominal: np.ndarray
+    signal_band: float
+
+    @property
+    def noise_band(self) -> tuple[np.ndarray, float, float]:
+        """``(mask over freqs, lo, hi)`` of the noise band ``[2 f_s, min(6 f_s, 0.9 f_N)]``."""
+        lo, hi = 2 * self.signal_band, min(6 * self.signal_band, 0.9 * self.freqs[-1])
+        return (self.freqs >= lo) & (self.freqs <= hi), lo, hi
+
+    def with_residual(self, dataset: Dataset, residual: np.ndarray) -> "Spectra":
+        """The same nominal spectrum and band with another residual's spectrum."""
+        return replace(self, residual=spectrum(dataset, residual)[1])
+
+
+def residual_spectra(dataset: Dataset, residual: np.ndarray, tau_nom: np.ndarray) -> Spectra:
+    """Welch spectra (:func:`spectrum`) of ``residual`` and ``tau_nom`` and the nominal torque's
+    signal band."""
+    freqs, p_res = spectrum(dataset, residual)
+    _, p_nom = spectrum(dataset, tau_nom)
+    return Spectra(freqs, p_res, p_nom, _signal_band(freqs, p_nom))
+
+
+def noise_floor(dataset: Dataset, residual: np.ndarray, tau_nom: np.ndarray,
+                spectra: Spectra | None = None) -> tuple[np.ndarray, str]:
     """Torque noise standard deviation per joint from a residual's high-frequency spectrum.
 
     Parameters
@@ -151,17 +187,17 @@ def noise_floor(dataset: Dataset, residual: np.ndarray, tau_nom: np.ndarray
     dataset : the samples (time stamps, recording segments).
     residual : (N, nv) measured minus modelled torque.
     tau_nom : (N, nv) modelled torque (its spectrum locates the motion's band).
+    spectra : :func:`residual_spectra` of these three, when already computed.
 
     See the module notes. Returns ``(σ (nv,), description)``.
     """
-    freqs, p_res = spectrum(dataset, residual)
-    _, p_nom = spectrum(dataset, tau_nom)
+    sp = residual_spectra(dataset, residual, tau_nom) if spectra is None else spectra
+    freqs, p_res = sp.freqs, sp.residual
     if freqs.size < 8:
         return np.sqrt(np.mean(residual ** 2, axis=0)), "residual RMS (too few samples)"
-    f_s = _signal_band(freqs, p_nom)
+    f_s = sp.signal_band
     nyq = freqs[-1]
-    lo, hi = 2 * f_s, min(6 * f_s, 0.9 * nyq)
-    band = (freqs >= lo) & (freqs <= hi)
+    band, lo, hi = sp.noise_band
     if band.sum() < 3:
         band = freqs >= 0.5 * nyq
         lo, hi = 0.5 * nyq, nyq
@@ -176,19 +212,19 @@ def noise_floor(dataset: Dataset, residual: np.ndarray, tau_nom: np.ndarray
                    f"(nominal torque band < {f_s:.3g} Hz)")
 
 
-def high_band_rolloff(dataset: Dataset, residual: np.ndarray, tau_nom: np.ndarray
-                      ) -> np.ndarray:
+def high_band_rolloff(dataset: Dataset, residual: np.ndarray, tau_nom: np.ndarray,
+                      spectra: Spectra | None = None) -> np.ndarray:
     """Per joint, the residual's mean power density in the top quarter of the spectrum divided
     by that in the noise band of :func:`noise_floor`: about 1 for white noise, orders of
     magnitude below 1 when the torques were low-pass filtered (then the high band no longer
-    shows the noise level, :data:`FILTERED_ROLLOFF`)."""
-    freqs, p_res = spectrum(dataset, residual)
-    _, p_nom = spectrum(dataset, tau_nom)
+    shows the noise level, :data:`FILTERED_ROLLOFF`). ``spectra``: :func:`residual_spectra`
+    of the three arguments, when already computed."""
+    sp = residual_spectra(dataset, residual, tau_nom) if spectra is None else spectra
+    freqs, p_res = sp.freqs, sp.residual
     if freqs.size < 8:
         return np.ones(residual.shape[1])
-    f_s = _signal_band(freqs, p_nom)
     nyq = freqs[-1]
-    band = (freqs >= 2 * f_s) & (freqs <= min(6 * f_s, 0.9 * nyq))
+    band = sp.noise_band[0]
     top = freqs >= 0.75 * nyq
     if band.sum() < 3 or top.sum() < 3:
         return np.ones(residual.shape[1])
@@ -234,8 +270,9 @@ def _drift(dataset: Dataset, r: np.ndarray, windows: int = 8
 
 
 def gap_breakdown(data: GapData, noise: np.ndarray, max_points: int = 4000,
-                  seed: int = 0) -> GapBreakdown:
-    """Decompose the nominal residual of ``data`` (see :class:`GapBreakdown`)."""
+                  seed: int = 0, spectra: Spectra | None = None) -> GapBreakdown:
+    """Decompose the nominal residual of ``data`` (see :class:`GapBreakdown`); ``spectra`` is
+    :func:`residual_spectra` of its residual and nominal torque, when already computed."""
     r, tau = data.residual, data.tau
     ss = np.sum(r ** 2, axis=0)
     rms = np.sqrt(ss / data.n)
@@ -246,8 +283,8 @@ def gap_breakdown(data: GapData, noise: np.ndarray, max_points: int = 4000,
     with np.errstate(invalid="ignore", divide="ignore"):
         regime_rms = np.sqrt(np.einsum("rnj,nj->rj", masks, r ** 2) / count)
         regime_mean = np.einsum("rnj,nj->rj", masks, r) / count
-    freqs, psd = spectrum(data.dataset, r)
-    _, p_nom = spectrum(data.dataset, data.tau_nom)
+    sp = residual_spectra(data.dataset, r, data.tau_nom) if spectra is None else spectra
+    freqs, psd = sp.freqs, sp.residual
     nyq = float(freqs[-1])
     edges = [0.0]
     e = 0.5
@@ -265,5 +302,5 @@ def gap_breakdown(data: GapData, noise: np.ndarray, max_points: int = 4000,
     pick = np.sort(rng.choice(data.n, size=min(max_points, data.n), replace=False))
     return GapBreakdown(tuple(data.model.joint_names), rms, share, relative, REGIMES,
                         count / data.n, regime_rms, regime_mean, edges, band_rms, freqs, psd,
-                        _signal_band(freqs, p_nom), wt, wm, slope, slope_std,
+                        sp.signal_band, wt, wm, slope, slope_std,
                         np.asarray(noise, dtype=float), data.dataset.dq[pick], r[pick])
