@@ -110,3 +110,12 @@ def floor_sigma(sigma: np.ndarray, problem: CompressedProblem) -> np.ndarray:
     stay finite on noise-free data."""
     rms = np.sqrt(problem.tau_sum_squares / max(problem.n_samples, 1))
     return np.maximum(np.asarray(sigma, dtype=float), SIGMA_FLOOR * np.maximum(rms, 1e-300))
+
+
+def joint_sigma(sum_squares: np.ndarray, n_samples: int, n_parameters: int) -> np.ndarray:
+    """Per-joint noise standard deviation from residual sums of squares (Gautier 1997):
+    ``σ_j = sqrt(‖ρ_j‖² / (N − b/nv))``, the ``b`` fitted parameters' degrees of freedom shared
+    evenly among the ``nv`` joints (the denominator is kept ≥ 1). Not floored: see
+    :func:`floor_sigma`."""
+    sum_squares = np.asarray(sum_squares, dtype=float)
+    return np.sqrt(sum_squares / max(n_samples - n_parameters / sum_squares.size, 1.0))

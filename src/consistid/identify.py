@@ -37,7 +37,7 @@ import numpy as np
 import scipy.linalg
 
 from .base import BaseParameters, compute_base_parameters
-from .compression import CompressedProblem, compress, floor_sigma
+from .compression import CompressedProblem, compress, floor_sigma, joint_sigma
 from .dataset import Dataset
 from .errors import OptionError, PoorExcitationError, PoorExcitationWarning, check_option
 from .model import RobotModel
@@ -94,7 +94,7 @@ def least_squares(model: RobotModel, problem: CompressedProblem, base: BaseParam
     beta = scipy.linalg.solve_triangular(r, z)
     sse = problem.sum_squares(beta, cols)
     if weighted:
-        sigma = floor_sigma(np.sqrt(sse / max(n - b / problem.nv, 1.0)), problem)
+        sigma = floor_sigma(joint_sigma(sse, n, b), problem)
         r, z, _ = problem.stacked(sigma=sigma, columns=cols)
         cond, _ = check_excitation(r, base.names)
         beta = scipy.linalg.solve_triangular(r, z)

@@ -36,7 +36,7 @@ import cvxpy as cp
 import numpy as np
 
 from .base import BaseParameters, random_states
-from .compression import CompressedProblem, compress
+from .compression import CompressedProblem, compress, joint_sigma
 from .conic import DEFAULT_SOLVER, solve
 from .constraints import (BodyScaling, Ellipsoid, com_box, ellipsoid_lmi, mass_bounds,
                           pseudo_inertia_lmi)
@@ -432,7 +432,7 @@ def estimate_payload(model: RobotModel, loaded: Dataset | IdentificationResult,
     r1, z1, _ = problem.stacked(columns=cols)
     theta_ls = np.linalg.lstsq(r1 @ transform, z1, rcond=None)[0]
     sse = problem.sum_squares(transform @ theta_ls, cols)
-    sigma = np.sqrt(sse / max(n - 10 / model.nv, 1.0))
+    sigma = joint_sigma(sse, n, 10)
     sigma = np.where(sigma > 0, sigma, max(sigma.max(), 1e-12))
     r, z, _ = problem.stacked(sigma=sigma, columns=cols)
     r = r @ transform

@@ -58,7 +58,7 @@ import scipy.linalg
 from . import constraints as cons
 from . import priors
 from .base import BaseParameters
-from .compression import CompressedProblem, compress, floor_sigma
+from .compression import CompressedProblem, compress, floor_sigma, joint_sigma
 from .conic import DEFAULT_SOLVER, check_solver, solve
 from .dataset import Dataset
 from .errors import (IdentificationError, InconsistentParametersError, InfeasibleError,
@@ -268,8 +268,7 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
             work = compress(model, dataset, spec, weights=row_weights)
             source = "huber"
         else:
-            sig = floor_sigma(np.sqrt(problem.sum_squares(theta)
-                                      / max(n - base.n_base / nv, 1.0)), problem)
+            sig = floor_sigma(joint_sigma(problem.sum_squares(theta), n, base.n_base), problem)
             source = "irls"
         setup_time += time.perf_counter() - t0
 
@@ -415,7 +414,7 @@ def _ols_sigma(problem: CompressedProblem, base: BaseParameters) -> np.ndarray:
     r, z, _ = problem.stacked(columns=base.independent)
     beta, _, rank, _ = np.linalg.lstsq(r, z, rcond=1e-11)
     sse = problem.sum_squares(beta, base.independent)
-    return np.sqrt(sse / max(problem.n_samples - rank / problem.nv, 1.0))
+    return joint_sigma(sse, problem.n_samples, rank)
 
 
 def _huber_weights(model: RobotModel, dataset: Dataset, spec: RegressorSpec, theta: np.ndarray,
