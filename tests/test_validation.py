@@ -2,15 +2,11 @@ import numpy as np
 import pytest
 
 import consistid as ci
-from consistid.base import random_states
 from consistid.urdf import JointDynamics
 from consistid.validation import (refit_joint_terms, rigid_model, score_prediction,
                                   scores_table, with_urdf_friction)
 
-
-def states(model, n=400, seed=0):
-    q, dq, ddq = random_states(model, n, np.random.default_rng(seed))
-    return q, dq, ddq
+from .conftest import random_states
 
 
 def test_scores_match_their_formulas():
@@ -29,7 +25,7 @@ def test_scores_match_their_formulas():
 
 
 def test_urdf_friction_prediction_is_rnea_plus_friction(planar_2r):
-    q, dq, ddq = states(planar_2r)
+    q, dq, ddq = random_states(planar_2r, 400, 0)
     d = ci.Dataset(t=np.arange(len(q)) * 0.01, q=q, dq=dq, ddq=ddq)
     dyn = {"joint1": JointDynamics("joint1", 0.5, 0.2), "joint2": JointDynamics("joint2", 0.1, -1)}
     fixed = with_urdf_friction(planar_2r, dyn)
@@ -42,7 +38,7 @@ def test_urdf_friction_prediction_is_rnea_plus_friction(planar_2r):
 
 
 def test_refit_recovers_friction_and_offset_within_their_std(planar_2r):
-    q, dq, ddq = states(planar_2r, n=2000, seed=3)
+    q, dq, ddq = random_states(planar_2r, 2000, 3)
     fc, fv, fo = np.array([0.3, 0.1]), np.array([0.8, 0.2]), np.array([-0.5, 0.25])
     rng = np.random.default_rng(4)
     tau = (planar_2r.rnea(q, dq, ddq) + fc * np.sign(dq) + fv * dq + fo
@@ -69,7 +65,7 @@ def test_refit_groups_columns_by_joint_index_not_name_prefix(tmp_path):
                     .replace('"joint2"', '"j.b"'))
     model = ci.RobotModel.from_urdf(path, gravity=(0.0, -9.81, 0.0))
     assert model.joint_names == ["j", "j.b"]
-    q, dq, ddq = states(model, n=500, seed=5)
+    q, dq, ddq = random_states(model, 500, 5)
     fc = np.array([0.3, 0.1])
     tau = model.rnea(q, dq, ddq) + fc * np.sign(dq)
     fit = refit_joint_terms(model, ci.Dataset(t=np.arange(len(q)) * 0.01, q=q, dq=dq, ddq=ddq,
