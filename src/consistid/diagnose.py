@@ -64,6 +64,7 @@ from .gap import (FILTERED_ROLLOFF, GapBreakdown, gap_breakdown,
                   high_band_rolloff, noise_floor, residual_spectra)
 from .model import RobotModel
 from .parameters import is_physically_consistent
+from .regressor import joint_columns
 from .statistics import autocorrelation_time, coloured_covariance
 
 #: A held-out shrink below this fraction does not list a joint under an arm-wide effect.
@@ -350,10 +351,11 @@ def _resolve_nominal(model: RobotModel, nominal) -> tuple[np.ndarray, Callable |
         return nominal.prior_parameters, None
     if isinstance(nominal, IdentificationResult):
         pi0 = nominal.inertial_parameters.copy()
+        theta_joint = nominal.parameters[nominal.model.n_inertial:]
 
         def extra(ds: Dataset) -> np.ndarray:
-            rigid = GapData(model, ds, pi0).tau_nom
-            return nominal.predict(ds) - rigid
+            # Its prediction minus the rigid body: the per-joint columns (friction, armature).
+            return joint_columns(ds.q, ds.dq, ds.ddq, nominal.spec) @ theta_joint
 
         return pi0, extra
     pi0 = np.asarray(nominal, dtype=float)
