@@ -71,7 +71,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from functools import cached_property
-from typing import Callable
+from typing import Callable, Sequence
 
 import numpy as np
 import pinocchio as pin
@@ -174,6 +174,25 @@ class GapData:
     nominal: np.ndarray
     nominal_extra: np.ndarray | None = None
     derivative_window: float = DERIVATIVE_WINDOW
+
+    @classmethod
+    def concatenate(cls, parts: Sequence["GapData"]) -> "GapData":
+        """The parts stacked as :meth:`Dataset.concatenate` stacks their datasets (same model,
+        nominal parameters and derivative window), with the rigid-body regressor of the parts
+        (computed once each) stacked instead of recomputed on every sample."""
+        first = parts[0]
+        if any(p.model is not first.model or not np.array_equal(p.nominal, first.nominal)
+               or p.derivative_window != first.derivative_window
+               or (p.nominal_extra is None) != (first.nominal_extra is None) for p in parts):
+            raise ModelError("GapData.concatenate: the parts differ in model, nominal "
+                             "parameters, nominal extra torque or derivative window")
+        extra = (None if first.nominal_extra is None
+                 else np.concatenate([p.nominal_extra for p in parts]))
+        out = cls(first.model, Dataset.concatenate([p.dataset for p in parts]), first.nominal,
+                  extra, first.derivative_window)
+        # Per-sample, so stacking equals recomputing; filled in as the cached property's value.
+        out.__dict__["rigid"] = np.concatenate([p.rigid for p in parts])
+        return out
 
     @property
     def n(self) -> int:

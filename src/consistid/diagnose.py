@@ -765,7 +765,7 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
         return GapData(model, ds, pi0, extra_fn(ds) if extra_fn is not None else None)
 
     train, held = gap_data(train_ds), gap_data(held_ds)
-    everything = gap_data(Dataset.concatenate([train_ds, held_ds]))
+    everything = GapData.concatenate([train, held])
     filtered = np.zeros(model.nv, dtype=bool)
     spectra = residual_spectra(everything.dataset, everything.residual, everything.tau_nom)
     if sigma is None:
