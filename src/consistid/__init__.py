@@ -20,6 +20,7 @@ from .excitation import (BoundaryConditions, ExcitationDesign, ExcitationLimits,
                          design_excitation)
 from .identify import identify
 from .model import RobotModel
+from .mounting import MountingEstimate, estimate_mounting
 from .parameters import is_physically_consistent
 from .priors import Neighbourhood
 from .payload import Payload, estimate_payload, payload_from_base_change
@@ -38,11 +39,12 @@ __all__ = [
     "Ellipsoid", "ExcitationDesign", "ExcitationLimits", "FourierTrajectory",
     "InfeasibleExcitationError", "IdentificationError", "IdentificationResult",
     "InaccurateSolutionWarning", "InconsistentParametersError", "InfeasibleError",
-    "JointCountError", "MissingColumnsError", "ModelError", "Neighbourhood", "OptionError",
+    "JointCountError", "MissingColumnsError", "ModelError", "MountingEstimate", "Neighbourhood", "OptionError",
     "Payload", "PoorExcitationError", "PoorExcitationWarning", "RecoveryResult",
     "RegressorSpec", "RobotModel", "TrackingWarning", "UnrealizableCoefficientsError",
     "compute_base_parameters",
-    "default_prior_weight", "design_excitation", "estimate_payload", "identify",
+    "default_prior_weight", "design_excitation", "estimate_mounting", "estimate_payload",
+    "identify",
     "is_physically_consistent", "load_recording",
     "payload_from_base_change", "recover_standard", "regressor", "simulate",
 ]

@@ -191,6 +191,20 @@ class RobotModel:
                           locked_joints=self.locked_joints,
                           locked_configuration=self.locked_configuration)
 
+    def with_gravity(self, gravity: Sequence[float]) -> "RobotModel":
+        """A copy whose gravity vector (base frame, m/s²) is ``gravity``; inertias unchanged.
+
+        E.g. the gravity of a tilted mounting, :func:`consistid.mounting.estimate_mounting`.
+        """
+        g = np.asarray(gravity, dtype=float)
+        if g.shape != (3,) or not np.all(np.isfinite(g)):
+            raise ModelError(f"gravity must be 3 finite numbers (m/s², base frame), got {gravity!r}")
+        model = self.pin_model.copy()
+        model.gravity = pin.Motion(g, np.zeros(3))
+        return RobotModel(model, name=self.name, source=self.source,
+                          locked_joints=self.locked_joints,
+                          locked_configuration=self.locked_configuration)
+
     def to_urdf(self, path: str | Path, parameters: np.ndarray | None = None,
                 parameter_names: Sequence[str] | None = None, merged: str = "auto") -> Path:
         """Write the source URDF carrying this model's inertias (or ``parameters``, with optional
