@@ -269,7 +269,7 @@ def main() -> int:
                 s = ci.identify(robot, tr, method="sdp", friction=FRICTION)
             so, ss = score(o, va).total_relative_error, score(s, va).total_relative_error
             row += [100 * so, 100 * ss, ss / so]
-        (r, p), (sr, sp) = np.degrees([tilt.roll, tilt.pitch]), np.degrees(tilt.std)
+        (r, p), (sr, sp) = np.degrees(tilt.angles), np.degrees(tilt.std)
         rows.append(row + [f"{r:+.2f} ± {sr:.2f}, {p:+.2f} ± {sp:.2f}"])
     print(table(["train → held-out", "trajectory seen", "OLS e%", "SDP e%", "SDP/OLS",
                  "OLS e% (tilt)", "SDP e% (tilt)", "SDP/OLS (tilt)", "tilt x, y (°)"], rows,

@@ -1,3 +1,5 @@
+import re
+
 import numpy as np
 import pytest
 
@@ -135,3 +137,24 @@ def test_cli_recover_has_one_default_for_both_branches(project, tmp_path, capsys
     # the same columns: 2 bodies × 10 + 2 joints × (Coulomb, viscous, offset)
     assert from_file.splitlines()[0] == from_logs.splitlines()[0]
     assert "→ 26 standard parameters" in from_file
+
+
+def test_cli_identify_estimates_the_tilt_when_asked(project, capsys):
+    # the logs were simulated level; the planar arm sees its in-plane tilt (about −z) to first
+    # order and the out-of-plane one (about x) only through |g|'s in-plane share (second order)
+    text = GOOD.replace("gravity = [0.0, -9.81, 0.0]",
+                        'gravity = [0.0, -9.81, 0.0]\ntilt = "estimate"')
+    assert cli.main(["identify", str(write(project, text))]) == 0
+    out = capsys.readouterr().out
+    line = next(s for s in out.splitlines() if s.startswith("base tilt"))
+    (ax, sx), (az, sz) = (map(float, re.search(rf"([-+.\d]+)° ± ([.\d]+)° about {axis}\b",
+                                               line).groups()) for axis in ("x", "-z"))
+    assert abs(az) < 3 * sz and sz < 0.1
+    assert abs(ax) < 3 * sx and sx > 10 * sz
+    with pytest.raises(ConfigError, match=r"for `consistid identify` only"):
+        config_model(load_config(write(project, text)))
+    with pytest.raises(ConfigError, match=r"tilt = 'yes'"):
+        config_model(load_config(write(project, text.replace('"estimate"', '"yes"'))),
+                     allow_tilt=True)
+    with pytest.raises(ConfigError, match=r"gravity must be three numbers"):
+        config_model(load_config(write(project, GOOD.replace("[0.0, -9.81, 0.0]", '"level"'))))

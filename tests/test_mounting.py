@@ -44,7 +44,7 @@ def test_with_gravity_copies_and_checks(panda):
 
 
 def _tilted_run(model, roll, pitch, noise, seed=0):
-    truth = model.with_gravity(gravity_from_tilt(model.gravity, roll, pitch))
+    truth = model.with_gravity(gravity_from_tilt(model.gravity, (roll, pitch)))
     friction = np.concatenate([np.full(7, 0.3), np.full(7, 0.2), np.linspace(-0.2, 0.2, 7)])
     params = np.concatenate([model.prior_parameters, friction])
     return ci.simulate.excitation_run(truth, params, duration=10.0, rate=200.0,
@@ -55,7 +55,7 @@ def _tilted_run(model, roll, pitch, noise, seed=0):
 def test_recovers_the_tilt_of_noise_free_data(panda, roll_deg, pitch_deg):
     roll, pitch = math.radians(roll_deg), math.radians(pitch_deg)
     est = estimate_mounting(panda, _tilted_run(panda, roll, pitch, 0.0), friction=FRICTION)
-    assert abs(est.roll - roll) < 1e-6 and abs(est.pitch - pitch) < 1e-6
+    assert np.allclose(est.angles, [roll, pitch], atol=1e-6)
     assert est.relative_error[1] < 1e-6
     assert np.isclose(np.linalg.norm(est.gravity), 9.81)
     assert np.isclose(est.tilt, math.acos(math.cos(roll) * math.cos(pitch)), atol=1e-6)
@@ -68,7 +68,7 @@ def test_noisy_estimate_is_within_its_standard_deviation(panda):
     for seed in range(3):
         est = estimate_mounting(panda, _tilted_run(panda, roll, pitch, 0.2, seed),
                                 friction=FRICTION)
-        errors.append((np.array([est.roll - roll, est.pitch - pitch]) / est.std))
+        errors.append((est.angles - [roll, pitch]) / est.std)
         assert est.relative_error[1] < est.relative_error[0]
         assert np.all(est.std < math.radians(0.2))
         assert np.allclose(est.autocorrelation_time, 1.0, atol=0.5)    # white noise: τ ≈ 1

@@ -97,7 +97,7 @@ def mounting(kuka):
 
 def test_mounting_tilt_is_about_one_degree_and_explains_part_of_the_gap(kuka, mounting):
     # estimated from the training files alone: +1.09° ± 0.11° about x, +0.40° ± 0.09° about y
-    roll, pitch = np.degrees([mounting.roll, mounting.pitch])
+    roll, pitch = np.degrees(mounting.angles)
     assert 0.8 < roll < 1.4 and 0.1 < pitch < 0.7
     assert np.all(np.degrees(mounting.std) < 0.2)
     before, after = mounting.relative_error           # 2.01 % → 1.82 % on the training files

@@ -60,16 +60,24 @@ def demo(args: argparse.Namespace) -> int:
 def identify(args: argparse.Namespace) -> int:
     """Identify from the recordings of a TOML configuration (:mod:`consistid.config`)."""
     import consistid as ci
-    from consistid.config import config_identify, config_model, config_recordings, load_config
+    from consistid.config import (config_identify, config_model, config_recordings,
+                                  estimates_tilt, load_config)
     from consistid.validation import score, scores_table
 
     config = load_config(args.config)
-    model = config_model(config)
+    model = config_model(config, allow_tilt=True)
     options = config_identify(config)
     train, held = config_recordings(config, model)
     _log(str(train))
     if held is not None:
         _log(str(held))
+    if estimates_tilt(config):
+        _log("estimating the base tilt (gravity direction) on the training recordings")
+        mounting = ci.estimate_mounting(model, train.dataset,
+                                        **{k: options[k] for k in ("friction", "armature")
+                                           if k in options})
+        print(f"{mounting}\n")
+        model = mounting.model
     _log(f"identifying {model.name} on {train.dataset.n_samples} samples "
          f"({', '.join(f'{k}={v!r}' for k, v in options.items()) or 'defaults'})")
     t0 = time.perf_counter()

@@ -10,6 +10,7 @@ code. Example (``examples/kuka_lwr4/identify.toml``)::
     urdf = "../shared/data/kuka_lwr4/kuka_lwr4.urdf"   # or: example = "panda" (no other key)
     strip_dynamics = false                # true: load a copy without <dynamics> tags
     # locked_joints = ["finger_joint"]     gravity = [0.0, 0.0, -9.81]
+    tilt = "estimate"                     # the base's tilt from the train data (identify only)
 
     [data]
     dir = "../shared/data/kuka_lwr4"      # prefix of the files below (optional)
@@ -31,6 +32,11 @@ Relative paths are resolved against ``root``, itself relative to the configurati
 (default: that folder), never against the current directory, so a configuration works from
 anywhere. Unknown tables (:data:`TABLES`) and unknown keys raise
 :class:`~consistid.errors.ConfigError` naming the table and the key.
+
+``tilt = "estimate"`` (``consistid identify`` only) estimates the base's tilt, i.e. the direction
+of ``gravity`` (default the level ``(0, 0, −9.81)``), from the ``train`` recordings with the
+``[identify]`` friction and armature columns (:func:`consistid.mounting.estimate_mounting`),
+prints it, and identifies on the tilted model.
 """
 
 from __future__ import annotations
@@ -52,7 +58,7 @@ else:  # pragma: no cover - exercised on Python 3.10 only
 
 #: The top-level tables a configuration may have (besides the ``root`` key), one per command.
 TABLES = ("model", "data", "identify", "diagnose", "recover", "payload", "excite")
-MODEL_KEYS = ("urdf", "example", "strip_dynamics", "locked_joints", "gravity", "name")
+MODEL_KEYS = ("urdf", "example", "strip_dynamics", "locked_joints", "gravity", "tilt", "name")
 DATA_KEYS = ("dir", "keys", "joint_names", "trim_start", "trim_end", "duplicates", "train",
              "held_out")
 
@@ -126,9 +132,26 @@ def load_config(path: str | Path) -> RunConfig:
     return RunConfig(path.resolve(), (path.resolve().parent / root).resolve(), tables)
 
 
-def config_model(config: RunConfig) -> RobotModel:
-    """The robot of the ``[model]`` table."""
+def estimates_tilt(config: RunConfig) -> bool:
+    """Whether ``[model] tilt = "estimate"`` (module docstring)."""
+    return "tilt" in config.table("model", MODEL_KEYS)
+
+
+def config_model(config: RunConfig, allow_tilt: bool = False) -> RobotModel:
+    """The robot of the ``[model]`` table, level as configured. ``tilt = "estimate"`` is
+    accepted only with ``allow_tilt`` (a command that estimates it from the data)."""
     t = config.table("model", MODEL_KEYS)
+    tilt = t.pop("tilt", None)
+    if tilt is not None and (tilt != "estimate" or not allow_tilt):
+        raise ConfigError(f"{config.path.name}: [model] tilt = \"estimate\" is the only value, "
+                          "for `consistid identify` only (other commands: give gravity = [gx, "
+                          f"gy, gz] as identify printed it); got tilt = {tilt!r}")
+    gravity = t.get("gravity")
+    if gravity is not None and not (
+            isinstance(gravity, list) and len(gravity) == 3
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in gravity)):
+        raise ConfigError(f"{config.path.name}: [model] gravity must be three numbers [gx, gy, "
+                          f"gz] (m/s², base frame), got {gravity!r}")
     if "example" in t:  # an example-robot-data arm by name (RobotModel.example)
         if set(t) != {"example"}:
             raise ConfigError(f"{config.path.name}: [model] example = {t['example']!r} takes no "

@@ -14,9 +14,10 @@ nonlinear least squares problems whose variables separate", SIAM J. Numer. Anal.
 413–432, 1973)
 
 .. math::  \hat a = \arg\min_a \min_\theta \lVert Y(g(a))\,\theta - \tau \rVert^2,
-           \qquad g(a) = R_y(a_2)\, R_x(a_1)\, g_0,
+           \qquad g(a) = R_v(a_2)\, R_u(a_1)\, g_0,
 
-over the two angles ``a = (roll, pitch)`` (rad) about the base ``x`` and ``y`` axes, ``|g|``
+over two angles ``a`` (rad) about two axes ``u, v`` orthogonal to ``g₀`` (:func:`tilt_axes`:
+the base ``x`` and ``y`` axes when ``g₀`` points along ``−z``: roll, then pitch), ``|g|``
 fixed. The data enter once: per joint, the R factor of
 ``[Y(0) | Y_g,x | Y_g,y | Y_g,z | τ]`` (the compression of :mod:`consistid.compression`), so every
 evaluation of the profile costs a small dense solve whatever the number of samples.
@@ -53,14 +54,39 @@ from .statistics import autocorrelation_time
 HESSIAN_STEP = 1e-4
 #: Relative tolerance of the rank decisions in the profile least squares (column-scaled).
 RCOND = 1e-10
+#: A direction of the tilt whose profile curvature is below this fraction of the largest is one
+#: the data do not determine.
+FLAT = 1e-6
 
 
-def gravity_from_tilt(gravity: np.ndarray, roll: float, pitch: float) -> np.ndarray:
-    """``R_y(pitch) R_x(roll) g₀``: the URDF gravity ``g₀`` turned by the base's tilt (rad)."""
-    return pin.rpy.rpyToMatrix(roll, pitch, 0.0) @ np.asarray(gravity, dtype=float)
+def tilt_axes(gravity: np.ndarray) -> np.ndarray:
+    """Two unit axes ``u, v`` orthogonal to ``g₀``, shape (2, 3): ``u`` the base axis most
+    orthogonal to ``g₀`` (made exactly orthogonal), ``v = u × ĝ₀``. For ``g₀ ∥ −z``: ``x, y``."""
+    g = np.asarray(gravity, dtype=float) / np.linalg.norm(gravity)
+    e = np.eye(3)[int(np.argmin(np.abs(g)))]
+    u = e - (e @ g) * g
+    u /= np.linalg.norm(u)
+    return np.stack([u, np.cross(u, g)])
 
 
-@dataclass(frozen=True)
+def gravity_from_tilt(gravity: np.ndarray, angles: tuple[float, float]) -> np.ndarray:
+    """``R_v(a₂) R_u(a₁) g₀``: the model's gravity ``g₀`` turned by the base's tilt ``a`` (rad)
+    about the axes of :func:`tilt_axes` (for ``g₀ ∥ −z``: roll about ``x``, then pitch about
+    ``y``)."""
+    g0 = np.asarray(gravity, dtype=float)
+    u, v = tilt_axes(g0)
+    return pin.exp3(angles[1] * v) @ pin.exp3(angles[0] * u) @ g0
+
+
+def _axis_name(axis: np.ndarray) -> str:
+    for name, e in zip("xyz", np.eye(3)):
+        for sign in ("", "-"):
+            if np.allclose(axis, e if not sign else -e, atol=1e-12):
+                return sign + name
+    return "(" + ", ".join(f"{c:+.3f}" for c in axis) + ")"
+
+
+@dataclass(frozen=True, eq=False)
 class MountingEstimate:
     """The estimated gravity direction of a robot's base, and what it changes.
 
@@ -68,8 +94,10 @@ class MountingEstimate:
     ----------
     gravity : (3,) estimated gravity in the base frame (m/s²), ``|gravity| = |g₀|``.
     reference_gravity : (3,) the model's gravity ``g₀`` (the level mounting).
-    roll, pitch : the tilt (rad) about the base ``x`` then ``y`` axis: ``g = R_y R_x g₀``.
-    covariance : (2, 2) covariance of ``(roll, pitch)`` (rad²), widened for correlated residuals.
+    angles : (2,) the tilt (rad) about ``axes[0]`` then ``axes[1]``: ``g = R_v R_u g₀``
+        (:func:`gravity_from_tilt`; roll about ``x`` and pitch about ``y`` for ``g₀ ∥ −z``).
+    axes : (2, 3) the tilt axes ``u, v`` (:func:`tilt_axes`).
+    covariance : (2, 2) covariance of ``angles`` (rad²), widened for correlated residuals.
     autocorrelation_time : (nv,) residual autocorrelation time per joint (samples).
     relative_error : ``(URDF gravity, estimated)`` least-squares relative torque error
         ``‖Yθ̂ − τ‖/‖τ‖`` on the data the estimate was made from.
@@ -78,8 +106,8 @@ class MountingEstimate:
 
     gravity: np.ndarray
     reference_gravity: np.ndarray
-    roll: float
-    pitch: float
+    angles: np.ndarray
+    axes: np.ndarray
     covariance: np.ndarray
     autocorrelation_time: np.ndarray
     relative_error: tuple[float, float]
@@ -87,7 +115,7 @@ class MountingEstimate:
 
     @property
     def std(self) -> np.ndarray:
-        """Standard deviations of ``(roll, pitch)`` (rad)."""
+        """Standard deviations of ``angles`` (rad)."""
         return np.sqrt(np.diag(self.covariance))
 
     @property
@@ -98,11 +126,11 @@ class MountingEstimate:
         return math.acos(max(-1.0, min(1.0, c)))
 
     def __str__(self) -> str:
-        r, p = np.rad2deg([self.roll, self.pitch])
-        sr, sp = np.rad2deg(self.std)
+        angles = ", ".join(f"{a:+.3f}° ± {s:.3f}° about {_axis_name(ax)}" for a, s, ax in
+                           zip(np.degrees(self.angles), np.degrees(self.std), self.axes))
         before, after = self.relative_error
-        return (f"base tilt {r:+.3f}° ± {sr:.3f}° about x, {p:+.3f}° ± {sp:.3f}° about y "
-                f"({math.degrees(self.tilt):.3f}° from the URDF's gravity); gravity in the base "
+        return (f"base tilt {angles} ({math.degrees(self.tilt):.3f}° from the model's gravity); "
+                f"gravity in the base "
                 f"frame ({', '.join(f'{v:+.4f}' for v in self.gravity)}) m/s²; least-squares "
                 f"relative torque error {100 * before:.3f} % → {100 * after:.3f} %")
 
@@ -145,6 +173,17 @@ def _profile(factors: np.ndarray, n_in: int, p: int, gravity: np.ndarray
     return x, np.sum(residual ** 2, axis=1)
 
 
+def _hessian(f, a: np.ndarray, h: float = HESSIAN_STEP) -> np.ndarray:
+    """Central finite-difference Hessian of ``f`` at ``a`` (2 variables)."""
+    hess = np.empty((2, 2))
+    for i in range(2):
+        for k in range(2):
+            ei, ek = h * np.eye(2)[i], h * np.eye(2)[k]
+            hess[i, k] = (f(a + ei + ek) - f(a + ei - ek) - f(a - ei + ek)
+                          + f(a - ei - ek)) / (4 * h * h)
+    return hess
+
+
 def estimate_mounting(model: RobotModel, dataset: Dataset,
                       friction: FrictionArg = DEFAULT_FRICTION,
                       armature: bool = False) -> MountingEstimate:
@@ -179,7 +218,7 @@ def estimate_mounting(model: RobotModel, dataset: Dataset,
     total = float(np.sum(dataset.tau ** 2))
 
     def rss(a: np.ndarray) -> float:
-        return float(np.sum(_profile(factors, n_in, p, gravity_from_tilt(g0, *a))[1]))
+        return float(np.sum(_profile(factors, n_in, p, gravity_from_tilt(g0, a))[1]))
 
     rss0 = rss(np.zeros(2))
     step = math.radians(1.0)
@@ -188,33 +227,30 @@ def estimate_mounting(model: RobotModel, dataset: Dataset,
         options={"xatol": 1e-9, "fatol": max(1e-13 * rss0, 1e-16 * total), "maxiter": 2000,
                  "initial_simplex": [[0.0, 0.0], [step, 0.0], [0.0, step]]})
     a = np.asarray(fit.x, dtype=float)
-    gravity = gravity_from_tilt(g0, *a)
+    eig, vec = np.linalg.eigh(_hessian(rss, a))
+    flat = eig <= FLAT * max(eig.max(), 1e-300)
+    if flat.any():  # the data cannot see a tilt in these directions: keep the model's there
+        a = a - vec[:, flat] @ (vec[:, flat].T @ a)
+        warnings.warn(f"the data do not determine the mounting tilt in {int(flat.sum())} of 2 "
+                      f"directions (profile curvature {eig}); the model's gravity is kept there "
+                      "and its ± is infinite", PoorExcitationWarning, stacklevel=2)
+    elif not fit.success:
+        warnings.warn(f"mounting tilt: the optimiser did not converge ({fit.message})",
+                      PoorExcitationWarning, stacklevel=2)
+    gravity = gravity_from_tilt(g0, a)
     theta, rss_joint = _profile(factors, n_in, p, gravity)
-
-    h = HESSIAN_STEP
-    hess = np.empty((2, 2))
-    for i in range(2):
-        for k in range(2):
-            ei, ek = h * np.eye(2)[i], h * np.eye(2)[k]
-            hess[i, k] = (rss(a + ei + ek) - rss(a + ei - ek) - rss(a - ei + ek)
-                          + rss(a - ei - ek)) / (4 * h * h)
     tilted = model.with_gravity(gravity)
     residual = predict_torque(tilted, dataset, spec, theta) - dataset.tau
     tau_corr = autocorrelation_time(dataset, residual)
     rank = np.linalg.matrix_rank(np.linalg.qr(factors[:, :, :p].reshape(-1, p), mode="r"))
-    dof = max(dataset.tau.size - rank - 2, 1)
-    s2 = float(np.sum(rss_joint)) / dof
+    s2 = float(np.sum(rss_joint)) / max(dataset.tau.size - rank - 2, 1)
     widen = float(np.sum(tau_corr * rss_joint) / max(np.sum(rss_joint), 1e-300))
-    eig = np.linalg.eigvalsh(hess)
-    if not fit.success or eig.min() <= 1e-12 * max(eig.max(), 1e-300):
-        warnings.warn(f"the data hardly determine the mounting tilt (optimiser: {fit.message}; "
-                      f"profile curvature {eig}); its ± is unreliable", PoorExcitationWarning,
-                      stacklevel=2)
-        cov = np.full((2, 2), np.inf)
-    else:
-        cov = widen * 2.0 * s2 * np.linalg.inv(hess)
-    return MountingEstimate(gravity=gravity, reference_gravity=g0, roll=float(a[0]), pitch=float(a[1]),
-                            covariance=cov, autocorrelation_time=tau_corr,
+    # covariance 2 s² H⁻¹ over the directions the data see, widened for correlated residuals
+    cov = widen * 2.0 * s2 * (vec[:, ~flat] / eig[~flat]) @ vec[:, ~flat].T
+    unseen = np.abs(vec[:, flat]).max(axis=1, initial=0.0) > 1e-9
+    cov[unseen, unseen] = np.inf
+    return MountingEstimate(gravity=gravity, reference_gravity=g0, angles=a,
+                            axes=tilt_axes(g0), covariance=cov, autocorrelation_time=tau_corr,
                             relative_error=(math.sqrt(rss0 / total),
                                             math.sqrt(float(np.sum(rss_joint)) / total)),
                             model=tilted)
