@@ -77,7 +77,11 @@ POSITIVE = ("coulomb", "viscous", "armature", "elasticity", "payload")
 # --------------------------------------------------------------------------------- results
 @dataclass(frozen=True)
 class EffectParameter:
-    """One estimated parameter of a selected effect, with its standard deviation."""
+    """One estimated parameter of a selected effect, with its standard deviation.
+
+    ``value`` and ``std`` are in ``unit`` (SI: a delay in s, a tilt in rad); the text shows
+    delays in ms and angles in degrees.
+    """
 
     name: str
     value: float
@@ -92,9 +96,10 @@ class EffectParameter:
                  "offset": "torque offset", "gain": "torque gain error", "armature": "armature",
                  "delay": "delay", "elasticity": "stiffness", "ripple": "ripple"}
         what = words.get(self.effect, self.name)
-        scale, unit = (1e3, "ms") if self.unit == "s" else (1.0, self.unit)
+        scale, unit = {"s": (1e3, "ms"), "rad": (180 / np.pi, "°")}.get(self.unit,
+                                                                       (1.0, self.unit))
         where = f"{self.joint} " if self.joint else ""
-        if self.effect in ("inertia", "payload", "ripple", "position"):
+        if self.effect in ("inertia", "payload", "ripple", "position", "tilt"):
             what, where = self.name, ""
         return (f"{where}{what} {self.value * scale:.4g} ± {self.std * scale:.2g}"
                 + (f" {unit}" if unit else "") + (f" ({self.note})" if self.note else ""))
