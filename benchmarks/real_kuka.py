@@ -170,7 +170,7 @@ def main() -> int:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", ci.errors.PoorExcitationWarning)
                 fits[method + suffix] = ci.identify(robot, train.dataset, method=method,
-                                                    friction=FRICTION)
+                                                    friction=FRICTION, covariance="iid")
             timings[method + suffix] = time.perf_counter() - t0
     ols, sdp = fits["ols"], fits["sdp"]
     models = {
@@ -210,7 +210,8 @@ def main() -> int:
                 floatfmt=".2e"))
 
     # Residuals of the filtered logs are correlated over tens of samples: the same fits with
-    # each joint's rows counted as N/τ_j independent ones (identify(..., covariance="coloured")).
+    # each joint's rows counted as N/τ_j independent ones (identify's default, "coloured"),
+    # against counting every row as independent ("iid", the fits above).
     problem = compress(prior, train.dataset, ols.spec)
     ols_c, sdp_c = (with_covariance(r, problem, train.dataset, "coloured") for r in (ols, sdp))
     print("\n== Friction and offset per joint (estimate ± standard deviation; 'coloured': rows "
@@ -221,7 +222,7 @@ def main() -> int:
     for term, unit in (("fc", "N·m"), ("fv", "N·m·s/rad"), ("fo", "N·m")):
         names = [f"{j}.{term}" for j in JOINTS]
         print(f"-- {term} [{unit}]")
-        print(joint_terms_table({"OLS": ols, "SDP": sdp, "OLS coloured": ols_c,
+        print(joint_terms_table({"OLS iid": ols, "SDP iid": sdp, "OLS coloured": ols_c,
                                  "SDP coloured": sdp_c,
                                  "a-priori + refit": models[
                                      "a-priori URDF + fc,fv,fo refit on training"],
@@ -230,7 +231,7 @@ def main() -> int:
     print("\nbase-parameter relative standard deviation (%, Pressé & Gautier): "
           + "; ".join(f"{k} median {np.median(r.relative_std):.1f}, "
                       f"{int(np.sum(r.relative_std < 10))}/{r.base.n_base} below 10 %"
-                      for k, r in (("OLS", ols), ("SDP", sdp), ("OLS coloured", ols_c),
+                      for k, r in (("OLS iid", ols), ("SDP iid", sdp), ("OLS coloured", ols_c),
                                    ("SDP coloured", sdp_c))))
     print(f"cond(W_b) = {ols.condition_number:.4g}; {ols.base.n_base} base parameters "
           f"(rigid {ols.base.n_base - 21} + 21 friction/offset)")

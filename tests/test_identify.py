@@ -153,8 +153,8 @@ def test_coloured_covariance_matches_spread_over_seeds(panda, method):
     for seed in range(8):
         noisy = replace(ideal, tau=ideal.tau + _ar1(ideal.tau.shape, 0.95, 0.05,
                                                     np.random.default_rng(100 + seed)))
-        a = ci.identify(panda, noisy, method=method, friction=None)
-        b = ci.identify(panda, noisy, method=method, friction=None, covariance="coloured")
+        a = ci.identify(panda, noisy, method=method, friction=None, covariance="iid")
+        b = ci.identify(panda, noisy, method=method, friction=None)       # default: coloured
         assert np.allclose(a.base_parameters, b.base_parameters)
         assert "iid" in a.details["covariance"] and "coloured" in b.details["covariance"]
         assert np.all(b.details["autocorrelation_time"] > 10)
@@ -168,7 +168,7 @@ def test_coloured_covariance_matches_spread_over_seeds(panda, method):
 
 def test_coloured_covariance_on_white_noise_equals_iid(panda):
     run = ci.simulate.excitation_run(panda, duration=10.0, rate=200.0, torque_noise=0.05, seed=3)
-    a = ci.identify(panda, run.dataset, method="wls", friction=None)
+    a = ci.identify(panda, run.dataset, method="wls", friction=None, covariance="iid")
     b = ci.identify(panda, run.dataset, method="wls", friction=None, covariance="coloured")
     assert np.all(b.details["autocorrelation_time"] < 1.5)
     assert np.allclose(b.base_std / a.base_std, 1.0, atol=0.25)
@@ -181,3 +181,5 @@ def test_coloured_covariance_refuses_unknown_choice_and_huber(panda, runs):
         ci.identify(panda, train, method="ols", covariance="newey-west")
     with pytest.raises(ci.errors.OptionError, match="huber"):
         ci.identify(panda, train, method="sdp", loss="huber", covariance="coloured")
+    huber = ci.identify(panda, train, method="sdp", loss="huber")    # default: iid for Huber
+    assert huber.details["covariance"].startswith("iid")

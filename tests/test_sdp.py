@@ -121,8 +121,10 @@ def test_well_excited_fit_matches_ols_and_every_body_is_realizable(panda, sets, 
     assert "physical consistency: all 7 bodies consistent" in well.summary()
 
 
-def test_base_covariance_is_that_of_the_weighted_fit(panda, sets, well):
-    """``(W_bᵀ Σ⁻¹ W_b)⁻¹`` from the full regressor, with the σ the SDP used."""
+def test_base_covariance_is_that_of_the_weighted_fit(panda, sets):
+    """``(W_bᵀ Σ⁻¹ W_b)⁻¹`` from the full regressor, with the σ the SDP used (rows counted as
+    independent: ``covariance="iid"``)."""
+    well = ci.identify(panda, sets["train"], method="sdp", friction=FRICTION, covariance="iid")
     y = dataset_regressor(panda, sets["train"], well.spec)
     w = y[:, well.base.independent] / np.tile(well.sigma, sets["train"].n_samples)[:, None]
     np.testing.assert_allclose(well.base_covariance, np.linalg.inv(w.T @ w), rtol=1e-6)

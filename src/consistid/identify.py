@@ -12,9 +12,10 @@ floored by :func:`consistid.compression.floor_sigma` so that noise-free data kee
 Everything is solved on the compressed problem (:mod:`consistid.compression`), never on the
 N-row regressor.
 
-Both covariances count the ``N`` rows of each joint as independent. Filtered torque logs have
-residuals correlated over tens of samples, which makes them far too small; with
-``covariance="coloured"`` each joint's rows count as ``N / τ_j`` independent ones, ``τ_j`` the
+Both covariances count the ``N`` rows of each joint as independent (``covariance="iid"``).
+Filtered torque logs have residuals correlated over tens of samples, which makes them far too
+small; with ``covariance="coloured"`` (the default, ``"auto"``, unless ``loss="huber"``) each
+joint's rows count as ``N / τ_j`` independent ones, ``τ_j`` the
 integrated autocorrelation time of its residual (:func:`consistid.statistics.autocorrelation_time`,
 one extra pass over the data), through the sandwich
 :func:`consistid.statistics.coloured_covariance`
@@ -23,7 +24,7 @@ one extra pass over the data), through the sandwich
 
 ``C`` the covariance above, ``w_j = 1/σ_j²`` the weights it was computed with and ``R_{jb}`` joint
 ``j``'s R factor restricted to the base columns (``Y_{jb}^\top Y_{jb} = R_{jb}^\top R_{jb}``).
-The estimate itself is unchanged.
+The estimate itself is unchanged. On white noise ``τ_j ≈ 1`` and the two agree.
 """
 
 from __future__ import annotations
@@ -48,6 +49,8 @@ from .statistics import autocorrelation_time, coloured_covariance
 METHODS = ("ols", "wls", "sdp")
 #: ``covariance=`` choices: rows counted as independent, or as ``N / τ_j`` per joint.
 COVARIANCES = ("iid", "coloured")
+#: ... and ``"auto"``: ``"coloured"``, except ``"iid"`` with ``loss="huber"`` (re-weighted rows).
+COVARIANCE_OPTIONS = ("auto", *COVARIANCES)
 #: Above this condition number of the (weighted) base regressor, a PoorExcitationWarning is issued.
 COND_WARN = 1e4
 #: Below this ratio of the smallest to the largest singular value, the base regressor is singular.
@@ -124,7 +127,7 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset], method: st
              armature: bool | Sequence[int | str] = False,
              constraints: str | dict[str, str] = "auto",
              prior: str | None = "auto",
-             covariance: str = "iid",
+             covariance: str = "auto",
              **options: Any) -> IdentificationResult:
     """Identify a robot's dynamic parameters from measured torques.
 
@@ -142,12 +145,12 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset], method: st
     prior : ``"logdet"``, ``"euclidean"`` or ``None``/``"none"`` (no prior). ``"auto"``
         (default): ``"logdet"`` for the SDP, none for OLS/WLS, which also accept
         ``None``/``"none"`` and refuse a prior.
-    covariance : ``"iid"`` (default) counts every row as an independent sample; ``"coloured"``
-        widens ``base_covariance`` for residuals correlated in time (filtered torques), each
-        joint's rows counting as ``N / τ_j`` (module docstring; one extra pass over the data;
-        the estimate is unchanged). Not with ``loss="huber"``. ``"iid"`` stays the default: on
-        white noise ``τ_j ≈ 1`` and both agree, while the extra pass costs time.
-        ``details["covariance"]`` names the choice; with ``"coloured"``,
+    covariance : ``"coloured"`` widens ``base_covariance`` for residuals correlated in time
+        (filtered torques), each joint's rows counting as ``N / τ_j`` (module docstring; one
+        extra pass over the data; the estimate is unchanged; on white noise ``τ_j ≈ 1``);
+        ``"iid"`` counts every row as an independent sample. ``"auto"`` (default):
+        ``"coloured"``, or ``"iid"`` with ``loss="huber"``, whose re-weighted rows the sandwich
+        does not cover. ``details["covariance"]`` names the choice; with ``"coloured"``,
         ``details["autocorrelation_time"]`` gives ``τ_j`` (samples, per joint).
     **options : keyword options of :func:`consistid.sdp.identify_sdp`, for ``method="sdp"`` only.
         Options that only the SDP uses are refused for OLS/WLS, never silently ignored.
@@ -163,7 +166,9 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset], method: st
     parameters (OLS/WLS); IdentificationError / InfeasibleError when the SDP solver fails.
     """
     check_option("method", method, METHODS)
-    check_option("covariance", covariance, COVARIANCES)
+    check_option("covariance", covariance, COVARIANCE_OPTIONS)
+    if covariance == "auto":
+        covariance = "iid" if options.get("loss") == "huber" else "coloured"
     if covariance == "coloured" and options.get("loss") == "huber":
         raise OptionError("covariance='coloured' needs the unweighted rows: not with loss='huber'")
     prior = None if prior == "none" else prior
