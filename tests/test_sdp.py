@@ -362,6 +362,26 @@ def test_meaningless_option_combinations_are_refused(panda, sets, options, messa
         ci.identify(panda, sets["clean"], method="sdp", friction=FRICTION, **options)
 
 
+@pytest.mark.parametrize("options, message", [
+    (dict(prior_weight="big"), "prior_weight must be a finite number ≥ 0, got 'big'"),
+    (dict(prior_uncertainty=-1), "prior_uncertainty must be a finite number > 0"),
+    (dict(margin=[1]), r"margin must be a finite number ≥ 0, got \[1\]"),
+    (dict(reweight=1.5), "reweight must be an integer ≥ 0, got 1.5"),
+    (dict(reweight=True), "reweight must be an integer"),
+    (dict(sigma="x"), "sigma must be 7 finite values > 0 .* got 'x'"),
+    (dict(constraints=5), "constraints must be a level name"),
+    (dict(total_mass=5), "total_mass must be a pair"),
+    (dict(mass_bounds={"panda_link1": [1]}), r"mass_bounds\['panda_link1'\] must be a pair"),
+    (dict(mass_bounds={"panda_link1": (0.1, "x")}), r"mass_bounds\['panda_link1'\] bound"),
+    (dict(com_boxes={"panda_link1": 1}), r"com_boxes\['panda_link1'\] must be \(lower, upper\)"),
+    (dict(solver_options={"max_iter": "a"}), "solver CLARABEL refused its options"),
+])
+def test_options_of_the_wrong_type_are_named(panda, sets, options, message):
+    """A wrongly typed option raises OptionError naming it (it used to end in a traceback)."""
+    with pytest.raises(OptionError, match=message):
+        ci.identify(panda, sets["clean"], method="sdp", friction=FRICTION, **options)
+
+
 def test_warnings_of_a_failed_first_solve_are_kept(panda, sets, monkeypatch):
     """A solve that warns, then raises: the warning reaches the caller with the error."""
     import consistid.sdp as sdp

@@ -51,7 +51,7 @@ def solve(problem: cp.Problem, what: str, solver: str = DEFAULT_SOLVER,
 
     Raises
     ------
-    OptionError : ``solver`` is not an installed cvxpy solver.
+    OptionError : ``solver`` is not an installed cvxpy solver, or it refused ``options``.
     InfeasibleError : the solver proved (or nearly proved) infeasibility.
     IdentificationError : the solver failed or returned no solution (status named).
     """
@@ -64,6 +64,11 @@ def solve(problem: cp.Problem, what: str, solver: str = DEFAULT_SOLVER,
             problem.solve(solver=solver, **(options or {}))
     except cp.error.SolverError as exc:
         raise IdentificationError(f"{what}: solver {solver} failed: {exc}") from exc
+    except (TypeError, ValueError) as exc:
+        if not options:
+            raise
+        raise OptionError(f"{what}: solver {solver} refused its options {options}: "
+                          f"{exc}") from exc
     wall = time.perf_counter() - start
     stats = problem.solver_stats
     status = problem.status

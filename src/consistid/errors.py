@@ -7,6 +7,10 @@ numerical method are :class:`IdentificationError` subclasses.
 
 from __future__ import annotations
 
+from typing import Sequence
+
+import numpy as np
+
 
 class ConsistidError(Exception):
     """Base class of every consistid exception."""
@@ -87,6 +91,30 @@ def check_option(name: str, value: object, allowed: tuple | list | set) -> None:
     if value not in allowed:
         listed = ", ".join(repr(a) for a in allowed)
         raise OptionError(f"{name}={value!r} is not supported; allowed: {listed}")
+
+
+def check_number(name: str, value: object, minimum: float | None = None, *,
+                 strict: bool = False, integer: bool = False) -> float:
+    """``value`` as a finite number (``≥ minimum``, or ``> minimum`` when ``strict``; an integer
+    when ``integer``), else :class:`OptionError` naming ``name``. Booleans are not numbers."""
+    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
+    ok = ok and bool(np.isfinite(value)) and (not integer or float(value).is_integer())
+    if ok and minimum is not None:
+        ok = value > minimum if strict else value >= minimum
+    if not ok:
+        kind = "an integer" if integer else "a finite number"
+        bound = "" if minimum is None else f" {'>' if strict else '≥'} {minimum:g}"
+        raise OptionError(f"{name} must be {kind}{bound}, got {value!r}")
+    return int(value) if integer else float(value)
+
+
+def check_bounds(name: str, value: object) -> tuple[float | None, float | None]:
+    """A ``(lower, upper)`` pair of numbers or ``None`` (no bound), else :class:`OptionError`."""
+    if isinstance(value, (str, bytes)) or not isinstance(value, Sequence) or len(value) != 2:
+        raise OptionError(f"{name} must be a pair (lower, upper) of numbers or None, got "
+                          f"{value!r}")
+    lo, hi = (None if v is None else check_number(f"{name} bound", v) for v in value)
+    return lo, hi
 
 
 class PoorExcitationWarning(UserWarning):

@@ -104,6 +104,8 @@ class RegressorSpec:
                 return (True,) * nv
             if selection is False or selection is None:
                 return (False,) * nv
+            if isinstance(selection, (str, int)):
+                selection = (selection,)
             out = [False] * nv
             for j in selection:
                 if isinstance(j, str):

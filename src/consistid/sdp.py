@@ -62,7 +62,8 @@ from .compression import CompressedProblem, compress, floor_sigma, joint_sigma
 from .conic import DEFAULT_SOLVER, check_solver, solve
 from .dataset import Dataset
 from .errors import (IdentificationError, InconsistentParametersError, InfeasibleError,
-                     OptionError, PoorExcitationWarning, check_option)
+                     OptionError, PoorExcitationWarning, check_bounds, check_number,
+                     check_option)
 from .identify import COND_WARN, RANK_RTOL
 from .model import RobotModel
 from .parameters import from_pseudo_inertia, pseudo_inertia
@@ -212,20 +213,17 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
                         huber_threshold, reweight)
     if loss == "huber" and dataset is None:
         raise OptionError("loss='huber' re-weights individual samples: pass dataset=")
-    passes = (5 if loss == "huber" else 0) if reweight is None else int(reweight)
-    if passes < 0:
-        raise OptionError(f"reweight must be ≥ 0, got {reweight}")
-    if not (np.isfinite(margin) and margin >= 0):
-        raise OptionError(f"margin must be a finite number ≥ 0, got {margin}")
-    huber_c = HUBER_DEFAULT if huber_threshold is None else float(huber_threshold)
-    if not (np.isfinite(huber_c) and huber_c > 0):
-        raise OptionError(f"huber_threshold must be a finite number > 0, got {huber_threshold}")
-    gamma_default = default_prior_weight(DEFAULT_PRIOR_UNCERTAINTY if prior_uncertainty is None
-                                         else prior_uncertainty)
+    passes = ((5 if loss == "huber" else 0) if reweight is None
+              else check_number("reweight", reweight, 0, integer=True))
+    margin = check_number("margin", margin, 0)
+    huber_c = (HUBER_DEFAULT if huber_threshold is None
+               else check_number("huber_threshold", huber_threshold, 0, strict=True))
+    gamma_default = default_prior_weight(
+        DEFAULT_PRIOR_UNCERTAINTY if prior_uncertainty is None
+        else check_number("prior_uncertainty", prior_uncertainty, 0, strict=True))
     gamma = 0.0 if prior is None else (gamma_default if prior_weight is None
-                                       else float(prior_weight))
-    if not (np.isfinite(gamma) and gamma >= 0):
-        raise OptionError(f"prior_weight must be a finite number ≥ 0, got {prior_weight}")
+                                       else check_number("prior_weight", prior_weight, 0))
+    _check_bound_options(model, constraints, com_boxes, mass_bounds, total_mass)
     prior_vec = prior_vector(model, spec)
     setup = _make_setup(model, spec, prior_vec, constraints, prior, gamma, prior_weights,
                         ellipsoids, neighbourhood, com_boxes, mass_bounds, total_mass,
@@ -234,9 +232,13 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
     if sigma is None:
         sig, source = _ols_sigma(problem, base), "ols"
     else:
-        sig, source = np.asarray(sigma, dtype=float), "given"
+        try:
+            sig, source = np.asarray(sigma, dtype=float), "given"
+        except (TypeError, ValueError):
+            sig = np.array([np.nan])
         if sig.shape != (nv,) or not np.all(np.isfinite(sig)) or np.any(sig <= 0):
-            raise OptionError(f"sigma must be {nv} finite values > 0 (one per joint), got {sig}")
+            raise OptionError(f"sigma must be {nv} finite values > 0 (one per joint), got "
+                              f"{sigma!r}")
     sig = floor_sigma(sig, problem)
 
     work, theta = problem, None
@@ -318,6 +320,29 @@ def _check_combinations(prior: str | None, prior_weight: float | None,
     if loss == "huber" and reweight is not None and int(reweight) == 0:
         raise OptionError("loss='huber' needs reweight ≥ 1: the first solve is a squared-loss "
                           "fit, and the Huber weights come from its residuals")
+
+
+def _check_bound_options(model: RobotModel, constraints: object, com_boxes: object,
+                         mass_bounds: object, total_mass: object) -> None:
+    """Shapes and types of the per-body options, each error naming its option and body."""
+    if not isinstance(constraints, (str, Mapping)):
+        raise OptionError(f"constraints must be a level name or {{body: level}}, got "
+                          f"{constraints!r}")
+    for name, mapping in (("com_boxes", com_boxes), ("mass_bounds", mass_bounds)):
+        if mapping is not None and not isinstance(mapping, Mapping):
+            raise OptionError(f"{name} must be a mapping {{body: bounds}}, got {mapping!r}")
+    for body, box in (com_boxes or {}).items():
+        try:
+            lo, hi = (np.asarray(v, dtype=float) for v in box)
+        except (TypeError, ValueError):
+            lo = hi = np.array([np.nan])
+        if lo.shape != (3,) or hi.shape != (3,) or not np.all(np.isfinite([lo, hi])):
+            raise OptionError(f"com_boxes[{body!r}] must be (lower, upper), each 3 finite "
+                              f"numbers (m, body frame), got {box!r}")
+    for body, bounds in (mass_bounds or {}).items():
+        check_bounds(f"mass_bounds[{body!r}]", bounds)
+    if total_mass is not None:
+        check_bounds("total_mass", total_mass)
 
 
 def _body_levels(model: RobotModel, constraints: str | Mapping[str, str]) -> tuple[str, ...]:
