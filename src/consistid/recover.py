@@ -49,8 +49,6 @@ Euclidean pull towards their prior (zero) decides.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import cached_property
-from pathlib import Path
 from typing import Any, Sequence
 
 import cvxpy as cp
@@ -63,11 +61,11 @@ from .dataset import Dataset
 from .errors import (IdentificationError, InconsistentParametersError, InfeasibleError,
                      ModelError, OptionError, UnrealizableCoefficientsError, check_option)
 from .model import RobotModel
-from .parameters import ConsistencyReport, is_physically_consistent, pseudo_inertia
+from .parameters import is_physically_consistent, pseudo_inertia
 from .priors import euclidean, logdet_divergence, logdet_divergence_value
 from .regressor import (FRICTION_TERMS, FrictionArg, RegressorSpec,
                         dataset_regressor, parameter_names, prior_vector, resolve_spec)
-from .result import IdentificationResult, SolverReport
+from .result import IdentificationResult, SolverReport, StandardParameterSet
 
 MODES = ("exact", "nearest")
 #: Unlike the SDP's (:data:`consistid.sdp.PRIORS`), no ``None``: the coefficients leave the null
@@ -163,7 +161,7 @@ class RecoveryCheck:
 
 
 @dataclass(frozen=True, eq=False)
-class RecoveryResult:
+class RecoveryResult(StandardParameterSet):
     """Standard parameters recovered from base coefficients.
 
     Attributes
@@ -211,25 +209,6 @@ class RecoveryResult:
         """``B π − β̂``, (b,)."""
         return self.recovered_base - self.given
 
-    @property
-    def inertial_parameters(self) -> np.ndarray:
-        return self.parameters[: self.model.n_inertial]
-
-    @cached_property
-    def consistency(self) -> ConsistencyReport:
-        """Per-body verdict at the pseudo-inertia level
-        (:func:`consistid.parameters.is_physically_consistent`)."""
-        return is_physically_consistent(self.inertial_parameters, "pseudo-inertia",
-                                        self.model.body_names)
-
-    @property
-    def is_consistent(self) -> bool:
-        """``consistency.ok``: the definition of
-        :attr:`IdentificationResult.is_consistent <consistid.result.IdentificationResult>`
-        (:func:`consistid.parameters.is_physically_consistent`, pseudo-inertia level, its
-        tolerance)."""
-        return self.consistency.ok
-
     def check(self, dataset: Dataset | None = None, tol: float = 1e-6) -> RecoveryCheck:
         """Compare ``B π`` with ``β̂`` and, given a dataset, ``Y π`` with ``W_b β̂``.
 
@@ -244,17 +223,6 @@ class RecoveryResult:
             torque = np.max(np.abs(diff.reshape(dataset.n_samples, self.model.nv)), axis=0)
         ok = self.is_consistent and (self.mode == "nearest" or scaled <= tol)
         return RecoveryCheck(float(res.max()), scaled, float(self.margins.min()), torque, ok)
-
-    def identified_model(self) -> RobotModel:
-        """The robot model carrying the recovered inertial parameters."""
-        return self.model.with_parameters(self.inertial_parameters)
-
-    def to_urdf(self, path: str | Path, merged: str = "auto") -> Path:
-        """Write the model's URDF with the recovered inertias and Coulomb/viscous friction
-        (:func:`consistid.export.write_urdf`)."""
-        from .export import write_urdf
-
-        return write_urdf(self.model, path, self.parameters, self.parameter_names, merged)
 
     def summary(self, max_rows: int | None = None) -> str:
         """Solver, residual, per-body margins and (nearest mode) the moved coefficients (at most

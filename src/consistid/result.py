@@ -33,8 +33,46 @@ class SolverReport:
                 f"setup {self.compile_time * 1e3:.1f} ms{it})")
 
 
+class StandardParameterSet:
+    """What any answer carrying a full standard vector offers: its consistency, its model and
+    its URDF. Subclasses (dataclasses) define ``model``, ``parameters`` (10 per body, then the
+    per-joint terms) and ``parameter_names``."""
+
+    model: RobotModel
+    parameters: np.ndarray
+    parameter_names: tuple[str, ...]
+
+    @property
+    def inertial_parameters(self) -> np.ndarray:
+        """The ``10·nbodies`` inertial entries of ``parameters``."""
+        return self.parameters[: self.model.n_inertial]
+
+    @cached_property
+    def consistency(self) -> ConsistencyReport:
+        """Per-body physical consistency at the pseudo-inertia level
+        (:func:`consistid.parameters.is_physically_consistent`, its tolerance)."""
+        return is_physically_consistent(self.inertial_parameters, "pseudo-inertia",
+                                        self.model.body_names)
+
+    @property
+    def is_consistent(self) -> bool:
+        """``consistency.ok``: every body realizable."""
+        return self.consistency.ok
+
+    def identified_model(self) -> RobotModel:
+        """The robot model carrying these inertial parameters."""
+        return self.model.with_parameters(self.inertial_parameters)
+
+    def to_urdf(self, path: str | Path, merged: str = "auto") -> Path:
+        """Write the model's URDF with these inertias and Coulomb/viscous friction
+        (:func:`consistid.export.write_urdf`); refuses an inconsistent body."""
+        from .export import write_urdf
+
+        return write_urdf(self.model, path, self.parameters, self.parameter_names, merged)
+
+
 @dataclass(frozen=True, eq=False)
-class IdentificationResult:
+class IdentificationResult(StandardParameterSet):
     """Identified parameters of a robot, with the numbers needed to trust them.
 
     Attributes
@@ -87,32 +125,6 @@ class IdentificationResult:
         z = scipy.stats.norm.ppf(1 - alpha / 2)
         return np.column_stack([self.base_parameters - z * self.base_std,
                                 self.base_parameters + z * self.base_std])
-
-    # ----------------------------------------------------------------------------- consistency
-    @cached_property
-    def consistency(self) -> ConsistencyReport:
-        """Per-body physical consistency of ``parameters`` (pseudo-inertia level)."""
-        return is_physically_consistent(self.parameters[: self.model.n_inertial],
-                                        "pseudo-inertia", self.model.body_names)
-
-    @property
-    def is_consistent(self) -> bool:
-        return self.consistency.ok
-
-    @property
-    def inertial_parameters(self) -> np.ndarray:
-        return self.parameters[: self.model.n_inertial]
-
-    def identified_model(self) -> RobotModel:
-        """The robot model carrying the identified inertial parameters."""
-        return self.model.with_parameters(self.inertial_parameters)
-
-    def to_urdf(self, path: str | Path, merged: str = "auto") -> Path:
-        """Write the model's URDF with the identified inertias and Coulomb/viscous friction
-        (:func:`consistid.export.write_urdf`); refuses an inconsistent body."""
-        from .export import write_urdf
-
-        return write_urdf(self.model, path, self.parameters, self.parameter_names, merged)
 
     # ----------------------------------------------------------------------------- prediction
     def predict(self, dataset: Dataset) -> np.ndarray:
