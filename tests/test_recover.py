@@ -205,3 +205,16 @@ def test_cli_recover_writes_a_consistent_urdf(panda, setup, tmp_path):
     assert main(["recover", str(tmp_path / "recover.toml")]) == 0
     back = ci.RobotModel.from_urdf(tmp_path / "out.urdf", locked_joints=panda.locked_joints)
     assert np.max(np.abs(base.project(back.prior_parameters) - base.project(truth))) < 1e-6
+
+
+def test_a_wrong_coefficient_count_names_the_settings_that_fit(planar_2r):
+    # 2R arm with viscous friction: 6 rigid base coefficients + 2; recovered with the default
+    # columns (Coulomb, viscous, offset: 12) it must say which settings give 8
+    from consistid.regressor import prior_vector
+
+    spec = ci.RegressorSpec.make(planar_2r, ("viscous",))
+    beta = ci.compute_base_parameters(planar_2r, spec).project(prior_vector(planar_2r, spec))
+    with pytest.raises(ci.ModelError, match=r"8 base coefficients, but .* has 12\. Settings that "
+                                            r"give that many: .*friction=\('viscous',\), "
+                                            r"armature=False"):
+        ci.recover_standard(planar_2r, beta, friction=("coulomb", "viscous", "offset"))

@@ -45,7 +45,7 @@ from .errors import (ModelError, OptionError, PoorExcitationError, PoorExcitatio
                      check_option)
 from .model import RobotModel
 from .parameters import INERTIAL_NAMES, from_mass_com_inertia, pseudo_inertia, to_mass_com_inertia
-from .regressor import FRICTION_TERMS, FrictionArg, RegressorSpec, regressor, resolve_spec
+from .regressor import FrictionArg, matching_settings, regressor, resolve_spec
 from .result import IdentificationResult, SolverReport
 
 #: A payload direction is unidentified when its singular value of the column-normalised payload
@@ -456,12 +456,7 @@ def estimate_payload(model: RobotModel, loaded: Dataset | IdentificationResult,
 
 def _matching_settings(model: RobotModel, n_joint_columns: int) -> str:
     """Which ``friction``/``armature`` settings give ``n_joint_columns`` per-joint entries."""
-    matches = []
-    for k in range(2 ** len(FRICTION_TERMS)):
-        terms = tuple(t for i, t in enumerate(FRICTION_TERMS) if k >> i & 1)
-        for armature in (False, True):
-            if RegressorSpec.make(model, terms, armature).n_joint_columns == n_joint_columns:
-                matches.append(f"friction={terms or None}, armature={armature}")
+    matches = matching_settings(model, lambda spec: spec.n_joint_columns == n_joint_columns)
     if not matches:
         return f"No friction/armature setting gives {n_joint_columns} per-joint entries."
     return ("Settings with that many per-joint entries: " + "; ".join(matches[:4])

@@ -64,7 +64,8 @@ from .model import RobotModel
 from .parameters import is_physically_consistent, pseudo_inertia
 from .priors import euclidean, logdet_divergence, logdet_divergence_value
 from .regressor import (FRICTION_TERMS, FrictionArg, RegressorSpec,
-                        dataset_regressor, parameter_names, prior_vector, resolve_spec)
+                        dataset_regressor, matching_settings, parameter_names, prior_vector,
+                        resolve_spec)
 from .result import IdentificationResult, SolverReport, StandardParameterSet
 
 MODES = ("exact", "nearest")
@@ -396,14 +397,8 @@ def _matching_settings(model: RobotModel, n_base: int) -> str:
     full_spec = RegressorSpec.make(model, FRICTION_TERMS, True)
     full = compute_base_parameters(model, full_spec)
     index = {name: k for k, name in enumerate(parameter_names(model, full_spec))}
-    matches = []
-    for k in range(2 ** len(FRICTION_TERMS)):
-        terms = tuple(t for i, t in enumerate(FRICTION_TERMS) if k >> i & 1)
-        for armature in (False, True):
-            cols = [index[n] for n in parameter_names(model, RegressorSpec.make(model, terms,
-                                                                                armature))]
-            if np.linalg.matrix_rank(full.matrix[:, cols]) == n_base:
-                matches.append(f"friction={terms or None}, armature={armature}")
+    matches = matching_settings(model, lambda spec: np.linalg.matrix_rank(
+        full.matrix[:, [index[n] for n in parameter_names(model, spec)]]) == n_base)
     if not matches:
         return ("No combination of per-joint terms gives that many: are these coefficients "
                 f"of {model.name!r}, in consistid's base map?")

@@ -48,7 +48,7 @@ armature block is how rotor inertia enters here.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Iterator, Mapping, Sequence
+from typing import Callable, Iterator, Mapping, Sequence
 
 import numpy as np
 import pinocchio as pin
@@ -154,6 +154,19 @@ class RegressorSpec:
     def describe(self) -> str:
         parts = [f"{term} on {sum(m)}/{self.nv}" for term, m in self.masks if any(m)]
         return ", ".join(parts) if parts else "rigid body only"
+
+
+def matching_settings(model: RobotModel, accept: Callable[[RegressorSpec], bool]) -> list[str]:
+    """The ``friction``/``armature`` settings (each term on every joint or on none) whose spec
+    ``accept`` takes, as ``"friction=(…), armature=…"``: for errors that suggest what a user
+    meant when a coefficient count does not fit."""
+    found = []
+    for k in range(2 ** len(FRICTION_TERMS)):
+        terms = tuple(t for i, t in enumerate(FRICTION_TERMS) if k >> i & 1)
+        for armature in (False, True):
+            if accept(RegressorSpec.make(model, terms, armature)):
+                found.append(f"friction={terms or None}, armature={armature}")
+    return found
 
 
 def _is_auto(value: object) -> bool:
