@@ -24,8 +24,11 @@ offset ±0.3–2 N·m, gain ±3–15 %, armature 0.02–0.2 kg·m², payload 0.5
 joints 1–4 with stiffness 1500–8000 N·m/rad (motor-side encoder, torque at the spring), the rigid
 bodies perturbed by ±10–30 % ("inertia"), and position ripple 0.3–1.5 N·m at k = 5–60 cycles/rad
 (added to the logged torque by this script: the simulator has no ripple). Torque noise 0.05 N·m.
-Not drawn by default (``--pool`` adds it): ``position``, a once-per-revolution torque
-0.3–1.5 N·m·sin(q_j + φ), added to the logged torque like the ripple.
+Not drawn by default (``--pool`` adds them): ``position``, a once-per-revolution torque
+0.3–1.5 N·m·sin(q_j + φ), added to the logged torque like the ripple; ``tilt``, the base off
+level by 0.5–2° about x and about y (each, either sign): the simulated robot's gravity is
+:func:`consistid.mounting.gravity_from_tilt` of the URDF's (its truth for the shrink is the
+library's first-order tilt with the true angles).
 
 Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/diagnosis_blind.py [--single 30 --double 8]
 [--pool position,inertia]``.
@@ -46,6 +49,7 @@ from consistid.candidates import Atom, EffectLibrary
 from consistid.diagnose import GapModel, diagnose
 from consistid.errors import ModelError, TrackingWarning
 from consistid.excitation import FourierTrajectory
+from consistid.mounting import gravity_from_tilt
 from consistid.parameters import perturb
 from consistid.robot_effects import Effects, MountedPayload
 from consistid.signals import lowpass, preprocess
@@ -54,8 +58,8 @@ from consistid.simulate import MAX_TRACKING_ERROR, record
 EFFECTS = ("inertia", "coulomb", "viscous", "offset", "gain", "armature", "payload", "delay",
            "elasticity", "ripple")
 #: Effects the script can inject (``--pool``); the default pool is :data:`EFFECTS`.
-INJECTABLE = (*EFFECTS, "position")
-ARM_WIDE = ("inertia", "payload", "delay")
+INJECTABLE = (*EFFECTS, "position", "tilt")
+ARM_WIDE = ("inertia", "payload", "delay", "tilt")
 NOISE = 0.05
 RATE = 200.0
 
@@ -96,6 +100,9 @@ def draw(rng: np.random.Generator, name: str, nv: int, scale: float = 1.0) -> Tr
                                    rng.uniform(0, 2 * np.pi)))
     if name == "position":
         return Truth(name, joint, (scale * rng.uniform(0.3, 1.5), 1, rng.uniform(0, 2 * np.pi)))
+    if name == "tilt":
+        signs = rng.choice([-1.0, 1.0], size=2)
+        return Truth(name, None, scale * signs * np.radians(rng.uniform(0.5, 2.0, size=2)))
     raise ValueError(name)
 
 
@@ -157,6 +164,9 @@ def true_model(model: ci.RobotModel, library: EffectLibrary, truths: list[Truth]
             inertial = perturb(model.prior_parameters, scale, np.random.default_rng(seed))
             atoms.append(Atom("inertia", None, (), ()))
             theta.append(np.zeros(0))
+        elif t.name == "tilt":
+            atoms.append(Atom("tilt", None, ("roll", "pitch"), ("rad", "rad")))
+            theta.append(np.asarray(t.value))
     return GapModel(model, library, model.prior_parameters, tuple(atoms), tuple(theta), delays,
                     inertial)
 
@@ -196,6 +206,10 @@ def run_scenario(model: ci.RobotModel, library: EffectLibrary, seed: int, n_effe
         if truths[1].name == "elasticity":
             truths[1].joint = truths[1].joint % 4
     eff, params = simulator_setup(model, truths)
+    robot = model  # the simulated robot: a tilted base turns its gravity
+    for t in truths:
+        if t.name == "tilt":
+            robot = model.with_gravity(gravity_from_tilt(model.gravity, t.value))
     logs = []
     for k, duration in enumerate((20.0, 10.0)):
         traj = FourierTrajectory.random(model, 5, 10.0, seed=int(rng.integers(2 ** 31)))
@@ -204,7 +218,7 @@ def run_scenario(model: ci.RobotModel, library: EffectLibrary, seed: int, n_effe
             try:                                # a shorter physics step
                 with warnings.catch_warnings():   # a poor tracking is skipped below
                     warnings.simplefilter("ignore", TrackingWarning)
-                    rec = record(model, traj, eff, true_parameters=params, duration=duration,
+                    rec = record(robot, traj, eff, true_parameters=params, duration=duration,
                                  rate=RATE, physics_rate=physics_rate, seed=seed * 10 + k,
                                  settle=1.0)
                 break
@@ -264,6 +278,8 @@ def describe(t: Truth) -> str:
         v = f"{t.value[0]:.2f} N·m"
     elif t.name == "delay":
         v = f"{1e3 * t.value:.1f} ms"
+    elif t.name == "tilt":
+        v = "/".join(f"{a:+.2f}°" for a in np.degrees(t.value))
     else:
         v = f"{t.value:.3g}"
     return f"{t.name}{where} {v}"
@@ -321,8 +337,9 @@ def main() -> None:
         shrink = np.mean([r["shrink_ok"] for r in rs])
         err = np.median([abs(r["pred"] - r["true"]) / max(abs(r["true"]), 1e-12) for r in rs])
         print(f"  {n_eff} effect(s), {len(rs)} scenarios: top-{n_eff} correct {100 * top:.0f} %, "
-              f"joints correct {100 * np.mean(scored):.0f} % of {len(scored)} per-joint, "
-              f"shrink within 10 % of truth {100 * shrink:.0f} % "
+              + (f"joints correct {100 * np.mean(scored):.0f} % of {len(scored)} per-joint, "
+                 if scored else "no per-joint effect, ")
+              + f"shrink within 10 % of truth {100 * shrink:.0f} % "
               f"(median relative error {100 * err:.1f} %)"
               + (f"; skipped {len(skipped[n_eff])} (unstable simulation, seeds "
                  f"{skipped[n_eff]})" if skipped[n_eff] else ""))
