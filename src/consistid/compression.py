@@ -68,6 +68,15 @@ class CompressedProblem:
         r = _r_factor(a, keep.size)
         return r[:-1, :-1], r[:-1, -1], float(r[-1, -1] ** 2)
 
+    def minus(self, theta: np.ndarray) -> "CompressedProblem":
+        """The compressed problem of the torques ``τ − Y θ`` (e.g. what a known robot leaves
+        to a payload): ``z_j ← z_j − R_j θ``, ``ρ_j`` unchanged, since
+        ``‖Y_j v − (τ_j − Y_j θ)‖² = ‖R_j (v + θ) − z_j‖² + ρ_j²``. No pass over the data."""
+        theta = np.asarray(theta, dtype=float)
+        factors = self.factors.copy()
+        factors[:, :-1, -1] -= self.factors[:, :-1, :-1] @ theta
+        return CompressedProblem(factors, self.n_samples, self.sum_squares(theta))
+
     def sum_squares(self, theta: np.ndarray, columns: np.ndarray | None = None) -> np.ndarray:
         """Per-joint residual sum of squares ``‖Y_j[:, columns] θ − τ_j‖²``, shape (nv,)."""
         cols = np.arange(self.n_columns) if columns is None else np.asarray(columns)

@@ -407,10 +407,10 @@ def estimate_payload(model: RobotModel, loaded: Dataset | IdentificationResult,
         raise OptionError(f"loaded must be a Dataset or an IdentificationResult, got "
                           f"{type(loaded).__name__}")
     loaded.check_joints(model.nv, model.joint_names)
-    tau = loaded.require_torque()
+    loaded.require_torque()
     if isinstance(robot, IdentificationResult):
         spec = resolve_spec(model, friction, armature, given=robot.spec)
-        predicted = robot.predict(loaded)
+        theta = robot.parameters
     else:
         spec = resolve_spec(model, friction, armature)
         theta = np.asarray(robot, dtype=float)
@@ -419,14 +419,12 @@ def estimate_payload(model: RobotModel, loaded: Dataset | IdentificationResult,
             raise ModelError(f"robot parameters have shape {theta.shape}; {model.name} with "
                              f"{spec.describe()} needs ({expected},). "
                              f"{_matching_settings(model, theta.size - model.n_inertial)}")
-        predicted = (regressor(model, loaded.q, loaded.dq, loaded.ddq, spec) @ theta
-                     ).reshape(loaded.n_samples, model.nv)
     index, frame_name, transform = _resolve_frame(model, frame, body)
     n = loaded.n_samples
     if n * model.nv <= 10:
         raise PoorExcitationError(f"{n} samples × {model.nv} joints give {n * model.nv} "
                                   "equations for 10 payload parameters")
-    problem = compress(model, loaded.with_torque(tau - predicted), spec)
+    problem = compress(model, loaded, spec).minus(theta)     # what the robot leaves: τ − Y θ
     cols = np.arange(10 * index, 10 * index + 10)
     # Per-joint noise from the unconstrained fit, then the weighted problem (as identify's WLS).
     r1, z1, _ = problem.stacked(columns=cols)
