@@ -209,6 +209,18 @@ def test_bad_arguments_raise_named_errors(panda):
         diagnose(panda, data, sigma=-1.0)
     with pytest.raises(OptionError, match="effect"):
         diagnose(panda, data, effects=("friction",))
+    # wrongly typed options are named (they used to end in a TypeError/ValueError traceback)
+    for options, message in ((dict(sigma="x"), "sigma must be one number or 7 numbers"),
+                             (dict(sigma=[0.1] * 3), r"got \[0.1, 0.1, 0.1\]"),
+                             (dict(alpha="a"), "alpha must be a finite number > 0"),
+                             (dict(alpha=1.0), r"alpha is a test level in \(0, 1\)"),
+                             (dict(min_gain=[1]), "min_gain must be a finite number ≥ 0"),
+                             (dict(tie=-1), "tie must be"),
+                             (dict(max_steps=1.5), "max_steps must be an integer")):
+        with pytest.raises(OptionError, match=message):
+            diagnose(panda, data, **options)
+    # one effect name alone is one effect, not its letters
+    assert diagnose(panda, data, effects="offset", sigma=0.1).effects == ()
 
 
 # ----------------------------------------------------------------------------- building blocks

@@ -59,7 +59,7 @@ import scipy.stats
 
 from .candidates import EFFECT_NAMES, SIGNATURES, Atom, EffectLibrary, GapData
 from .dataset import Dataset
-from .errors import ModelError, OptionError, check_option
+from .errors import ModelError, OptionError, check_number, check_option
 from .gap import (FILTERED_ROLLOFF, GapBreakdown, gap_breakdown,
                   high_band_rolloff, noise_floor, residual_spectra)
 from .model import RobotModel
@@ -375,9 +375,13 @@ def _as_dataset(d: Dataset | Sequence[Dataset]) -> Dataset:
 
 
 def _sigma(sigma, nv: int) -> np.ndarray:
-    s = np.broadcast_to(np.asarray(sigma, dtype=float), (nv,)).copy()
+    try:
+        s = np.broadcast_to(np.asarray(sigma, dtype=float), (nv,)).copy()
+    except (TypeError, ValueError):
+        s = np.array([np.nan])
     if not np.all(np.isfinite(s) & (s > 0)):
-        raise OptionError(f"sigma must be positive and finite per joint, got {s}")
+        raise OptionError(f"sigma must be one number or {nv} numbers (one per joint), positive "
+                          f"and finite (N·m), got {sigma!r}")
     return s
 
 
@@ -755,6 +759,12 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     Diagnosis
     """
     check_option("inertia_solver", inertia_solver, ("sdp", "ls"))
+    alpha = check_number("alpha", alpha, 0, strict=True)
+    if alpha >= 1:
+        raise OptionError(f"alpha is a test level in (0, 1), got {alpha!r}")
+    min_gain, tie = check_number("min_gain", min_gain, 0), check_number("tie", tie, 0)
+    max_steps = check_number("max_steps", max_steps, 0, integer=True)
+    effects = (effects,) if isinstance(effects, str) else effects
     dataset = _as_dataset(dataset)
     dataset.check_joints(model.nv, model.joint_names)
     if held_out is None:
