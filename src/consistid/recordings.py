@@ -45,6 +45,7 @@ import numpy as np
 from .dataset import Dataset
 from .errors import DatasetError, JointNameError, MissingColumnsError, check_option
 from .model import RobotModel
+from .signals import duplicate_groups, group_mean, long_steps, preprocess
 
 #: Known ``.npz`` layouts: dataset field → array name. ``"flobaroid"`` is the layout of the
 #: FloBaRoID project's measurement files (e.g. the KUKA LWR4+ recordings).
@@ -116,7 +117,7 @@ def _merge_duplicates(t: np.ndarray, arrays: dict[str, np.ndarray], policy: str,
         k = int(same[0]) + 1
         raise DatasetError(f"t[{k}] = {t[k]!r} repeats t[{k - 1}] ({same.size} duplicated "
                            "stamp(s)); pass duplicates='average' or 'first' to merge them")
-    group = np.concatenate([[0], np.cumsum(np.diff(t) != 0)])
+    group = duplicate_groups(t)
     n_groups = int(group[-1]) + 1
     first = np.flatnonzero(np.concatenate([[True], np.diff(group) != 0]))
     identical = all(np.array_equal(a[same], a[same + 1]) for a in arrays.values())
@@ -124,12 +125,7 @@ def _merge_duplicates(t: np.ndarray, arrays: dict[str, np.ndarray], policy: str,
         merged = {k: a[first] for k, a in arrays.items()}
         how = "kept the first sample of each"
     else:
-        counts = np.bincount(group, minlength=n_groups).astype(float)
-        merged = {}
-        for k, a in arrays.items():
-            acc = np.zeros((n_groups, a.shape[1]))
-            np.add.at(acc, group, a)
-            merged[k] = acc / counts[:, None]
+        merged = {k: group_mean(a, group) for k, a in arrays.items()}
         how = "replaced each group by its mean"
     kind = "identical repeats" if identical else "samples that differ"
     steps.append(f"{same.size} duplicated time stamp(s) ({kind}): {how}; "
@@ -237,7 +233,7 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
                   f"{dt.max() * 1e3:.2f} ms")
         uniform = dt.max() - dt.min() <= 1e-6 * med
         spread += " (uniform)" if uniform else " (non-uniform)"
-        gaps = np.flatnonzero(dt > GAP_FACTOR * med)
+        gaps = long_steps(t, GAP_FACTOR)[0]
         if gaps.size:
             spread += (f"; {gaps.size} gap(s) longer than {GAP_FACTOR:g} median steps, first "
                        f"after t = {t[gaps[0]]:.4f} s ({dt[gaps[0]] * 1e3:.1f} ms)")
@@ -256,8 +252,6 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
         dataset = Dataset(t=t, q=arrays["q"], dq=arrays["dq"], ddq=arrays["ddq"],
                           tau=arrays["tau"], joint_names=names)
     else:
-        from .signals import preprocess  # the chain for raw logs
-
         pre = preprocess(t, arrays["q"], arrays["tau"], joint_names=names, **signal_options)
         steps.append(f"no logged velocities/accelerations: signals.preprocess "
                      f"({pre.dataset.n_samples} samples at {pre.rate:.6g} Hz, cut-off "

@@ -356,6 +356,32 @@ def default_cutoff(bandwidth: float, rate: float) -> float:
 
 
 # ------------------------------------------------------------------------------- time stamps
+def duplicate_groups(t: np.ndarray, tol: float = 0.0) -> np.ndarray:
+    """Group index of each sample of non-decreasing stamps ``t``: a step ``t_k − t_{k−1} ≤ tol``
+    keeps sample ``k`` in the group of ``k − 1`` (``tol = 0``: exactly repeated stamps).
+
+    Returns ``(N,)`` integers ``0, …, n_groups − 1``, non-decreasing.
+    """
+    return np.concatenate([[0], np.cumsum(np.diff(t) > tol)])
+
+
+def group_mean(x: np.ndarray, group: np.ndarray) -> np.ndarray:
+    """Mean of the rows of ``x`` (``(N,)`` or ``(N, m)``) over each group of
+    :func:`duplicate_groups`; ``(n_groups,)`` or ``(n_groups, m)``."""
+    counts = np.bincount(group)
+    if x.ndim == 1:
+        return np.bincount(group, weights=x) / counts
+    return np.stack([np.bincount(group, weights=col) / counts for col in x.T], axis=1)
+
+
+def long_steps(t: np.ndarray, factor: float) -> tuple[np.ndarray, float]:
+    """Gaps: the indices ``k`` of the steps ``t_{k+1} − t_k`` longer than ``factor`` × the
+    median step, and that limit (s)."""
+    dt = np.diff(t)
+    limit = factor * np.median(dt)
+    return np.flatnonzero(dt > limit), limit
+
+
 def _fix_time(t: np.ndarray, x: np.ndarray, duplicate_tol: float, steps: list[Step]
               ) -> tuple[np.ndarray, np.ndarray]:
     """Sort and merge duplicate time stamps (rows averaged)."""
@@ -369,21 +395,18 @@ def _fix_time(t: np.ndarray, x: np.ndarray, duplicate_tol: float, steps: list[St
     if positive.size == 0:
         raise DatasetError("all time stamps are equal")
     tol = duplicate_tol * np.median(positive)
-    dup = dt <= tol
-    if dup.any():
-        group = np.concatenate([[0], np.cumsum(~dup)])
-        counts = np.bincount(group)
-        t = np.bincount(group, weights=t) / counts
-        x = np.stack([np.bincount(group, weights=col) / counts for col in x.T], axis=1)
-        steps.append(Step("duplicates", f"{int(dup.sum())} samples shared a time stamp (within "
+    group = duplicate_groups(t, tol)
+    n_dup = t.size - 1 - int(group[-1])
+    if n_dup:
+        t, x = group_mean(t, group), group_mean(x, group)
+        steps.append(Step("duplicates", f"{n_dup} samples shared a time stamp (within "
                                         f"{tol:.3g} s) with the previous one; merged by averaging"))
     return t, x
 
 
 def _segments(t: np.ndarray, gap: float, steps: list[Step]) -> list[slice]:
-    dt = np.diff(t)
-    limit = gap * np.median(dt)
-    cuts = np.flatnonzero(dt > limit) + 1
+    cuts, limit = long_steps(t, gap)
+    cuts = cuts + 1
     if cuts.size:
         steps.append(Step("gaps", f"{cuts.size} gap(s) longer than {limit:.4g} s (at t = "
                                   f"{', '.join(f'{t[c - 1]:.4g}' for c in cuts[:5])}"
