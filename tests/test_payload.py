@@ -147,6 +147,19 @@ def test_bad_inputs(panda, hidden):
         estimate_payload(panda, hidden["loaded_data"], robot=panda.prior_parameters)
 
 
+def test_wrongly_typed_options_are_named(panda, hidden):
+    for options, message in ((dict(mass_range=5), "mass_range must be a pair"),
+                             (dict(mass_range=("a", None)), "mass_range bound must be a finite"),
+                             (dict(com_bounds=1), "com_bounds must be \\(lower, upper\\)"),
+                             (dict(com_bounds=([0, 0, 1], [0, 0, 0])), "lower ≤ upper"),
+                             (dict(ellipsoid=3), "ellipsoid must be a consistid.Ellipsoid"),
+                             (dict(frame=5), "frame must be a frame/body name")):
+        with pytest.raises(OptionError, match=message):
+            estimate_payload(panda, hidden["loaded_data"], robot=hidden["unloaded"], **options)
+        with pytest.raises(OptionError, match=message):
+            payload_from_base_change(panda, hidden["unloaded"], hidden["loaded_res"], **options)
+
+
 def test_one_covariance_only_is_noted(panda, hidden):
     """Loaded coefficients as a bare vector: they have no covariance, so only the unloaded
     result's weights the fit, and the payload says the loaded set was treated as exact."""

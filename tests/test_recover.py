@@ -218,3 +218,19 @@ def test_a_wrong_coefficient_count_names_the_settings_that_fit(planar_2r):
                                             r"give that many: .*friction=\('viscous',\), "
                                             r"armature=False"):
         ci.recover_standard(planar_2r, beta, friction=("coulomb", "viscous", "offset"))
+
+
+def test_wrongly_typed_inputs_are_named(planar_2r):
+    spec = ci.RegressorSpec.make(planar_2r, None)
+    from consistid.regressor import prior_vector
+
+    beta = ci.compute_base_parameters(planar_2r, spec).project(prior_vector(planar_2r, spec))
+    kw = dict(friction=None)
+    for options, error, message in (
+            (dict(margin="x"), OptionError, "margin must be a finite number ≥ 0, got 'x'"),
+            (dict(slack=[1]), OptionError, r"slack must be a finite number > 0, got \[1\]"),
+            (dict(covariance="x"), OptionError, r"covariance must be numbers, shape \(6, 6\)")):
+        with pytest.raises(error, match=message):
+            ci.recover_standard(planar_2r, beta, **kw, **options)
+    with pytest.raises(ModelError, match="base coefficients must be numbers"):
+        ci.recover_standard(planar_2r, "abc", **kw)

@@ -117,6 +117,20 @@ def check_bounds(name: str, value: object) -> tuple[float | None, float | None]:
     return lo, hi
 
 
+def check_box(name: str, value: object) -> tuple[np.ndarray, np.ndarray]:
+    """A box ``(lower, upper)``, each 3 finite numbers with ``lower ≤ upper``, else
+    :class:`OptionError` naming ``name``."""
+    try:
+        lo, hi = (np.asarray(v, dtype=float) for v in value)  # type: ignore[union-attr]
+    except (TypeError, ValueError):
+        lo = hi = np.array([np.nan])
+    if lo.shape != (3,) or hi.shape != (3,) or not np.all(np.isfinite([lo, hi])) \
+            or np.any(lo > hi):
+        raise OptionError(f"{name} must be (lower, upper), each 3 finite numbers (m), lower ≤ "
+                          f"upper, got {value!r}")
+    return lo, hi
+
+
 class PoorExcitationWarning(UserWarning):
     """The data excite the base parameters poorly (large condition number)."""
 

@@ -42,7 +42,7 @@ from .constraints import (BodyScaling, Ellipsoid, com_box, ellipsoid_lmi, mass_b
                           pseudo_inertia_lmi)
 from .dataset import Dataset
 from .errors import (ModelError, OptionError, PoorExcitationError, PoorExcitationWarning,
-                     check_option)
+                     check_bounds, check_box, check_option)
 from .model import RobotModel
 from .parameters import INERTIAL_NAMES, from_mass_com_inertia, pseudo_inertia, to_mass_com_inertia
 from .regressor import FrictionArg, matching_settings, regressor, resolve_spec
@@ -280,6 +280,20 @@ def _reference(m_hat: float, ellipsoid: Ellipsoid | None) -> np.ndarray:
     return from_mass_com_inertia(mass, np.zeros(3), 0.4 * mass * REFERENCE_RADIUS ** 2 * np.eye(3))
 
 
+def _check_payload_options(frame: object, body: object, ellipsoid: object, com_bounds: object,
+                           mass_range: object) -> None:
+    """Types and shapes of the payload options, each error naming its option."""
+    for name, value in (("frame", frame), ("body", body)):
+        if value is not None and not isinstance(value, str):
+            raise OptionError(f"{name} must be a frame/body name (str) or None, got {value!r}")
+    if ellipsoid is not None and not isinstance(ellipsoid, Ellipsoid):
+        raise OptionError(f"ellipsoid must be a consistid.Ellipsoid, got {ellipsoid!r}")
+    if com_bounds is not None:
+        check_box("com_bounds", com_bounds)
+    if mass_range is not None:
+        check_bounds("mass_range", mass_range)
+
+
 def _solve_payload(r: np.ndarray, z: np.ndarray, null: np.ndarray, what: str,
                    ellipsoid: Ellipsoid | None, box: tuple[Sequence[float], Sequence[float]] | None,
                    mass_range: tuple[float | None, float | None] | None, solver: str,
@@ -394,6 +408,7 @@ def estimate_payload(model: RobotModel, loaded: Dataset | IdentificationResult,
         when the data do not determine every parameter the robot's motion could.
     InfeasibleError : the constraints (e.g. ellipsoid and mass bounds) admit no payload.
     """
+    _check_payload_options(frame, body, ellipsoid, com_bounds, mass_range)
     if isinstance(loaded, IdentificationResult):
         if not isinstance(robot, IdentificationResult):
             raise OptionError("route 2 (loaded identification) needs robot= the unloaded "
@@ -533,6 +548,7 @@ def payload_from_base_change(model: RobotModel, unloaded: IdentificationResult |
         with ``identifiable`` / ``unidentified`` telling which payload parameters the change of
         coefficients determines (all 10 for a 6- or 7-DoF arm; fewer for planar or short chains).
     """
+    _check_payload_options(frame, body, ellipsoid, com_bounds, mass_range)
     beta_u, cov_u, base_u = _as_coefficients(unloaded, covariance_unloaded, "unloaded")
     beta_l, cov_l, base_l = _as_coefficients(loaded, covariance_loaded, "loaded")
     if base is not None and base_u is not None and base_l is not None:

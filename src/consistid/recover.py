@@ -59,7 +59,8 @@ from .conic import DEFAULT_SOLVER, check_solver, solve
 from .constraints import BodyScaling, body_constraints, relative_bound
 from .dataset import Dataset
 from .errors import (IdentificationError, InconsistentParametersError, InfeasibleError,
-                     ModelError, OptionError, UnrealizableCoefficientsError, check_option)
+                     ModelError, OptionError, UnrealizableCoefficientsError, check_number,
+                     check_option)
 from .model import RobotModel
 from .parameters import is_physically_consistent, pseudo_inertia
 from .priors import euclidean, logdet_divergence, logdet_divergence_value
@@ -366,7 +367,10 @@ def _weights(beta: np.ndarray, covariance: np.ndarray | None
     pseudo = RELATIVE_STD * np.abs(beta) + ABSOLUTE_STD
     if covariance is None:
         return pseudo, np.diag(1.0 / pseudo), np.zeros(b, dtype=bool)
-    cov = np.array(covariance, dtype=float)
+    try:
+        cov = np.array(covariance, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise OptionError(f"covariance must be numbers, shape ({b}, {b}) or ({b},): {exc}") from exc
     if cov.shape == (b,):
         cov = np.diag(cov)
     if cov.shape != (b, b) or np.any(np.isnan(cov)):
@@ -589,7 +593,11 @@ def recover_standard(model: RobotModel, base_params: np.ndarray | Identification
         default_prior = res.prior
     else:
         spec = resolve_spec(model, friction, armature)
-        beta = np.asarray(base_params, dtype=float)
+        try:
+            beta = np.asarray(base_params, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise ModelError(f"base coefficients must be numbers (or an IdentificationResult), "
+                             f"got {base_params!r}") from exc
         if base is None:
             base = compute_base_parameters(model, spec)
             if beta.ndim == 1 and beta.size != base.n_base:
@@ -608,8 +616,7 @@ def recover_standard(model: RobotModel, base_params: np.ndarray | Identification
     pi0 = default_prior if prior_parameters is None else np.asarray(prior_parameters, float)
     if pi0.shape != (len(names),):
         raise ModelError(f"prior_parameters must have {len(names)} entries, got {pi0.shape}")
-    if not (np.isfinite(margin) and margin >= 0) or not (np.isfinite(slack) and slack > 0):
-        raise OptionError(f"margin must be ≥ 0 and slack > 0, got margin={margin}, slack={slack}")
+    margin, slack = check_number("margin", margin, 0), check_number("slack", slack, 0, strict=True)
     prior_check = is_physically_consistent(pi0[: model.n_inertial], "pseudo-inertia",
                                            model.body_names)
     bad = [b.body for b in prior_check.bodies if not b.min_pseudo_inertia_eigenvalue > 0]

@@ -62,8 +62,8 @@ from .compression import CompressedProblem, compress, floor_sigma, joint_sigma
 from .conic import DEFAULT_SOLVER, check_solver, solve
 from .dataset import Dataset
 from .errors import (IdentificationError, InconsistentParametersError, InfeasibleError,
-                     OptionError, PoorExcitationWarning, check_bounds, check_number,
-                     check_option)
+                     OptionError, PoorExcitationWarning, check_bounds, check_box,
+                     check_number, check_option)
 from .identify import COND_WARN, RANK_RTOL
 from .model import RobotModel
 from .parameters import from_pseudo_inertia, pseudo_inertia
@@ -332,13 +332,7 @@ def _check_bound_options(model: RobotModel, constraints: object, com_boxes: obje
         if mapping is not None and not isinstance(mapping, Mapping):
             raise OptionError(f"{name} must be a mapping {{body: bounds}}, got {mapping!r}")
     for body, box in (com_boxes or {}).items():
-        try:
-            lo, hi = (np.asarray(v, dtype=float) for v in box)
-        except (TypeError, ValueError):
-            lo = hi = np.array([np.nan])
-        if lo.shape != (3,) or hi.shape != (3,) or not np.all(np.isfinite([lo, hi])):
-            raise OptionError(f"com_boxes[{body!r}] must be (lower, upper), each 3 finite "
-                              f"numbers (m, body frame), got {box!r}")
+        check_box(f"com_boxes[{body!r}]", box)
     for body, bounds in (mass_bounds or {}).items():
         check_bounds(f"mass_bounds[{body!r}]", bounds)
     if total_mass is not None:
