@@ -69,6 +69,18 @@ TANH_CHECK_SAMPLES = 1000
 #: Fixed-point iterations allowed for the start deflection of the elastic joints, and the
 #: change (rad) below which it has converged (it contracts by ~‖∂τ_J/∂q‖/K per iteration).
 START_ITERATIONS, START_TOL = 100, 1e-13
+#: The integration stage of ``mj_step``, by ``mjModel.opt.integrator``. MuJoCo's ``mj_step`` is
+#: ``mj_checkPos``, ``mj_checkVel``, ``mj_forward``, ``mj_checkAcc`` (``mj_compareFwdInv`` only
+#: with the ``fwdinv`` flag, never set here), then this (pipeline stages 1–26 of MuJoCo's
+#: documentation, ``engine_forward.c``); RK4 takes its first stage from the ``qacc`` that
+#: ``mj_forward`` left. :meth:`MujocoRobot.run` opens a logged step this way so that the
+#: acceleration it logs is the one integrated, computed once.
+_INTEGRATE: dict[int, Callable[[mujoco.MjModel, mujoco.MjData], None]] = {
+    int(mujoco.mjtIntegrator.mjINT_EULER): mujoco.mj_Euler,
+    int(mujoco.mjtIntegrator.mjINT_RK4): lambda m, d: mujoco.mj_RungeKutta(m, d, 4),
+    int(mujoco.mjtIntegrator.mjINT_IMPLICIT): mujoco.mj_implicit,
+    int(mujoco.mjtIntegrator.mjINT_IMPLICITFAST): mujoco.mj_implicit,
+}
 
 
 def _num(values) -> str:
@@ -422,7 +434,7 @@ class MujocoRobot:
         sense_dof = self.motor_dof if eff.position_sensor == "motor" else self.link_dof
         drive, link = self.motor_dof, self.link_dof
         self._start_state(data, qd[0], dqd[0], ddqd[0])
-        mujoco.mj_forward(mj, data)
+        integrate = _INTEGRATE[int(mj.opt.integrator)]
         self._check_tanh_step(qd)
         kp, kd = gains
         pm = nominal.pin_model
@@ -446,6 +458,9 @@ class MujocoRobot:
             data.qfrc_applied[:] = applied
             tau_fine[k] = np.where(elastic, self.spring_torque(data), u) if any_elastic else u
             if row < n and k == logged[row]:
+                # mj_step opened (see _INTEGRATE): log the qacc it integrates
+                mujoco.mj_checkPos(mj, data)
+                mujoco.mj_checkVel(mj, data)
                 mujoco.mj_forward(mj, data)
                 for key, value in (("q", data.qpos[link]), ("dq", data.qvel[link]),
                                    ("ddq", data.qacc[link]), ("motor_q", data.qpos[drive]),
@@ -454,7 +469,10 @@ class MujocoRobot:
                                    ("control", u)):
                     out[key][row] = value
                 row += 1
-            mujoco.mj_step(mj, data)
+                mujoco.mj_checkAcc(mj, data)
+                integrate(mj, data)
+            else:
+                mujoco.mj_step(mj, data)
             if k % 1000 == 999 or k == steps - 1:
                 self._check_stable(data, t[k] + self.timestep)
                 if progress is not None:
