@@ -112,6 +112,25 @@ def test_unknown_options_are_refused(panda, runs):
             ci.identify(panda, runs[0], method="wls", friction=None, **kw)
 
 
+def test_wrong_argument_types_are_named(panda, runs):
+    data = runs[0]
+    cases = ((("panda", data), {}, ci.ModelError, "model must be a consistid.RobotModel"),
+             ((panda, "data.npz"), {}, ci.DatasetError, "a Dataset or a list of Datasets"),
+             ((panda, [data, 3]), {}, ci.DatasetError, r"dataset\[1\] is a int"),
+             ((panda, data), dict(friction=5), ci.OptionError, "friction must be term names"),
+             ((panda, data), dict(armature=2.5), ci.OptionError, "joints must be True/False"),
+             ((panda, data), dict(friction={"offset": [1.5]}), ci.OptionError,
+              "a joint is a name or an index, got 1.5"))
+    for args, kw, error, message in cases:
+        with pytest.raises(error, match=message):
+            ci.identify(*args, method="ols", **kw)
+    # one joint alone, by name or index, is that joint
+    one = ci.identify(panda, data, method="ols", friction=None, armature="panda_joint7")
+    assert one.parameter_names[-1] == "panda_joint7.Ia"
+    assert ci.identify(panda, data, method="ols", friction=None,
+                       armature=6).parameter_names == one.parameter_names
+
+
 def test_ols_accepts_saying_no_prior_and_no_constraints(planar_2r):
     """``prior=None``/``"none"`` and ``constraints="none"`` describe OLS/WLS: accepted."""
     q, dq, ddq = random_states(planar_2r, 100, seed=1)

@@ -285,3 +285,17 @@ class Dataset:
             return cls(t=col["t"], tau=tau, joint_names=joint_names,
                        segment=col.get("segment"), **stack)
         raise DatasetError(f"unknown dataset format {path.suffix!r}; use .npz or .csv")
+
+
+def as_dataset(data: "Dataset | Sequence[Dataset]", name: str = "dataset") -> Dataset:
+    """``data`` itself, or several recordings stacked as segments (:meth:`Dataset.concatenate`);
+    anything else raises :class:`DatasetError` naming ``name`` and what it got."""
+    if isinstance(data, Dataset):
+        return data
+    if isinstance(data, (str, bytes)) or not isinstance(data, Sequence):
+        raise DatasetError(f"{name} must be a Dataset or a list of Datasets, got "
+                           f"{type(data).__name__} {data!r:.60}")
+    for k, d in enumerate(data):
+        if not isinstance(d, Dataset):
+            raise DatasetError(f"{name}[{k}] is a {type(d).__name__}, not a Dataset")
+    return Dataset.concatenate(list(data))

@@ -58,11 +58,11 @@ import scipy.optimize
 import scipy.stats
 
 from .candidates import EFFECT_NAMES, SIGNATURES, Atom, EffectLibrary, GapData
-from .dataset import Dataset
+from .dataset import Dataset, as_dataset
 from .errors import ModelError, OptionError, check_number, check_option
 from .gap import (FILTERED_ROLLOFF, GapBreakdown, gap_breakdown,
                   high_band_rolloff, noise_floor, residual_spectra)
-from .model import RobotModel
+from .model import RobotModel, require_model
 from .parameters import is_physically_consistent
 from .regressor import joint_columns
 from .statistics import autocorrelation_time, coloured_covariance
@@ -368,10 +368,6 @@ def _resolve_nominal(model: RobotModel, nominal) -> tuple[np.ndarray, Callable |
         raise ModelError(f"nominal parameters have shape {pi0.shape}; {model.name} needs "
                          f"({model.n_inertial},) standard inertial parameters (10 per body)")
     return pi0, None
-
-
-def _as_dataset(d: Dataset | Sequence[Dataset]) -> Dataset:
-    return d if isinstance(d, Dataset) else Dataset.concatenate(list(d))
 
 
 def _sigma(sigma, nv: int) -> np.ndarray:
@@ -765,13 +761,14 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     min_gain, tie = check_number("min_gain", min_gain, 0), check_number("tie", tie, 0)
     max_steps = check_number("max_steps", max_steps, 0, integer=True)
     effects = (effects,) if isinstance(effects, str) else effects
-    dataset = _as_dataset(dataset)
+    require_model(model)
+    dataset = as_dataset(dataset)
     dataset.check_joints(model.nv, model.joint_names)
     if held_out is None:
         train_ds, held_ds = dataset.split(split)
         held_source = f"last {1 - split:.0%} of each recording (time split)"
     else:
-        train_ds, held_ds = dataset, _as_dataset(held_out)
+        train_ds, held_ds = dataset, as_dataset(held_out, "held_out")
         held_ds.check_joints(model.nv, model.joint_names)
         held_source = f"given ({held_ds.n_samples} samples, {held_ds.duration:.1f} s)"
     pi0, extra_fn = _resolve_nominal(model, nominal)

@@ -39,9 +39,9 @@ import scipy.linalg
 
 from .base import BaseParameters, compute_base_parameters
 from .compression import CompressedProblem, compress, floor_sigma, joint_sigma
-from .dataset import Dataset
+from .dataset import Dataset, as_dataset
 from .errors import OptionError, PoorExcitationError, PoorExcitationWarning, check_option
-from .model import RobotModel
+from .model import RobotModel, require_model
 from .regressor import DEFAULT_FRICTION, FrictionArg, RegressorSpec, parameter_names, prior_vector
 from .result import IdentificationResult, SolverReport
 from .statistics import autocorrelation_time, coloured_covariance
@@ -179,8 +179,8 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset], method: st
         if extra:
             raise OptionError(f"option(s) {extra} apply to method='sdp' only, not {method!r} "
                               "(OLS/WLS are unconstrained and have no prior)")
-    if not isinstance(dataset, Dataset):
-        dataset = Dataset.concatenate(list(dataset))
+    require_model(model)
+    dataset = as_dataset(dataset)
     dataset.check_joints(model.nv, model.joint_names)
     spec = RegressorSpec.make(model, friction, armature)
     base = compute_base_parameters(model, spec)

@@ -320,3 +320,11 @@ class RobotModel:
         for k in range(q.shape[0]):
             out[k] = pin.rnea(self.pin_model, data, self.configuration(q[k]), dq[k], ddq[k])
         return out
+
+
+def require_model(model: object) -> RobotModel:
+    """``model`` if it is a :class:`RobotModel`, else :class:`ModelError` saying how to make one."""
+    if not isinstance(model, RobotModel):
+        raise ModelError(f"model must be a consistid.RobotModel (RobotModel.from_urdf(path) or "
+                         f"RobotModel.example(name)), got {type(model).__name__} {model!r:.60}")
+    return model

@@ -43,9 +43,9 @@ import pinocchio as pin
 import scipy.optimize
 
 from .compression import _r_factor
-from .dataset import Dataset
+from .dataset import Dataset, as_dataset
 from .errors import ModelError, PoorExcitationWarning
-from .model import RobotModel
+from .model import RobotModel, require_model
 from .regressor import (DEFAULT_FRICTION, FrictionArg, RegressorSpec, predict_torque, regressor,
                         rigid_body_regressor)
 from .statistics import autocorrelation_time
@@ -209,7 +209,8 @@ def estimate_mounting(model: RobotModel, dataset: Dataset,
     for data that do not fit the model. Warns :class:`PoorExcitationWarning` when the data do
     not determine the tilt (the profile residual is flat in some direction).
     """
-    g0 = model.gravity
+    g0 = require_model(model).gravity
+    dataset = as_dataset(dataset)
     if not np.any(g0):
         raise ModelError(f"{model.name} has zero gravity: there is no mounting tilt to estimate")
     spec = RegressorSpec.make(model, friction, armature)

@@ -104,13 +104,18 @@ class RegressorSpec:
                 return (True,) * nv
             if selection is False or selection is None:
                 return (False,) * nv
-            if isinstance(selection, (str, int)):
+            if isinstance(selection, (str, int, np.integer)):
                 selection = (selection,)
+            if not isinstance(selection, (Sequence, np.ndarray)):
+                raise OptionError(f"joints must be True/False, a joint, or a list of joint names "
+                                  f"or indices, got {selection!r}")
             out = [False] * nv
             for j in selection:
                 if isinstance(j, str):
                     check_option("joint", j, model.joint_names)
                     j = model.joint_names.index(j)
+                if isinstance(j, bool) or not isinstance(j, (int, np.integer)):
+                    raise OptionError(f"a joint is a name or an index, got {j!r}")
                 if not 0 <= int(j) < nv:
                     raise OptionError(f"joint index {j} out of range 0..{nv - 1}")
                 out[int(j)] = True
@@ -120,6 +125,9 @@ class RegressorSpec:
             friction = {}
         if isinstance(friction, str):
             friction = (friction,)
+        if not isinstance(friction, (Mapping, Sequence)):
+            raise OptionError(f"friction must be term names, {{term: joints}} or None, got "
+                              f"{friction!r}")
         if not isinstance(friction, Mapping):
             friction = {term: True for term in friction}
         for term in friction:
