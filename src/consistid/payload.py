@@ -43,7 +43,7 @@ from .constraints import (BodyScaling, Ellipsoid, com_box, ellipsoid_lmi, mass_b
 from .dataset import Dataset
 from .errors import (ModelError, OptionError, PoorExcitationError, PoorExcitationWarning,
                      check_bounds, check_box, check_option)
-from .model import RobotModel
+from .model import RobotModel, require_model
 from .parameters import INERTIAL_NAMES, from_mass_com_inertia, pseudo_inertia, to_mass_com_inertia
 from .regressor import FrictionArg, matching_settings, regressor, resolve_spec
 from .result import IdentificationResult, SolverReport
@@ -408,6 +408,7 @@ def estimate_payload(model: RobotModel, loaded: Dataset | IdentificationResult,
         when the data do not determine every parameter the robot's motion could.
     InfeasibleError : the constraints (e.g. ellipsoid and mass bounds) admit no payload.
     """
+    require_model(model)
     _check_payload_options(frame, body, ellipsoid, com_bounds, mass_range)
     if isinstance(loaded, IdentificationResult):
         if not isinstance(robot, IdentificationResult):
@@ -548,6 +549,7 @@ def payload_from_base_change(model: RobotModel, unloaded: IdentificationResult |
         with ``identifiable`` / ``unidentified`` telling which payload parameters the change of
         coefficients determines (all 10 for a 6- or 7-DoF arm; fewer for planar or short chains).
     """
+    require_model(model)
     _check_payload_options(frame, body, ellipsoid, com_bounds, mass_range)
     beta_u, cov_u, base_u = _as_coefficients(unloaded, covariance_unloaded, "unloaded")
     beta_l, cov_l, base_l = _as_coefficients(loaded, covariance_loaded, "loaded")

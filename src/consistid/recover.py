@@ -61,7 +61,7 @@ from .dataset import Dataset
 from .errors import (IdentificationError, InconsistentParametersError, InfeasibleError,
                      ModelError, OptionError, UnrealizableCoefficientsError, check_number,
                      check_option)
-from .model import RobotModel
+from .model import RobotModel, require_model
 from .parameters import is_physically_consistent, pseudo_inertia
 from .priors import euclidean, logdet_divergence, logdet_divergence_value
 from .regressor import (FRICTION_TERMS, FrictionArg, RegressorSpec,
@@ -576,6 +576,7 @@ def recover_standard(model: RobotModel, base_params: np.ndarray | Identification
         the solver proved infeasibility (e.g. a margin too large) or failed; inaccurate solves
         warn with :class:`~consistid.errors.InaccurateSolutionWarning`.
     """
+    require_model(model)
     check_option("mode", mode, MODES)
     check_option("prior", prior, PRIORS)
     solver = check_solver(solver)
