@@ -84,6 +84,8 @@ def test_identify_on_the_estimated_mounting_recovers_the_truth(panda):
     est = estimate_mounting(panda, data, friction=FRICTION)
     tilted = ci.identify(est.model, data, method="ols", friction=FRICTION)
     assert tilted.relative_error(data)[1] < 1e-6 < level.relative_error(data)[1]
+    assert "gravity in the base frame" in tilted.summary()     # the report says which gravity
+    assert "gravity in the base frame" not in level.summary()
 
 
 def test_refuses_what_it_cannot_estimate(panda):
