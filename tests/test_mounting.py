@@ -77,7 +77,8 @@ def test_noisy_estimate_is_within_its_standard_deviation(panda):
     assert "about x" in text and "about y" in text and "→" in text
 
 
-def test_identify_on_the_estimated_mounting_recovers_the_truth(panda):
+@pytest.mark.filterwarnings("ignore:URDF has no tag for torque offsets")
+def test_identify_on_the_estimated_mounting_recovers_the_truth(panda, tmp_path):
     roll, pitch = math.radians(1.0), math.radians(0.5)
     data = _tilted_run(panda, roll, pitch, 0.0)
     level = ci.identify(panda, data, method="ols", friction=FRICTION)
@@ -86,6 +87,8 @@ def test_identify_on_the_estimated_mounting_recovers_the_truth(panda):
     assert tilted.relative_error(data)[1] < 1e-6 < level.relative_error(data)[1]
     assert "gravity in the base frame" in tilted.summary()     # the report says which gravity
     assert "gravity in the base frame" not in level.summary()
+    with pytest.warns(ci.errors.ExportWarning, match=r"no tag for gravity: .* tilted 1.12°"):
+        tilted.to_urdf(tmp_path / "tilted.urdf")
 
 
 def test_refuses_what_it_cannot_estimate(panda):
