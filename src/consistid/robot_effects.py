@@ -398,6 +398,10 @@ def effect_torque(model: RobotModel, effects: Effects, q: np.ndarray, dq: np.nda
     carries it. On an elastic joint the drive-side terms ``f_v q̇ + f_c s + I_a q̈`` are zero:
     they act on the motor, and the torque sensor at the spring reads the link-side torque
     (rigid body and payload) only. Sensor effects are not included (see :func:`sensor_torque`).
+
+    ``Y_p π_p`` is computed as the inverse dynamics (``pinocchio.rnea``) of a copy of the
+    robot that carries the payload and nothing else (every body massless, no armature): the
+    regressor is linear in the parameters, ``Y(q, q̇, q̈) π = rnea_π(q, q̇, q̈)``.
     """
     eff = effects if effects.resolved else effects.for_model(model)
     q, dq, ddq = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (q, dq, ddq))
@@ -407,12 +411,12 @@ def effect_torque(model: RobotModel, effects: Effects, q: np.ndarray, dq: np.nda
     out = np.where(eff.elastic, 0.0, drive)
     if eff.payload is not None:
         joint, p = eff.payload.parameters(model)
-        pm = model.pin_model
-        data = pm.createData()
-        cols = slice(10 * joint, 10 * joint + 10)
-        for k in range(q.shape[0]):
-            y = pin.computeJointTorqueRegressor(pm, data, model.configuration(q[k]), dq[k], ddq[k])
-            out[k] += y[:, cols] @ p
+        carrier = model.pin_model.copy()
+        for j in range(1, carrier.njoints):
+            carrier.inertias[j] = pin.Inertia.Zero()
+        carrier.inertias[joint + 1] = pin.Inertia.FromDynamicParameters(p)
+        carrier.armature = np.zeros(model.nv)
+        out += RobotModel(carrier, name=f"{model.name} payload").rnea(q, dq, ddq)
     return out
 
 
