@@ -103,15 +103,24 @@ def compress(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
                               f"shape {weights.shape}")
     factors = None
     for s, y in iter_regressor(model, dataset, spec, chunk):
-        p = y.shape[2]
         if factors is None:
-            factors = np.zeros((model.nv, p + 1, p + 1))
-        for j in range(model.nv):
-            block = np.column_stack([y[:, j, :], tau[s, j]])
-            if weights is not None:
-                block *= np.sqrt(weights[s, j])[:, None]
-            factors[j] = _r_factor(np.vstack([factors[j], block]), p + 1)
+            factors = np.zeros((model.nv, y.shape[2] + 1, y.shape[2] + 1))
+        accumulate(factors, y, tau[s], None if weights is None else weights[s])
     return CompressedProblem(factors, dataset.n_samples, np.sum(tau ** 2, axis=0))
+
+
+def accumulate(factors: np.ndarray, columns: np.ndarray, tau: np.ndarray,
+               weights: np.ndarray | None = None) -> None:
+    """One chunk into the per-joint R factors, in place: ``R̄_j ← qr([R̄_j; √w_j·[Y_j | τ_j]])``.
+
+    ``factors`` (nv, p + 1, p + 1), ``columns`` (n, nv, p), ``tau`` and ``weights`` (n, nv).
+    """
+    size = factors.shape[1]
+    for j in range(factors.shape[0]):
+        block = np.column_stack([columns[:, j, :], tau[:, j]])
+        if weights is not None:
+            block *= np.sqrt(weights[:, j])[:, None]
+        factors[j] = _r_factor(np.vstack([factors[j], block]), size)
 
 
 def floor_sigma(sigma: np.ndarray, problem: CompressedProblem) -> np.ndarray:

@@ -42,7 +42,7 @@ import numpy as np
 import pinocchio as pin
 import scipy.optimize
 
-from .compression import _r_factor
+from .compression import accumulate
 from .dataset import Dataset, as_dataset
 from .errors import ModelError, PoorExcitationWarning
 from .model import RobotModel, require_model
@@ -151,9 +151,7 @@ def _compress(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
         rest = np.zeros_like(dq)
         blocks = [regressor(weightless, q, dq, ddq, spec).reshape(-1, model.nv, p)]
         blocks += [rigid_body_regressor(m, q, rest, rest) for m in unit]
-        for j in range(model.nv):
-            a = np.column_stack([b[:, j, :] for b in blocks] + [tau[s, j]])
-            factors[j] = _r_factor(np.vstack([factors[j], a]), width)
+        accumulate(factors, np.concatenate(blocks, axis=2), tau[s])
     return factors
 
 
