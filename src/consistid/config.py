@@ -27,6 +27,7 @@ code. Example (``examples/kuka_lwr4/identify.toml``)::
     friction = ["coulomb", "viscous", "offset"]
     # neighbourhood = {mass = 0.2, com = 0.02, inertia = 0.3}
     # ellipsoids = {lwr_6_link = {center = [0, 0, 0.05], semi_axes = [0.1, 0.1, 0.1]}}
+    # or, with constraints = "ellipsoid": ellipsoids = "collision"  (from the URDF's geometry)
 
 Relative paths are resolved against ``root``, itself relative to the configuration file's folder
 (default: that folder), never against the current directory, so a configuration works from
@@ -212,7 +213,8 @@ def config_identify(config: RunConfig) -> dict[str, Any]:
     """The keyword arguments of ``[identify]`` for :func:`consistid.identify` (unknown keys raise
     :class:`ConfigError`). TOML tables become objects: ``neighbourhood = {mass, com, inertia}``
     a :class:`~consistid.priors.Neighbourhood`, ``ellipsoids = {body = {center, semi_axes}}``
-    :class:`~consistid.constraints.Ellipsoid` objects."""
+    :class:`~consistid.constraints.Ellipsoid` objects (``ellipsoids = "collision"`` passes on:
+    the URDF's collision ellipsoids, :func:`consistid.shapes.collision_ellipsoids`)."""
     options = config.table("identify", identify_keys(), required=False)
     if "neighbourhood" in options:
         from .priors import Neighbourhood
@@ -220,7 +222,7 @@ def config_identify(config: RunConfig) -> dict[str, Any]:
         t = config.check_table("identify.neighbourhood", options["neighbourhood"],
                                ("mass", "com", "inertia"))
         options["neighbourhood"] = Neighbourhood(**t)
-    if "ellipsoids" in options:
+    if "ellipsoids" in options and options["ellipsoids"] != "collision":
         options["ellipsoids"] = {
             body: config_ellipsoid(config, f"identify.ellipsoids.{body}", value)
             for body, value in config.check_table("identify.ellipsoids",

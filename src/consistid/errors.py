@@ -139,6 +139,10 @@ class InaccurateSolutionWarning(UserWarning):
     """The solver stopped at reduced accuracy (status ``optimal_inaccurate``)."""
 
 
+class GeometryWarning(UserWarning):
+    """A body has no collision geometry, so no bounding shape (:mod:`consistid.shapes`)."""
+
+
 class ExportWarning(UserWarning):
     """Some identified values have no place in the target format (named in the message)."""
 

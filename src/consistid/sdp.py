@@ -122,7 +122,7 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
                  prior_uncertainty: float | None = None,
                  prior_weights: np.ndarray | None = None,
                  neighbourhood: priors.Neighbourhood | None = None,
-                 ellipsoids: Mapping[str, cons.Ellipsoid] | None = None,
+                 ellipsoids: Mapping[str, cons.Ellipsoid] | str | None = None,
                  com_boxes: Mapping[str, tuple[Sequence[float], Sequence[float]]] | None = None,
                  mass_bounds: Mapping[str, tuple[float | None, float | None]] | None = None,
                  total_mass: tuple[float | None, float | None] | None = None,
@@ -153,7 +153,12 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
         (10·nb, 10·nb) full; default the log-det metric at the prior (``prior="euclidean"``
         only).
     neighbourhood : hard bounds around each prior body (:class:`~consistid.priors.Neighbourhood`).
-    ellipsoids : ``{body: Ellipsoid}``, for (and only for) the bodies at level ``"ellipsoid"``.
+    ellipsoids : ``{body: Ellipsoid}``, for (and only for) the bodies at level ``"ellipsoid"``;
+        or ``"collision"``: the minimum-volume ellipsoids of the URDF's collision geometry
+        (:func:`consistid.shapes.collision_ellipsoids`) for the bodies at level
+        ``"ellipsoid"``. With ``constraints="ellipsoid"`` (a string), bodies without collision
+        geometry then get ``"pseudo-inertia"`` (a :class:`~consistid.errors.GeometryWarning`
+        names them); a ``{body: "ellipsoid"}`` body without geometry is refused.
     com_boxes : ``{body: (lower, upper)}`` CoM boxes in the body frame (m).
     mass_bounds : ``{body: (lower, upper)}`` in kg (``None`` for no bound).
     total_mass : ``(lower, upper)`` bounds on the sum of the body masses (kg).
@@ -224,6 +229,7 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
     gamma = 0.0 if prior is None else (gamma_default if prior_weight is None
                                        else check_number("prior_weight", prior_weight, 0))
     _check_bound_options(model, constraints, com_boxes, mass_bounds, total_mass)
+    constraints, ellipsoids = _collision_levels(model, constraints, ellipsoids)
     prior_vec = prior_vector(model, spec)
     setup = _make_setup(model, spec, prior_vec, constraints, prior, gamma, prior_weights,
                         ellipsoids, neighbourhood, com_boxes, mass_bounds, total_mass,
@@ -350,6 +356,31 @@ def _body_levels(model: RobotModel, constraints: str | Mapping[str, str]) -> tup
     for body, level in constraints.items():
         check_option(f"constraints[{body!r}]", level, cons.LEVELS)
     return tuple(constraints.get(b, "pseudo-inertia") for b in model.body_names)
+
+
+def _collision_levels(model: RobotModel, constraints: str | Mapping[str, str],
+                      ellipsoids: Mapping[str, cons.Ellipsoid] | str | None
+                      ) -> tuple[str | Mapping[str, str], Mapping[str, cons.Ellipsoid] | None]:
+    """``(constraints, ellipsoids)`` with ``ellipsoids="collision"`` resolved (see
+    :func:`identify_sdp`); other values pass unchanged."""
+    if not isinstance(ellipsoids, str):
+        return constraints, ellipsoids
+    check_option("ellipsoids", ellipsoids, ("collision",))
+    levels = _body_levels(model, constraints)
+    if "ellipsoid" not in levels:
+        raise OptionError("ellipsoids='collision' bounds the bodies at level 'ellipsoid', and "
+                          "none is: use constraints='ellipsoid' or {body: 'ellipsoid'}")
+    from .shapes import collision_ellipsoids
+
+    found = collision_ellipsoids(model)
+    missing = [b for b, lvl in zip(model.body_names, levels)
+               if lvl == "ellipsoid" and b not in found]
+    if missing and not isinstance(constraints, str):
+        raise OptionError(f"bodies {missing} have constraints='ellipsoid' but no <collision> "
+                          "geometry for ellipsoids='collision'")
+    chosen = {b: ("pseudo-inertia" if b in missing else lvl)
+              for b, lvl in zip(model.body_names, levels)}
+    return chosen, {b: e for b, e in found.items() if chosen[b] == "ellipsoid"}
 
 
 def _check_bodies(model: RobotModel, *mappings: Mapping[str, Any] | None) -> None:
