@@ -29,7 +29,7 @@ import pinocchio as pin
 from ..base import BaseParameters
 from ..errors import check_option
 from ..model import RobotModel
-from ..regressor import RegressorSpec, joint_columns, prior_vector
+from ..regressor import RegressorSpec, prior_vector, regressor
 
 CRITERIA = ("cond", "d-opt", "e-opt")
 
@@ -83,7 +83,7 @@ def prior_column_scale(model: RobotModel, base: BaseParameters, spec: RegressorS
 
 
 def regressor_sensitivity(model: RobotModel, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray,
-                          spec: RegressorSpec, step: float = 1e-6
+                          spec: RegressorSpec, step: float = 1e-6, y: np.ndarray | None = None
                           ) -> tuple[np.ndarray, np.ndarray]:
     r"""The regressor per sample and its derivative w.r.t. the sample's state.
 
@@ -92,20 +92,23 @@ def regressor_sensitivity(model: RobotModel, q: np.ndarray, dq: np.ndarray, ddq:
     is linear in ``q̈`` (differenced with a unit step, exact), quadratic in ``q̇`` and smooth in
     ``q`` (forward differences with ``step``); the per-joint columns are differentiated
     analytically (``∂ sign(q̇)/∂q̇ = 0``, ``∂ sin q/∂q = cos q``, ``∂ cos q/∂q = −sin q``).
+    ``y``: ``Y`` at these samples if already computed (``regressor(...)`` reshaped to
+    ``(N, nv, p)``); it is then returned as is and not computed again.
     """
     m = model.pin_model
     data = m.createData()
     n, nv = q.shape
     ni = model.n_inertial
     p = ni + spec.n_joint_columns
-    y = np.zeros((n, nv, p))
+    if y is None:
+        y = regressor(model, q, dq, ddq, spec).reshape(n, nv, p)
+    rigid = np.ascontiguousarray(y[:, :, :ni])
     dy = np.zeros((n, 3 * nv, nv, p))
     eye = np.eye(nv)
     for i in range(n):
         qi, vi, ai = q[i], dq[i], ddq[i]
         cfg = model.configuration(qi)
-        y0 = pin.computeJointTorqueRegressor(m, data, cfg, vi, ai).copy()
-        y[i, :, :ni] = y0
+        y0 = rigid[i]
         for k in range(nv):
             cfg_k = model.configuration(qi + step * eye[k])
             dy[i, k, :, :ni] = (pin.computeJointTorqueRegressor(m, data, cfg_k, vi, ai)
@@ -116,7 +119,6 @@ def regressor_sensitivity(model: RobotModel, q: np.ndarray, dq: np.ndarray, ddq:
             dy[i, 2 * nv + k, :, :ni] = pin.computeJointTorqueRegressor(
                 m, data, cfg, vi, ai + eye[k]) - y0
     if spec.n_joint_columns:
-        y[:, :, ni:] = joint_columns(q, dq, ddq, spec)
         for c, (_, j, suffix) in enumerate(spec.columns, start=ni):
             if suffix == "fv":
                 dy[:, nv + j, j, c] = 1.0

@@ -211,11 +211,18 @@ class _DesignProblem(_FeasibilityProblem):
             return float(np.log(value))
         return value / self.base.n_base if self.criterion == "d-opt" else value
 
+    def _regressor(self, x: np.ndarray) -> np.ndarray:
+        """The regressor per grid sample, (N, nv, p), computed once per point: the value and
+        the gradient at the same ``x`` (SLSQP asks for both at each iterate) share it."""
+        def compute(x: np.ndarray) -> np.ndarray:
+            s = self.states(x)
+            return regressor(self.model, s[0], s[1], s[2], self.spec).reshape(
+                self.t.size, self.model.nv, -1)
+        return self._cached("regressor", x, compute)
+
     def _compute_value(self, x: np.ndarray) -> float:
         self.n_evaluations += 1
-        s = self.states(x)
-        y = regressor(self.model, s[0], s[1], s[2], self.spec).reshape(
-            self.t.size, self.model.nv, -1)
+        y = self._regressor(x)
         value, _ = criterion_and_gradient(self._weighted(y), self.criterion, self.t.size,
                                           gradient=False)
         if self.torque_weight:
@@ -227,7 +234,8 @@ class _DesignProblem(_FeasibilityProblem):
         self.n_gradients += 1
         s = self.states(x)
         n, nv = self.t.size, self.model.nv
-        y, dy = regressor_sensitivity(self.model, s[0], s[1], s[2], self.spec)
+        y, dy = regressor_sensitivity(self.model, s[0], s[1], s[2], self.spec,
+                                      y=self._regressor(x))
         value, grad_a = criterion_and_gradient(self._weighted(y), self.criterion, n)
         grad_y = grad_a.reshape(n, nv, -1) * self.row_weight[None, :, None] * self.col_scale
         dstate = np.einsum("ijc,isjc->is", grad_y, dy[..., self.base.independent])  # (N, 3nv)
