@@ -334,3 +334,20 @@ output = "report"
     out = capsys.readouterr().out
     assert "coulomb" in out and "panda_joint4" in out
     assert (tmp_path / "report" / "report.html").is_file()
+
+
+def test_gap_data_concatenate_stacks_the_rigid_regressor(panda):
+    """GapData.concatenate hands the parts' stacked regressor to the constructor
+    (``rigid_regressor``): equal to recomputing it on the stacked samples, with the derived
+    signals (nominal torque, tilted gravity) too; a regressor of the wrong shape is refused."""
+    parts = [GapData(panda, excitation_run(panda, duration=0.1, rate=RATE, torque_noise=0.0,
+                                           seed=s).dataset, panda.prior_parameters)
+             for s in (8, 9)]
+    both = GapData.concatenate(parts)
+    fresh = GapData(panda, both.dataset, panda.prior_parameters)
+    assert both.rigid_regressor is not None and fresh.rigid_regressor is None
+    np.testing.assert_allclose(both.rigid, fresh.rigid, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(both.tau_nom, fresh.tau_nom, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(both.tilt_gravity, fresh.tilt_gravity, rtol=0, atol=1e-10)
+    with pytest.raises(ci.DatasetError, match="rigid_regressor has shape"):
+        GapData(panda, both.dataset, panda.prior_parameters, rigid_regressor=both.rigid[1:])

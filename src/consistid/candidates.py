@@ -95,7 +95,7 @@ Effects and their signatures (what each looks like in the residual ``r = τ − 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import Callable, Sequence
 
@@ -204,6 +204,13 @@ class GapData:
     nominal_extra : (N, nv) torque the nominal model adds beyond the rigid body (e.g. the friction
         of an :class:`~consistid.IdentificationResult` used as nominal), or ``None``.
     derivative_window : Savitzky–Golay window (s) for ``τ̇_nom`` and ``τ̈_nom``.
+    rigid_regressor : the rigid-body regressor of ``dataset``'s samples, (N, nv, 10·nbodies), if
+        already computed (e.g. stacked from parts by :meth:`concatenate`); default computed on
+        first use of :attr:`rigid`. Not checked against the samples, only its shape.
+
+    Raises
+    ------
+    DatasetError : ``rigid_regressor`` of the wrong shape.
     """
 
     model: RobotModel
@@ -211,12 +218,21 @@ class GapData:
     nominal: np.ndarray
     nominal_extra: np.ndarray | None = None
     derivative_window: float = DERIVATIVE_WINDOW
+    rigid_regressor: np.ndarray | None = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        expected = (self.dataset.n_samples, self.model.nv, self.model.n_inertial)
+        if self.rigid_regressor is not None and np.shape(self.rigid_regressor) != expected:
+            raise DatasetError(f"GapData.rigid_regressor has shape "
+                               f"{np.shape(self.rigid_regressor)}; the dataset's samples need "
+                               f"{expected} (N, nv, 10·nbodies)")
 
     @classmethod
     def concatenate(cls, parts: Sequence["GapData"]) -> "GapData":
         """The parts stacked as :meth:`Dataset.concatenate` stacks their datasets (same model,
         nominal parameters and derivative window), with the rigid-body regressor of the parts
-        (computed once each) stacked instead of recomputed on every sample."""
+        (computed once each) stacked and passed as ``rigid_regressor`` instead of recomputed on
+        every sample (it is per sample, so stacking equals recomputing)."""
         first = parts[0]
         if any(p.model is not first.model or not np.array_equal(p.nominal, first.nominal)
                or p.derivative_window != first.derivative_window
@@ -225,11 +241,9 @@ class GapData:
                              "parameters, nominal extra torque or derivative window")
         extra = (None if first.nominal_extra is None
                  else np.concatenate([p.nominal_extra for p in parts]))
-        out = cls(first.model, Dataset.concatenate([p.dataset for p in parts]), first.nominal,
-                  extra, first.derivative_window)
-        # Per-sample, so stacking equals recomputing; filled in as the cached property's value.
-        out.__dict__["rigid"] = np.concatenate([p.rigid for p in parts])
-        return out
+        return cls(first.model, Dataset.concatenate([p.dataset for p in parts]), first.nominal,
+                   extra, first.derivative_window,
+                   rigid_regressor=np.concatenate([p.rigid for p in parts]))
 
     @property
     def n(self) -> int:
@@ -245,7 +259,10 @@ class GapData:
 
     @cached_property
     def rigid(self) -> np.ndarray:
-        """Rigid-body regressor ``(N, nv, 10·nbodies)``."""
+        """Rigid-body regressor ``(N, nv, 10·nbodies)``: ``rigid_regressor`` if given, else
+        computed (once)."""
+        if self.rigid_regressor is not None:
+            return np.asarray(self.rigid_regressor, dtype=float)
         d = self.dataset
         return rigid_body_regressor(self.model, d.q, d.dq, d.ddq)
 
