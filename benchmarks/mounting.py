@@ -1,0 +1,69 @@
+"""Base-tilt estimation (consistid.estimate_mounting) on simulated Panda data: accuracy, honesty of
+the reported σ, and time, a seeded table.
+
+Each run: a Panda whose base is tilted by a known (roll, pitch) — gravity turned in its base frame
+— follows a random 5-harmonic excitation for 10 s at 200 Hz (ideal simulation, Coulomb, viscous
+and offset per joint), with white torque noise; the tilt is estimated against the level URDF.
+Prints per noise level: the largest angle error, the spread of error / reported σ over seeds
+(≈ 1 when σ is honest), the training error before → after, and the time per estimate.
+
+Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/mounting.py [--seeds 12]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+
+import numpy as np
+
+import consistid as ci
+from consistid.mounting import estimate_mounting, gravity_from_tilt
+from consistid.report import table
+
+FRICTION = ("coulomb", "viscous", "offset")
+TILT = (math.radians(-1.0), math.radians(2.0))
+
+
+def run(model: ci.RobotModel, noise: float, seed: int) -> ci.Dataset:
+    truth = model.with_gravity(gravity_from_tilt(model.gravity, TILT))
+    joint_terms = np.concatenate([np.full(7, 0.3), np.full(7, 0.2), np.linspace(-0.2, 0.2, 7)])
+    return ci.simulate.excitation_run(truth, np.concatenate([model.prior_parameters, joint_terms]),
+                                      duration=10.0, rate=200.0, torque_noise=noise,
+                                      friction=FRICTION, seed=seed).dataset
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", type=int, default=12)
+    args = ap.parse_args()
+    model = ci.RobotModel.example("panda")
+    rows = []
+    for noise in (0.0, 0.05, 0.2, 1.0):
+        errors, z, times, before, after = [], [], [], [], []
+        for seed in range(args.seeds if noise > 0 else 1):
+            data = run(model, noise, seed)
+            t0 = time.perf_counter()
+            est = estimate_mounting(model, data, friction=FRICTION)
+            times.append(time.perf_counter() - t0)
+            err = est.angles - np.array(TILT)
+            errors.append(np.abs(err))
+            z.append(err / est.std)
+            before.append(est.relative_error[0])
+            after.append(est.relative_error[1])
+        z = np.array(z)
+        rows.append([noise, len(times), math.degrees(np.max(errors)),
+                     " / ".join(f"{s:.2f}" for s in z.std(axis=0)) if noise > 0 else "-",
+                     f"{100 * np.median(before):.3g} → {100 * np.median(after):.3g}",
+                     np.median(times)])
+    print(f"Panda, base tilted {math.degrees(TILT[0]):+.1f}° about x and "
+          f"{math.degrees(TILT[1]):+.1f}° about y; 10 s at 200 Hz per run")
+    print(table(["torque noise σ (N·m)", "runs", "max |angle error| (°)",
+                 "std of error/σ (x / y)", "training error % (level → tilt)",
+                 "time per estimate (s)"], rows, floatfmt=".3g"))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
