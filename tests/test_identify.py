@@ -124,6 +124,14 @@ def test_wrong_argument_types_are_named(panda, runs):
     for args, kw, error, message in cases:
         with pytest.raises(error, match=message):
             ci.identify(*args, method="ols", **kw)
+    with pytest.raises(ci.DatasetError, match="held_out is an empty list"):
+        ci.diagnose(panda, data, held_out=[])
+    # numpy spellings are accepted like the Python ones; any iterable of Datasets stacks
+    a = ci.identify(panda, (d for d in (data,)), method="ols",
+                    friction=np.array(["coulomb", "offset"]), armature=np.True_)
+    b = ci.identify(panda, [data], method="ols", friction=("coulomb", "offset"), armature=True)
+    assert a.parameter_names == b.parameter_names
+    np.testing.assert_allclose(a.base_parameters, b.base_parameters)
     # one joint alone, by name or index, is that joint
     one = ci.identify(panda, data, method="ols", friction=None, armature="panda_joint7")
     assert one.parameter_names[-1] == "panda_joint7.Ia"

@@ -158,6 +158,13 @@ def test_wrongly_typed_options_are_named(panda, hidden):
             estimate_payload(panda, hidden["loaded_data"], robot=hidden["unloaded"], **options)
         with pytest.raises(OptionError, match=message):
             payload_from_base_change(panda, hidden["unloaded"], hidden["loaded_res"], **options)
+    # a bounds array is a pair like a tuple
+    estimate_payload(panda, hidden["loaded_data"], robot=hidden["unloaded"],
+                     mass_range=np.array([0.5, 3.0]))
+    # a robot identified under another gravity (a tilted mounting) is refused with the level model
+    with pytest.raises(ci.ModelError, match="identified with gravity"):
+        estimate_payload(panda.with_gravity([0.1, 0.0, -9.81]), hidden["loaded_data"],
+                         robot=hidden["unloaded"])
 
 
 def test_one_covariance_only_is_noted(panda, hidden):

@@ -67,8 +67,8 @@ def solve(problem: cp.Problem, what: str, solver: str = DEFAULT_SOLVER,
     except (TypeError, ValueError) as exc:
         if not options:
             raise
-        raise OptionError(f"{what}: solver {solver} refused its options {options}: "
-                          f"{exc}") from exc
+        raise OptionError(f"{what}: solver {solver} could not run with the options "
+                          f"{options}: {exc}") from exc
     wall = time.perf_counter() - start
     stats = problem.solver_stats
     status = problem.status

@@ -292,10 +292,16 @@ def as_dataset(data: "Dataset | Sequence[Dataset]", name: str = "dataset") -> Da
     anything else raises :class:`DatasetError` naming ``name`` and what it got."""
     if isinstance(data, Dataset):
         return data
-    if isinstance(data, (str, bytes)) or not isinstance(data, Sequence):
+    try:
+        if isinstance(data, (str, bytes)):
+            raise TypeError
+        parts = list(data)  # type: ignore[arg-type]
+    except TypeError:
         raise DatasetError(f"{name} must be a Dataset or a list of Datasets, got "
-                           f"{type(data).__name__} {data!r:.60}")
-    for k, d in enumerate(data):
+                           f"{type(data).__name__} {data!r:.60}") from None
+    if not parts:
+        raise DatasetError(f"{name} is an empty list: give at least one Dataset")
+    for k, d in enumerate(parts):
         if not isinstance(d, Dataset):
             raise DatasetError(f"{name}[{k}] is a {type(d).__name__}, not a Dataset")
-    return Dataset.concatenate(list(data))
+    return Dataset.concatenate(parts)

@@ -97,8 +97,12 @@ def check_number(name: str, value: object, minimum: float | None = None, *,
                  strict: bool = False, integer: bool = False) -> float:
     """``value`` as a finite number (``≥ minimum``, or ``> minimum`` when ``strict``; an integer
     when ``integer``), else :class:`OptionError` naming ``name``. Booleans are not numbers."""
-    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
-    ok = ok and bool(np.isfinite(value)) and (not integer or float(value).is_integer())
+    ok = isinstance(value, (int, float, np.integer, np.floating)) \
+        and not isinstance(value, (bool, np.bool_))
+    try:
+        ok = ok and bool(np.isfinite(float(value))) and (not integer or float(value).is_integer())
+    except OverflowError:                       # an int beyond float's range
+        ok = False
     if ok and minimum is not None:
         ok = value > minimum if strict else value >= minimum
     if not ok:
@@ -110,7 +114,8 @@ def check_number(name: str, value: object, minimum: float | None = None, *,
 
 def check_bounds(name: str, value: object) -> tuple[float | None, float | None]:
     """A ``(lower, upper)`` pair of numbers or ``None`` (no bound), else :class:`OptionError`."""
-    if isinstance(value, (str, bytes)) or not isinstance(value, Sequence) or len(value) != 2:
+    if isinstance(value, (str, bytes)) or not isinstance(value, (Sequence, np.ndarray)) \
+            or np.shape(value) != (2,):
         raise OptionError(f"{name} must be a pair (lower, upper) of numbers or None, got "
                           f"{value!r}")
     lo, hi = (None if v is None else check_number(f"{name} bound", v) for v in value)

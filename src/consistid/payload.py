@@ -427,6 +427,10 @@ def estimate_payload(model: RobotModel, loaded: Dataset | IdentificationResult,
     if isinstance(robot, IdentificationResult):
         spec = resolve_spec(model, friction, armature, given=robot.spec)
         theta = robot.parameters
+        if not np.allclose(robot.model.gravity, model.gravity):
+            raise ModelError(f"robot was identified with gravity {robot.model.gravity} but model "
+                             f"has {model.gravity} (e.g. a tilt from estimate_mounting): pass "
+                             "robot.model as model")
     else:
         spec = resolve_spec(model, friction, armature)
         theta = np.asarray(robot, dtype=float)

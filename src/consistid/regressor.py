@@ -100,9 +100,9 @@ class RegressorSpec:
         nv = model.nv
 
         def mask(selection: Sequence[int | str] | bool) -> tuple[bool, ...]:
-            if selection is True:
-                return (True,) * nv
-            if selection is False or selection is None:
+            if isinstance(selection, (bool, np.bool_)):
+                return (bool(selection),) * nv
+            if selection is None:
                 return (False,) * nv
             if isinstance(selection, (str, int, np.integer)):
                 selection = (selection,)
@@ -125,7 +125,7 @@ class RegressorSpec:
             friction = {}
         if isinstance(friction, str):
             friction = (friction,)
-        if not isinstance(friction, (Mapping, Sequence)):
+        if not isinstance(friction, (Mapping, Sequence, np.ndarray)):
             raise OptionError(f"friction must be term names, {{term: joints}} or None, got "
                               f"{friction!r}")
         if not isinstance(friction, Mapping):

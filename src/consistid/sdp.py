@@ -62,7 +62,7 @@ from .compression import CompressedProblem, compress, floor_sigma, joint_sigma
 from .conic import DEFAULT_SOLVER, check_solver, solve
 from .dataset import Dataset
 from .errors import (IdentificationError, InconsistentParametersError, InfeasibleError,
-                     OptionError, PoorExcitationWarning, check_bounds, check_box,
+                     ModelError, OptionError, PoorExcitationWarning, check_bounds, check_box,
                      check_number, check_option)
 from .identify import COND_WARN, RANK_RTOL
 from .model import RobotModel
@@ -372,7 +372,12 @@ def _collision_levels(model: RobotModel, constraints: str | Mapping[str, str],
                           "none is: use constraints='ellipsoid' or {body: 'ellipsoid'}")
     from .shapes import collision_ellipsoids
 
-    found = collision_ellipsoids(model)
+    try:
+        found = collision_ellipsoids(model)
+    except ModelError as exc:
+        raise ModelError(f"{exc} (ellipsoids='collision' reads the meshes with no package_dirs: "
+                         "build them with consistid.shapes.collision_ellipsoids(model, "
+                         "package_dirs=[...]) and pass that dict as ellipsoids=)") from exc
     missing = [b for b, lvl in zip(model.body_names, levels)
                if lvl == "ellipsoid" and b not in found]
     if missing and not isinstance(constraints, str):
