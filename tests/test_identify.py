@@ -193,6 +193,26 @@ def test_coloured_covariance_matches_spread_over_seeds(panda, method):
     assert np.all(iid[best] / spread[best] < 0.35)
 
 
+def test_coloured_ols_covariance_follows_each_joints_own_noise(panda):
+    # AR(1) noise 15× larger on joints 1–3 than on 4–7: OLS weighs the joints alike, so the
+    # sandwich needs each joint's residual variance; with one pooled variance the parameters
+    # that the quiet joints determine got σ up to 2.5× their spread (5–95 %: 0.46–2.49).
+    from dataclasses import replace
+
+    ideal = ci.simulate.excitation_run(panda, duration=10.0, rate=200.0, torque_noise=0.0,
+                                       seed=0).dataset
+    scale = np.array([0.3, 0.3, 0.3, 0.02, 0.02, 0.02, 0.02])
+    est, std = [], []
+    for seed in range(8):
+        noise = _ar1(ideal.tau.shape, 0.95, 1.0, np.random.default_rng(100 + seed)) * scale
+        res = ci.identify(panda, replace(ideal, tau=ideal.tau + noise), method="ols",
+                          friction=None)
+        est.append(res.base_parameters), std.append(res.base_std)
+    ratio = np.mean(std, axis=0) / np.std(est, axis=0, ddof=1)
+    low, high = np.percentile(ratio, [5, 95])              # measured 0.52, 1.40
+    assert 0.4 < low and high < 1.8
+
+
 def test_coloured_covariance_on_white_noise_equals_iid(panda):
     run = ci.simulate.excitation_run(panda, duration=10.0, rate=200.0, torque_noise=0.05, seed=3)
     a = ci.identify(panda, run.dataset, method="wls", friction=None, covariance="iid")

@@ -97,3 +97,15 @@ def test_refuses_what_it_cannot_estimate(panda):
         estimate_mounting(panda.with_gravity(np.zeros(3)), data)
     with pytest.raises(ci.JointCountError):
         estimate_mounting(ci.RobotModel.example("ur5"), data)
+
+
+def test_a_direction_the_data_cannot_see_is_kept_level_with_infinite_std():
+    # the double pendulum swings in a vertical plane: turning gravity within that plane shows
+    # in its torques, turning it out of the plane does not (to first order)
+    model = ci.RobotModel.example("double_pendulum")
+    data = ci.simulate.excitation_run(model, duration=5.0, rate=100.0, torque_noise=0.0,
+                                      seed=0).dataset
+    with pytest.warns(ci.PoorExcitationWarning, match="1 of 2 directions"):
+        est = estimate_mounting(model, data, friction=None)
+    assert np.sum(np.isinf(est.std)) == 1
+    assert np.allclose(est.angles, 0.0, atol=1e-9) and np.allclose(est.gravity, model.gravity)

@@ -130,10 +130,16 @@ def floor_sigma(sigma: np.ndarray, problem: CompressedProblem) -> np.ndarray:
     return np.maximum(np.asarray(sigma, dtype=float), SIGMA_FLOOR * np.maximum(rms, 1e-300))
 
 
-def joint_sigma(sum_squares: np.ndarray, n_samples: int, n_parameters: int) -> np.ndarray:
+def joint_sigma(sum_squares: np.ndarray, n_samples: int, n_parameters: int,
+                tau: np.ndarray | None = None) -> np.ndarray:
     """Per-joint noise standard deviation from residual sums of squares (Gautier 1997):
-    ``σ_j = sqrt(‖ρ_j‖² / (N − b/nv))``, the ``b`` fitted parameters' degrees of freedom shared
-    evenly among the ``nv`` joints (the denominator is kept ≥ 1). Not floored: see
-    :func:`floor_sigma`."""
+    ``σ_j = sqrt(‖ρ_j‖² / (N − τ_j b/nv))``, the ``b`` fitted parameters' degrees of freedom
+    shared evenly among the ``nv`` joints (the denominator is kept ≥ 1). ``τ_j`` (default 1) is
+    the residual's autocorrelation time (:func:`consistid.statistics.autocorrelation_time`):
+    with errors correlated over ``τ_j`` samples a fit absorbs ``≈ τ_j`` times more of their
+    variance per parameter (``E‖ρ_j‖² = tr((1 − P) Σ_j) ≈ σ_j² (N − τ_j b/nv)`` for columns that
+    vary slowly against the correlation). Not floored: see :func:`floor_sigma`."""
     sum_squares = np.asarray(sum_squares, dtype=float)
-    return np.sqrt(sum_squares / max(n_samples - n_parameters / sum_squares.size, 1.0))
+    tau = np.ones_like(sum_squares) if tau is None else np.asarray(tau, dtype=float)
+    return np.sqrt(sum_squares / np.maximum(n_samples - tau * n_parameters / sum_squares.size,
+                                            1.0))

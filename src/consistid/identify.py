@@ -20,10 +20,12 @@ integrated autocorrelation time of its residual (:func:`consistid.statistics.aut
 one extra pass over the data), through the sandwich
 :func:`consistid.statistics.coloured_covariance`
 
-.. math::  \operatorname{cov}(\hat\beta) = C \Big(\sum_j τ_j w_j R_{jb}^\top R_{jb}\Big) C,
+.. math::  \operatorname{cov}(\hat\beta) = C \Big(\sum_j τ_j w_j^2 v_j R_{jb}^\top R_{jb}\Big) C,
 
-``C`` the covariance above, ``w_j = 1/σ_j²`` the weights it was computed with and ``R_{jb}`` joint
-``j``'s R factor restricted to the base columns (``Y_{jb}^\top Y_{jb} = R_{jb}^\top R_{jb}``).
+``C`` the covariance above, ``w_j = 1/σ_j²`` the weights it was computed with, ``v_j`` joint
+``j``'s own residual variance (:func:`consistid.compression.joint_sigma` with ``τ_j``: OLS
+weighs the joints alike whatever their noise) and ``R_{jb}`` joint ``j``'s R factor restricted
+to the base columns (``Y_{jb}^\top Y_{jb} = R_{jb}^\top R_{jb}``).
 The estimate itself is unchanged. On white noise ``τ_j ≈ 1`` and the two agree.
 """
 
@@ -210,13 +212,18 @@ def with_covariance(result: IdentificationResult, problem: CompressedProblem, da
     if covariance == "iid":
         return dataclasses.replace(result, details={
             **result.details, "covariance": "iid (every row an independent sample)"})
-    tau = autocorrelation_time(dataset, result.residual(dataset))
+    residual = result.residual(dataset)
+    tau = autocorrelation_time(dataset, residual)
     cols = result.base.independent
     r_b = problem.factors[:, :-1, :-1][:, :, cols]
     grams = np.einsum("jkp,jkq->jpq", r_b, r_b)
     sigma = np.asarray(result.sigma, dtype=float)
     weights = np.where(sigma > 0, 1.0 / np.where(sigma > 0, sigma, 1.0) ** 2, 1.0)
-    cov = coloured_covariance(result.base_covariance, grams, weights, tau)
+    # each joint's own residual variance (OLS weighs joints alike whatever their noise)
+    variances = joint_sigma(np.sum(residual ** 2, axis=0), dataset.n_samples,
+                            result.base.n_base, tau) ** 2
+    cov = coloured_covariance(result.base_covariance, grams, weights, tau,
+                              np.where(variances > 0, variances, 1.0 / weights))
     shown = ", ".join(f"{n} {t:.3g}" for n, t in zip(result.model.joint_names, tau))
     return dataclasses.replace(result, base_covariance=cov, details={
         **result.details,

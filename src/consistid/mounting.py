@@ -23,10 +23,14 @@ fixed. The data enter once: per joint, the R factor of
 evaluation of the profile costs a small dense solve whatever the number of samples.
 
 The least squares is unconstrained (all base parameters free), so the estimate does not lean on
-any prior. Its covariance is ``2 s² H⁻¹`` with ``H`` the profile residual's Hessian (finite
-differences) and ``s²`` the residual variance, widened by the residual's autocorrelation time
-(:func:`consistid.statistics.autocorrelation_time`; filtered torque logs have correlated
-residuals, and counting their rows as independent would make the ± far too small).
+any prior. Its covariance is the sandwich ``G⁻¹ (Σ_j τ_j v_j G_j) G⁻¹`` with ``G_j = J_jᵀJ_j``
+joint ``j``'s Gauss–Newton matrix (``J_j`` the profile residual's Jacobian in the angles, by
+central differences; ``G = Σ_j G_j`` is half the profile Hessian), ``v_j`` the joint's residual
+variance and ``τ_j`` its autocorrelation time (:func:`consistid.statistics.coloured_covariance`,
+:func:`consistid.statistics.autocorrelation_time`): filtered torque logs have correlated
+residuals, and counting their rows as independent would make the ± far too small. ``τ_j`` is
+estimated from ``N`` samples and biased low when the correlation is long (``N/τ_j`` of the order
+of the parameters): the ± is then optimistic (``benchmarks/mounting.py`` measures it).
 
 What it shows on the KUKA LWR4+ logs (``benchmarks/real_kuka.py``): about 1° of tilt, which the
 inertial parameters cannot imitate once two different trajectories must be fitted together.
@@ -42,16 +46,16 @@ import numpy as np
 import pinocchio as pin
 import scipy.optimize
 
-from .compression import accumulate
+from .compression import accumulate, joint_sigma
 from .dataset import Dataset, as_dataset
 from .errors import ModelError, PoorExcitationWarning
 from .model import RobotModel, require_model
 from .regressor import (DEFAULT_FRICTION, FrictionArg, RegressorSpec, predict_torque, regressor,
                         rigid_body_regressor)
-from .statistics import autocorrelation_time
+from .statistics import autocorrelation_time, coloured_covariance
 
-#: Finite-difference step (rad) for the profile residual's Hessian.
-HESSIAN_STEP = 1e-4
+#: Finite-difference step (rad) for the profile residual's Jacobian.
+JACOBIAN_STEP = 1e-4
 #: Relative tolerance of the rank decisions in the profile least squares (column-scaled).
 RCOND = 1e-10
 #: A direction of the tilt whose profile curvature is below this fraction of the largest is one
@@ -94,8 +98,10 @@ class MountingEstimate:
     ----------
     gravity : (3,) estimated gravity in the base frame (m/s²), ``|gravity| = |g₀|``.
     reference_gravity : (3,) the model's gravity ``g₀`` (the level mounting).
-    angles : (2,) the tilt (rad) about ``axes[0]`` then ``axes[1]``: ``g = R_v R_u g₀``
-        (:func:`gravity_from_tilt`; roll about ``x`` and pitch about ``y`` for ``g₀ ∥ −z``).
+    angles : (2,) how far gravity is turned (rad) about ``axes[0]`` then ``axes[1]``:
+        ``g = R_v R_u g₀`` (:func:`gravity_from_tilt`; roll about ``x`` and pitch about ``y`` for
+        ``g₀ ∥ −z``). The base itself is turned the other way: a base rolled by ``+ε`` about
+        ``x`` sees gravity turned by ``−ε``.
     axes : (2, 3) the tilt axes ``u, v`` (:func:`tilt_axes`).
     covariance : (2, 2) covariance of ``angles`` (rad²), widened for correlated residuals.
     autocorrelation_time : (nv,) residual autocorrelation time per joint (samples).
@@ -129,10 +135,11 @@ class MountingEstimate:
         angles = ", ".join(f"{a:+.3f}° ± {s:.3f}° about {_axis_name(ax)}" for a, s, ax in
                            zip(np.degrees(self.angles), np.degrees(self.std), self.axes))
         before, after = self.relative_error
-        return (f"base tilt {angles} ({math.degrees(self.tilt):.3f}° from the model's gravity); "
-                f"gravity in the base "
-                f"frame ({', '.join(f'{v:+.4f}' for v in self.gravity)}) m/s²; least-squares "
-                f"relative torque error {100 * before:.3f} % → {100 * after:.3f} %")
+        return (f"base tilt: gravity turned {angles} in the base frame "
+                f"({math.degrees(self.tilt):.3f}° from the model's; the base itself is turned by "
+                f"the opposite angles), gravity ({', '.join(f'{v:+.4f}' for v in self.gravity)}) "
+                f"m/s²; least-squares relative torque error {100 * before:.3f} % → "
+                f"{100 * after:.3f} %")
 
 
 def _compress(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
@@ -156,8 +163,9 @@ def _compress(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
 
 
 def _profile(factors: np.ndarray, n_in: int, p: int, gravity: np.ndarray
-             ) -> tuple[np.ndarray, np.ndarray]:
-    """Least squares at a given gravity: ``(θ̂, per-joint residual sum of squares)``."""
+             ) -> tuple[np.ndarray, np.ndarray, int]:
+    """Least squares at a given gravity: ``(θ̂, compressed residual per joint (nv, w), rank)``;
+    joint ``j``'s residual sum of squares is ``‖residual[j]‖²``."""
     nv, width, _ = factors.shape
     a = factors[:, :, :p].copy()
     moving = factors[:, :, p:p + 3 * n_in].reshape(nv, width, 3, n_in)
@@ -166,20 +174,9 @@ def _profile(factors: np.ndarray, n_in: int, p: int, gravity: np.ndarray
     stacked = a.reshape(nv * width, p)
     scale = np.linalg.norm(stacked, axis=0)
     scale[scale == 0] = 1.0
-    x = np.linalg.lstsq(stacked / scale, b.reshape(-1), rcond=RCOND)[0] / scale
-    residual = a @ x - b
-    return x, np.sum(residual ** 2, axis=1)
-
-
-def _hessian(f, a: np.ndarray, h: float = HESSIAN_STEP) -> np.ndarray:
-    """Central finite-difference Hessian of ``f`` at ``a`` (2 variables)."""
-    hess = np.empty((2, 2))
-    for i in range(2):
-        for k in range(2):
-            ei, ek = h * np.eye(2)[i], h * np.eye(2)[k]
-            hess[i, k] = (f(a + ei + ek) - f(a + ei - ek) - f(a - ei + ek)
-                          + f(a - ei - ek)) / (4 * h * h)
-    return hess
+    x, _, rank, _ = np.linalg.lstsq(stacked / scale, b.reshape(-1), rcond=RCOND)
+    x /= scale
+    return x, np.einsum("jrc,c->jr", a, x) - b, int(rank)
 
 
 def estimate_mounting(model: RobotModel, dataset: Dataset,
@@ -216,8 +213,11 @@ def estimate_mounting(model: RobotModel, dataset: Dataset,
     n_in, p = model.n_inertial, model.n_inertial + spec.n_joint_columns
     total = float(np.sum(dataset.tau ** 2))
 
+    def residual(a: np.ndarray) -> np.ndarray:
+        return _profile(factors, n_in, p, gravity_from_tilt(g0, a))[1]
+
     def rss(a: np.ndarray) -> float:
-        return float(np.sum(_profile(factors, n_in, p, gravity_from_tilt(g0, a))[1]))
+        return float(np.sum(residual(a) ** 2))
 
     rss0 = rss(np.zeros(2))
     step = math.radians(1.0)
@@ -226,28 +226,35 @@ def estimate_mounting(model: RobotModel, dataset: Dataset,
         options={"xatol": 1e-9, "fatol": max(1e-13 * rss0, 1e-16 * total), "maxiter": 2000,
                  "initial_simplex": [[0.0, 0.0], [step, 0.0], [0.0, step]]})
     a = np.asarray(fit.x, dtype=float)
-    eig, vec = np.linalg.eigh(_hessian(rss, a))
+    # Gauss–Newton: per joint, the profile residual's Jacobian in the compressed rows (their
+    # Gram equals the samples', Q_j being fixed); Σ_j G_j is half the profile Hessian
+    jac = np.stack([(residual(a + d) - residual(a - d)) / (2 * JACOBIAN_STEP)
+                    for d in JACOBIAN_STEP * np.eye(2)], axis=-1)
+    grams = np.einsum("jrk,jrl->jkl", jac, jac)
+    eig, vec = np.linalg.eigh(grams.sum(axis=0))
     flat = eig <= FLAT * max(eig.max(), 1e-300)
     if flat.any():  # the data cannot see a tilt in these directions: keep the model's there
         a = a - vec[:, flat] @ (vec[:, flat].T @ a)
         warnings.warn(f"the data do not determine the mounting tilt in {int(flat.sum())} of 2 "
-                      f"directions (profile curvature {eig}); the model's gravity is kept there "
-                      "and its ± is infinite", PoorExcitationWarning, stacklevel=2)
+                      f"directions (profile curvature {2 * eig}); the model's gravity is kept "
+                      "there and its ± is infinite", PoorExcitationWarning, stacklevel=2)
     elif not fit.success:
         warnings.warn(f"mounting tilt: the optimiser did not converge ({fit.message})",
                       PoorExcitationWarning, stacklevel=2)
     gravity = gravity_from_tilt(g0, a)
-    theta, rss_joint = _profile(factors, n_in, p, gravity)
+    theta, res, rank = _profile(factors, n_in, p, gravity)
+    rss_joint = np.sum(res ** 2, axis=1)
     tilted = model.with_gravity(gravity)
-    residual = predict_torque(tilted, dataset, spec, theta) - dataset.tau
-    tau_corr = autocorrelation_time(dataset, residual)
-    rank = np.linalg.matrix_rank(np.linalg.qr(factors[:, :, :p].reshape(-1, p), mode="r"))
-    s2 = float(np.sum(rss_joint)) / max(dataset.tau.size - rank - 2, 1)
-    widen = float(np.sum(tau_corr * rss_joint) / max(np.sum(rss_joint), 1e-300))
-    # covariance 2 s² H⁻¹ over the directions the data see, widened for correlated residuals
-    cov = widen * 2.0 * s2 * (vec[:, ~flat] / eig[~flat]) @ vec[:, ~flat].T
-    unseen = np.abs(vec[:, flat]).max(axis=1, initial=0.0) > 1e-9
-    cov[unseen, unseen] = np.inf
+    tau_corr = autocorrelation_time(dataset, predict_torque(tilted, dataset, spec, theta)
+                                    - dataset.tau)
+    # sandwich over the directions the data see: G⁻¹ (Σ_j τ_j v_j G_j) G⁻¹, v_j each joint's
+    # residual variance (statistics.coloured_covariance)
+    seen = vec[:, ~flat]
+    bread = (seen / eig[~flat]) @ seen.T
+    variances = joint_sigma(rss_joint, dataset.n_samples, rank + 2, tau_corr) ** 2
+    cov = coloured_covariance(bread, grams, np.ones(model.nv), tau_corr, variances)
+    unseen = np.abs(vec[:, flat]).max(axis=1, initial=0.0) > 1e-6
+    cov[unseen, :] = cov[:, unseen] = np.inf
     return MountingEstimate(gravity=gravity, reference_gravity=g0, angles=a,
                             axes=tilt_axes(g0), covariance=cov, autocorrelation_time=tau_corr,
                             relative_error=(math.sqrt(rss0 / total),

@@ -56,18 +56,21 @@ def autocorrelation_time(dataset: Dataset, residual: np.ndarray, c: float = 5.0,
 
 
 def coloured_covariance(cov: np.ndarray, grams: np.ndarray, weights: np.ndarray,
-                        tau: np.ndarray) -> np.ndarray:
+                        tau: np.ndarray, variances: np.ndarray | None = None) -> np.ndarray:
     r"""Sandwich covariance of weighted least squares whose per-joint errors are coloured.
 
     .. math::
 
-        \operatorname{Cov}(\hat β) = C \Big(\sum_j τ_j\, w_j\, Φ_j^\top Φ_j\Big) C,
+        \operatorname{Cov}(\hat β) = C \Big(\sum_j τ_j\, w_j^2 v_j\, Φ_j^\top Φ_j\Big) C,
         \qquad C = \Big(\sum_j w_j\, Φ_j^\top Φ_j\Big)^{-1},
 
     ``C`` the covariance that counts rows as independent (for OLS ``C = s² G⁻¹`` with
     ``w_j = 1/s²``; for WLS ``w_j = 1/σ_j²``), ``Φ_jᵀΦ_j = R_jᵀR_j`` joint ``j``'s Gram matrix
-    from its R factor. It is the sandwich ``C (Σ_j w_j² Φ_jᵀ Cov(e_j) Φ_j) C`` of least squares
-    with serially correlated errors, with ``Φ_jᵀ Cov(e_j) Φ_j ≈ σ_j² τ_j Φ_jᵀΦ_j`` for columns
+    from its R factor and ``v_j`` joint ``j``'s error variance (default ``1/w_j``, the variance
+    the weights assume: then the meat is ``Σ_j τ_j w_j Φ_jᵀΦ_j``; pass the per-joint residual
+    variances when the weights do not follow them, e.g. OLS on joints of unequal noise). It is
+    the sandwich ``C (Σ_j w_j² Φ_jᵀ Cov(e_j) Φ_j) C`` of least squares
+    with serially correlated errors, with ``Φ_jᵀ Cov(e_j) Φ_j ≈ v_j τ_j Φ_jᵀΦ_j`` for columns
     that vary slowly against the residual's correlation time: the variance of a mean of ``N``
     correlated samples is ``τ σ²/N`` (Bayley & Hammersley, "The 'effective' number of
     independent observations in an autocorrelated time series", J. R. Stat. Soc. Suppl. 8(2),
@@ -80,12 +83,15 @@ def coloured_covariance(cov: np.ndarray, grams: np.ndarray, weights: np.ndarray,
     grams : (nv, b, b) ``Φ_jᵀΦ_j``.
     weights : (nv,) ``w_j``.
     tau : (nv,) ``τ_j`` (:func:`autocorrelation_time`).
+    variances : (nv,) ``v_j``; default ``1/w_j``.
     """
     cov = np.asarray(cov, dtype=float)
     finite = np.isfinite(np.diag(cov))
     out = np.array(cov, copy=True)
     c = cov[np.ix_(finite, finite)]
-    meat = np.einsum("j,jpq->pq", np.asarray(tau, dtype=float) * np.asarray(weights, dtype=float),
+    w = np.asarray(weights, dtype=float)
+    v = 1.0 / w if variances is None else np.asarray(variances, dtype=float)
+    meat = np.einsum("j,jpq->pq", np.asarray(tau, dtype=float) * w ** 2 * v,
                      np.asarray(grams, dtype=float)[:, finite][:, :, finite])
     out[np.ix_(finite, finite)] = c @ meat @ c
     return out
