@@ -351,3 +351,7 @@ def test_gap_data_concatenate_stacks_the_rigid_regressor(panda):
     np.testing.assert_allclose(both.tilt_gravity, fresh.tilt_gravity, rtol=0, atol=1e-10)
     with pytest.raises(ci.DatasetError, match="rigid_regressor has shape"):
         GapData(panda, both.dataset, panda.prior_parameters, rigid_regressor=both.rigid[1:])
+    # a given regressor is used as given, never recomputed
+    sentinel = np.full_like(both.rigid, 2.0)
+    given = GapData(panda, both.dataset, panda.prior_parameters, rigid_regressor=sentinel)
+    assert given.rigid is sentinel

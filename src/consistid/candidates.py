@@ -108,6 +108,7 @@ from .base import BaseParameters, compute_base_parameters
 from .dataset import Dataset
 from .errors import DatasetError, ModelError, check_option
 from .model import RobotModel
+from .mounting import tilt_axes
 from .parameters import INERTIAL_NAMES
 from .regressor import TERM_COLUMNS, RegressorSpec, joint_columns, rigid_body_regressor
 
@@ -186,8 +187,6 @@ def tilt_directions(gravity: np.ndarray) -> np.ndarray:
     """``(∂g/∂a₁, ∂g/∂a₂)`` at ``a = 0`` of ``g(a) = R_v(a₂) R_u(a₁) g₀``
     (:func:`consistid.mounting.gravity_from_tilt`): ``u × g₀`` and ``v × g₀`` with ``u, v`` the
     axes of :func:`consistid.mounting.tilt_axes` (``x``, ``y`` for ``g₀ ∥ −z``), shape (2, 3)."""
-    from .mounting import tilt_axes
-
     g0 = np.asarray(gravity, dtype=float)
     return np.cross(tilt_axes(g0), g0)
 
