@@ -473,3 +473,18 @@ def test_array_holding_values_compare_by_identity_instead_of_raising(planar_2r):
                   BoundaryConditions(q_start=np.zeros(2))):
         twin = dataclasses.replace(value)
         assert value == value and value != twin and len({value, twin}) == 2
+
+
+def test_cartesian_shapes_compare_and_check_their_inputs():
+    # arrays or lists, the same shape: equal (they used to raise on ==)
+    assert CartesianBox(np.array([-1, -1, 0]), np.array([1, 1, 1.4])) == \
+        CartesianBox([-1, -1, 0], [1, 1, 1.4])
+    assert KeepOutSphere(0.3, np.zeros(3), frames="panda_hand") == \
+        KeepOutSphere(0.3, (0, 0, 0), frames=("panda_hand",))
+    for make, message in ((lambda: CartesianBox([0, 0], [1, 1, 1]), "lower must be 3 finite"),
+                          (lambda: CartesianBox([0, 0, 2], [1, 1, 1]), "lower ≤ upper"),
+                          (lambda: KeepOutSphere(-0.1), "radius must be a finite number > 0"),
+                          (lambda: KeepOutSphere(0.2, centre=[0, np.nan, 0]), "centre must be"),
+                          (lambda: FloorPlane("low"), "z_min must be a finite number")):
+        with pytest.raises(ci.ExcitationError, match=message):
+            make()

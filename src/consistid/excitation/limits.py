@@ -51,14 +51,39 @@ def end_effector_frame(model: RobotModel) -> str:
     return pm.frames[max(candidates)[1]].name
 
 
+def _point(name: str, value: Sequence[float]) -> tuple[float, ...]:
+    """3 finite numbers as a tuple (so that shapes compare with ``==``), else ExcitationError."""
+    try:
+        out = tuple(float(v) for v in np.asarray(value, dtype=float).reshape(-1))
+    except (TypeError, ValueError):
+        out = ()
+    if len(out) != 3 or not np.all(np.isfinite(out)):
+        raise ExcitationError(f"{name} must be 3 finite numbers (m, base frame), got {value!r}")
+    return out
+
+
+def _frames(value: Sequence[str] | str | None) -> tuple[str, ...] | None:
+    return None if value is None else (value,) if isinstance(value, str) else tuple(value)
+
+
 @dataclass(frozen=True)
 class CartesianBox:
     """Workspace box ``lower ≤ x_f ≤ upper`` (m, base frame) for ``frames`` (default: end
-    effector), Rackl et al. 2012 eq. 16."""
+    effector), Rackl et al. 2012 eq. 16. Corners are stored as tuples (shapes compare with
+    ``==``, whatever sequence or array they were given as)."""
 
     lower: Sequence[float]
     upper: Sequence[float]
     frames: tuple[str, ...] | None = None
+
+    def __post_init__(self) -> None:
+        lower, upper = _point("CartesianBox.lower", self.lower), _point("CartesianBox.upper",
+                                                                        self.upper)
+        if any(lo > hi for lo, hi in zip(lower, upper)):
+            raise ExcitationError(f"CartesianBox needs lower ≤ upper, got {lower} and {upper}")
+        object.__setattr__(self, "lower", lower)
+        object.__setattr__(self, "upper", upper)
+        object.__setattr__(self, "frames", _frames(self.frames))
 
 
 @dataclass(frozen=True)
@@ -67,6 +92,14 @@ class FloorPlane:
 
     z_min: float
     frames: tuple[str, ...] | None = None
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.z_min, (int, float, np.integer, np.floating)) \
+                or not np.isfinite(self.z_min):
+            raise ExcitationError(f"FloorPlane.z_min must be a finite number (m), got "
+                                  f"{self.z_min!r}")
+        object.__setattr__(self, "z_min", float(self.z_min))
+        object.__setattr__(self, "frames", _frames(self.frames))
 
 
 @dataclass(frozen=True)
@@ -77,6 +110,15 @@ class KeepOutSphere:
     radius: float
     centre: Sequence[float] = (0.0, 0.0, 0.0)
     frames: tuple[str, ...] | None = None
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.radius, (int, float, np.integer, np.floating)) \
+                or not np.isfinite(self.radius) or self.radius <= 0:
+            raise ExcitationError(f"KeepOutSphere.radius must be a finite number > 0 (m), got "
+                                  f"{self.radius!r}")
+        object.__setattr__(self, "radius", float(self.radius))
+        object.__setattr__(self, "centre", _point("KeepOutSphere.centre", self.centre))
+        object.__setattr__(self, "frames", _frames(self.frames))
 
 
 @dataclass(frozen=True, eq=False)
