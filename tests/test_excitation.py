@@ -488,3 +488,14 @@ def test_cartesian_shapes_compare_and_check_their_inputs():
                           (lambda: FloorPlane("low"), "z_min must be a finite number")):
         with pytest.raises(ci.ExcitationError, match=message):
             make()
+
+
+def test_design_options_of_the_wrong_type_are_named(panda):
+    for options, message in ((dict(harmonics="5"), "harmonics must be an integer"),
+                             (dict(n_starts=1.5), "n_starts must be an integer, got 1.5"),
+                             (dict(seed="x"), "seed must be an integer"),
+                             (dict(period="10"), "period must be a finite number")):
+        with pytest.raises(ci.OptionError, match=message):
+            design_excitation(panda, **{**dict(harmonics=2, period=2.0, n_starts=1), **options})
+    with pytest.raises(ci.ModelError, match="model must be a consistid.RobotModel"):
+        design_excitation("panda", harmonics=2, period=2.0, n_starts=1)

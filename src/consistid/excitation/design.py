@@ -36,8 +36,8 @@ import scipy.sparse
 
 from ..base import BaseParameters, compute_base_parameters
 from ..dataset import Dataset
-from ..errors import InfeasibleExcitationError, OptionError, check_option
-from ..model import RobotModel
+from ..errors import InfeasibleExcitationError, OptionError, check_number, check_option
+from ..model import RobotModel, require_model
 from ..regressor import FrictionArg, RegressorSpec, prior_vector, regressor
 from .criteria import CRITERIA, criteria_values, criterion_and_gradient, prior_column_scale
 from .criteria import regressor_sensitivity
@@ -529,6 +529,12 @@ def design_excitation(model: RobotModel, harmonics: int = 5, period: float = 10.
     start_time = time.perf_counter()
     check_option("criterion", criterion, CRITERIA)
     check_option("method", method, METHODS)
+    require_model(model)
+    n_starts, max_iter, n_grid, n_check, harmonics, seed = (
+        check_number(name, value, integer=True) for name, value in (
+            ("n_starts", n_starts), ("max_iter", max_iter), ("n_grid", n_grid),
+            ("n_check", n_check), ("harmonics", harmonics), ("seed", seed)))
+    period = check_number("period", period)
     if n_starts < 1 or max_iter < 0 or n_grid < 2 or n_check < 2:
         raise OptionError(f"need n_starts ≥ 1, max_iter ≥ 0, n_grid ≥ 2, n_check ≥ 2; got "
                           f"{n_starts}, {max_iter}, {n_grid}, {n_check}")
