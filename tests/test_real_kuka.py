@@ -144,3 +144,21 @@ def test_on_a_new_trajectory_the_consistent_model_generalises_and_ols_does_not(k
     e_ols = score(ci.identify(kuka["prior"], train, method="ols"), new).total_relative_error
     e_sdp = score(ci.identify(kuka["prior"], train, method="sdp"), new).total_relative_error
     assert e_sdp < 0.5 * e_ols
+
+
+def test_diagnosis_of_the_urdf_is_one_cli_call(tmp_path, capsys):
+    # issue 8: the report of the a-priori URDF from the example config (reads ../shared)
+    from pathlib import Path
+
+    from consistid.cli import main
+
+    config = Path(__file__).resolve().parents[1] / "examples" / "kuka_lwr4" / "diagnose.toml"
+    assert main(["diagnose", str(config), "--output", str(tmp_path)]) == 0
+    assert {"report.html", "report.txt"} <= {p.name for p in tmp_path.iterdir()}
+    out = capsys.readouterr().out
+    named = out.split("Effects found")[1].split("Verdict")[0]
+    # what the data say: inertial mismatch, friction and offsets, and the base's tilt
+    for effect in ("inertia", "coulomb", "offset", "tilt"):
+        assert f" {effect} " in named
+    roll = float(out.split("tilt.roll ")[1].split(" ")[0])     # first order: 0.86°
+    assert 0.5 < roll < 1.5

@@ -19,8 +19,10 @@ Method
      ``N log(SSE₁/SSE₀) + k log N < 0`` with ``N`` the number of training rows,
    * its held-out reduction passes an F-test at level ``alpha``,
      ``F = (ΔSSE_ho / k) / (SSE_ho / N_ho)``,
-   * the reduction is at least ``min_gain`` of the nominal held-out sum of squares of the
-     joints it acts on (a practical-relevance floor),
+   * the reduction is at least ``min_gain`` of the nominal held-out sum of squares of its joint,
+     or, for an arm-wide atom, of the joint it reduces most (a practical-relevance floor: an
+     arm-wide effect that matters on one joint, such as a tilted base loading a vertical first
+     joint, is not drowned by the residual of the others),
    * and its parameter is physical where the effect has a sign (friction, rotor inertia,
      compliance, payload mass ≥ 0).
 
@@ -465,7 +467,10 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
             gain_rows = float(sse_ho[rows].sum() - ho2[rows].sum())
             f = (gain_rows / k) / (float(ho2[rows].sum()) / n_ho)
             p = float(scipy.stats.f.sf(f, k, n_ho)) if gain_rows > 0 else 1.0
-            floor = min_gain * float(nominal_ho[rows].sum())
+            # relevance: the atom's joint, or (arm-wide atoms) the joint it helps most, must
+            # lose min_gain of its nominal held-out sum of squares
+            per_joint = (sse_ho[rows] - ho2[rows]) / np.maximum(nominal_ho[rows], 1e-300)
+            relevance = float(per_joint.max())
             if gain <= 0:
                 return "does not reduce the held-out residual", dbic, p
             if atom.effect in POSITIVE and s[6][0] < 0:
@@ -475,9 +480,10 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
                 return f"ΔBIC {dbic:.3g} ≥ 0", dbic, p
             if p >= alpha:
                 return f"held-out F-test p = {p:.2g} ≥ {alpha:g}", dbic, p
-            if gain < floor:
-                return (f"held-out gain {gain / max(nominal_ho[rows].sum(), 1e-300):.2%} of the "
-                        f"nominal residual < min_gain {min_gain:.0%}", dbic, p)
+            if relevance < min_gain:
+                return (f"held-out gain {relevance:.2%} of the nominal residual "
+                        f"{'' if len(rows) == 1 else 'on its best joint '}< min_gain "
+                        f"{min_gain:.0%}", dbic, p)
             return "accepted", dbic, p
 
         verdicts = {}
@@ -740,7 +746,8 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
         the high-frequency part of the residual (:func:`consistid.gap.noise_floor`).
     alpha : level of the held-out F-test.
     min_gain : smallest held-out reduction, as a fraction of the nominal residual's sum of
-        squares on the joints an atom acts on, for the atom to be selected.
+        squares of the atom's joint (arm-wide atoms: of the joint it reduces most), for the atom
+        to be selected.
     tie : relative held-out gain within which collinear candidates count as indistinguishable.
     max_steps : most atoms selected.
     split : training fraction of each recording when ``held_out`` is ``None``.
