@@ -146,7 +146,7 @@ def test_on_a_new_trajectory_the_consistent_model_generalises_and_ols_does_not(k
     assert e_sdp < 0.5 * e_ols
 
 
-def test_diagnosis_of_the_urdf_is_one_cli_call(tmp_path, capsys):
+def test_diagnosis_of_the_urdf_is_one_cli_call(kuka_dir, tmp_path, capsys):
     # issue 8: the report of the a-priori URDF from the example config (reads ../shared)
     from pathlib import Path
 
