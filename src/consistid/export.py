@@ -271,12 +271,11 @@ def write_urdf(model: RobotModel, path: str | Path, parameters: np.ndarray | Non
         warnings.warn(f"URDF has no tag for torque offsets, position terms or armature; not "
                       f"written: "
                       f"{', '.join(dropped)}", ExportWarning, stacklevel=2)
-    g = model.gravity
-    if np.linalg.norm(g[:2]) > 1e-12 * np.linalg.norm(g):      # not along the base z axis
-        tilt = np.degrees(np.arccos(min(1.0, abs(g[2]) / np.linalg.norm(g))))
-        warnings.warn(f"URDF has no tag for gravity: the model's is tilted {tilt:.3g}° from the "
-                      f"base z axis ({', '.join(f'{v:+.4f}' for v in g)} m/s²); a simulator "
-                      "loading this file must be given it", ExportWarning, stacklevel=2)
+    if not model.has_default_gravity:
+        warnings.warn(f"URDF has no tag for gravity: the model's, "
+                      f"({', '.join(f'{v:+.4f}' for v in model.gravity)}) m/s² in the base "
+                      "frame, is not the level (0, 0, −9.81) a simulator assumes; give it "
+                      "beside the file", ExportWarning, stacklevel=2)
 
     out = Path(path)
     if out.resolve().parent != source.resolve().parent:

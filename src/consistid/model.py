@@ -24,6 +24,9 @@ import pinocchio as pin
 from .errors import JointCountError, ModelError, check_option
 from .parameters import INERTIAL_NAMES
 
+#: Gravity (m/s², base frame) of a level base: what a URDF implies.
+DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
+
 #: example-robot-data arms consistid knows by name: URDF path below ``robots/`` and joints to lock.
 EXAMPLE_ROBOTS: dict[str, tuple[str, tuple[str, ...]]] = {
     "panda": ("panda_description/urdf/panda.urdf", ("panda_finger_joint1", "panda_finger_joint2")),
@@ -257,6 +260,12 @@ class RobotModel:
     @property
     def gravity(self) -> np.ndarray:
         return np.array(self.pin_model.gravity.linear)
+
+    @property
+    def has_default_gravity(self) -> bool:
+        """Gravity is the level default ``(0, 0, −9.81)`` m/s², the one a URDF implies (a URDF
+        has no tag for gravity: anything else must travel beside the file)."""
+        return bool(np.allclose(self.gravity, DEFAULT_GRAVITY))
 
     @cached_property
     def limits(self) -> JointLimits:

@@ -50,8 +50,8 @@ def identification_summary(res: "IdentificationResult", max_rows: int | None = N
     notes = []
     cons = res.consistency
     notes.append(f"physical consistency: {cons}")
-    g = res.model.gravity
-    if not np.allclose(g, [0.0, 0.0, -9.81]):   # e.g. a tilt from consistid.estimate_mounting
+    if not res.model.has_default_gravity:   # e.g. a tilt from consistid.estimate_mounting
+        g = res.model.gravity
         notes.append(f"gravity in the base frame ({', '.join(f'{v:+.4f}' for v in g)}) m/s²: "
                      "these parameters hold with it (a URDF does not carry gravity)")
     for key, value in res.details.items():
