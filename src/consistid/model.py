@@ -201,7 +201,8 @@ class RobotModel:
         """
         g = np.asarray(gravity, dtype=float)
         if g.shape != (3,) or not np.all(np.isfinite(g)):
-            raise ModelError(f"gravity must be 3 finite numbers (m/s², base frame), got {gravity!r}")
+            raise ModelError(f"gravity must be 3 finite numbers (m/s², base frame), got "
+                             f"{gravity!r}")
         model = self.pin_model.copy()
         model.gravity = pin.Motion(g, np.zeros(3))
         return RobotModel(model, name=self.name, source=self.source,
