@@ -27,15 +27,6 @@ FRICTION = ("coulomb", "viscous", "offset")
 TILT = (math.radians(-1.0), math.radians(2.0))
 
 
-def ar1(shape: tuple[int, int], phi: float, std: float, rng: np.random.Generator) -> np.ndarray:
-    """Stationary AR(1) noise of standard deviation ``std`` along axis 0."""
-    e = rng.standard_normal(shape) * std * math.sqrt(1 - phi ** 2)
-    e[0] /= math.sqrt(1 - phi ** 2)
-    for k in range(1, shape[0]):
-        e[k] += phi * e[k - 1]
-    return e
-
-
 def run(model: ci.RobotModel, noise: float, phi: float, seed: int) -> ci.Dataset:
     truth = model.with_gravity(gravity_from_tilt(model.gravity, TILT))
     joint_terms = np.concatenate([np.full(7, 0.3), np.full(7, 0.2), np.linspace(-0.2, 0.2, 7)])
@@ -43,7 +34,7 @@ def run(model: ci.RobotModel, noise: float, phi: float, seed: int) -> ci.Dataset
                                       duration=10.0, rate=200.0, torque_noise=0.0,
                                       friction=FRICTION, seed=seed).dataset
     rng = np.random.default_rng(1000 + seed)
-    return data.with_torque(data.tau + ar1(data.tau.shape, phi, noise, rng))
+    return data.with_torque(data.tau + ci.simulate.ar1_noise(data.tau.shape, phi, noise, rng))
 
 
 def main() -> int:

@@ -173,11 +173,7 @@ def test_parameter_std_is_honest_for_an_ar1_coloured_residual(panda):
     friction = np.outer(np.sign(base.dq[:, 1]), np.eye(7)[1]) * 0.7
     est, reported = [], []
     for seed in range(10):
-        e = np.random.default_rng(100 + seed).standard_normal(base.tau.shape)
-        x = np.empty_like(e)
-        x[0] = sd * e[0]
-        for k in range(1, e.shape[0]):
-            x[k] = phi * x[k - 1] + sd * np.sqrt(1 - phi ** 2) * e[k]
+        x = ci.simulate.ar1_noise(base.tau.shape, phi, sd, np.random.default_rng(100 + seed))
         diag = diagnose(panda, base.with_torque(base.tau + friction + x), sigma=sd,
                         effects=("coulomb",))
         (fc,) = [p for f in diag.effects for p in f.parameters if p.joint == "panda_joint2"]
@@ -245,11 +241,9 @@ def test_autocorrelation_time_of_ar1_matches_closed_form():
     """AR(1) x_k = φ x_{k−1} + e_k has τ = (1 + φ)/(1 − φ)."""
     rng = np.random.default_rng(1)
     n, phi = 40000, 0.8
+    x = ci.simulate.ar1_noise((n, 2), phi, 1.0, rng)
+    np.testing.assert_allclose(x.std(axis=0), 1.0, rtol=0.05)      # stationary std
     e = rng.standard_normal((n, 2))
-    x = np.empty_like(e)
-    x[0] = e[0]
-    for k in range(1, n):
-        x[k] = phi * x[k - 1] + e[k]
     tau = autocorrelation_time(_dataset(np.arange(n) / RATE, x), x)
     np.testing.assert_allclose(tau, (1 + phi) / (1 - phi), rtol=0.15)
     white = autocorrelation_time(_dataset(np.arange(n) / RATE, e), e)

@@ -159,13 +159,6 @@ def test_report_writes_the_summary(panda, runs, tmp_path):
     assert (tmp_path / "report.txt").read_text().startswith("consistid identification")
 
 
-def _ar1(shape: tuple[int, int], phi: float, std: float, rng: np.random.Generator) -> np.ndarray:
-    """AR(1) noise ``e_k = φ e_{k−1} + √(1−φ²)·std·ξ_k`` (stationary standard deviation ``std``)."""
-    e = rng.standard_normal(shape) * std * np.sqrt(1.0 - phi ** 2)
-    e[0] /= np.sqrt(1.0 - phi ** 2)
-    for k in range(1, shape[0]):
-        e[k] += phi * e[k - 1]
-    return e
 
 
 @pytest.mark.parametrize("method", ["ols", "sdp"])
@@ -178,8 +171,9 @@ def test_coloured_covariance_matches_spread_over_seeds(panda, method):
                                        seed=0).dataset
     est, iid, col = [], [], []
     for seed in range(8):
-        noisy = replace(ideal, tau=ideal.tau + _ar1(ideal.tau.shape, 0.95, 0.05,
-                                                    np.random.default_rng(100 + seed)))
+        noise = ci.simulate.ar1_noise(ideal.tau.shape, 0.95, 0.05,
+                                      np.random.default_rng(100 + seed))
+        noisy = replace(ideal, tau=ideal.tau + noise)
         a = ci.identify(panda, noisy, method=method, friction=None, covariance="iid")
         b = ci.identify(panda, noisy, method=method, friction=None)       # default: coloured
         assert np.allclose(a.base_parameters, b.base_parameters)
@@ -204,7 +198,8 @@ def test_coloured_ols_covariance_follows_each_joints_own_noise(panda):
     scale = np.array([0.3, 0.3, 0.3, 0.02, 0.02, 0.02, 0.02])
     est, std = [], []
     for seed in range(8):
-        noise = _ar1(ideal.tau.shape, 0.95, 1.0, np.random.default_rng(100 + seed)) * scale
+        rng = np.random.default_rng(100 + seed)
+        noise = ci.simulate.ar1_noise(ideal.tau.shape, 0.95, 1.0, rng) * scale
         res = ci.identify(panda, replace(ideal, tau=ideal.tau + noise), method="ols",
                           friction=None)
         est.append(res.base_parameters), std.append(res.base_std)

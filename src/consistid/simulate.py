@@ -45,6 +45,20 @@ class SimulatedRun:
     position_noise: float
 
 
+def ar1_noise(shape: tuple[int, ...], phi: float, std: float,
+              rng: np.random.Generator) -> np.ndarray:
+    """Stationary AR(1) noise along axis 0, ``e_k = φ e_{k−1} + √(1 − φ²)·std·ξ_k``, ``ξ``
+    standard normal: standard deviation ``std`` and autocorrelation time ``(1 + φ)/(1 − φ)``
+    samples, the correlated residual of low-pass filtered torques (tests of honest ±)."""
+    if not 0.0 <= phi < 1.0:
+        raise ModelError(f"AR(1) coefficient must lie in [0, 1), got {phi}")
+    e = rng.standard_normal(shape) * std * np.sqrt(1.0 - phi ** 2)
+    e[0] /= np.sqrt(1.0 - phi ** 2)
+    for k in range(1, e.shape[0]):
+        e[k] += phi * e[k - 1]
+    return e
+
+
 def excitation_run(model: RobotModel, parameters: np.ndarray | None = None,
                    duration: float = 30.0, rate: float = 500.0, harmonics: int = 5,
                    period: float = 10.0, torque_noise: float = 0.1,
