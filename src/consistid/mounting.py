@@ -178,7 +178,7 @@ def _design(factors: np.ndarray, n_in: int, p: int, gravity: np.ndarray
     return a, factors[:, :, -1]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class _LevelSpace:
     """``θ = θ₀ + D V δ``: the parameter directions the level model identifies (``V``, an
     orthonormal basis of the column-scaled level regressor's row space, ``D`` the scaling) are
@@ -226,7 +226,8 @@ def estimate_mounting(model: RobotModel, dataset: Dataset,
     model : the robot; its gravity ``g₀`` is the level mounting the tilt is measured from.
     dataset : measured motion and torques (several recordings: :meth:`Dataset.concatenate`).
         Motions that load the joints against gravity in varied poses determine the tilt; the
-        estimate is unconstrained least squares, so use the regressor columns you identify with.
+        estimate is least squares over the level model's parameter combinations (module
+        docstring), so use the regressor columns you identify with.
     friction, armature : per-joint columns, as in :func:`consistid.identify`.
 
     Returns
