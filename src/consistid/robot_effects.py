@@ -412,6 +412,7 @@ def effect_torque(model: RobotModel, effects: Effects, q: np.ndarray, dq: np.nda
     if eff.payload is not None:
         joint, p = eff.payload.parameters(model)
         carrier = model.pin_model.copy()
+        # not model.with_parameters: a massless body from dynamic parameters is 0/0 (its CoM)
         for j in range(1, carrier.njoints):
             carrier.inertias[j] = pin.Inertia.Zero()
         carrier.inertias[joint + 1] = pin.Inertia.FromDynamicParameters(p)
