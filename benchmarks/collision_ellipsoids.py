@@ -19,8 +19,8 @@ import numpy as np
 from scipy.spatial import ConvexHull
 
 import consistid as ci
-from consistid.parameters import perturb, pseudo_inertia
-from consistid.shapes import collision_ellipsoids, collision_points, volume
+from consistid.robot.inertia import perturb, pseudo_inertia
+from consistid.robot.shapes import collision_ellipsoids, collision_points, volume
 
 
 def main() -> None:

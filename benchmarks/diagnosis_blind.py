@@ -27,7 +27,7 @@ bodies perturbed by ±10–30 % ("inertia"), and position ripple 0.3–1.5 N·m 
 Not drawn by default (``--pool`` adds them): ``position``, a once-per-revolution torque
 0.3–1.5 N·m·sin(q_j + φ), added to the logged torque like the ripple; ``tilt``, the base off
 level by 0.5–2° about x and about y (each, either sign): the simulated robot's gravity is
-:func:`consistid.mounting.gravity_from_tilt` of the URDF's (its truth for the shrink is the
+:func:`consistid.estimation.mounting.gravity_from_tilt` of the URDF's (its truth for the shrink is the
 library's first-order tilt with the true angles).
 
 Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/diagnosis_blind.py [--single 30 --double 8]
@@ -45,14 +45,14 @@ from dataclasses import dataclass
 import numpy as np
 
 import consistid as ci
-from consistid.candidates import Atom, EffectLibrary
-from consistid.diagnose import GapModel, diagnose
+from consistid.diagnosis.candidates import Atom, EffectLibrary
+from consistid.diagnosis.diagnose import GapModel, diagnose
 from consistid.errors import ModelError, TrackingWarning
 from consistid.excitation import FourierTrajectory
-from consistid.mounting import gravity_from_tilt
-from consistid.parameters import perturb
-from consistid.robot_effects import Effects, MountedPayload
-from consistid.signals import lowpass, preprocess
+from consistid.estimation.mounting import gravity_from_tilt
+from consistid.robot.inertia import perturb
+from consistid.simulate.effects import Effects, MountedPayload
+from consistid.data.signals import lowpass, preprocess
 from consistid.simulate import MAX_TRACKING_ERROR, record
 
 EFFECTS = ("inertia", "coulomb", "viscous", "offset", "gain", "armature", "payload", "delay",

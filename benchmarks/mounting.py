@@ -20,8 +20,8 @@ import time
 import numpy as np
 
 import consistid as ci
-from consistid.mounting import estimate_mounting, gravity_from_tilt
-from consistid.report import table
+from consistid.estimation.mounting import estimate_mounting, gravity_from_tilt
+from consistid.identification.summary import table
 
 FRICTION = ("coulomb", "viscous", "offset")
 TILT = (math.radians(-1.0), math.radians(2.0))

@@ -13,7 +13,7 @@ import time
 
 import consistid as ci
 from consistid.excitation import FourierTrajectory
-from consistid.report import table
+from consistid.identification.summary import table
 from consistid.simulate import Effects, MountedPayload, record
 
 CASES = {

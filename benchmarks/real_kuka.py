@@ -32,13 +32,13 @@ from pathlib import Path
 import numpy as np
 
 import consistid as ci
-from consistid.compression import compress
-from consistid.identify import with_covariance
-from consistid.mounting import estimate_mounting
-from consistid.recordings import Recording, load_recording
-from consistid.report import table
-from consistid.urdf import joint_dynamics, model_without_dynamics
-from consistid.validation import (refit_joint_terms, rigid_model, score, scores_table,
+from consistid.identification.compression import compress
+from consistid.identification.identify import with_covariance
+from consistid.estimation.mounting import estimate_mounting
+from consistid.data.recordings import Recording, load_recording
+from consistid.identification.summary import table
+from consistid.robot.urdf import joint_dynamics, model_without_dynamics
+from consistid.identification.scoring import (refit_joint_terms, rigid_model, score, scores_table,
                                   with_urdf_friction)
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "kuka_lwr4"

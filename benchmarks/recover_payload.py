@@ -22,9 +22,9 @@ import numpy as np
 
 import consistid as ci
 from consistid.errors import UnrealizableCoefficientsError
-from consistid.parameters import from_mass_com_inertia, perturb
-from consistid.payload import frame_transform
-from consistid.report import table
+from consistid.robot.inertia import from_mass_com_inertia, perturb
+from consistid.estimation.payload import frame_transform
+from consistid.identification.summary import table
 
 
 def _timed(fn, *args, **kwargs):

@@ -16,8 +16,8 @@ import numpy as np
 import pinocchio as pin
 
 import consistid as ci
-from consistid.base import random_states
-from consistid.regressor import RegressorSpec, iter_regressor, regressor
+from consistid.identification.base import random_states
+from consistid.identification.regressor import RegressorSpec, iter_regressor, regressor
 
 
 def timed(fn, repeat: int) -> float:

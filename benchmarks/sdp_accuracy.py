@@ -2,7 +2,7 @@
 
 Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/sdp_accuracy.py [--seeds 0 1 2] [--skip-large]``.
 
-Protocol (issue 3): Panda, truth = URDF perturbed by ±20 % (:func:`consistid.parameters.perturb`),
+Protocol (issue 3): Panda, truth = URDF perturbed by ±20 % (:func:`consistid.robot.inertia.perturb`),
 prior = URDF, torque noise σ = 0.1 N·m, rigid body only. Training: 30 s at 500 Hz; held out: a
 different 10 s trajectory; poorly exciting: 2 s of small-amplitude motion (a random Fourier
 trajectory using 20 % of the joint ranges/limits instead of 80 %). Figures are held-out RMS/σ
@@ -30,15 +30,15 @@ import warnings
 import numpy as np
 
 import consistid as ci
-from consistid.base import compute_base_parameters
-from consistid.compression import compress
+from consistid.identification.base import compute_base_parameters
+from consistid.identification.compression import compress
 from consistid.errors import ConsistidError, InaccurateSolutionWarning
 from consistid.excitation import FourierTrajectory
-from consistid.model import example_robot_data_dir
-from consistid.parameters import perturb
-from consistid.regressor import RegressorSpec
-from consistid.report import table
-from consistid.sdp import default_prior_weight, identify_sdp
+from consistid.robot.model import example_robot_data_dir
+from consistid.robot.inertia import perturb
+from consistid.identification.regressor import RegressorSpec
+from consistid.identification.summary import table
+from consistid.identification.sdp import default_prior_weight, identify_sdp
 
 SIGMA = 0.1
 FACTORS = (1e-6, 1e-4, 1e-2, 0.1, 0.3, 1.0, 3.0, 10.0, 1e2)

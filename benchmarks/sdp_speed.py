@@ -36,13 +36,13 @@ import numpy as np
 import scipy.linalg
 
 import consistid as ci
-from consistid import constraints, priors
-from consistid.base import compute_base_parameters
-from consistid.compression import compress
-from consistid.parameters import perturb
-from consistid.regressor import RegressorSpec, dataset_regressor, iter_regressor
-from consistid.report import table
-from consistid.sdp import default_prior_weight, identify_sdp
+from consistid.identification import constraints, priors
+from consistid.identification.base import compute_base_parameters
+from consistid.identification.compression import compress
+from consistid.robot.inertia import perturb
+from consistid.identification.regressor import RegressorSpec, dataset_regressor, iter_regressor
+from consistid.identification.summary import table
+from consistid.identification.sdp import default_prior_weight, identify_sdp
 
 SIGMA = 0.1
 

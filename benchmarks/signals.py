@@ -19,7 +19,7 @@ keeps; then the relative error ``‖β̂ − β‖/‖β‖`` of OLS base parame
 dataset, and the processing time (median of 3).
 
 The simulator's own floor: semi-implicit Euler logs positions whose central difference is
-``q̇ + h q̈ / 2`` with ``h`` the *physics* step (see :mod:`consistid.mujoco_robot`), ~1e-3 rad/s
+``q̇ + h q̈ / 2`` with ``h`` the *physics* step (see :mod:`consistid.simulate.mujoco_robot`), ~1e-3 rad/s
 at 1 kHz physics; the default 10 kHz physics (and control) brings it to ~1e-4 rad/s so that the
 table shows the signal chain rather than the integrator.
 """
@@ -34,11 +34,11 @@ import warnings
 import numpy as np
 
 import consistid as ci
-from consistid import signals
+from consistid.data import signals
 from consistid.errors import PoorExcitationWarning
 from consistid.excitation import FourierTrajectory
-from consistid.parameters import perturb
-from consistid.report import table
+from consistid.robot.inertia import perturb
+from consistid.identification.summary import table
 from consistid.simulate import Effects, record
 
 PERIOD, HARMONICS = 10.0, 5

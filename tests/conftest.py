@@ -57,5 +57,5 @@ def kuka_dir() -> Path:
 
 
 def random_states(model: ci.RobotModel, n: int, seed: int):
-    """:func:`consistid.base.random_states` seeded by an integer (hypothesis draws integers)."""
-    return ci.base.random_states(model, n, np.random.default_rng(seed))
+    """:func:`consistid.identification.base.random_states` seeded by an integer (hypothesis draws integers)."""
+    return ci.identification.base.random_states(model, n, np.random.default_rng(seed))

@@ -2,8 +2,8 @@ import numpy as np
 from hypothesis import given, settings, strategies as st
 
 import consistid as ci
-from consistid.base import base_parameters_from_regressor
-from consistid.regressor import RegressorSpec, regressor
+from consistid.identification.base import base_parameters_from_regressor
+from consistid.identification.regressor import RegressorSpec, regressor
 
 from .conftest import PLANAR_2R_VALUES, random_states
 

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 import consistid as ci
-from consistid.candidates import EffectLibrary, GapData
-from consistid.diagnose import diagnose
-from consistid.mounting import gravity_from_tilt
-from consistid.regressor import rigid_body_regressor
+from consistid.diagnosis.candidates import EffectLibrary, GapData
+from consistid.diagnosis.diagnose import diagnose
+from consistid.estimation.mounting import gravity_from_tilt
+from consistid.identification.regressor import rigid_body_regressor
 from consistid.simulate import excitation_run
 
 RATE = 200.0
@@ -66,7 +66,7 @@ def test_level_robot_with_wrong_inertias_is_not_named_tilt(panda):
     """Part of a tilt lies in the span of ``inertia``; a pure rigid-body mismatch must not be
     reported as a tilt. (A level robot without any mismatch names nothing at all:
     ``test_diagnose.test_no_effect_names_nothing_and_is_at_the_noise_floor``.)"""
-    params = ci.parameters.perturb(panda.prior_parameters, 0.2, np.random.default_rng(3))
+    params = ci.robot.inertia.perturb(panda.prior_parameters, 0.2, np.random.default_rng(3))
     train, held = _runs(panda, params)
     diag = diagnose(panda, train, held_out=held)
     assert [e.name for e in diag.effects] == ["inertia"], [str(e) for e in diag.effects]

@@ -5,8 +5,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import consistid as ci
-from consistid.compression import compress
-from consistid.regressor import RegressorSpec, predict_torque
+from consistid.identification.compression import compress
+from consistid.identification.regressor import RegressorSpec, predict_torque
 
 
 @settings(max_examples=10, deadline=None)

@@ -5,12 +5,12 @@ import pytest
 
 import consistid as ci
 from consistid import cli
-from consistid.base import random_states
-from consistid.config import (config_identify, config_model, config_recordings, identify_keys,
+from consistid.identification.base import random_states
+from consistid.cli.config import (config_identify, config_model, config_recordings, identify_keys,
                               load_config)
-from consistid.constraints import Ellipsoid
+from consistid.robot.shapes import Ellipsoid
 from consistid.errors import ConfigError
-from consistid.priors import Neighbourhood
+from consistid.identification.priors import Neighbourhood
 
 from .conftest import PLANAR_2R, PLANAR_2R_VALUES
 

@@ -10,9 +10,9 @@ import scipy.linalg
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from consistid import constraints as cons
+from consistid.identification import constraints as cons
 from consistid.errors import InconsistentParametersError
-from consistid.parameters import (from_mass_com_inertia, from_pseudo_inertia,
+from consistid.robot.inertia import (from_mass_com_inertia, from_pseudo_inertia,
                                   pseudo_inertia)
 
 SETTINGS = settings(max_examples=25, deadline=None)

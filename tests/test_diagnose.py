@@ -11,15 +11,15 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import consistid as ci
-from consistid.candidates import Atom, EffectLibrary, GapData
-from consistid.dataset import Dataset
-from consistid.diagnose import _solve, diagnose, exact_delay
+from consistid.diagnosis.candidates import Atom, EffectLibrary, GapData
+from consistid.data.dataset import Dataset
+from consistid.diagnosis.diagnose import _solve, diagnose, exact_delay
 from consistid.errors import ModelError, OptionError
 from consistid.excitation import FourierTrajectory
-from consistid.gap import noise_floor
-from consistid.statistics import autocorrelation_time
-from consistid.robot_effects import Effects, MountedPayload
-from consistid.signals import lowpass
+from consistid.diagnosis.gap import noise_floor
+from consistid.identification.statistics import autocorrelation_time
+from consistid.simulate.effects import Effects, MountedPayload
+from consistid.data.signals import lowpass
 from consistid.simulate import excitation_run, record
 
 RATE = 200.0
@@ -63,7 +63,7 @@ INJECTED = {"ripple": (0.8, 23), "position": (0.4, 1)}
 @pytest.mark.parametrize("effect", list(SCENARIOS))
 def test_effect_injected_alone_is_named_first(panda, effect):
     effects, joint = SCENARIOS[effect]
-    params = (ci.parameters.perturb(panda.prior_parameters, 0.2, np.random.default_rng(3))
+    params = (ci.robot.inertia.perturb(panda.prior_parameters, 0.2, np.random.default_rng(3))
               if effect == "inertia" else None)
     train, held = mujoco_pair(panda, effects, params,
                               ripple=(joint, *INJECTED[effect]) if effect in INJECTED else None)

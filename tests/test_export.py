@@ -7,11 +7,11 @@ import pytest
 
 import consistid as ci
 from consistid.errors import InconsistentParametersError
-from consistid.export import ExportWarning, write_urdf
-from consistid.parameters import from_mass_com_inertia, perturb
-from consistid.recover import recover_standard
-from consistid.regressor import RegressorSpec, parameter_names
-from consistid.urdf import joint_dynamics
+from consistid.robot.export import ExportWarning, write_urdf
+from consistid.robot.inertia import from_mass_com_inertia, perturb
+from consistid.estimation.recover import recover_standard
+from consistid.identification.regressor import RegressorSpec, parameter_names
+from consistid.robot.urdf import joint_dynamics
 
 
 @pytest.fixture(scope="module")

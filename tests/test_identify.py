@@ -2,10 +2,10 @@ import numpy as np
 import pytest
 
 import consistid as ci
-from consistid.compression import SIGMA_FLOOR
+from consistid.identification.compression import SIGMA_FLOOR
 from consistid.errors import PoorExcitationWarning
-from consistid.parameters import perturb
-from consistid.regressor import dataset_regressor
+from consistid.robot.inertia import perturb
+from consistid.identification.regressor import dataset_regressor
 
 from .conftest import PLANAR_2R, PLANAR_2R_VALUES, random_states
 

@@ -9,8 +9,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import consistid as ci
-from consistid.mounting import estimate_mounting, gravity_from_tilt
-from consistid.regressor import rigid_body_regressor
+from consistid.estimation.mounting import estimate_mounting, gravity_from_tilt
+from consistid.identification.regressor import rigid_body_regressor
 
 from .conftest import random_states
 

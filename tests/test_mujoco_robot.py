@@ -10,9 +10,9 @@ from hypothesis import strategies as st
 import consistid as ci
 from consistid.errors import ModelError, OptionError
 from consistid.excitation import FourierTrajectory
-from consistid.mujoco_robot import MujocoRobot
-from consistid.parameters import perturb
-from consistid.robot_effects import Effects, MountedPayload, effect_torque, sensor_torque
+from consistid.simulate.mujoco_robot import MujocoRobot
+from consistid.robot.inertia import perturb
+from consistid.simulate.effects import Effects, MountedPayload, effect_torque, sensor_torque
 from consistid.simulate import TrackingController, record
 
 from .conftest import random_states

@@ -13,7 +13,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from consistid.parameters import (from_mass_com_inertia, from_pseudo_inertia,
+from consistid.robot.inertia import (from_mass_com_inertia, from_pseudo_inertia,
                                   is_physically_consistent, perturb, pseudo_inertia,
                                   pseudo_inertia_map, to_mass_com_inertia)
 

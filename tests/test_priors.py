@@ -8,9 +8,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from consistid import priors
+from consistid.identification import priors
 from consistid.errors import InconsistentParametersError, OptionError
-from consistid.parameters import from_mass_com_inertia, pseudo_inertia
+from consistid.robot.inertia import from_mass_com_inertia, pseudo_inertia
 
 SETTINGS = settings(max_examples=25, deadline=None)
 

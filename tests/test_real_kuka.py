@@ -11,9 +11,9 @@ import pytest
 
 import consistid as ci
 from consistid.errors import JointNameError
-from consistid.recordings import Recording, load_recording
-from consistid.urdf import model_without_dynamics
-from consistid.validation import refit_joint_terms, rigid_model, score
+from consistid.data.recordings import Recording, load_recording
+from consistid.robot.urdf import model_without_dynamics
+from consistid.identification.scoring import refit_joint_terms, rigid_model, score
 
 JOINTS = [f"lwr_{i}_joint" for i in range(7)]
 pytestmark = pytest.mark.filterwarnings("ignore::consistid.errors.PoorExcitationWarning")

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from consistid.errors import DatasetError, JointNameError, MissingColumnsError, OptionError
-from consistid.recordings import Recording, from_arrays, load_recording
+from consistid.data.recordings import Recording, from_arrays, load_recording
 
 T0 = 1460034856.877162  # a Unix stamp (2016-04-07)
 

@@ -9,10 +9,10 @@ import consistid as ci
 from consistid.cli import main
 from consistid.errors import (InfeasibleError, JointCountError, ModelError, OptionError,
                               UnrealizableCoefficientsError)
-from consistid.identify import nearest_standard
-from consistid.parameters import from_mass_com_inertia, is_physically_consistent, perturb
-from consistid.recover import recover_standard
-from consistid.regressor import regressor
+from consistid.identification.identify import nearest_standard
+from consistid.robot.inertia import from_mass_com_inertia, is_physically_consistent, perturb
+from consistid.estimation.recover import recover_standard
+from consistid.identification.regressor import regressor
 
 from .conftest import random_states
 
@@ -175,7 +175,7 @@ def test_is_consistent_means_what_consistency_says(panda, setup):
     point = rec.parameters.copy()
     point[60:70] = from_mass_com_inertia(1.0, [0.0, 0.0, 0.1], np.zeros((3, 3)))
     margins = rec.margins.copy()
-    margins[6] = np.linalg.eigvalsh(ci.parameters.pseudo_inertia(point[60:70]))[0]
+    margins[6] = np.linalg.eigvalsh(ci.robot.inertia.pseudo_inertia(point[60:70]))[0]
     assert margins[6] > -1e-12                       # ⪰ 0 to round-off
     boundary = dataclasses.replace(rec, parameters=point, margins=margins)
     assert not boundary.consistency.ok and not boundary.is_consistent
@@ -210,7 +210,7 @@ def test_cli_recover_writes_a_consistent_urdf(panda, setup, tmp_path):
 def test_a_wrong_coefficient_count_names_the_settings_that_fit(planar_2r):
     # 2R arm with viscous friction: 6 rigid base coefficients + 2; recovered with the default
     # columns (Coulomb, viscous, offset: 12) it must say which settings give 8
-    from consistid.regressor import prior_vector
+    from consistid.identification.regressor import prior_vector
 
     spec = ci.RegressorSpec.make(planar_2r, ("viscous",))
     beta = ci.compute_base_parameters(planar_2r, spec).project(prior_vector(planar_2r, spec))
@@ -222,7 +222,7 @@ def test_a_wrong_coefficient_count_names_the_settings_that_fit(planar_2r):
 
 def test_wrongly_typed_inputs_are_named(planar_2r):
     spec = ci.RegressorSpec.make(planar_2r, None)
-    from consistid.regressor import prior_vector
+    from consistid.identification.regressor import prior_vector
 
     beta = ci.compute_base_parameters(planar_2r, spec).project(prior_vector(planar_2r, spec))
     kw = dict(friction=None)

@@ -4,8 +4,8 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 import consistid as ci
-from consistid.parameters import perturb
-from consistid.regressor import RegressorSpec, parameter_names, regressor
+from consistid.robot.inertia import perturb
+from consistid.identification.regressor import RegressorSpec, parameter_names, regressor
 
 from .conftest import random_states
 

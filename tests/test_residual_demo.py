@@ -5,8 +5,8 @@ import pytest
 
 from consistid.cli import main
 from consistid.errors import OptionError
-from consistid.residual_demo import parse_effects, run
-from consistid.robot_effects import Effects
+from consistid.cli.residual_demo import parse_effects, run
+from consistid.simulate.effects import Effects
 
 
 def test_residual_is_explained_by_the_injected_effects():

@@ -15,18 +15,18 @@ import pytest
 import scipy.linalg
 
 import consistid as ci
-from consistid.base import compute_base_parameters
-from consistid.compression import SIGMA_FLOOR, compress
-from consistid.constraints import Ellipsoid
+from consistid.identification.base import compute_base_parameters
+from consistid.identification.compression import SIGMA_FLOOR, compress
+from consistid.robot.shapes import Ellipsoid
 from consistid.errors import (IdentificationError, InaccurateSolutionWarning,
                               InconsistentParametersError, InfeasibleError, OptionError,
                               PoorExcitationWarning)
 from consistid.excitation import FourierTrajectory
-from consistid.parameters import (inertia_about_origin, is_physically_consistent, perturb,
+from consistid.robot.inertia import (inertia_about_origin, is_physically_consistent, perturb,
                                   to_mass_com_inertia)
-from consistid.priors import Neighbourhood
-from consistid.regressor import RegressorSpec, dataset_regressor
-from consistid.sdp import default_prior_weight, identify_sdp
+from consistid.identification.priors import Neighbourhood
+from consistid.identification.regressor import RegressorSpec, dataset_regressor
+from consistid.identification.sdp import default_prior_weight, identify_sdp
 
 from .conftest import PLANAR_2R, PLANAR_2R_VALUES, random_states
 
@@ -384,7 +384,7 @@ def test_options_of_the_wrong_type_are_named(panda, sets, options, message):
 
 def test_warnings_of_a_failed_first_solve_are_kept(panda, sets, monkeypatch):
     """A solve that warns, then raises: the warning reaches the caller with the error."""
-    import consistid.sdp as sdp
+    import consistid.identification.sdp as sdp
 
     def warn_then_fail(*args, **kwargs):
         warnings.warn("reduced accuracy before failing", InaccurateSolutionWarning)

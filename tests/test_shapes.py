@@ -2,7 +2,7 @@
 URDF transforms (origin, fixed and locked joints, scale, package URIs), the Panda against
 Pinocchio's own collision model, and the SDP with ``ellipsoids="collision"``.
 
-Expected values are independent of :mod:`consistid.shapes`: rotations from scipy's Euler
+Expected values are independent of :mod:`consistid.robot.shapes`: rotations from scipy's Euler
 angles (URDF rpy = extrinsic x-y-z), the Panda's points from ``pinocchio.buildGeomFromUrdf``
 (coal's mesh loader and Pinocchio's placements), realizability from the pseudo-inertia built by
 its defining formula.
@@ -22,9 +22,9 @@ from scipy.spatial.transform import Rotation
 
 import consistid as ci
 from consistid.errors import GeometryWarning, InaccurateSolutionWarning, ModelError, OptionError
-from consistid.model import example_robot_data_dir
-from consistid.parameters import perturb
-from consistid.shapes import (collision_ellipsoids, collision_points, minimum_volume_ellipsoid,
+from consistid.robot.model import example_robot_data_dir
+from consistid.robot.inertia import perturb
+from consistid.robot.shapes import (collision_ellipsoids, collision_points, minimum_volume_ellipsoid,
                               pad, read_mesh, semi_axes, volume)
 
 from .test_sdp import j_matrix
@@ -82,7 +82,7 @@ def test_iteration_cap_warns_but_still_encloses():
 
 
 def test_padding_adds_to_every_semi_axis():
-    e = pad(ci.constraints.Ellipsoid.from_semi_axes([0, 0, 1], [0.1, 0.2, 0.3],
+    e = pad(ci.Ellipsoid.from_semi_axes([0, 0, 1], [0.1, 0.2, 0.3],
                                                      Rotation.from_euler("z", 0.3).as_matrix()),
             0.01)
     np.testing.assert_allclose(semi_axes(e), [0.11, 0.21, 0.31])
@@ -304,7 +304,7 @@ def test_bodies_without_geometry_keep_pseudo_inertia(tiny):
 
 
 def test_config_passes_collision_on(tmp_path):
-    from consistid.config import config_identify, load_config
+    from consistid.cli.config import config_identify, load_config
     from consistid.errors import ConfigError
 
     path = tmp_path / "run.toml"

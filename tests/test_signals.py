@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import consistid as ci
-from consistid import signals
+from consistid.data import signals
 from consistid.errors import DatasetError, OptionError
 from consistid.excitation import FourierTrajectory
 
@@ -158,7 +158,7 @@ def test_chain_copes_with_jitter_duplicates_disorder_and_gaps(excitation, caplog
     t, q, tau = (np.insert(a, dup, a[dup], axis=0) for a in (t, q, tau))
     swap = np.array([2000, 2001])                                   # two rows out of order
     t[swap], q[swap], tau[swap] = t[swap[::-1]], q[swap[::-1]], tau[swap[::-1]]
-    with caplog.at_level(logging.INFO, logger="consistid.signals"):
+    with caplog.at_level(logging.INFO, logger="consistid.data.signals"):
         pre = signals.preprocess(t, q, tau, bandwidth=0.5, rate=RATE)
     names = [s.name for s in pre.steps]
     for name in ("sort", "duplicates", "gaps", "resample"):

@@ -2,7 +2,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from consistid.statistics import coloured_covariance
+from consistid.identification.statistics import coloured_covariance
 
 
 @settings(max_examples=25, deadline=None)

@@ -2,8 +2,8 @@ import numpy as np
 import pytest
 
 import consistid as ci
-from consistid.urdf import JointDynamics
-from consistid.validation import (refit_joint_terms, rigid_model, score_prediction,
+from consistid.robot.urdf import JointDynamics
+from consistid.identification.scoring import (refit_joint_terms, rigid_model, score_prediction,
                                   scores_table, with_urdf_friction)
 
 from .conftest import random_states

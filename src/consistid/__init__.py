@@ -4,48 +4,109 @@
 >>> model = ci.RobotModel.example("panda")
 >>> run = ci.simulate.excitation_run(model, duration=20.0)
 >>> res = ci.identify(model, run.dataset, method="ols")
+
+The public names are loaded when first used (PEP 562), so ``import consistid`` does not pay for
+Pinocchio, cvxpy, MuJoCo or matplotlib until they are needed. The subpackages, bottom to top:
+:mod:`~consistid.robot`, :mod:`~consistid.data`, :mod:`~consistid.identification`,
+:mod:`~consistid.estimation`, :mod:`~consistid.excitation`, :mod:`~consistid.simulate`,
+:mod:`~consistid.kinematics`, :mod:`~consistid.online`, :mod:`~consistid.friction`,
+:mod:`~consistid.diagnosis`, :mod:`~consistid.cli` (``docs/architecture.md``).
 """
 
-from . import simulate
-from .base import BaseParameters, compute_base_parameters
-from .constraints import Ellipsoid
-from .dataset import Dataset
-from .diagnose import Diagnosis, diagnose
-from .errors import (ConfigError, ConsistidError, DatasetError, ExcitationError,
-                     IdentificationError, InaccurateSolutionWarning, InconsistentParametersError,
-                     InfeasibleError, InfeasibleExcitationError, JointCountError, JointNameError,
-                     MissingColumnsError, ModelError, OptionError, PoorExcitationError,
-                     PoorExcitationWarning, TrackingWarning, UnrealizableCoefficientsError)
-from .excitation import (BoundaryConditions, ExcitationDesign, ExcitationLimits, FourierTrajectory,
-                         design_excitation)
-from .identify import identify
-from .model import RobotModel
-from .mounting import MountingEstimate, estimate_mounting
-from .parameters import is_physically_consistent
-from .priors import Neighbourhood
-from .payload import Payload, estimate_payload, payload_from_base_change
-from .recordings import load_recording
-from .recover import RecoveryResult, recover_standard
-from .regressor import RegressorSpec, regressor
-from .result import IdentificationResult
-from .sdp import default_prior_weight
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+from .errors import (ConfigError, ConsistidError, DatasetError, ExcitationError, ExportWarning,
+                     GeometryWarning, IdentificationError, InaccurateSolutionWarning,
+                     InconsistentParametersError, InfeasibleError, InfeasibleExcitationError,
+                     JointCountError, JointNameError, MissingColumnsError, ModelError,
+                     OptionError, ParameterShapeError, PoorExcitationError,
+                     PoorExcitationWarning, SolverError, TrackingWarning,
+                     UnrealizableCoefficientsError)
 
 __version__ = "0.1.0"
 
-__all__ = [
-    "BaseParameters", "BoundaryConditions", "ConfigError", "ConsistidError", "Dataset",
-    "DatasetError", "ExcitationError", "JointNameError",
-    "Diagnosis", "diagnose",
-    "Ellipsoid", "ExcitationDesign", "ExcitationLimits", "FourierTrajectory",
-    "InfeasibleExcitationError", "IdentificationError", "IdentificationResult",
-    "InaccurateSolutionWarning", "InconsistentParametersError", "InfeasibleError",
-    "JointCountError", "MissingColumnsError", "ModelError", "MountingEstimate", "Neighbourhood",
-    "OptionError",
-    "Payload", "PoorExcitationError", "PoorExcitationWarning", "RecoveryResult",
-    "RegressorSpec", "RobotModel", "TrackingWarning", "UnrealizableCoefficientsError",
-    "compute_base_parameters",
-    "default_prior_weight", "design_excitation", "estimate_mounting", "estimate_payload",
-    "identify",
-    "is_physically_consistent", "load_recording",
-    "payload_from_base_change", "recover_standard", "regressor", "simulate",
-]
+#: public name → the module that defines it
+_EXPORTS: dict[str, str] = {
+    "RobotModel": "robot.model",
+    "InertialParameters": "robot.inertia",
+    "is_physically_consistent": "robot.inertia",
+    "Ellipsoid": "robot.shapes",
+    "Dataset": "data.dataset",
+    "load_recording": "data.recordings",
+    "RegressorSpec": "identification.regressor",
+    "regressor": "identification.regressor",
+    "BaseParameters": "identification.base",
+    "compute_base_parameters": "identification.base",
+    "identify": "identification.identify",
+    "IdentificationResult": "identification.result",
+    "Neighbourhood": "identification.priors",
+    "default_prior_weight": "identification.sdp",
+    "recover_standard": "estimation.recover",
+    "RecoveryResult": "estimation.recover",
+    "estimate_payload": "estimation.payload",
+    "payload_from_base_change": "estimation.payload",
+    "Payload": "estimation.payload",
+    "estimate_mounting": "estimation.mounting",
+    "MountingEstimate": "estimation.mounting",
+    "BoundaryConditions": "excitation",
+    "ExcitationDesign": "excitation",
+    "ExcitationLimits": "excitation",
+    "FourierTrajectory": "excitation",
+    "design_excitation": "excitation",
+    "diagnose": "diagnosis.diagnose",
+    "Diagnosis": "diagnosis.diagnose",
+    "calibrate_kinematics": "kinematics",
+    "RecursiveEstimator": "online",
+    "estimate_breakaway": "friction",
+}
+
+#: subpackages reachable as attributes (``ci.simulate.record``)
+_SUBPACKAGES = ("robot", "data", "identification", "estimation", "excitation", "simulate",
+                "diagnosis", "kinematics", "online", "friction", "cli")
+
+__all__ = sorted([*_EXPORTS, "simulate", "ConfigError", "ConsistidError", "DatasetError",
+                  "ExcitationError", "ExportWarning", "GeometryWarning", "IdentificationError",
+                  "InaccurateSolutionWarning", "InconsistentParametersError", "InfeasibleError",
+                  "InfeasibleExcitationError", "JointCountError", "JointNameError",
+                  "MissingColumnsError", "ModelError", "OptionError", "ParameterShapeError",
+                  "PoorExcitationError", "PoorExcitationWarning", "SolverError",
+                  "TrackingWarning", "UnrealizableCoefficientsError"])
+
+
+def __getattr__(name: str) -> Any:
+    if name in _EXPORTS:
+        value = getattr(importlib.import_module(f".{_EXPORTS[name]}", __name__), name)
+    elif name in _SUBPACKAGES:
+        value = importlib.import_module(f".{name}", __name__)
+    else:
+        raise AttributeError(f"module 'consistid' has no attribute {name!r}")
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__) | set(_SUBPACKAGES))
+
+
+if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerly
+    from . import simulate
+    from .data.dataset import Dataset
+    from .data.recordings import load_recording
+    from .diagnosis.diagnose import Diagnosis, diagnose
+    from .estimation.mounting import MountingEstimate, estimate_mounting
+    from .estimation.payload import Payload, estimate_payload, payload_from_base_change
+    from .estimation.recover import RecoveryResult, recover_standard
+    from .excitation import (BoundaryConditions, ExcitationDesign, ExcitationLimits,
+                             FourierTrajectory, design_excitation)
+    from .identification.base import BaseParameters, compute_base_parameters
+    from .identification.identify import identify
+    from .identification.priors import Neighbourhood
+    from .identification.regressor import RegressorSpec, regressor
+    from .identification.result import IdentificationResult
+    from .identification.sdp import default_prior_weight
+    from .robot.inertia import InertialParameters, is_physically_consistent
+    from .robot.model import RobotModel
+    from .robot.shapes import Ellipsoid

@@ -52,6 +52,11 @@ class InfeasibleError(IdentificationError):
     """The constraints admit no solution (the solver proved infeasibility)."""
 
 
+class SolverError(IdentificationError):
+    """The conic solver crashed or refused the problem (a Rust panic in Clarabel, a solver
+    exception); the message names the solver and what to try. Never a ``BaseException``."""
+
+
 class PoorExcitationError(IdentificationError):
     """The data do not excite the base parameters: the base regressor is rank deficient."""
 
@@ -60,7 +65,7 @@ class UnrealizableCoefficientsError(InfeasibleError):
     """No physically consistent standard parameters reproduce the given base coefficients.
 
     ``moves`` holds the smallest (weighted L1) changes of the named coefficients that would make
-    them realisable (:class:`consistid.recover.CoefficientMove`).
+    them realisable (:class:`consistid.estimation.recover.CoefficientMove`).
     """
 
     def __init__(self, message: str, moves: tuple = ()) -> None:
@@ -145,7 +150,7 @@ class InaccurateSolutionWarning(UserWarning):
 
 
 class GeometryWarning(UserWarning):
-    """A body has no collision geometry, so no bounding shape (:mod:`consistid.shapes`)."""
+    """A body has no collision geometry, so no bounding shape (:mod:`consistid.robot.shapes`)."""
 
 
 class ExportWarning(UserWarning):

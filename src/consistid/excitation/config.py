@@ -1,7 +1,7 @@
 """Excitation designs described by a TOML file (``consistid excite CONFIG``).
 
 The ``[model]`` table and the path rules are those of every consistid configuration
-(:mod:`consistid.config`). Example::
+(:mod:`consistid.cli.config`). Example::
 
     [model]
     example = "panda"               # an example robot, or: urdf = "arm.urdf"
@@ -38,9 +38,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from ..config import RunConfig, config_model, load_config
+from ..cli.config import RunConfig, config_model, load_config
 from ..errors import ConfigError
-from ..model import RobotModel
+from ..robot.model import RobotModel
 from .design import ExcitationDesign, StartResult, design_excitation
 from .limits import CartesianBox, ExcitationLimits, FloorPlane, KeepOutSphere
 from .trajectory import BoundaryConditions

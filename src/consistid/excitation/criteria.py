@@ -26,10 +26,10 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from ..base import BaseParameters
+from ..identification.base import BaseParameters
 from ..errors import check_option
-from ..model import RobotModel
-from ..regressor import RegressorSpec, prior_vector, regressor
+from ..robot.model import RobotModel
+from ..identification.regressor import RegressorSpec, prior_vector, regressor
 
 CRITERIA = ("cond", "d-opt", "e-opt")
 

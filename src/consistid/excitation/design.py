@@ -34,11 +34,11 @@ import numpy as np
 import scipy.optimize
 import scipy.sparse
 
-from ..base import BaseParameters, compute_base_parameters
-from ..dataset import Dataset
+from ..identification.base import BaseParameters, compute_base_parameters
+from ..data.dataset import Dataset
 from ..errors import InfeasibleExcitationError, OptionError, check_number, check_option
-from ..model import RobotModel, require_model
-from ..regressor import FrictionArg, RegressorSpec, prior_vector, regressor
+from ..robot.model import RobotModel, require_model
+from ..identification.regressor import FrictionArg, RegressorSpec, prior_vector, regressor
 from .criteria import CRITERIA, criteria_values, criterion_and_gradient, prior_column_scale
 from .criteria import regressor_sensitivity
 from .limits import ConstraintBlock, ConstraintReport, ConstraintSet, ExcitationLimits

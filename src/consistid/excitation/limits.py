@@ -23,7 +23,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import ExcitationError, InfeasibleExcitationError, ModelError
-from ..model import RobotModel
+from ..robot.model import RobotModel
 from .trajectory import DEFAULT_ACCELERATION_LIMIT, _joint_vector, _position_range
 
 

@@ -42,9 +42,9 @@ from typing import Sequence
 import numpy as np
 import scipy.interpolate
 
-from ..dataset import Dataset
+from ..data.dataset import Dataset
 from ..errors import ExcitationError, JointCountError
-from ..model import RobotModel
+from ..robot.model import RobotModel
 
 #: Default acceleration bound (rad/s²) when a model has none: URDFs carry no acceleration limits.
 DEFAULT_ACCELERATION_LIMIT = 10.0

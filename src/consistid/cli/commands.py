@@ -1,0 +1,302 @@
+"""The ``consistid`` command.
+
+``consistid demo`` runs the main job on a bundled default: a simulated excitation run of the
+Panda arm (ground truth = URDF parameters perturbed by ±20 %), identified, with a report.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from typing import Callable, Sequence
+
+import numpy as np
+
+
+def _log(msg: str) -> None:
+    print(msg, file=sys.stderr, flush=True)
+
+
+def demo(args: argparse.Namespace) -> int:
+    """Simulate, identify, report."""
+    import consistid as ci
+    from consistid.robot.inertia import perturb
+
+    model = ci.RobotModel.example(args.robot)
+    rng = np.random.default_rng(args.seed)
+    truth = perturb(model.prior_parameters, 0.2, rng)
+    _log(f"[1/4] simulating {args.duration:.0f} s of excitation on {model.name} "
+         f"(truth = URDF ±20 %, torque noise σ = {args.noise} N·m)")
+    run = ci.simulate.excitation_run(model, truth, duration=args.duration, rate=args.rate,
+                                     torque_noise=args.noise, seed=args.seed)
+    held = ci.simulate.excitation_run(model, truth, duration=10.0, rate=args.rate,
+                                      torque_noise=args.noise, seed=args.seed + 1)
+    from consistid.identification.summary import table
+
+    results, rows, held_rms = {}, [], {}
+    for step, method, what in ((2, "ols", "ordinary least squares on base parameters"),
+                               (3, "sdp", "consistent SDP: pseudo-inertia LMIs, log-det prior")):
+        _log(f"[{step}/4] identifying ({what})")
+        t0 = time.perf_counter()
+        res = results[method] = ci.identify(model, run.dataset, method=method, friction=None)
+        elapsed = time.perf_counter() - t0
+        _log(f"      done in {elapsed:.2f} s")
+        err = (res.base_parameters - res.base.project(truth)) / res.base_std
+        held_rms[method] = res.rms(held.dataset) / args.noise
+        rows.append((method.upper(), f"{np.sqrt(np.mean(held_rms[method] ** 2)):.4f}",
+                     f"{sum(b.ok for b in res.consistency.bodies)}/{model.n_bodies}",
+                     f"{np.mean(np.abs(err) < 3) * 100:.0f} %", f"{elapsed:.2f}"))
+    _log("[4/4] report")
+    print(results["sdp"].summary())
+    print("\nheld-out RMS / σ per joint (SDP): "
+          f"{np.array2string(held_rms['sdp'], precision=3)}")
+    print("\n" + table(["method", "held-out RMS/σ", "bodies consistent",
+                        "base params within 3σ of truth", "time [s]"], rows))
+    print(f"OLS (nearest standard set): {results['ols'].consistency}")
+    return 0
+
+
+def identify(args: argparse.Namespace) -> int:
+    """Identify from the recordings of a TOML configuration (:mod:`consistid.cli.config`)."""
+    import consistid as ci
+    from consistid.cli.config import (config_identify, config_model, config_recordings,
+                                  estimates_tilt, load_config)
+    from consistid.identification.scoring import score, scores_table
+
+    config = load_config(args.config)
+    model = config_model(config, allow_tilt=True)
+    options = config_identify(config)
+    train, held = config_recordings(config, model)
+    _log(str(train))
+    if held is not None:
+        _log(str(held))
+    if estimates_tilt(config):
+        _log("estimating the base tilt (gravity direction) on the training recordings")
+        mounting = ci.estimate_mounting(model, train.dataset,
+                                        **{k: options[k] for k in ("friction", "armature")
+                                           if k in options})
+        print(f"{mounting}\n")
+        model = mounting.model
+    _log(f"identifying {model.name} on {train.dataset.n_samples} samples "
+         f"({', '.join(f'{k}={v!r}' for k, v in options.items()) or 'defaults'})")
+    t0 = time.perf_counter()
+    res = ci.identify(model, train.dataset, **options)
+    _log(f"      done in {time.perf_counter() - t0:.2f} s")
+    print(res.summary(max_rows=None if args.all else 20))
+    scored = [score(res, train.dataset, "train")]
+    if held is not None:
+        scored.append(score(res, held.dataset, "held-out"))
+    print("\nTorque fit: relative error per joint and total (%), RMS (N·m)")
+    print(scores_table(scored))
+    return 0
+
+
+def excite(args: argparse.Namespace) -> int:
+    """Design an optimal excitation trajectory (:mod:`consistid.excitation.config`), write CSV."""
+    from consistid.excitation.config import load_excitation_config
+
+    config = load_excitation_config(args.config)
+    _log(f"designing an excitation trajectory for {config.model.name} "
+         f"({config.options.get('n_starts', 4)} starts)")
+    design = config.run(progress=lambda start: _log(f"      {start}"))
+    print(design)
+    output = design.save_csv(args.output or config.output, config.rate)
+    _log(f"wrote {output} ({config.rate:g} Hz, one period of {design.period:g} s)")
+    return 0
+
+
+def simulate(args: argparse.Namespace) -> int:
+    """A MuJoCo arm with effects the nominal model lacks; the nominal residual per joint
+    (:mod:`consistid.cli.residual_demo`)."""
+    from consistid.cli.residual_demo import DEFAULT_EFFECTS, run
+
+    demo_run = run(args.robot, args.effect or DEFAULT_EFFECTS, duration=args.duration,
+                   torque_noise=args.noise, seed=args.seed, progress=_log)
+    print(demo_run)
+    if args.plot:
+        _log(f"wrote {demo_run.plot(args.plot)}")
+    return 0
+
+
+RECOVER_KEYS = ("coefficients", "friction", "armature", "mode", "prior", "margin", "slack",
+                "urdf", "merged")
+PAYLOAD_KEYS = ("loaded", "route", "frame", "body", "ellipsoid", "mass_range")
+PAYLOAD_ROUTES = ("torque", "base-change")
+
+
+def recover(args: argparse.Namespace) -> int:
+    """Consistent standard parameters from base coefficients (:mod:`consistid.estimation.recover`): from a
+    ``coefficients`` file (npz: ``beta`` [, ``covariance``]) or by OLS on the ``[data]`` logs."""
+    import consistid as ci
+    from consistid.cli.config import config_model, config_recordings, load_config
+    from consistid.errors import ConfigError
+    from consistid.identification.regressor import DEFAULT_FRICTION
+
+    config = load_config(args.config)
+    model = config_model(config)
+    t = config.table("recover", RECOVER_KEYS, required=False)
+    options = {k: t[k] for k in ("mode", "prior", "margin", "slack") if k in t}
+    # the same columns in both branches: identify's default unless [recover] says otherwise
+    friction, armature = t.get("friction", DEFAULT_FRICTION), t.get("armature", False)
+    if "coefficients" in t:
+        with np.load(config.resolve(t["coefficients"])) as f:
+            if "beta" not in f.files:
+                raise ConfigError(f"{t['coefficients']}: needs an array 'beta'")
+            beta = f["beta"]
+            cov = f["covariance"] if "covariance" in f.files else None
+        rec = ci.recover_standard(model, beta, covariance=cov, friction=friction,
+                                  armature=armature, **options)
+    else:
+        train, _ = config_recordings(config, model)
+        _log(f"identifying base coefficients by OLS on {train.dataset.n_samples} samples")
+        res = ci.identify(model, train.dataset, method="ols", friction=friction,
+                          armature=armature)
+        rec = ci.recover_standard(model, res, **options)
+    print(rec.summary(max_rows=None if args.all else 20))
+    if "urdf" in t:
+        _log(f"wrote {rec.to_urdf(config.resolve(t['urdf']), t.get('merged', 'auto'))}")
+    return 0
+
+
+def payload(args: argparse.Namespace) -> int:
+    """Payload from unloaded ``[data]`` logs and ``[payload] loaded`` logs
+    (:mod:`consistid.estimation.payload`); the robot is identified as ``[identify]`` says (default OLS)."""
+    import dataclasses
+
+    import consistid as ci
+    from consistid.cli.config import (config_ellipsoid, config_identify, config_model,
+                                  config_recordings, load_config)
+    from consistid.errors import ConfigError, check_option
+
+    config = load_config(args.config)
+    model = config_model(config)
+    t = config.table("payload", PAYLOAD_KEYS)
+    route = t.get("route", "torque")
+    check_option("[payload] route", route, PAYLOAD_ROUTES)
+    if not t.get("loaded"):
+        raise ConfigError(f"{config.path.name}: [payload] needs loaded = [\"file.npz\", ...] "
+                          "(the logs recorded with the payload)")
+    ellipsoid = (config_ellipsoid(config, "payload.ellipsoid", t["ellipsoid"])
+                 if "ellipsoid" in t else None)
+    options = {"method": "ols", **config_identify(config)}
+    loaded_config = dataclasses.replace(config, tables={
+        **config.tables, "data": {**config.table("data"), "train": t["loaded"],
+                                  "held_out": []}})
+    unloaded, _ = config_recordings(config, model)
+    loaded, _ = config_recordings(loaded_config, model)
+    _log(f"identifying the unloaded robot ({options})")
+    robot = ci.identify(model, unloaded.dataset, **options)
+    target = (loaded.dataset if route == "torque"
+              else ci.identify(model, loaded.dataset, **options))
+    result = ci.estimate_payload(model, target, robot=robot, frame=t.get("frame"),
+                                 body=t.get("body"), ellipsoid=ellipsoid,
+                                 mass_range=t.get("mass_range"))
+    print(result)
+    return 0
+
+
+#: ``[diagnose]`` keys passed to :func:`consistid.diagnose` as they are …
+DIAGNOSE_OPTIONS = ("effects", "sigma", "alpha", "min_gain", "tie", "max_steps", "split",
+                    "inertia_solver")
+#: … and all ``[diagnose]`` keys (``nominal_urdf`` and ``output`` are read by the command).
+DIAGNOSE_KEYS = DIAGNOSE_OPTIONS + ("nominal_urdf", "output")
+
+
+def diagnose(args: argparse.Namespace) -> int:
+    """Sim-to-real gap diagnosis of the ``[model]`` (or ``[diagnose] nominal_urdf``) against the
+    ``[data]`` logs (:mod:`consistid.diagnose`); the report goes to ``[diagnose] output``."""
+    import consistid as ci
+    from consistid.cli.config import config_model, config_recordings, load_config
+    from consistid.robot.urdf import model_without_dynamics
+
+    config = load_config(args.config)
+    model = config_model(config)
+    train, held = config_recordings(config, model)
+    t = config.table("diagnose", DIAGNOSE_KEYS, required=False)
+    options = {k: t[k] for k in DIAGNOSE_OPTIONS if k in t}
+    nominal = None
+    if "nominal_urdf" in t:  # same joints, locks and gravity as [model], other inertias
+        nominal = model_without_dynamics(config.resolve(t["nominal_urdf"]),
+                                         locked_joints=model.locked_joints,
+                                         gravity=model.gravity)[0]
+    _log(f"diagnosing {model.name}: {train.dataset.n_samples} training samples, "
+         f"{'held-out logs' if held is not None else 'time split'}")
+    t0 = time.perf_counter()
+    diag = ci.diagnose(model, train.dataset, nominal=nominal,
+                       held_out=None if held is None else held.dataset, progress=_log,
+                       **options)
+    _log(f"      done in {time.perf_counter() - t0:.2f} s")
+    print(diag.summary())
+    output = args.output or t.get("output")
+    if output:
+        _log(f"wrote {diag.report(config.resolve(output) if not args.output else output)}")
+    return 0
+
+
+COMMANDS: dict[str, tuple[Callable[[argparse.Namespace], int], str]] = {
+    "demo": (demo, "simulate an excitation run, identify it, print a report"),
+    "identify": (identify, "identify a robot from the logs named in a TOML config"),
+    "excite": (excite, "design an optimal excitation trajectory from a TOML config, write CSV"),
+    "simulate": (simulate, "run a MuJoCo arm with unmodelled effects, show the nominal residual"),
+    "recover": (recover, "consistent standard parameters from base coefficients (TOML config)"),
+    "payload": (payload, "estimate a payload from unloaded and loaded logs (TOML config)"),
+    "diagnose": (diagnose, "sim-to-real gap diagnosis of a model against logs (TOML config)"),
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="consistid",
+        description="Physically consistent identification of robot dynamics, and sim-to-real gap "
+                    "diagnosis. Each command takes a TOML configuration (see examples/), except "
+                    "demo and simulate.")
+    sub = parser.add_subparsers(dest="command", required=True)
+    p = sub.add_parser("demo", help=COMMANDS["demo"][1])
+    p.add_argument("--robot", default="panda", help="example-robot-data arm (default panda)")
+    p.add_argument("--duration", type=float, default=30.0, help="seconds of excitation")
+    p.add_argument("--rate", type=float, default=500.0, help="sampling rate in Hz")
+    p.add_argument("--noise", type=float, default=0.1, help="torque noise σ in N·m")
+    p.add_argument("--seed", type=int, default=0)
+    p = sub.add_parser("identify", help=COMMANDS["identify"][1])
+    p.add_argument("config", help="TOML file with [model], [data] and [identify] tables")
+    p.add_argument("--all", action="store_true", help="list every base parameter")
+    p = sub.add_parser("excite", help=COMMANDS["excite"][1])
+    p.add_argument("config", help="TOML file with [model] and [excite] tables")
+    p.add_argument("--output", help="CSV path (default: [excite] output)")
+    p = sub.add_parser("simulate", help=COMMANDS["simulate"][1])
+    p.add_argument("--robot", default="panda", help="example-robot-data arm (default panda)")
+    p.add_argument("--effect", action="append", metavar="NAME=VALUE",
+                   help="an effect on every joint, repeatable (viscous, coulomb, armature, "
+                        "elasticity, offset, gain, delay, payload=MASS …); default "
+                        "coulomb=1.0 and payload=1.0")
+    p.add_argument("--duration", type=float, default=20.0, help="seconds logged at 1 kHz")
+    p.add_argument("--noise", type=float, default=0.05, help="torque noise σ in N·m")
+    p.add_argument("--plot", metavar="PNG", help="write the residuals to this PNG")
+    p.add_argument("--seed", type=int, default=0)
+    p = sub.add_parser("recover", help=COMMANDS["recover"][1])
+    p.add_argument("config", help="TOML file with [model], [recover] and [data] or "
+                                  "[recover] coefficients")
+    p.add_argument("--all", action="store_true", help="list every moved coefficient")
+    p = sub.add_parser("payload", help=COMMANDS["payload"][1])
+    p.add_argument("config", help="TOML file with [model], [data] (unloaded) and [payload]")
+    p = sub.add_parser("diagnose", help=COMMANDS["diagnose"][1])
+    p.add_argument("config", help="TOML file with [model], [data] and optionally [diagnose]")
+    p.add_argument("--output", help="report directory, .html or .txt (default: [diagnose] "
+                                    "output; none: text to stdout only)")
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    from consistid.errors import ConsistidError
+
+    try:
+        return COMMANDS[args.command][0](args)
+    except ConsistidError as exc:
+        _log(f"consistid {args.command}: error: {exc}")
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,242 @@
+r"""TOML run configurations: a robot model and recordings, for the ``consistid`` commands.
+
+A configuration names the URDF and the logs once, so that ``consistid identify CONFIG`` (and
+other commands that read the same ``[model]`` / ``[data]`` tables) run on a user's robot without
+code. Example (``examples/kuka_lwr4/identify.toml``)::
+
+    root = "../.."                        # where relative paths start, relative to this file
+
+    [model]
+    urdf = "../shared/data/kuka_lwr4/kuka_lwr4.urdf"   # or: example = "panda" (no other key)
+    strip_dynamics = false                # true: load a copy without <dynamics> tags
+    # locked_joints = ["finger_joint"]     gravity = [0.0, 0.0, -9.81]
+    tilt = "estimate"                     # the base's tilt from the train data (identify only)
+
+    [data]
+    dir = "../shared/data/kuka_lwr4"      # prefix of the files below (optional)
+    keys = "flobaroid"                    # or "auto", "consistid", or {t = "times", q = ..., ...}
+    joint_names = ["lwr_0_joint", "lwr_1_joint", ...]
+    trim_start = 2.0                      # seconds dropped at the start of each recording
+    trim_end = 0.0
+    duplicates = "average"
+    train = ["measurements_2.npz", "measurements_3.npz"]
+    held_out = ["measurements_1.npz"]
+
+    [identify]                            # keyword arguments of consistid.identify
+    method = "sdp"
+    friction = ["coulomb", "viscous", "offset"]
+    # neighbourhood = {mass = 0.2, com = 0.02, inertia = 0.3}
+    # ellipsoids = {lwr_6_link = {center = [0, 0, 0.05], semi_axes = [0.1, 0.1, 0.1]}}
+    # or, with constraints = "ellipsoid": ellipsoids = "collision"  (from the URDF's geometry)
+
+Relative paths are resolved against ``root``, itself relative to the configuration file's folder
+(default: that folder), never against the current directory, so a configuration works from
+anywhere. Unknown tables (:data:`TABLES`) and unknown keys raise
+:class:`~consistid.errors.ConfigError` naming the table and the key.
+
+``tilt = "estimate"`` (``consistid identify`` only) estimates the base's tilt, i.e. the direction
+of ``gravity`` (default the level ``(0, 0, −9.81)``), from the ``train`` recordings with the
+``[identify]`` friction and armature columns (:func:`consistid.estimation.mounting.estimate_mounting`),
+prints it, and identifies on the tilted model.
+"""
+
+from __future__ import annotations
+
+import inspect
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Iterable, Mapping
+
+from ..errors import ConfigError
+from ..robot.model import RobotModel
+from ..data.recordings import Recording, load_recording
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - exercised on Python 3.10 only
+    import tomli as tomllib
+
+#: The top-level tables a configuration may have (besides the ``root`` key), one per command.
+TABLES = ("model", "data", "identify", "diagnose", "recover", "payload", "excite")
+MODEL_KEYS = ("urdf", "example", "strip_dynamics", "locked_joints", "gravity", "tilt", "name")
+DATA_KEYS = ("dir", "keys", "joint_names", "trim_start", "trim_end", "duplicates", "train",
+             "held_out")
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """A parsed configuration.
+
+    Attributes
+    ----------
+    path : the configuration file.
+    root : the folder relative paths start from.
+    tables : the raw TOML tables (``model``, ``data``, ``identify``, ``diagnose`` …).
+    """
+
+    path: Path
+    root: Path
+    tables: Mapping[str, Any]
+
+    def table(self, name: str, allowed: Iterable[str] | None = None,
+              required: bool = True) -> dict[str, Any]:
+        """A top-level table; with ``allowed``, unknown keys raise :class:`ConfigError`."""
+        value = self.tables.get(name)
+        if value is None:
+            if required:
+                raise ConfigError(f"{self.path.name}: missing table [{name}]")
+            return {}
+        return self.check_table(name, value, allowed)
+
+    def check_table(self, name: str, value: Any, allowed: Iterable[str] | None = None
+                    ) -> dict[str, Any]:
+        """``value`` as a table called ``[name]`` (also nested ones such as ``excite.limits``);
+        with ``allowed``, unknown keys raise :class:`ConfigError` naming the table and key."""
+        if not isinstance(value, Mapping):
+            raise ConfigError(f"{self.path.name}: [{name}] must be a table, got {value!r}")
+        if allowed is not None:
+            allowed = list(allowed)
+            unknown = sorted(set(value) - set(allowed))
+            if unknown:
+                raise ConfigError(f"{self.path.name}: unknown key(s) {unknown} in [{name}]; "
+                                  f"allowed: {sorted(allowed)}")
+        return dict(value)
+
+    def resolve(self, value: str, *, under: str | None = None) -> Path:
+        """A path from the configuration: absolute as is, else relative to ``root`` (then to
+        ``under``, itself relative to ``root``, when given)."""
+        p = Path(value).expanduser()
+        if p.is_absolute():
+            return p
+        base = self.root if under is None else self.resolve(under)
+        return (base / p).resolve()
+
+
+def load_config(path: str | Path) -> RunConfig:
+    """Read a TOML configuration (module docstring for the layout)."""
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError(f"configuration file {str(path)!r} does not exist")
+    try:
+        with open(path, "rb") as fh:
+            tables = tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{path.name} is not valid TOML: {exc}") from exc
+    root = tables.pop("root", ".")
+    if not isinstance(root, str):
+        raise ConfigError(f"{path.name}: root must be a path string, got {root!r}")
+    unknown = sorted(set(tables) - set(TABLES))
+    if unknown:
+        raise ConfigError(f"{path.name}: unknown table(s) or top-level key(s) {unknown}; "
+                          f"allowed: root and the tables {list(TABLES)}")
+    return RunConfig(path.resolve(), (path.resolve().parent / root).resolve(), tables)
+
+
+def estimates_tilt(config: RunConfig) -> bool:
+    """Whether ``[model] tilt = "estimate"`` (module docstring)."""
+    return "tilt" in config.table("model", MODEL_KEYS)
+
+
+def config_model(config: RunConfig, allow_tilt: bool = False) -> RobotModel:
+    """The robot of the ``[model]`` table, level as configured. ``tilt = "estimate"`` is
+    accepted only with ``allow_tilt`` (a command that estimates it from the data)."""
+    t = config.table("model", MODEL_KEYS)
+    tilt = t.pop("tilt", None)
+    if tilt is not None and (tilt != "estimate" or not allow_tilt):
+        raise ConfigError(f"{config.path.name}: [model] tilt = \"estimate\" is the only value, "
+                          "for `consistid identify` only (other commands: give gravity = [gx, "
+                          f"gy, gz] as identify printed it); got tilt = {tilt!r}")
+    gravity = t.get("gravity")
+    if gravity is not None and not (
+            isinstance(gravity, list) and len(gravity) == 3
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in gravity)):
+        raise ConfigError(f"{config.path.name}: [model] gravity must be three numbers [gx, gy, "
+                          f"gz] (m/s², base frame), got {gravity!r}")
+    if "example" in t:  # an example-robot-data arm by name (RobotModel.example)
+        if set(t) != {"example"}:
+            raise ConfigError(f"{config.path.name}: [model] example = {t['example']!r} takes no "
+                              f"other key; got {sorted(set(t) - {'example'})}")
+        return RobotModel.example(t["example"])
+    if "urdf" not in t:
+        raise ConfigError(f"{config.path.name}: [model] needs urdf = \"path/to/robot.urdf\"")
+    urdf = config.resolve(t["urdf"])
+    kwargs: dict[str, Any] = {"locked_joints": t.get("locked_joints", ())}
+    for key in ("gravity", "name"):
+        if key in t:
+            kwargs[key] = t[key]
+    if t.get("strip_dynamics", False):
+        from ..robot.urdf import model_without_dynamics
+
+        return model_without_dynamics(urdf, **kwargs)[0]
+    return RobotModel.from_urdf(urdf, **kwargs)
+
+
+def config_recordings(config: RunConfig, model: RobotModel | None = None
+                      ) -> tuple[Recording, Recording | None]:
+    """The ``train`` recordings (stacked as segments) and the ``held_out`` ones (or ``None``)
+    of the ``[data]`` table, each trimmed and matched to ``model``'s joints."""
+    t = config.table("data", DATA_KEYS)
+    if not t.get("train"):
+        raise ConfigError(f"{config.path.name}: [data] needs train = [\"file.npz\", ...]")
+    options = {k: t[k] for k in ("joint_names", "trim_start", "trim_end", "duplicates") if k in t}
+    keys = t.get("keys", "auto")
+
+    def read(files: Any, what: str) -> Recording:
+        if isinstance(files, str):
+            files = [files]
+        if not isinstance(files, list) or not all(isinstance(f, str) for f in files):
+            raise ConfigError(f"{config.path.name}: [data] {what} must be a list of file names, "
+                              f"got {files!r}")
+        recs = [load_recording(config.resolve(f, under=t.get("dir")), keys, model=model,
+                               **options) for f in files]
+        return recs[0] if len(recs) == 1 else Recording.concatenate(recs)
+
+    held = t.get("held_out")
+    return read(t["train"], "train"), (read(held, "held_out") if held else None)
+
+
+def identify_keys() -> tuple[str, ...]:
+    """The keys of ``[identify]``: the keyword arguments of :func:`consistid.identify` and of the
+    SDP (:func:`consistid.identification.sdp.identify_sdp`), read from their signatures."""
+    from ..identification.identify import identify
+    from ..identification.sdp import identify_sdp
+
+    own = [n for n, p in inspect.signature(identify).parameters.items()
+           if n not in ("model", "dataset") and p.kind is not p.VAR_KEYWORD]
+    sdp = [n for n, p in inspect.signature(identify_sdp).parameters.items()
+           if p.kind is p.KEYWORD_ONLY and n != "dataset"]
+    return tuple(own + sdp)
+
+
+def config_identify(config: RunConfig) -> dict[str, Any]:
+    """The keyword arguments of ``[identify]`` for :func:`consistid.identify` (unknown keys raise
+    :class:`ConfigError`). TOML tables become objects: ``neighbourhood = {mass, com, inertia}``
+    a :class:`~consistid.identification.priors.Neighbourhood`, ``ellipsoids = {body = {center, semi_axes}}``
+    :class:`~consistid.robot.shapes.Ellipsoid` objects (``ellipsoids = "collision"`` passes on:
+    the URDF's collision ellipsoids, :func:`consistid.robot.shapes.collision_ellipsoids`)."""
+    options = config.table("identify", identify_keys(), required=False)
+    if "neighbourhood" in options:
+        from ..identification.priors import Neighbourhood
+
+        t = config.check_table("identify.neighbourhood", options["neighbourhood"],
+                               ("mass", "com", "inertia"))
+        options["neighbourhood"] = Neighbourhood(**t)
+    if "ellipsoids" in options and options["ellipsoids"] != "collision":
+        options["ellipsoids"] = {
+            body: config_ellipsoid(config, f"identify.ellipsoids.{body}", value)
+            for body, value in config.check_table("identify.ellipsoids",
+                                                  options["ellipsoids"]).items()}
+    return options
+
+
+def config_ellipsoid(config: RunConfig, name: str, value: Any) -> Any:
+    """An :class:`~consistid.robot.shapes.Ellipsoid` from ``{center = [x, y, z], semi_axes = [a, b,
+    c]}`` (table ``[name]``)."""
+    from ..robot.shapes import Ellipsoid
+
+    t = config.check_table(name, value, ("center", "semi_axes"))
+    if set(t) != {"center", "semi_axes"}:
+        raise ConfigError(f"{config.path.name}: [{name}] must be {{center = [x, y, z], "
+                          f"semi_axes = [a, b, c]}}, got {value!r}")
+    return Ellipsoid.from_semi_axes(t["center"], t["semi_axes"])

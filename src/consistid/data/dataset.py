@@ -1,0 +1,307 @@
+"""Datasets: joint positions, velocities, accelerations and torques along time, validated.
+
+A :class:`Dataset` holds arrays with samples along axis 0 (``q.shape == (N, nv)``). It is
+immutable: every operation returns a new dataset. Recordings stacked with
+:meth:`Dataset.concatenate` keep a ``segment`` index per sample, so that a split or a filter never
+mixes two recordings.
+
+File formats
+------------
+NPZ
+    arrays ``t, q, dq, ddq, tau`` (optionally ``segment`` and ``joint_names``).
+CSV
+    a header line and one row per sample; columns ``t``, ``q1..qn``, ``dq1..dqn``, ``ddq1..ddqn``,
+    ``tau1..taun`` (1-based joint index), optionally ``segment``. Column order is free.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from ..errors import DatasetError, JointCountError, JointNameError, MissingColumnsError
+
+FIELDS = ("q", "dq", "ddq", "tau")
+
+
+def _check_finite(name: str, a: np.ndarray, joint_names: Sequence[str] | None) -> None:
+    bad = np.argwhere(~np.isfinite(a))
+    if bad.size:
+        idx = tuple(int(i) for i in bad[0])
+        what = "NaN" if np.isnan(a[idx]) else "infinite"
+        where = f"{idx[0]}" if len(idx) == 1 else (
+            f"{idx[0]}, {joint_names[idx[1]]!r}" if joint_names else f"{idx[0]}, {idx[1]}")
+        raise DatasetError(f"dataset.{name}[{where}] is {what} ({len(bad)} non-finite value(s) "
+                           f"in {name})")
+
+
+@dataclass(frozen=True, eq=False)
+class Dataset:
+    """Samples of ``(t, q, dq, ddq, tau)``; validated on construction.
+
+    Parameters
+    ----------
+    t : (N,) seconds, strictly increasing within each segment.
+    q, dq, ddq : (N, nv) rad, rad/s, rad/s² (m, m/s, m/s² for prismatic joints).
+    tau : (N, nv) joint torques in N·m (or forces in N), or ``None`` for a trajectory without
+        measurements (e.g. a designed excitation).
+    joint_names : optional names, used in error messages and reports.
+    segment : (N,) integer recording index; default all zeros.
+
+    Raises
+    ------
+    DatasetError
+        naming the field, the index and the problem (shape, NaN/inf, non-increasing time).
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    dq: np.ndarray
+    ddq: np.ndarray
+    tau: np.ndarray | None = None
+    joint_names: tuple[str, ...] | None = None
+    segment: np.ndarray | None = field(default=None)
+
+    def __post_init__(self) -> None:
+        t = np.asarray(self.t, dtype=float)
+        if t.ndim != 1:
+            raise DatasetError(f"dataset.t must be 1-D (N,), got shape {t.shape}")
+        n = t.shape[0]
+        if n == 0:
+            raise DatasetError("dataset is empty (t has no samples)")
+        object.__setattr__(self, "t", t)
+        nv = None
+        names = tuple(self.joint_names) if self.joint_names is not None else None
+        object.__setattr__(self, "joint_names", names)
+        for name in FIELDS:
+            value = getattr(self, name)
+            if value is None:
+                if name != "tau":
+                    raise DatasetError(f"dataset.{name} is missing")
+                continue
+            a = np.asarray(value, dtype=float)
+            if a.ndim == 1:
+                a = a[:, None]
+            if a.ndim != 2 or a.shape[0] != n:
+                raise DatasetError(f"dataset.{name} has shape {np.shape(value)}; expected "
+                                   f"({n}, nv) to match t's {n} samples")
+            if nv is None:
+                nv = a.shape[1]
+                if names is not None and len(names) != nv:
+                    raise DatasetError(f"dataset.joint_names has {len(names)} names for {nv} "
+                                       "joints")
+            elif a.shape[1] != nv:
+                raise DatasetError(f"dataset.{name} has {a.shape[1]} joints; dataset.q has {nv}")
+            _check_finite(name, a, names)
+            object.__setattr__(self, name, a)
+        _check_finite("t", t, None)
+        seg = np.zeros(n, dtype=int) if self.segment is None else np.asarray(self.segment)
+        if seg.shape != (n,):
+            raise DatasetError(f"dataset.segment has shape {seg.shape}; expected ({n},)")
+        if seg.dtype.kind not in "iu":
+            if not np.all(np.isfinite(seg)) or np.any(seg != np.round(seg)):
+                k = int(np.flatnonzero(~np.isfinite(seg) | (seg != np.round(seg)))[0])
+                raise DatasetError(f"dataset.segment[{k}] = {float(seg[k])} is not an integer "
+                                   "recording index")
+            seg = seg.astype(int)
+        object.__setattr__(self, "segment", seg)
+        same = seg[1:] == seg[:-1]
+        bad = np.flatnonzero(same & (np.diff(t) <= 0))
+        if bad.size:
+            k = int(bad[0]) + 1
+            raise DatasetError(f"dataset.t[{k}] = {t[k]!r} is not after t[{k - 1}] = {t[k - 1]!r}: "
+                               "time must be strictly increasing")
+
+    # ----------------------------------------------------------------------------- basics
+    @property
+    def n_samples(self) -> int:
+        return int(self.t.shape[0])
+
+    @property
+    def nv(self) -> int:
+        return int(self.q.shape[1])
+
+    def __len__(self) -> int:
+        return self.n_samples
+
+    @property
+    def duration(self) -> float:
+        return float(self.t[-1] - self.t[0])
+
+    def require_torque(self) -> np.ndarray:
+        if self.tau is None:
+            raise DatasetError("dataset.tau is missing: this operation needs measured torques")
+        return self.tau
+
+    def check_joints(self, nv: int, joint_names: Sequence[str] | None = None) -> None:
+        """Raise :class:`JointCountError` unless the dataset has ``nv`` joints, and
+        :class:`JointNameError` when both sides name their joints and the names differ."""
+        if self.nv != nv:
+            where = f" ({', '.join(joint_names)})" if joint_names else ""
+            raise JointCountError(f"dataset has {self.nv} joints but the model has {nv}{where}")
+        if joint_names is not None and self.joint_names is not None \
+                and tuple(joint_names) != self.joint_names:
+            raise JointNameError(f"dataset joints {list(self.joint_names)} differ from the "
+                                 f"model's {list(joint_names)} (same count, other names or "
+                                 "order)")
+
+    def select(self, index: np.ndarray | slice) -> "Dataset":
+        """The samples at ``index`` (boolean mask, integer array or slice)."""
+        return replace(self, t=self.t[index], q=self.q[index], dq=self.dq[index],
+                       ddq=self.ddq[index], tau=None if self.tau is None else self.tau[index],
+                       segment=self.segment[index])
+
+    def with_torque(self, tau: np.ndarray) -> "Dataset":
+        return replace(self, tau=tau)
+
+    # ----------------------------------------------------------------------------- splitting
+    def split(self, fraction: float = 0.7) -> tuple["Dataset", "Dataset"]:
+        """Split into (train, held-out) by time: the first ``fraction`` of each segment trains.
+
+        Use :meth:`split_segments` to hold out whole recordings instead.
+        """
+        if not 0.0 < fraction < 1.0:
+            raise DatasetError(f"split fraction must lie in (0, 1), got {fraction}")
+        train = np.zeros(self.n_samples, dtype=bool)
+        for s in np.unique(self.segment):
+            idx = np.flatnonzero(self.segment == s)
+            cut = self.t[idx[0]] + fraction * (self.t[idx[-1]] - self.t[idx[0]])
+            train[idx[self.t[idx] <= cut]] = True
+        if train.all() or not train.any():
+            raise DatasetError("split leaves one side empty; the dataset is too short")
+        return self.select(train), self.select(~train)
+
+    def split_segments(self, held_out: Sequence[int]) -> tuple["Dataset", "Dataset"]:
+        """Split into (train, held-out) by recording: the segments in ``held_out`` are held out."""
+        mask = np.isin(self.segment, list(held_out))
+        if mask.all() or not mask.any():
+            raise DatasetError(f"held-out segments {list(held_out)} leave one side empty; "
+                               f"segments are {np.unique(self.segment).tolist()}")
+        return self.select(~mask), self.select(mask)
+
+    @staticmethod
+    def concatenate(datasets: Sequence["Dataset"]) -> "Dataset":
+        """Stack recordings; each becomes its own segment and time is shifted to stay increasing."""
+        if not datasets:
+            raise DatasetError("nothing to concatenate")
+        nv, names = datasets[0].nv, datasets[0].joint_names
+        parts, offset, seg0 = [], 0.0, 0
+        for d in datasets:
+            d.check_joints(nv, names)
+            shift = offset - d.t[0] if parts else 0.0
+            parts.append((d.t + shift, d, d.segment - d.segment.min() + seg0))
+            offset = d.t[-1] + shift + (np.median(np.diff(d.t)) if d.n_samples > 1 else 1.0)
+            seg0 = parts[-1][2].max() + 1
+        has_tau = all(d.tau is not None for d in datasets)
+        return Dataset(
+            t=np.concatenate([p[0] for p in parts]),
+            q=np.concatenate([d.q for d in datasets]),
+            dq=np.concatenate([d.dq for d in datasets]),
+            ddq=np.concatenate([d.ddq for d in datasets]),
+            tau=np.concatenate([d.tau for d in datasets]) if has_tau else None,
+            joint_names=datasets[0].joint_names,
+            segment=np.concatenate([p[2] for p in parts]),
+        )
+
+    # ----------------------------------------------------------------------------- files
+    def columns(self) -> dict[str, np.ndarray]:
+        """Named columns ``t, q1.., dq1.., ddq1.., tau1.., segment`` (CSV layout)."""
+        cols = {"t": self.t}
+        for name in FIELDS:
+            a = getattr(self, name)
+            if a is not None:
+                cols.update({f"{name}{j + 1}": a[:, j] for j in range(self.nv)})
+        cols["segment"] = self.segment.astype(float)
+        return cols
+
+    def save(self, path: str | Path) -> None:
+        """Write NPZ or CSV, chosen by the file suffix."""
+        path = Path(path)
+        if path.suffix == ".npz":
+            arrays = {k: getattr(self, k) for k in ("t", *FIELDS) if getattr(self, k) is not None}
+            if self.joint_names is not None:
+                arrays["joint_names"] = np.array(self.joint_names)
+            np.savez(path, segment=self.segment, **arrays)
+        elif path.suffix == ".csv":
+            cols = self.columns()
+            np.savetxt(path, np.column_stack(list(cols.values())), delimiter=",",
+                       header=",".join(cols), comments="", fmt="%.17g")
+        else:
+            raise DatasetError(f"unknown dataset format {path.suffix!r}; use .npz or .csv")
+
+    @classmethod
+    def from_recording(cls, t: np.ndarray, q: np.ndarray, tau: np.ndarray,
+                       **options) -> "Dataset":
+        """A dataset from a robot log: time stamps fixed, outliers removed, zero-phase filtered,
+        ``dq`` and ``ddq`` estimated (the default chain of :func:`consistid.data.signals.preprocess`,
+        which takes the ``options`` and also returns the record of the steps applied; here
+        the steps are logged at INFO level on the ``consistid.data.signals`` logger).
+        """
+        from .signals import preprocess  # signals imports this module
+
+        return preprocess(t, q, tau, **options).dataset
+
+    @classmethod
+    def load(cls, path: str | Path, joint_names: Sequence[str] | None = None) -> "Dataset":
+        """Read a dataset written by :meth:`save` (or any file with the documented columns)."""
+        path = Path(path)
+        if not path.is_file():
+            raise DatasetError(f"dataset file {str(path)!r} does not exist")
+        if path.suffix == ".npz":
+            with np.load(path) as f:
+                missing = [k for k in ("t", "q", "dq", "ddq") if k not in f]
+                if missing:
+                    raise MissingColumnsError(f"{path.name} lacks arrays {missing}; it has "
+                                              f"{sorted(f.files)}")
+                arrays = {k: f[k] for k in f.files if k in ("t", *FIELDS, "segment")}
+                stored = tuple(str(n) for n in f["joint_names"]) if "joint_names" in f else None
+            if joint_names is not None and stored is not None and tuple(joint_names) != stored:
+                raise JointNameError(f"{path.name} names its joints {list(stored)}, not "
+                                     f"{list(joint_names)}")
+            return cls(joint_names=joint_names if joint_names is not None else stored, **arrays)
+        if path.suffix == ".csv":
+            with open(path) as fh:
+                header = fh.readline().strip().split(",")
+            data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+            col = {name.strip(): data[:, i] for i, name in enumerate(header)}
+            nv = sum(1 for name in col if name.startswith("q") and name[1:].isdigit())
+            if nv == 0:
+                raise MissingColumnsError(f"{path.name} has no q1..qn columns; header is {header}")
+            needed = ["t"] + [f"{f}{j + 1}" for f in ("q", "dq", "ddq") for j in range(nv)]
+            missing = [c for c in needed if c not in col]
+            if missing:
+                raise MissingColumnsError(f"{path.name} lacks columns {missing}")
+            stack = {f: np.column_stack([col[f"{f}{j + 1}"] for j in range(nv)])
+                     for f in ("q", "dq", "ddq")}
+            tau_cols = [f"tau{j + 1}" for j in range(nv)]
+            missing_tau = [c for c in tau_cols if c not in col]
+            if missing_tau and len(missing_tau) < nv:
+                raise MissingColumnsError(f"{path.name} has some torque columns but lacks "
+                                          f"{missing_tau}")
+            tau = None if missing_tau else np.column_stack([col[c] for c in tau_cols])
+            return cls(t=col["t"], tau=tau, joint_names=joint_names,
+                       segment=col.get("segment"), **stack)
+        raise DatasetError(f"unknown dataset format {path.suffix!r}; use .npz or .csv")
+
+
+def as_dataset(data: "Dataset | Sequence[Dataset]", name: str = "dataset") -> Dataset:
+    """``data`` itself, or several recordings stacked as segments (:meth:`Dataset.concatenate`);
+    anything else raises :class:`DatasetError` naming ``name`` and what it got."""
+    if isinstance(data, Dataset):
+        return data
+    try:
+        if isinstance(data, (str, bytes)):
+            raise TypeError
+        parts = list(data)  # type: ignore[arg-type]
+    except TypeError:
+        raise DatasetError(f"{name} must be a Dataset or a list of Datasets, got "
+                           f"{type(data).__name__} {data!r:.60}") from None
+    if not parts:
+        raise DatasetError(f"{name} is an empty list: give at least one Dataset")
+    for k, d in enumerate(parts):
+        if not isinstance(d, Dataset):
+            raise DatasetError(f"{name}[{k}] is a {type(d).__name__}, not a Dataset")
+    return Dataset.concatenate(parts)

@@ -1,0 +1,349 @@
+r"""Robot logs to :class:`~consistid.Dataset`: named arrays, time stamps, joint names, trimming.
+
+A real log is rarely a clean ``(t, q, dq, ddq, tau)`` table. :func:`from_arrays` and
+:func:`load_recording` turn one into a :class:`Recording` — the validated dataset plus the list of
+every step applied to it (``Recording.steps``), so that a user can see, and a report can quote,
+what was done:
+
+1. **Arrays** are read by name; the layout is given (``keys``) or recognised
+   (:data:`NPZ_LAYOUTS`). Arrays the layout does not name (e.g. ``target_*`` set-points) are
+   listed and never read.
+2. **Time** is shifted so that the first sample is at 0 s (Unix stamps are recognised and their
+   origin recorded). Stamps must not go backwards (:class:`~consistid.errors.DatasetError`
+   naming the index). Samples sharing a stamp are merged (``duplicates="average"``: the mean of
+   the group, equal to dropping exact repeats), kept first (``"first"``) or refused
+   (``"error"``). Non-uniform sampling is kept as recorded and its spread reported: least
+   squares works on samples, not on a time grid; gaps longer than :data:`GAP_FACTOR` median steps
+   are reported.
+3. **Derivatives**: logged velocities and accelerations are used as recorded (the log is taken
+   to be filtered already; nothing is filtered again). A raw log without them goes through
+   :func:`consistid.data.signals.preprocess` (filtering, differentiation, resampling of jittered
+   stamps, edge trimming), whose steps are appended.
+4. **Joint names**: the log's columns are matched to the model's joints by name and reordered
+   to the model's order; a name missing on either side raises
+   :class:`~consistid.errors.JointNameError` listing both sides. A log without names must have
+   exactly the model's joint count and is taken to be in the model's order (recorded as a step).
+5. **Trimming** (the rule): samples with ``t < trim_start`` or ``t > t_end − trim_end`` are
+   dropped, ``t`` counted from the log's first stamp and ``t_end`` its last (after the signal
+   chain for raw logs, so its filter edges fall inside the trimmed part where they overlap).
+   The start of an excitation run — the move away from rest, the filters' start-up — is not
+   described by a steady model; how long it lasts depends on the set-up, so the durations are
+   explicit arguments (0 by default) and always recorded. For the KUKA LWR4+ logs the tutorial
+   measures it (``docs/tutorial_real_kuka.md``: a model fitted on the steady part leaves 2–5×
+   its steady residual during the first 2 s): 2 s.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from .dataset import Dataset
+from ..errors import DatasetError, JointNameError, MissingColumnsError, check_option
+from ..robot.model import RobotModel
+from .signals import duplicate_groups, group_mean, long_steps, preprocess
+
+#: Known ``.npz`` layouts: dataset field → array name. ``"flobaroid"`` is the layout of the
+#: FloBaRoID project's measurement files (e.g. the KUKA LWR4+ recordings).
+NPZ_LAYOUTS: dict[str, dict[str, str]] = {
+    "consistid": {"t": "t", "q": "q", "dq": "dq", "ddq": "ddq", "tau": "tau"},
+    "flobaroid": {"t": "times", "q": "positions", "dq": "velocities", "ddq": "accelerations",
+                  "tau": "torques"},
+}
+#: Optional array holding the column (joint) names, in any layout.
+JOINT_NAMES_KEY = "joint_names"
+#: Stamps later than this (s) are read as Unix time (after 2001-09-09).
+UNIX_TIME_MIN = 1.0e9
+#: A time step longer than this many median steps is reported as a gap.
+GAP_FACTOR = 5.0
+DUPLICATES = ("average", "first", "error")
+REQUIRED = ("t", "q", "tau")
+
+
+@dataclass(frozen=True)
+class Recording:
+    """A dataset read from a log, and what was done to get it.
+
+    Attributes
+    ----------
+    dataset : the validated :class:`~consistid.Dataset` (time from 0 s, joints in model order).
+    steps : one sentence per processing step, in order.
+    source : the file (or ``"arrays"``) the data came from.
+    time_origin : the stamp subtracted from the log's time (s; Unix time for Unix stamps).
+    """
+
+    dataset: Dataset
+    steps: tuple[str, ...]
+    source: str
+    time_origin: float = 0.0
+
+    def __str__(self) -> str:
+        d = self.dataset
+        head = (f"recording {self.source}: {d.n_samples} samples × {d.nv} joints, "
+                f"{d.duration:.3f} s")
+        return "\n".join([head, *(f"  - {s}" for s in self.steps)])
+
+    @staticmethod
+    def concatenate(recordings: Sequence["Recording"]) -> "Recording":
+        """Stack recordings as separate segments (:meth:`Dataset.concatenate`); steps are kept
+        per recording, prefixed by its segment index."""
+        if not recordings:
+            raise DatasetError("nothing to concatenate")
+        steps = [f"[segment {i}: {r.source}] {s}" for i, r in enumerate(recordings)
+                 for s in r.steps]
+        steps.append(f"stacked {len(recordings)} recordings as segments 0..{len(recordings) - 1}")
+        return Recording(Dataset.concatenate([r.dataset for r in recordings]), tuple(steps),
+                         " + ".join(r.source for r in recordings), recordings[0].time_origin)
+
+
+def _describe_origin(t0: float) -> str:
+    if t0 >= UNIX_TIME_MIN:
+        stamp = datetime.fromtimestamp(t0, tz=timezone.utc).isoformat(timespec="milliseconds")
+        return f"Unix time stamps: origin {t0:.6f} s ({stamp}) subtracted, time starts at 0 s"
+    return f"time origin {t0:.6g} s subtracted, time starts at 0 s"
+
+
+def _merge_duplicates(t: np.ndarray, arrays: dict[str, np.ndarray], policy: str,
+                      steps: list[str]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    same = np.flatnonzero(np.diff(t) == 0)
+    if same.size == 0:
+        steps.append("no duplicated time stamps")
+        return t, arrays
+    if policy == "error":
+        k = int(same[0]) + 1
+        raise DatasetError(f"t[{k}] = {t[k]!r} repeats t[{k - 1}] ({same.size} duplicated "
+                           "stamp(s)); pass duplicates='average' or 'first' to merge them")
+    group = duplicate_groups(t)
+    n_groups = int(group[-1]) + 1
+    first = np.flatnonzero(np.concatenate([[True], np.diff(group) != 0]))
+    identical = all(np.array_equal(a[same], a[same + 1]) for a in arrays.values())
+    if policy == "first":
+        merged = {k: a[first] for k, a in arrays.items()}
+        how = "kept the first sample of each"
+    else:
+        merged = {k: group_mean(a, group) for k, a in arrays.items()}
+        how = "replaced each group by its mean"
+    kind = "identical repeats" if identical else "samples that differ"
+    steps.append(f"{same.size} duplicated time stamp(s) ({kind}): {how}; "
+                 f"{t.size} → {n_groups} samples")
+    return t[first], merged
+
+
+def _match_joints(names: Sequence[str] | None, nv: int, model: RobotModel | None,
+                  source: str, steps: list[str]
+                  ) -> tuple[np.ndarray | None, tuple[str, ...] | None]:
+    """Column order that puts the log's joints in the model's order (``None``: keep)."""
+    if names is not None:
+        names = tuple(str(n) for n in names)
+        if len(names) != nv:
+            raise JointNameError(f"{source}: {len(names)} joint names for {nv} columns: "
+                                 f"{list(names)}")
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if dup:
+            raise JointNameError(f"{source}: joint name(s) {dup} appear more than once")
+    if model is None:
+        if names is None:
+            steps.append(f"no joint names and no model: {nv} unnamed columns kept in file order")
+        else:
+            steps.append(f"joints named {list(names)} (no model given to match)")
+        return None, names
+    wanted = tuple(model.joint_names)
+    if names is None:
+        if nv != model.nv:
+            raise JointNameError(f"{source} has {nv} joint columns and no joint names; "
+                                 f"{model.name} has {model.nv} joints {list(wanted)}")
+        steps.append(f"no joint names in the log: its {nv} columns taken in {model.name}'s "
+                     f"joint order {list(wanted)}")
+        return None, wanted
+    missing = [n for n in wanted if n not in names]
+    extra = [n for n in names if n not in wanted]
+    if missing or extra:
+        raise JointNameError(f"{source}: joint names do not match {model.name}: missing from the "
+                             f"log {missing}, not in the model {extra}; log has {list(names)}, "
+                             f"model has {list(wanted)}")
+    order = np.array([names.index(n) for n in wanted])
+    if np.array_equal(order, np.arange(nv)):
+        steps.append(f"joint names match {model.name}'s joints in order")
+        return None, wanted
+    steps.append(f"joint columns reordered to {model.name}'s order {list(wanted)} "
+                 f"(log order was {list(names)})")
+    return order, wanted
+
+
+def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | None = None,
+                ddq: np.ndarray | None = None, *, joint_names: Sequence[str] | None = None,
+                model: RobotModel | None = None, trim_start: float = 0.0,
+                trim_end: float = 0.0, duplicates: str = "average", source: str = "arrays",
+                **signal_options: object) -> Recording:
+    """A :class:`Recording` from logged arrays (steps 2–5 of the module docstring).
+
+    Parameters
+    ----------
+    t : (N,) time stamps in s (any origin, e.g. Unix time); non-decreasing.
+    q, tau : (N, n) joint positions (rad or m) and measured joint torques (N·m or N).
+    dq, ddq : (N, n) logged velocities and accelerations, used as recorded; both ``None``
+        to estimate them with :func:`consistid.data.signals.preprocess` (``signal_options`` are
+        passed on, e.g. ``cutoff``, ``derivative``).
+    joint_names : names of the log's columns, matched to ``model``'s joints.
+    model : the robot; its joint order is the dataset's.
+    trim_start, trim_end : seconds dropped at the start and at the end (the trimming rule).
+    duplicates : ``"average"``, ``"first"`` or ``"error"`` for samples sharing a time stamp.
+    source : label used in messages and in :attr:`Recording.source`.
+
+    Raises
+    ------
+    DatasetError for backwards time, refused duplicates, a trim that leaves no sample, or bad
+    shapes/values; JointNameError when the joint names do not match the model;
+    MissingColumnsError when only one of ``dq``/``ddq`` is given.
+    """
+    check_option("duplicates", duplicates, DUPLICATES)
+    steps: list[str] = []
+    t = np.asarray(t, dtype=float)
+    if t.ndim != 1 or t.size == 0:
+        raise DatasetError(f"{source}: time stamps must be a non-empty 1-D array, got shape "
+                           f"{t.shape}")
+    arrays = {"q": q, "tau": tau, "dq": dq, "ddq": ddq}
+    if (dq is None) != (ddq is None):
+        given = "dq" if ddq is None else "ddq"
+        raise MissingColumnsError(f"{source}: {given} is given without "
+                                  f"{'ddq' if given == 'dq' else 'dq'}; give both or neither "
+                                  "(neither: they are estimated from q)")
+    arrays = {k: np.atleast_2d(np.asarray(a, dtype=float).T).T for k, a in arrays.items()
+              if a is not None}
+    for k, a in arrays.items():
+        if a.shape[0] != t.size:
+            raise DatasetError(f"{source}: {k} has {a.shape[0]} samples but t has {t.size}")
+    back = np.flatnonzero(np.diff(t) < 0)
+    if back.size:
+        k = int(back[0]) + 1
+        raise DatasetError(f"{source}: t[{k}] = {t[k]!r} is before t[{k - 1}] = {t[k - 1]!r} "
+                           f"(time goes back {back.size} time(s)); sort the log first")
+    t0 = float(t[0])
+    t = t - t0
+    steps.append(_describe_origin(t0))
+    t, arrays = _merge_duplicates(t, arrays, duplicates, steps)
+    if t.size > 1:
+        dt = np.diff(t)
+        med = float(np.median(dt))
+        spread = (f"sampling {1.0 / med:.1f} Hz median; steps {dt.min() * 1e3:.2f}–"
+                  f"{dt.max() * 1e3:.2f} ms")
+        uniform = dt.max() - dt.min() <= 1e-6 * med
+        spread += " (uniform)" if uniform else " (non-uniform)"
+        gaps = long_steps(t, GAP_FACTOR)[0]
+        if gaps.size:
+            spread += (f"; {gaps.size} gap(s) longer than {GAP_FACTOR:g} median steps, first "
+                       f"after t = {t[gaps[0]]:.4f} s ({dt[gaps[0]] * 1e3:.1f} ms)")
+        steps.append(spread)
+    nv = arrays["q"].shape[1]
+    order, names = _match_joints(joint_names, nv, model, source, steps)
+    if order is not None:
+        arrays = {k: a[:, order] for k, a in arrays.items()}
+    if trim_start < 0 or trim_end < 0 or not np.isfinite(trim_start + trim_end):
+        raise DatasetError(f"{source}: trim_start and trim_end must be finite seconds ≥ 0, got "
+                           f"{trim_start}, {trim_end}")
+    if "dq" in arrays:
+        steps.append("velocities and accelerations used as logged (taken as already filtered; "
+                     "not filtered again); samples kept at their own time stamps (least squares "
+                     "uses samples, not a time grid)")
+        dataset = Dataset(t=t, q=arrays["q"], dq=arrays["dq"], ddq=arrays["ddq"],
+                          tau=arrays["tau"], joint_names=names)
+    else:
+        pre = preprocess(t, arrays["q"], arrays["tau"], joint_names=names, **signal_options)
+        steps.append(f"no logged velocities/accelerations: signals.preprocess "
+                     f"({pre.dataset.n_samples} samples at {pre.rate:.6g} Hz, cut-off "
+                     f"{pre.cutoff:.4g} Hz):")
+        steps.extend(f"  {s}" for s in pre.steps)
+        dataset = pre.dataset
+    end = t[-1]
+    keep = (dataset.t >= trim_start) & (dataset.t <= end - trim_end)
+    if not keep.any():
+        raise DatasetError(f"{source}: trimming {trim_start} s at the start and {trim_end} s at "
+                           f"the end leaves no sample of {end:.3f} s")
+    if trim_start or trim_end:
+        first, last = np.flatnonzero(keep)[[0, -1]]
+        steps.append(f"trimmed {trim_start:g} s at the start ({first} samples) and {trim_end:g} s "
+                     f"at the end ({dataset.n_samples - 1 - last} samples): kept t ∈ "
+                     f"[{dataset.t[first]:.4f}, {dataset.t[last]:.4f}] s")
+        dataset = dataset.select(keep)
+    else:
+        steps.append("not trimmed")
+    return Recording(dataset, tuple(steps), source, t0)
+
+
+def _resolve_layout(files: Sequence[str], keys: str | Mapping[str, str], source: str
+                    ) -> dict[str, str]:
+    if isinstance(keys, Mapping):
+        layout = dict(keys)
+        unknown = [k for k in layout if k not in ("t", "q", "dq", "ddq", "tau", JOINT_NAMES_KEY)]
+        if unknown:
+            raise DatasetError(f"keys {unknown} are not dataset fields; use t, q, dq, ddq, tau, "
+                               f"{JOINT_NAMES_KEY}")
+    elif keys == "auto":
+        fits = [name for name, lay in NPZ_LAYOUTS.items()
+                if all(lay[k] in files for k in REQUIRED)]
+        if not fits:
+            known = {n: list(lay.values()) for n, lay in NPZ_LAYOUTS.items()}
+            raise MissingColumnsError(f"{source}: arrays {sorted(files)} match no known layout "
+                                      f"{known}; pass keys={{'t': ..., 'q': ..., 'tau': ...}}")
+        layout = dict(NPZ_LAYOUTS[fits[0]])
+    else:
+        check_option("keys", keys, ("auto", *NPZ_LAYOUTS))
+        layout = dict(NPZ_LAYOUTS[keys])
+    missing = [f"{k} ({layout.get(k, '?')!r})" for k in REQUIRED if layout.get(k) not in files]
+    if missing:
+        raise MissingColumnsError(f"{source} lacks arrays for {missing}; it has {sorted(files)}")
+    return layout
+
+
+def load_recording(path: str | Path, keys: str | Mapping[str, str] = "auto", *,
+                   joint_names: Sequence[str] | None = None, model: RobotModel | None = None,
+                   trim_start: float = 0.0, trim_end: float = 0.0, duplicates: str = "average",
+                   **signal_options: object) -> Recording:
+    """Read a ``.npz`` log into a :class:`Recording` (module docstring: what is done, in order).
+
+    Parameters
+    ----------
+    path : the ``.npz`` file.
+    keys : ``"auto"`` (recognise a :data:`NPZ_LAYOUTS` layout), a layout name, or a mapping
+        ``{"t": ..., "q": ..., "dq": ..., "ddq": ..., "tau": ...[, "joint_names": ...]}`` from
+        dataset fields to array names (``dq``/``ddq`` may be left out to estimate them).
+    joint_names : names of the log's joint columns; default the file's ``joint_names`` array if
+        any (a mismatch between the two raises :class:`~consistid.errors.JointNameError`).
+    model, trim_start, trim_end, duplicates, signal_options : see :func:`from_arrays`.
+
+    Examples
+    --------
+    >>> rec = load_recording("measurements_2.npz", model=model, trim_start=2.0)  # doctest: +SKIP
+    >>> print(rec)                       # the steps applied            # doctest: +SKIP
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise DatasetError(f"recording {str(path)!r} does not exist")
+    if path.suffix != ".npz":
+        raise DatasetError(f"{path.name}: load_recording reads .npz logs; for CSV use "
+                           "Dataset.load or from_arrays")
+    with np.load(path, allow_pickle=False) as f:
+        files = list(f.files)
+        layout = _resolve_layout(files, keys, path.name)
+        used = {v for k, v in layout.items() if v in files}
+        arrays = {k: f[v] for k, v in layout.items() if v in files and k != JOINT_NAMES_KEY}
+        names_key = layout.get(JOINT_NAMES_KEY, JOINT_NAMES_KEY)
+        file_names = [str(n) for n in f[names_key]] if names_key in files else None
+        used |= {names_key} if file_names is not None else set()
+    if file_names is not None and joint_names is not None and list(joint_names) != file_names:
+        raise JointNameError(f"{path.name}: joint_names {list(joint_names)} differ from the "
+                             f"file's {file_names}")
+    ignored = sorted(set(files) - used)
+    read = ", ".join(f"{k}←{layout[k]!r}" for k in ("t", "q", "dq", "ddq", "tau") if k in arrays)
+    first = f"read {path.name}: {read}" + (f"; ignored arrays {ignored}" if ignored else "")
+    rec = from_arrays(arrays["t"], arrays["q"], arrays["tau"], arrays.get("dq"),
+                      arrays.get("ddq"),
+                      joint_names=joint_names if joint_names is not None else file_names,
+                      model=model,
+                      trim_start=trim_start, trim_end=trim_end, duplicates=duplicates,
+                      source=path.name, **signal_options)
+    return Recording(rec.dataset, (first, *rec.steps), str(path), rec.time_origin)

@@ -1,0 +1,995 @@
+r"""Sim-to-real gap diagnosis: where the nominal model's residual lies, which unmodelled effect
+explains it, and how far each effect shrinks it on held-out data.
+
+Method
+------
+1. *Residual.* ``r = τ_meas − τ_nom`` with the nominal (simulator) parameters, on training and
+   held-out data (a different recording, or the last 30 % of each recording when none is given).
+2. *Candidates.* Every effect of :mod:`consistid.diagnosis.candidates` offers atoms (an effect on one joint,
+   or arm-wide) whose correction ``Φ_a θ_a`` is linear in its parameters. All atoms' columns are
+   compressed once into per-joint Gram matrices ``Φ_jᵀΦ_j``, ``Φ_jᵀr_j`` (training and held-out),
+   so that any subset is fitted and scored without touching the samples again.
+3. *Greedy forward selection* (Efroymson 1960; Hastie, Tibshirani, Friedman, *The Elements of
+   Statistical Learning*, §3.3.2): at each step every remaining atom is fitted on the training
+   data jointly with the atoms already chosen (least squares weighted by ``1/σ_j²``) and scored by
+   its reduction of the held-out weighted sum of squares. An atom may be kept if, on the rows
+   it acts on (its joint, or every joint),
+
+   * the training BIC decreases (Schwarz 1978, doi:10.1214/aos/1176344136),
+     ``N log(SSE₁/SSE₀) + k log N < 0`` with ``N`` the number of training rows,
+   * its held-out reduction passes an F-test at level ``alpha``,
+     ``F = (ΔSSE_ho / k) / (SSE_ho / N_ho)``,
+   * the reduction is at least ``min_gain`` of the nominal held-out sum of squares of its joint,
+     or, for an arm-wide atom, of the joint it reduces most (a practical-relevance floor: an
+     arm-wide effect that matters on one joint, such as a tilted base loading a vertical first
+     joint, is not drowned by the residual of the others),
+   * and its parameter is physical where the effect has a sign (friction, rotor inertia,
+     compliance, payload mass ≥ 0).
+
+   The best atom (largest held-out reduction) that passes is kept. Rows are counted as
+   ``N / τ`` effectively independent samples, ``τ`` the integrated autocorrelation time of the
+   residual that no candidate explains (:func:`consistid.identification.statistics.autocorrelation_time`): filtered
+   torques make neighbouring samples nearly equal, and tests counting every row would accept
+   any wiggle.
+
+   Atoms whose held-out reductions are within ``tie`` of the best and whose corrections are
+   nearly collinear with it (cosine ≥ 0.9 on the held-out data) are *indistinguishable* on these
+   data: the one with fewer parameters is kept and the others are listed as alternatives instead
+   of being ranked arbitrarily.
+   Candidates left out whose columns lie in the span of the selected ones (a ``payload`` or a
+   once-per-revolution ``position`` torque inside ``inertia``) are named in a note: such an
+   effect is in the fit, but these data cannot tell it apart.
+4. *How far it shrinks.* Selected atoms are grouped by effect and the groups ranked by how
+   much the held-out residual grows when a group is removed from all the selected atoms (atoms
+   nested in the span of others, e.g. a payload inside inertia, are merged first); the groups
+   are added one by one in that order, each time refitted on the training data (the delay
+   refined exactly, ``τ_nom(t − d)``; inertia by the consistent SDP near the nominal, started
+   from the joint least-squares fit) and scored per joint on the held-out data: RMS before →
+   after, shrink, parameters ± standard deviation (each joint's rows counted as ``N / τ_j``
+   independent ones, as in the tests: :func:`_coloured_covariance`). A group that no longer
+   reduces the held-out residual in this final fit is left out, with a note.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Callable, Sequence
+
+import numpy as np
+import scipy.optimize
+import scipy.stats
+
+from .candidates import EFFECT_NAMES, SIGNATURES, Atom, EffectLibrary, GapData
+from ..data.dataset import Dataset, as_dataset
+from ..errors import ModelError, OptionError, check_number, check_option
+from .gap import (FILTERED_ROLLOFF, GapBreakdown, gap_breakdown,
+                  high_band_rolloff, noise_floor, residual_spectra)
+from ..robot.model import RobotModel, require_model
+from ..robot.inertia import is_physically_consistent
+from ..identification.regressor import joint_columns
+from ..identification.statistics import autocorrelation_time, coloured_covariance
+
+#: A held-out shrink below this fraction does not list a joint under an arm-wide effect.
+JOINT_SHRINK_FLOOR = 0.05
+#: Effects whose (first) parameter must be positive to be physical: friction, rotor inertia,
+#: compliance, payload mass. A candidate fitted negative is not selected.
+POSITIVE = ("coulomb", "viscous", "armature", "elasticity", "payload")
+
+
+# --------------------------------------------------------------------------------- results
+@dataclass(frozen=True)
+class EffectParameter:
+    """One estimated parameter of a selected effect, with its standard deviation.
+
+    ``value`` and ``std`` are in ``unit`` (SI: a delay in s, a tilt in rad); the text shows
+    delays in ms and angles in degrees.
+    """
+
+    name: str
+    value: float
+    std: float
+    unit: str
+    joint: str | None = None
+    effect: str = ""
+    note: str = ""
+
+    def __str__(self) -> str:
+        words = {"coulomb": "Coulomb friction", "viscous": "viscous friction",
+                 "offset": "torque offset", "gain": "torque gain error", "armature": "armature",
+                 "delay": "delay", "elasticity": "stiffness", "ripple": "ripple"}
+        what = words.get(self.effect, self.name)
+        scale, unit = {"s": (1e3, "ms"), "rad": (180 / np.pi, "°")}.get(self.unit,
+                                                                       (1.0, self.unit))
+        where = f"{self.joint} " if self.joint else ""
+        if self.effect in ("inertia", "payload", "ripple", "position", "tilt"):
+            what, where = self.name, ""
+        return (f"{where}{what} {self.value * scale:.4g} ± {self.std * scale:.2g}"
+                + (f" {unit}" if unit else "") + (f" ({self.note})" if self.note else ""))
+
+
+@dataclass(frozen=True)
+class EffectFinding:
+    """A selected effect: where it acts, how far it shrinks the held-out residual, its parameters.
+
+    Attributes
+    ----------
+    name : effect name (``"coulomb"`` …).
+    joints : joints it explains: the joints of its per-joint atoms, or, for an arm-wide effect,
+        the joints whose held-out RMS it shrinks by at least 5 %.
+    scope : ``"joint"`` (per-joint atoms) or ``"arm"`` (one atom acting on every joint).
+    rms_before, rms_after : (nv,) held-out RMS per joint before and after adding this effect to
+        the effects ranked above it (N·m).
+    shrink : (nv,) ``1 − rms_after / rms_before`` per joint.
+    total_shrink : ``1 − ‖r_after‖_w / ‖r_before‖_w`` over all joints, residuals weighted by the
+        per-joint noise floor used in the selection.
+    parameters : estimated parameters with standard deviations.
+    alternatives : other candidates indistinguishable from it on these data (same signature).
+    n_parameters : parameters it adds.
+    delta_bic : change of the training BIC when it entered (negative = better).
+    p_value : held-out F-test p-value when it entered.
+    signature : how this effect shows in the residual.
+    """
+
+    name: str
+    joints: tuple[str, ...]
+    scope: str
+    rms_before: np.ndarray
+    rms_after: np.ndarray
+    shrink: np.ndarray
+    total_shrink: float
+    parameters: tuple[EffectParameter, ...]
+    alternatives: tuple[str, ...]
+    n_parameters: int
+    delta_bic: float
+    p_value: float
+    signature: str
+
+    def __str__(self) -> str:
+        alt = f" (indistinguishable from {', '.join(self.alternatives)})" if self.alternatives \
+            else ""
+        return (f"{self.name} on {', '.join(self.joints) or 'no joint'}: held-out shrink "
+                f"{100 * self.total_shrink:.1f} %{alt}")
+
+
+@dataclass(frozen=True)
+class Step:
+    """One step of the greedy selection, with the candidates it compared (for the report)."""
+
+    chosen: str
+    gain: float
+    delta_bic: float
+    p_value: float
+    accepted: bool
+    reason: str
+    candidates: tuple[tuple[str, float, int], ...]
+
+
+@dataclass(frozen=True, eq=False)
+class GapModel:
+    """The nominal model plus the selected corrections, fitted on the training data.
+
+    ``predict(dataset)`` gives the corrected torque; with no atoms it is the nominal torque.
+    """
+
+    model: RobotModel
+    library: EffectLibrary
+    nominal: np.ndarray
+    atoms: tuple[Atom, ...]
+    theta: tuple[np.ndarray, ...]
+    delays: dict[int, float] = field(default_factory=dict)
+    inertial: np.ndarray | None = None
+    nominal_extra: Callable[[Dataset], np.ndarray] | None = None
+
+    def data(self, dataset: Dataset) -> GapData:
+        extra = self.nominal_extra(dataset) if self.nominal_extra is not None else None
+        return GapData(self.model, dataset, self.nominal, extra)
+
+    def correction(self, data: GapData) -> np.ndarray:
+        """Torque added to the nominal one, (N, nv)."""
+        out = np.zeros((data.n, data.nv))
+        for i, (atom, th) in enumerate(zip(self.atoms, self.theta)):
+            if i in self.delays:
+                out += exact_delay(data, atom, self.delays[i])
+            elif atom.effect == "inertia" and self.inertial is not None:
+                out += data.rigid @ (self.inertial - self.nominal)
+            else:
+                out += self.library.columns(atom, data) @ th
+        return out
+
+    def predict(self, dataset: Dataset) -> np.ndarray:
+        data = self.data(dataset)
+        return data.tau_nom + self.correction(data)
+
+    def __repr__(self) -> str:
+        labels = ", ".join(a.label(self.model.joint_names) for a in self.atoms) or "nominal only"
+        return f"GapModel({self.model.name!r}: {labels})"
+
+
+@dataclass(frozen=True, eq=False)
+class Diagnosis:
+    """What :func:`diagnose` found.
+
+    Attributes
+    ----------
+    effects : selected effects, ranked by held-out residual reduction (largest first: how much
+        the held-out residual grows when the effect is removed from all the selected ones);
+        ``rms_before``/``rms_after`` of each are cumulative in this order.
+    where : where the nominal model's residual lies (:class:`~consistid.diagnosis.gap.GapBreakdown`).
+    noise_floor : (nv,) torque noise standard deviation per joint (N·m).
+    noise_source : ``"given"`` or how it was estimated.
+    rms_nominal, rms_final : (nv,) held-out RMS of the nominal model and of the nominal model
+        plus every selected effect.
+    library_floor : (nv,) held-out RMS with *every* candidate atom fitted at once: the most the
+        candidate library can explain (above the noise floor when an effect outside the library
+        remains, or when the torques were low-pass filtered so that the noise floor, estimated
+        from the high band, is too low).
+    held_out_source : how the held-out data were obtained.
+    steps : the greedy selection's steps (candidates compared, why it stopped).
+    fit : the corrected model (:class:`GapModel`); ``fit.predict(dataset)``.
+    notes : remarks (e.g. which inertia solver was used).
+    """
+
+    model_name: str
+    joint_names: tuple[str, ...]
+    effects: tuple[EffectFinding, ...]
+    where: GapBreakdown
+    noise_floor: np.ndarray
+    noise_source: str
+    rms_nominal: np.ndarray
+    rms_final: np.ndarray
+    library_floor: np.ndarray
+    held_out_source: str
+    steps: tuple[Step, ...]
+    fit: GapModel
+    notes: tuple[str, ...] = ()
+
+    @property
+    def gap_to_noise(self) -> np.ndarray:
+        """Held-out RMS after every selected effect divided by the noise floor, per joint."""
+        return self.rms_final / self.noise_floor
+
+    @property
+    def at_noise_floor(self) -> bool:
+        """True when every joint's remaining held-out RMS is within 10 % of its noise floor."""
+        return bool(np.all(self.gap_to_noise <= 1.1))
+
+    @property
+    def at_library_floor(self) -> bool:
+        """True when every joint's remaining held-out RMS is within 10 % of the library floor
+        (what all candidates together reach): the selection left nothing explainable out."""
+        return bool(np.all(self.rms_final <= 1.1 * self.library_floor))
+
+    def summary(self) -> str:
+        from .report import diagnosis_text
+
+        return diagnosis_text(self)
+
+    def __str__(self) -> str:
+        return self.summary()
+
+    def __repr__(self) -> str:
+        found = ", ".join(f"{e.name}({', '.join(e.joints)})" for e in self.effects) or "none"
+        return (f"Diagnosis({self.model_name!r}, effects=[{found}], "
+                f"at_noise_floor={self.at_noise_floor})")
+
+    def report(self, path: str | None = None):
+        """Write the report: ``*.html`` (plots embedded), ``*.txt``, or a directory (both, plus
+        the plots as PNG files). Returns the text, or the path written."""
+        from .report import write_report
+
+        if path is None:
+            return self.summary()
+        return write_report(self, path)
+
+
+# --------------------------------------------------------------------------------- algebra
+def _solve(G: np.ndarray, c: np.ndarray, rtol: float = 1e-10
+           ) -> tuple[np.ndarray, int, np.ndarray]:
+    """Least squares from normal equations, column-scaled, truncated eigen-decomposition.
+
+    Returns ``(θ, rank, G⁺)``; directions of ``G`` below ``rtol`` of its largest eigenvalue (after
+    scaling the columns to unit norm) are not determined by the data and left at zero.
+    """
+    d = np.sqrt(np.clip(np.diag(G), 0, None))
+    d[d == 0] = 1.0
+    gs = G / np.outer(d, d)
+    w, v = np.linalg.eigh(gs)
+    keep = w > rtol * max(w[-1], 1e-300)
+    vk = v[:, keep]
+    pinv = (vk / w[keep]) @ vk.T
+    theta = pinv @ (c / d)
+    return theta / d, int(keep.sum()), pinv / np.outer(d, d)
+
+
+@dataclass(frozen=True)
+class _Grams:
+    """Per-joint normal equations of one dataset: ``G[j] = Φ_jᵀΦ_j``, ``c[j] = Φ_jᵀr_j``,
+    ``s[j] = r_jᵀr_j`` and the sample count."""
+
+    G: np.ndarray
+    c: np.ndarray
+    s: np.ndarray
+    n: int
+
+    @classmethod
+    def build(cls, phi: np.ndarray, r: np.ndarray) -> "_Grams":
+        return cls(np.einsum("njp,njq->jpq", phi, phi), np.einsum("njp,nj->jp", phi, r),
+                   np.sum(r ** 2, axis=0), r.shape[0])
+
+    def sse(self, cols: np.ndarray, theta: np.ndarray) -> np.ndarray:
+        """Per-joint ``‖r_j − Φ_j[:, cols] θ‖²``, (nv,)."""
+        if cols.size == 0:
+            return self.s.copy()
+        g = self.G[:, cols][:, :, cols]
+        return (self.s - 2 * self.c[:, cols] @ theta
+                + np.einsum("p,jpq,q->j", theta, g, theta))
+
+    def weighted(self, w: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        g = np.einsum("j,jpq->pq", w, self.G[:, cols][:, :, cols])
+        return g, w @ self.c[:, cols]
+
+
+def exact_delay(data: GapData, atom: Atom, d: float) -> np.ndarray:
+    """Correction ``τ_nom(t − d) − τ_nom(t)`` of a delay atom (its joint, or all joints), by linear
+    interpolation within each recording segment (held at the ends)."""
+    out = np.zeros((data.n, data.nv))
+    joints = range(data.nv) if atom.joint is None else [atom.joint]
+    ds = data.dataset
+    for s in np.unique(ds.segment):
+        idx = np.flatnonzero(ds.segment == s)
+        t = ds.t[idx]
+        for j in joints:
+            x = data.tau_nom[idx, j]
+            out[idx, j] = np.interp(t - d, t, x) - x
+    return out
+
+
+# --------------------------------------------------------------------------------- helpers
+def _resolve_nominal(model: RobotModel, nominal) -> tuple[np.ndarray, Callable | None]:
+    """Standard inertial vector of the nominal model and an optional extra-torque function."""
+    from ..identification.result import IdentificationResult
+
+    if nominal is None:
+        return model.prior_parameters, None
+    if isinstance(nominal, RobotModel):
+        if nominal.joint_names != model.joint_names:
+            raise ModelError(f"nominal model joints {nominal.joint_names} differ from "
+                             f"{model.joint_names}")
+        return nominal.prior_parameters, None
+    if isinstance(nominal, IdentificationResult):
+        pi0 = nominal.inertial_parameters.copy()
+        theta_joint = nominal.parameters[nominal.model.n_inertial:]
+
+        def extra(ds: Dataset) -> np.ndarray:
+            # Its prediction minus the rigid body: the per-joint columns (friction, armature).
+            return joint_columns(ds.q, ds.dq, ds.ddq, nominal.spec) @ theta_joint
+
+        return pi0, extra
+    pi0 = np.asarray(nominal, dtype=float)
+    if pi0.shape != (model.n_inertial,):
+        raise ModelError(f"nominal parameters have shape {pi0.shape}; {model.name} needs "
+                         f"({model.n_inertial},) standard inertial parameters (10 per body)")
+    return pi0, None
+
+
+def _sigma(sigma, nv: int) -> np.ndarray:
+    try:
+        s = np.broadcast_to(np.asarray(sigma, dtype=float), (nv,)).copy()
+    except (TypeError, ValueError):
+        s = np.array([np.nan])
+    if not np.all(np.isfinite(s) & (s > 0)):
+        raise OptionError(f"sigma must be one number or {nv} numbers (one per joint), positive "
+                          f"and finite (N·m), got {sigma!r}")
+    return s
+
+
+# --------------------------------------------------------------------------------- selection
+@dataclass
+class _Problem:
+    """Everything the selection needs: atoms, their column slices, Grams, weights."""
+
+    library: EffectLibrary
+    atoms: list[Atom]
+    slices: list[np.ndarray]
+    train: _Grams
+    held: _Grams
+    w: np.ndarray
+    #: (nv,) integrated autocorrelation time of the residual per joint (samples per
+    #: independent sample)
+    tau_corr: np.ndarray | float = 1.0
+
+    def cols(self, chosen: Sequence[int]) -> np.ndarray:
+        if not chosen:
+            return np.zeros(0, dtype=int)
+        return np.concatenate([self.slices[i] for i in chosen])
+
+    def fit(self, chosen: Sequence[int]) -> tuple[np.ndarray, np.ndarray, int]:
+        cols = self.cols(chosen)
+        if cols.size == 0:
+            return cols, np.zeros(0), 0
+        g, c = self.train.weighted(self.w, cols)
+        theta, rank, _ = _solve(g, c)
+        return cols, theta, rank
+
+
+def _rows_of(atom: Atom, nv: int) -> np.ndarray:
+    return np.arange(nv) if atom.joint is None else np.array([atom.joint])
+
+
+def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: float, tie: float,
+            max_steps: int, progress: Callable[[str], None] | None
+            ) -> tuple[list[int], list[tuple[str, ...]], list[Step], list[float], list[float]]:
+    """Greedy forward selection; returns chosen atom indices, their alternatives, the steps, and
+    the ΔBIC and p-value at entry of each chosen atom."""
+    nv = prob.w.size
+    n_tr_j, n_ho_j = prob.train.n / prob.tau_corr, prob.held.n / prob.tau_corr
+    nominal_ho = prob.held.s * prob.w
+    chosen: list[int] = []
+    alternatives: list[tuple[str, ...]] = []
+    bics: list[float] = []
+    pvals: list[float] = []
+    steps: list[Step] = []
+    cols, theta, rank = prob.fit(chosen)
+    sse_tr = prob.w * prob.train.sse(cols, theta)
+    sse_ho = prob.w * prob.held.sse(cols, theta)
+    full_p = sum(s.size for s in prob.slices)
+    g_ho = np.einsum("j,jpq->pq", prob.w, prob.held.G)
+    for _ in range(max_steps):
+        scores = []
+        for i, atom in enumerate(prob.atoms):
+            if i in chosen:
+                continue
+            c2, th2, r2 = prob.fit(chosen + [i])
+            k = r2 - rank
+            if k <= 0:
+                continue
+            tr2 = prob.w * prob.train.sse(c2, th2)
+            ho2 = prob.w * prob.held.sse(c2, th2)
+            u = np.zeros(full_p)
+            u[c2] = th2
+            u[cols] -= theta
+            own = th2[-atom.n_parameters:]
+            scores.append((i, float(sse_ho.sum() - ho2.sum()), k, tr2, ho2, u, own,
+                           (c2, th2, r2)))
+        if not scores:
+            break
+        scores.sort(key=lambda s: -s[1])
+
+        def verdict(s: tuple) -> tuple[str, float, float]:
+            # Tests on the rows the atom acts on (its joint, or all): another joint's residual
+            # says nothing about this atom's significance.
+            i, gain, k, tr2, ho2 = s[:5]
+            atom = prob.atoms[i]
+            rows = _rows_of(atom, nv)
+            n_tr, n_ho = float(n_tr_j[rows].sum()), float(n_ho_j[rows].sum())
+            before_tr, after_tr = float(sse_tr[rows].sum()), float(tr2[rows].sum())
+            dbic = n_tr * np.log(after_tr / before_tr) + k * np.log(n_tr)
+            gain_rows = float(sse_ho[rows].sum() - ho2[rows].sum())
+            f = (gain_rows / k) / (float(ho2[rows].sum()) / n_ho)
+            p = float(scipy.stats.f.sf(f, k, n_ho)) if gain_rows > 0 else 1.0
+            # relevance: the atom's joint, or (arm-wide atoms) the joint it helps most, must
+            # lose min_gain of its nominal held-out sum of squares
+            per_joint = (sse_ho[rows] - ho2[rows]) / np.maximum(nominal_ho[rows], 1e-300)
+            relevance = float(per_joint.max())
+            if gain <= 0:
+                return "does not reduce the held-out residual", dbic, p
+            if atom.effect in POSITIVE and s[6][0] < 0:
+                return (f"its {atom.parameter_names[0]} is negative: not a physical "
+                        f"{atom.effect}", dbic, p)
+            if dbic >= 0:
+                return f"ΔBIC {dbic:.3g} ≥ 0", dbic, p
+            if p >= alpha:
+                return f"held-out F-test p = {p:.2g} ≥ {alpha:g}", dbic, p
+            if relevance < min_gain:
+                return (f"held-out gain {relevance:.2%} of the nominal residual "
+                        f"{'' if len(rows) == 1 else 'on its best joint '}< min_gain "
+                        f"{min_gain:.0%}", dbic, p)
+            return "accepted", dbic, p
+
+        verdicts = {}
+        passing = None
+        for sc in scores:
+            verdicts[sc[0]] = verdict(sc)
+            if verdicts[sc[0]][0] == "accepted":
+                passing = sc
+                break
+        table = _cand_table(prob, scores, joint_names)
+        if passing is None:
+            best = scores[0]
+            steps.append(Step(prob.atoms[best[0]].label(joint_names), best[1],
+                              float(verdicts[best[0]][1]), verdicts[best[0]][2], False,
+                              f"stop: no candidate passes (best: {verdicts[best[0]][0]})",
+                              table))
+            if progress is not None:
+                progress(f"step {len(steps)}: stop — {steps[-1].reason}")
+            break
+        # Indistinguishable candidates: similar held-out gain and collinear corrections; the one
+        # with the fewest parameters (that passes) is kept, the others are its alternatives.
+        ub = passing[5]
+        nb = float(ub @ g_ho @ ub)
+        group = [passing]
+        for sc in scores:
+            if sc is passing or abs(sc[1] - passing[1]) > tie * passing[1]:
+                continue
+            ns = float(sc[5] @ g_ho @ sc[5])
+            if nb > 0 and ns > 0 and (sc[5] @ g_ho @ ub) / np.sqrt(nb * ns) >= 0.9:
+                group.append(sc)
+        for sc in group:
+            if sc[0] not in verdicts:
+                verdicts[sc[0]] = verdict(sc)
+        eligible = [sc for sc in group if verdicts[sc[0]][0] == "accepted"]
+        pick = min(eligible, key=lambda sc: (sc[2], -sc[1]))
+        i, gain = pick[0], pick[1]
+        reason, dbic, p = verdicts[i]
+        atom = prob.atoms[i]
+        steps.append(Step(atom.label(joint_names), gain, float(dbic), p, True, reason, table))
+        if progress is not None:
+            progress(f"step {len(steps)}: {atom.label(joint_names)} — {reason}")
+        chosen.append(i)
+        alternatives.append(tuple(prob.atoms[sc[0]].label(joint_names) for sc in group
+                                  if sc[0] != i))
+        bics.append(float(dbic))
+        pvals.append(p)
+        # The fit of chosen + [i] was made when scoring it.
+        (cols, theta, rank), sse_tr, sse_ho = pick[7], pick[3], pick[4]
+    return chosen, alternatives, steps, bics, pvals
+
+
+def _cand_table(prob: _Problem, scores: list, joint_names: list[str], top: int = 8
+                ) -> tuple[tuple[str, float, int], ...]:
+    return tuple((prob.atoms[s[0]].label(joint_names), s[1], s[2]) for s in scores[:top])
+
+
+# --------------------------------------------------------------------------------- refit
+def _coloured_covariance(prob: _Problem, cols: np.ndarray, pinv: np.ndarray, s2: float
+                         ) -> np.ndarray:
+    r"""Covariance of the weighted least-squares parameters when each joint's residual is
+    coloured with integrated autocorrelation time ``τ_j`` (samples).
+
+    .. math::
+
+        \operatorname{Cov}(\hat θ) = s^2\, G^{+} \Big(\sum_j τ_j\, w_j\, Φ_j^\top Φ_j\Big) G^{+},
+        \qquad G = \sum_j w_j\, Φ_j^\top Φ_j,
+
+    ``s²`` the weighted residual variance. It is the sandwich covariance of least squares with
+    serially correlated errors, ``G⁻¹ (Σ_j w_j² Φ_jᵀ Cov(e_j) Φ_j) G⁻¹``, with
+    ``Φ_jᵀ Cov(e_j) Φ_j ≈ σ_j² τ_j Φ_jᵀΦ_j`` for columns that vary slowly against the residual's
+    correlation time (the variance of a mean of ``N`` correlated samples is ``τ σ²/N``: each
+    joint's ``N`` rows count as ``N_eff = N / τ_j``; Bayley & Hammersley, "The 'effective' number
+    of independent observations in an autocorrelated time series", J. R. Stat. Soc. Suppl. 8(2),
+    184–197, 1946; the general form with a lag-window estimate is Newey & West, Econometrica
+    55(3), 703–708, 1987). Parameters of one joint are thus ``√τ_j`` times less certain than
+    independent rows say, arm-wide ones by a mixture of the joints' ``τ``; ``τ`` is the one the
+    selection counts ``N_eff`` with (:func:`consistid.identification.statistics.autocorrelation_time` of the
+    residual that no candidate explains). With ``τ_j = 1`` this is ``s² G⁺``
+    (:func:`consistid.identification.statistics.coloured_covariance` with ``C = s² G⁺``, ``w_j / s²``).
+    """
+    tau = np.broadcast_to(np.asarray(prob.tau_corr, dtype=float), prob.w.shape)
+    return coloured_covariance(s2 * pinv, prob.train.G[:, cols][:, :, cols],
+                               prob.w / s2 if s2 > 0 else prob.w, tau)
+
+
+def _refit(prob: _Problem, chosen: Sequence[int], train: GapData, model: RobotModel,
+           nominal: np.ndarray, nominal_extra, inertia_solver: str,
+           ) -> tuple[GapModel, list[np.ndarray], list[str]]:
+    """Fit the chosen atoms on the training data: linear least squares, then the delays exactly
+    (``τ_nom(t − d)``) and, when ``inertia_solver == "sdp"``, the rigid body by the consistent
+    SDP near the nominal, alternating with the linear atoms (block coordinate descent).
+
+    Returns the fitted model, the standard deviation of each atom's parameters (coloured
+    residual counted, :func:`_coloured_covariance`; the SDP inertia's base-parameter deviations
+    widened by the same per-parameter factor as the least-squares ones), and notes.
+    """
+    notes: list[str] = []
+    atoms = [prob.atoms[i] for i in chosen]
+    cols = prob.cols(chosen)
+    theta, rank, pinv = _solve(*prob.train.weighted(prob.w, cols))
+    sse = float(prob.w @ prob.train.sse(cols, theta))
+    dof = max(prob.train.n * prob.w.size - rank, 1)
+    cov = _coloured_covariance(prob, cols, pinv, sse / dof)
+    std_all = np.sqrt(np.clip(np.diag(cov), 0, None))
+    # What the coloured residual adds to each standard deviation, for the SDP inertia below
+    # (whose own base-parameter deviations count rows as independent).
+    white = np.sqrt(np.clip(np.diag(pinv) * sse / dof, 0, None))
+    inflation_all = np.where(white > 0, std_all / np.where(white > 0, white, 1.0), 1.0)
+    thetas, stds, inflation, o = [], [], [], 0
+    for a in atoms:
+        thetas.append(theta[o:o + a.n_parameters])
+        stds.append(std_all[o:o + a.n_parameters])
+        inflation.append(inflation_all[o:o + a.n_parameters])
+        o += a.n_parameters
+    fit = GapModel(model, prob.library, nominal, tuple(atoms), tuple(thetas), {}, None,
+                   nominal_extra)
+    delay_idx = [k for k, a in enumerate(atoms) if a.effect == "delay"]
+    inertia_idx = [k for k, a in enumerate(atoms) if a.effect == "inertia"]
+    if not delay_idx and not (inertia_idx and inertia_solver == "sdp"):
+        return fit, stds, notes
+    phi = [prob.library.columns(a, train) for a in atoms]
+    w = prob.w
+    sdp = bool(inertia_idx) and inertia_solver == "sdp"
+    linear = [k for k in range(len(atoms)) if k not in delay_idx
+              and not (sdp and k in inertia_idx)]
+    delays = {k: float(thetas[k][0]) for k in delay_idx}
+    inertial = None
+    r = train.residual
+
+    def contribution(k: int) -> np.ndarray:
+        if k in delay_idx:
+            return exact_delay(train, atoms[k], delays[k])
+        if k in inertia_idx and inertial is not None:
+            return train.rigid @ (inertial - nominal)
+        return phi[k] @ thetas[k]
+
+    def others(skip: Sequence[int]) -> np.ndarray:
+        return sum((contribution(m) for m in range(len(atoms)) if m not in skip),
+                   np.zeros_like(r))
+
+    if linear:
+        a_mat = np.concatenate([phi[k] for k in linear], axis=2)
+        gl = np.einsum("j,njp,njq->pq", w, a_mat, a_mat)
+    # Block coordinate descent started from the joint least-squares fit (where the linearised
+    # delay and the unconstrained inertia already sit near the answer).
+    for _ in range(3):
+        for k in delay_idx:
+            target = r - others([k])
+            d0 = delays[k]
+            span = max(3 * abs(d0), 5 * float(np.median(np.diff(train.dataset.t))))
+
+            def cost(d: float, k: int = k, target: np.ndarray = target) -> float:
+                return float(w @ np.sum((target - exact_delay(train, atoms[k], d)) ** 2, axis=0))
+
+            res = scipy.optimize.minimize_scalar(cost, bounds=(d0 - span, d0 + span),
+                                                 method="bounded", options={"xatol": 1e-6})
+            delays[k] = float(res.x)
+        if sdp:
+            inertial, note, base_std = _sdp_inertia(model, train, nominal, others(inertia_idx))
+            stds[inertia_idx[0]] = base_std * inflation[inertia_idx[0]]
+            if note not in notes:
+                notes.append(note)
+        if linear:
+            cl = np.einsum("j,njp,nj->p", w, a_mat, r - others(linear))
+            th, _, _ = _solve(gl, cl)
+            o = 0
+            for k in linear:
+                thetas[k] = th[o:o + atoms[k].n_parameters]
+                o += atoms[k].n_parameters
+    for k in delay_idx:
+        thetas[k] = np.array([delays[k]])
+    fit = GapModel(model, prob.library, nominal, tuple(atoms), tuple(thetas),
+                   {k: delays[k] for k in delay_idx}, inertial, nominal_extra)
+    return fit, stds, notes
+
+
+def _sdp_inertia(model: RobotModel, train: GapData, nominal: np.ndarray, others: np.ndarray
+                 ) -> tuple[np.ndarray, str, np.ndarray]:
+    """Consistent rigid-body parameters near the nominal (log-det prior) fitted to the measured
+    torque minus the other effects' corrections; returns them, a note, and the standard
+    deviations of the base parameters."""
+    from ..identification.identify import identify
+
+    corrected = train.dataset.with_torque(train.tau - others
+                                          - (0 if train.nominal_extra is None
+                                             else train.nominal_extra))
+    # The log-det prior needs every nominal body realisable (J ≻ 0); otherwise say so and use
+    # the Euclidean prior around the same nominal values.
+    check = is_physically_consistent(nominal[:model.n_inertial], "pseudo-inertia",
+                                     model.body_names)
+    bad = [b.body for b in check.bodies if not b.min_pseudo_inertia_eigenvalue > 0]
+    prior = "euclidean" if bad else "logdet"
+    res = identify(model.with_parameters(nominal), corrected, method="sdp", friction=None,
+                   prior=prior)
+    why = (f" (the nominal {', '.join(bad)} {'is' if len(bad) == 1 else 'are'} not physically "
+           "realisable, so no log-det prior)" if bad else "")
+    return res.inertial_parameters, (f"inertia re-identified by the consistent SDP "
+                                     f"({res.solver.name}: {res.solver.status}) with a "
+                                     f"{'log-det' if prior == 'logdet' else prior} "
+                                     f"prior around the nominal parameters{why}"), res.base_std
+
+
+def _tuned_atoms(library: EffectLibrary, train: GapData, floor: np.ndarray
+                 ) -> tuple[list[Atom], np.ndarray]:
+    """All candidate atoms with their nonlinear settings chosen on the training data, and their
+    training columns ``(N, nv, P)``.
+
+    The settings are tuned against the residual of the *saturated* fit (every linear candidate
+    at once): the Coulomb smoothing speed on that residual plus the joint's own sign-Coulomb
+    fit, the ripple order on that residual; so other effects do not masquerade as them.
+    """
+    model = library.model
+    plain = [e for e in library.effects if e != "ripple"]
+    atoms = EffectLibrary(model, tuple(plain), base=library.base).atoms()
+    if not atoms:
+        return [], np.zeros((train.n, model.nv, 0))
+    blocks = [library.columns(a, train) for a in atoms]
+    phi_tr = np.concatenate(blocks, axis=2)
+    tune = "ripple" in library.effects or "coulomb" in plain
+    if not tune:
+        return atoms, phi_tr
+    g = _Grams.build(phi_tr, train.residual)
+    theta, _, _ = _solve(*g.weighted(1.0 / floor ** 2, np.arange(phi_tr.shape[2])))
+    rest = train.residual - phi_tr @ theta
+    o = 0
+    for i, a in enumerate(atoms):
+        if a.effect == "coulomb":
+            partial = rest[:, a.joint] + blocks[i][:, a.joint, 0] * theta[o]
+            atoms[i] = library.tune_coulomb(train, partial, a)
+            blocks[i] = library.columns(atoms[i], train)
+        o += a.n_parameters
+    if "ripple" in library.effects:
+        for a in library.atoms(train, rest):
+            if a.effect == "ripple":
+                atoms.append(a)
+                blocks.append(library.columns(a, train))
+    return atoms, np.concatenate(blocks, axis=2)
+
+
+# --------------------------------------------------------------------------------- main
+def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=None,
+             held_out: Dataset | Sequence[Dataset] | None = None,
+             effects: Sequence[str] = EFFECT_NAMES, sigma: float | Sequence[float] | None = None,
+             *, alpha: float = 1e-3, min_gain: float = 0.01, tie: float = 0.05,
+             max_steps: int = 20, split: float = 0.7, inertia_solver: str = "sdp",
+             progress: Callable[[str], None] | None = None) -> Diagnosis:
+    """Diagnose the gap between a nominal (simulator) model and measured torques.
+
+    Parameters
+    ----------
+    model : the robot (kinematics, joint order).
+    dataset : measured data (several recordings are stacked as segments).
+    nominal : the simulator's parameters: ``None`` (the model's URDF inertias), a standard
+        inertial vector (10 per body), a :class:`RobotModel`, or an
+        :class:`~consistid.IdentificationResult` (its rigid body and friction are the nominal).
+    held_out : data to score on (ideally a different trajectory); default the last
+        ``1 − split`` of each recording of ``dataset``.
+    effects : candidate effect names (default all of :data:`~consistid.diagnosis.candidates.EFFECT_NAMES`).
+    sigma : torque noise standard deviation (N·m), scalar or per joint; default estimated from
+        the high-frequency part of the residual (:func:`consistid.diagnosis.gap.noise_floor`).
+    alpha : level of the held-out F-test.
+    min_gain : smallest held-out reduction, as a fraction of the nominal residual's sum of
+        squares of the atom's joint (arm-wide atoms: of the joint it reduces most), for the atom
+        to be selected.
+    tie : relative held-out gain within which collinear candidates count as indistinguishable.
+    max_steps : most atoms selected.
+    split : training fraction of each recording when ``held_out`` is ``None``.
+    inertia_solver : how the selected ``inertia`` effect is finally fitted: ``"sdp"``
+        (:mod:`consistid.identification.sdp`: every body physically consistent, log-det prior around the
+        nominal; Euclidean when a nominal body is not realisable) or ``"ls"`` (least squares on
+        the base parameters). The selection itself always scores inertia by least squares.
+    progress : called with a line of text after each selection step.
+
+    Returns
+    -------
+    Diagnosis
+    """
+    check_option("inertia_solver", inertia_solver, ("sdp", "ls"))
+    alpha = check_number("alpha", alpha, 0, strict=True)
+    if alpha >= 1:
+        raise OptionError(f"alpha is a test level in (0, 1), got {alpha!r}")
+    min_gain, tie = check_number("min_gain", min_gain, 0), check_number("tie", tie, 0)
+    max_steps = check_number("max_steps", max_steps, 0, integer=True)
+    effects = (effects,) if isinstance(effects, str) else effects
+    require_model(model)
+    dataset = as_dataset(dataset)
+    dataset.check_joints(model.nv, model.joint_names)
+    if held_out is None:
+        train_ds, held_ds = dataset.split(split)
+        held_source = f"last {1 - split:.0%} of each recording (time split)"
+    else:
+        train_ds, held_ds = dataset, as_dataset(held_out, "held_out")
+        held_ds.check_joints(model.nv, model.joint_names)
+        held_source = f"given ({held_ds.n_samples} samples, {held_ds.duration:.1f} s)"
+    pi0, extra_fn = _resolve_nominal(model, nominal)
+
+    def gap_data(ds: Dataset) -> GapData:
+        return GapData(model, ds, pi0, extra_fn(ds) if extra_fn is not None else None)
+
+    train, held = gap_data(train_ds), gap_data(held_ds)
+    everything = GapData.concatenate([train, held])
+    filtered = np.zeros(model.nv, dtype=bool)
+    spectra = residual_spectra(everything.dataset, everything.residual, everything.tau_nom)
+    if sigma is None:
+        floor, noise_source = noise_floor(everything.dataset, everything.residual,
+                                          everything.tau_nom, spectra)
+        filtered = high_band_rolloff(everything.dataset, everything.residual,
+                                     everything.tau_nom, spectra) < FILTERED_ROLLOFF
+    else:
+        floor, noise_source = _sigma(sigma, model.nv), "given"
+    library = EffectLibrary(model, tuple(effects))
+
+    atoms, phi_tr = _tuned_atoms(library, train, floor)
+    phi_ho = np.concatenate([library.columns(a, held) for a in atoms], axis=2) if atoms \
+        else np.zeros((held.n, model.nv, 0))
+    slices, o = [], 0
+    for a in atoms:
+        slices.append(np.arange(o, o + a.n_parameters))
+        o += a.n_parameters
+    prob = _Problem(library, atoms, slices, _Grams.build(phi_tr, train.residual),
+                    _Grams.build(phi_ho, held.residual), 1.0 / floor ** 2)
+    everything_cols, theta_all, _ = prob.fit(list(range(len(atoms))))
+    library_floor = np.sqrt(prob.held.sse(everything_cols, theta_all) / held.n)
+    # Rows are not independent when the residual is coloured (filtered noise): count effective
+    # samples with the autocorrelation time of what no candidate explains.
+    saturated = train.residual - phi_tr[..., everything_cols] @ theta_all if atoms \
+        else train.residual
+    prob.tau_corr = autocorrelation_time(train.dataset, saturated)
+    names = model.joint_names
+    # Low-pass filtered torques hide the noise level: there the floor is what no candidate
+    # explains on held-out data (an upper bound of the noise), also used as the weight.
+    substitute = filtered & (floor < 0.5 * library_floor)
+    if substitute.any():
+        floor = np.where(substitute, library_floor, floor)
+        prob.w = 1.0 / floor ** 2
+        noise_source += (f"; on {', '.join(names[j] for j in np.flatnonzero(substitute))} the "
+                         "torques look low-pass filtered (the spectrum keeps falling), so the "
+                         "floor there is the held-out RMS with every candidate fitted (an upper "
+                         "bound; pass sigma if known)")
+    chosen, alts, steps, bics, pvals = _select(prob, names, alpha, min_gain, tie, max_steps,
+                                               progress)
+
+    notes: list[str] = []
+    chosen, alts, bics, pvals = _prune_nested(prob, chosen, alts, bics, pvals, names, notes)
+    # Group the atoms by effect and rank the groups by how much the held-out residual grows
+    # when the group is removed from all the selected atoms; add them one by one in that order.
+    groups = list(dict.fromkeys(prob.atoms[i].effect for i in chosen))
+    cols_all, th_all, _ = prob.fit(chosen)
+    sse_all = float(prob.w @ prob.held.sse(cols_all, th_all))
+    importance = {}
+    for g in groups:
+        rest = [i for i in chosen if prob.atoms[i].effect != g]
+        c, th, _ = prob.fit(rest)
+        importance[g] = float(prob.w @ prob.held.sse(c, th)) - sse_all
+    order = sorted(groups, key=lambda g: -importance[g])
+    rms_nominal = np.sqrt(np.mean(held.residual ** 2, axis=0))
+    before = rms_nominal
+    findings: list[EffectFinding] = []
+    fit = GapModel(model, library, pi0, (), (), {}, None, extra_fn)
+    cumulative: list[int] = []
+    final_stds: list[np.ndarray] = []
+    for name in order:
+        members = [k for k, i in enumerate(chosen) if prob.atoms[i].effect == name]
+        trial = cumulative + [chosen[k] for k in members]
+        trial_fit, stds, fit_notes = _refit(prob, trial, train, model, pi0, extra_fn,
+                                            inertia_solver)
+        after = np.sqrt(np.mean((held.residual - trial_fit.correction(held)) ** 2,
+                                axis=0))
+        shrink = 1.0 - after / np.where(before > 0, before, 1.0)
+        total = 1.0 - np.linalg.norm(after / floor) / max(np.linalg.norm(before / floor), 1e-300)
+        if total <= 0:
+            # Selected with the least-squares inertia, it no longer generalises once the final
+            # fit (exact delay, consistent inertia) is made: say so and leave it out.
+            labels = ", ".join(prob.atoms[chosen[k]].label(names) for k in members)
+            verb = "was" if len(members) == 1 else "were"
+            notes.append(f"{labels} {verb} selected but do{'es' if verb == 'was' else ''} not "
+                         f"reduce the held-out residual in the final fit (shrink "
+                         f"{100 * total:.1f} %): left out")
+            continue
+        cumulative, fit, final_stds = trial, trial_fit, stds
+        notes += [n for n in fit_notes if n not in notes]
+        atoms_here = [prob.atoms[chosen[k]] for k in members]
+        if all(a.joint is not None for a in atoms_here):
+            joints = tuple(names[a.joint] for a in atoms_here)
+            scope = "joint"
+        else:
+            scope = "arm"
+            joints = tuple(names[j] for j in np.flatnonzero(shrink >= JOINT_SHRINK_FLOOR))
+        findings.append(EffectFinding(
+            name=name, joints=joints, scope=scope, rms_before=before, rms_after=after,
+            shrink=shrink, total_shrink=float(total), parameters=(),
+            alternatives=tuple(sorted({x for k in members for x in alts[k]})),
+            n_parameters=int(sum(a.n_parameters for a in atoms_here)),
+            delta_bic=float(sum(bics[k] for k in members)),
+            p_value=float(max(pvals[k] for k in members)), signature=SIGNATURES[name]))
+        before = after
+    # Parameters from the final fit (all effects together).
+    params_by_effect: dict[str, list[EffectParameter]] = {}
+    for atom, th, sd in zip(fit.atoms, fit.theta, final_stds):
+        joint = names[atom.joint] if atom.joint is not None else None
+        lst = params_by_effect.setdefault(atom.effect, [])
+        lst += _parameters(atom, th, sd, joint, fit, library)
+    findings = [replace(f, parameters=tuple(params_by_effect.get(f.name, ()))) for f in findings]
+    notes += _asymmetric_friction(fit, names)
+    notes += _contained(prob, cumulative, names)
+    if inertia_solver == "ls" and "inertia" in order:
+        notes.append("inertia re-identified by least squares on base parameters "
+                     "(inertia_solver='ls': not checked for physical consistency)")
+    rms_final = before
+    if sigma is None and fit.atoms and not substitute.all():
+        # The nominal residual's high band also holds the tails of steps and spikes that the
+        # effects explain (a Coulomb step has a 1/f² spectrum); estimate again without them.
+        unexplained = everything.residual - fit.correction(everything)
+        again, _ = noise_floor(everything.dataset, unexplained, everything.tau_nom,
+                               spectra.with_residual(everything.dataset, unexplained))
+        floor = np.where(substitute, floor, again)
+        noise_source += " (re-estimated on the residual with the selected effects)"
+    where = gap_breakdown(everything, floor, spectra=spectra)
+    low = np.flatnonzero(floor < 0.5 * library_floor)
+    if low.size:
+        notes.append(
+            f"on {', '.join(names[j] for j in low)} the noise floor is less than half of what "
+            "every candidate together leaves on the held-out data: an effect outside the "
+            "candidate library remains (or the noise is coloured: pass sigma)")
+    return Diagnosis(model.name, tuple(names), tuple(findings), where, floor, noise_source,
+                     rms_nominal, rms_final, library_floor, held_source, tuple(steps), fit,
+                     tuple(notes))
+
+
+def _prune_nested(prob: _Problem, chosen: list[int], alts: list, bics: list, pvals: list,
+                  names: list[str], notes: list[str]) -> tuple[list, list, list, list]:
+    """Drop selected atoms whose columns lie in the span of the other selected atoms (e.g. a
+    ``payload`` chosen as the simpler of two indistinguishable candidates, after which
+    ``inertia`` entered too): they add nothing to the fit. Appends a note per dropped atom."""
+    keep = list(range(len(chosen)))
+    _, _, full_rank = prob.fit(chosen)
+    for k in reversed(range(len(chosen))):
+        others = [chosen[m] for m in keep if m != k]
+        if not others:
+            continue
+        _, _, rank = prob.fit(others)
+        if rank == full_rank:
+            keep.remove(k)
+            notes.append(f"{prob.atoms[chosen[k]].label(names)} is contained in the other "
+                         "selected effects (its columns lie in their span): merged into them")
+    return ([chosen[k] for k in keep], [alts[k] for k in keep], [bics[k] for k in keep],
+            [pvals[k] for k in keep])
+
+
+def _contained(prob: _Problem, chosen: list[int], names: list[str]) -> list[str]:
+    """A note naming the candidates left out whose columns lie in the span of the selected atoms
+    (e.g. ``position`` on a joint whose link's gravity torque is ``a sin q_j + b cos q_j``,
+    inside ``inertia``): an effect of that form is in the fit, but not told apart from them."""
+    if not chosen:
+        return []
+    _, _, rank = prob.fit(chosen)
+    inside = [prob.atoms[i].label(names) for i in range(len(prob.atoms))
+              if i not in chosen and prob.fit(chosen + [i])[2] == rank]
+    if not inside:
+        return []
+    return [f"contained in the selected effects (their columns span it, so the data cannot tell "
+            f"it apart from them): {', '.join(inside)}"]
+
+
+def _asymmetric_friction(fit: GapModel, names: list[str]) -> list[str]:
+    """Coulomb friction and an offset on the same joint read together as asymmetric friction,
+    ``τ_f = f_o + f_c sign(q̇)``: ``f_o + f_c`` moving forward, ``f_o − f_c`` backward."""
+    found: dict[int, dict[str, float]] = {}
+    for atom, th in zip(fit.atoms, fit.theta):
+        if atom.effect in ("coulomb", "offset") and atom.joint is not None:
+            found.setdefault(atom.joint, {})[atom.effect] = float(th[0])
+    return [f"{names[j]}: Coulomb friction and offset together are an asymmetric friction, "
+            f"{v['offset'] + v['coulomb']:.3g} N·m moving +, {v['offset'] - v['coulomb']:.3g} N·m "
+            "moving − (or a sensor offset beside symmetric friction: the data cannot tell)"
+            for j, v in sorted(found.items()) if len(v) == 2]
+
+
+def _parameters(atom: Atom, theta: np.ndarray, std: np.ndarray, joint: str | None,
+                fit: GapModel, library: EffectLibrary) -> list[EffectParameter]:
+    """Readable parameters of a fitted atom (inertia: the most significant base changes)."""
+    if atom.effect == "inertia":
+        if fit.inertial is not None:
+            beta = library.base.project(fit.inertial - fit.nominal)
+        else:
+            beta = theta
+        z = np.abs(beta) / np.where(std > 0, std, np.inf)
+        top = np.argsort(-z)[:6]
+        return [EffectParameter(atom.parameter_names[i], float(beta[i]), float(std[i]),
+                                atom.units[i], None, "inertia") for i in top]
+    if atom.effect == "ripple":
+        amp = float(np.hypot(*theta))
+        amp_std = float(np.sqrt((theta[0] * std[0]) ** 2 + (theta[1] * std[1]) ** 2)
+                        / max(amp, 1e-300))
+        seen = (f", seen through a ≈{atom.cutoff:.3g} Hz low-pass" if np.isfinite(atom.cutoff)
+                else "")
+        return [EffectParameter(f"{joint} ripple amplitude (k = {atom.setting:g}/rad{seen})",
+                                amp, amp_std, "N·m", joint, "ripple")]
+    if atom.effect == "coulomb" and (atom.setting or np.isfinite(atom.cutoff)):
+        law = f"tanh(q̇/{atom.setting:g} rad/s)" if atom.setting else "sign(q̇)"
+        seen = (f" seen through a ≈{atom.cutoff:.3g} Hz low-pass" if np.isfinite(atom.cutoff)
+                else "")
+        return [EffectParameter(f"{joint}.fc", float(theta[0]), float(std[0]), "N·m", joint,
+                                "coulomb", law + seen)]
+    if atom.effect == "elasticity" and theta[0] > 0:
+        c, sc = float(theta[0]), float(std[0])
+        return [EffectParameter(f"{joint}.stiffness", 1.0 / c, sc / c ** 2, "N·m/rad", joint,
+                                "elasticity")]
+    return [EffectParameter(n, float(v), float(s), u, joint, atom.effect)
+            for n, v, s, u in zip(atom.parameter_names, theta, std, atom.units)]

@@ -1,0 +1,145 @@
+r"""Compression of a least-squares problem to per-joint R factors, so that solvers never see N rows.
+
+For joint ``j`` let ``A_j = [Y_j | τ_j]`` (one row per sample, ``p + 1`` columns). Its R factor
+``A_j = Q_j R̄_j`` with
+
+.. math::  \bar R_j = \begin{bmatrix} R_j & z_j \\ 0 & \rho_j \end{bmatrix}
+
+gives every quantity a least-squares fit needs, exactly:
+``‖Y_j θ − τ_j‖² = ‖R_j θ − z_j‖² + ρ_j²``. The factors are accumulated chunk by chunk
+(``R̄ ← qr([R̄; A_chunk])``), so memory is ``O(nv·p²)`` whatever the number of samples, and a
+weighted problem with per-joint noise ``σ_j`` is ``qr([R̄_1/σ_1; …; R̄_nv/σ_nv])``.
+This is the "compression" that makes the SDP size independent of N (Golub & Van Loan,
+*Matrix Computations*, §6.5 on updating QR).
+
+Weighting by ``1/σ_j`` needs ``σ_j > 0``: :func:`floor_sigma` floors every estimated ``σ_j`` at
+:data:`SIGMA_FLOOR` times joint ``j``'s torque RMS (noise-free data fit to round-off, and would
+otherwise get infinite weights). WLS, the SDP and its Huber/IRLS passes all use it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..data.dataset import Dataset
+from ..errors import OptionError
+from ..robot.model import RobotModel
+from .regressor import RegressorSpec, iter_regressor
+
+#: Per-joint σ is floored at this fraction of the joint's torque RMS (noise-free data).
+SIGMA_FLOOR = 1e-6
+
+
+def _r_factor(a: np.ndarray, size: int) -> np.ndarray:
+    r = np.linalg.qr(a, mode="r")
+    if r.shape[0] < size:
+        r = np.vstack([r, np.zeros((size - r.shape[0], size))])
+    return r
+
+
+@dataclass(frozen=True, eq=False)
+class CompressedProblem:
+    """Per-joint R factors ``R̄_j`` of ``[Y_j | τ_j]``, shape ``(nv, p + 1, p + 1)``."""
+
+    factors: np.ndarray
+    n_samples: int
+    tau_sum_squares: np.ndarray
+
+    @property
+    def nv(self) -> int:
+        return int(self.factors.shape[0])
+
+    @property
+    def n_columns(self) -> int:
+        return int(self.factors.shape[1] - 1)
+
+    def stacked(self, sigma: np.ndarray | None = None, columns: np.ndarray | None = None
+                ) -> tuple[np.ndarray, np.ndarray, float]:
+        """``(R, z, ρ²)`` of the whole (optionally σ-weighted, column-restricted) problem.
+
+        ``‖Σ^{-1/2}(Y[:, columns] θ − τ)‖² = ‖R θ − z‖² + ρ²``.
+        """
+        sigma = np.ones(self.nv) if sigma is None else np.asarray(sigma, dtype=float)
+        cols = np.arange(self.n_columns) if columns is None else np.asarray(columns)
+        keep = np.append(cols, self.n_columns)
+        a = np.vstack([self.factors[j][:, keep] / sigma[j] for j in range(self.nv)])
+        r = _r_factor(a, keep.size)
+        return r[:-1, :-1], r[:-1, -1], float(r[-1, -1] ** 2)
+
+    def minus(self, theta: np.ndarray) -> "CompressedProblem":
+        """The compressed problem of the torques ``τ − Y θ`` (e.g. what a known robot leaves
+        to a payload): ``z_j ← z_j − R_j θ``, ``ρ_j`` unchanged, since
+        ``‖Y_j v − (τ_j − Y_j θ)‖² = ‖R_j (v + θ) − z_j‖² + ρ_j²``. No pass over the data."""
+        theta = np.asarray(theta, dtype=float)
+        factors = self.factors.copy()
+        factors[:, :-1, -1] -= self.factors[:, :-1, :-1] @ theta
+        return CompressedProblem(factors, self.n_samples, self.sum_squares(theta))
+
+    def sum_squares(self, theta: np.ndarray, columns: np.ndarray | None = None) -> np.ndarray:
+        """Per-joint residual sum of squares ``‖Y_j[:, columns] θ − τ_j‖²``, shape (nv,)."""
+        cols = np.arange(self.n_columns) if columns is None else np.asarray(columns)
+        # Only the full-column factor gives the exact residual: ‖R θ − z‖² + ρ² with θ padded.
+        full = np.zeros(self.n_columns)
+        full[cols] = theta
+        r = self.factors
+        return (np.sum((r[:, :-1, :-1] @ full - r[:, :-1, -1]) ** 2, axis=1)
+                + r[:, -1, -1] ** 2)
+
+
+def compress(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
+             chunk: int = 4096, weights: np.ndarray | None = None) -> CompressedProblem:
+    """Accumulate the per-joint R factors of ``[Y_j | τ_j]`` over a dataset (O(p²) memory).
+
+    ``weights`` (N, nv) ≥ 0 scale each row's squared residual (row ``k`` of joint ``j`` is
+    multiplied by ``√w_kj``), as iteratively re-weighted least squares needs.
+    """
+    tau = dataset.require_torque()
+    if weights is not None:
+        weights = np.asarray(weights, dtype=float)
+        if weights.shape != tau.shape or not np.all(np.isfinite(weights)) or np.any(weights < 0):
+            raise OptionError(f"row weights must be finite, ≥ 0 and of shape {tau.shape}, got "
+                              f"shape {weights.shape}")
+    factors = None
+    for s, y in iter_regressor(model, dataset, spec, chunk):
+        if factors is None:
+            factors = np.zeros((model.nv, y.shape[2] + 1, y.shape[2] + 1))
+        accumulate(factors, y, tau[s], None if weights is None else weights[s])
+    return CompressedProblem(factors, dataset.n_samples, np.sum(tau ** 2, axis=0))
+
+
+def accumulate(factors: np.ndarray, columns: np.ndarray, tau: np.ndarray,
+               weights: np.ndarray | None = None) -> None:
+    """One chunk into the per-joint R factors, in place: ``R̄_j ← qr([R̄_j; √w_j·[Y_j | τ_j]])``.
+
+    ``factors`` (nv, p + 1, p + 1), ``columns`` (n, nv, p), ``tau`` and ``weights`` (n, nv).
+    """
+    size = factors.shape[1]
+    for j in range(factors.shape[0]):
+        block = np.column_stack([columns[:, j, :], tau[:, j]])
+        if weights is not None:
+            block *= np.sqrt(weights[:, j])[:, None]
+        factors[j] = _r_factor(np.vstack([factors[j], block]), size)
+
+
+def floor_sigma(sigma: np.ndarray, problem: CompressedProblem) -> np.ndarray:
+    """``max(σ_j, SIGMA_FLOOR · max(RMS(τ_j), 1e-300))`` per joint, so that ``1/σ_j`` weights
+    stay finite on noise-free data."""
+    rms = np.sqrt(problem.tau_sum_squares / max(problem.n_samples, 1))
+    return np.maximum(np.asarray(sigma, dtype=float), SIGMA_FLOOR * np.maximum(rms, 1e-300))
+
+
+def joint_sigma(sum_squares: np.ndarray, n_samples: int, n_parameters: int,
+                tau: np.ndarray | None = None) -> np.ndarray:
+    """Per-joint noise standard deviation from residual sums of squares (Gautier 1997):
+    ``σ_j = sqrt(‖ρ_j‖² / (N − τ_j b/nv))``, the ``b`` fitted parameters' degrees of freedom
+    shared evenly among the ``nv`` joints (the denominator is kept ≥ 1). ``τ_j`` (default 1) is
+    the residual's autocorrelation time (:func:`consistid.identification.statistics.autocorrelation_time`):
+    with errors correlated over ``τ_j`` samples a fit absorbs ``≈ τ_j`` times more of their
+    variance per parameter (``E‖ρ_j‖² = tr((1 − P) Σ_j) ≈ σ_j² (N − τ_j b/nv)`` for columns that
+    vary slowly against the correlation). Not floored: see :func:`floor_sigma`."""
+    sum_squares = np.asarray(sum_squares, dtype=float)
+    tau = np.ones_like(sum_squares) if tau is None else np.asarray(tau, dtype=float)
+    return np.sqrt(sum_squares / np.maximum(n_samples - tau * n_parameters / sum_squares.size,
+                                            1.0))

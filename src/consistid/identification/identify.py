@@ -1,0 +1,231 @@
+r"""Identification of the dynamic parameters from a dataset: OLS, WLS and the consistent SDP.
+
+Least squares on the base parameters (Gautier & Khalil 1990; Khalil & Dombre ch. 12):
+
+.. math::  \hat\beta = \arg\min_\beta \|\Sigma^{-1/2}(W_b \beta - \tau)\|^2,
+           \qquad \operatorname{cov}(\hat\beta) = (W_b^\top \Sigma^{-1} W_b)^{-1}
+
+with ``Σ = σ² 1`` for OLS (``σ² = ‖ρ‖² / (N·nv − b)``) and, for WLS, ``Σ = diag(σ_j²)`` per joint
+estimated from the OLS residuals (``σ_j² = ‖ρ_j‖² / (N − b/nv)``), Gautier 1997, "Dynamic
+identification of robots with power model", ICRA, doi:10.1109/ROBOT.1997.614364; ``σ_j`` is
+floored by :func:`consistid.identification.compression.floor_sigma` so that noise-free data keep finite weights.
+Everything is solved on the compressed problem (:mod:`consistid.identification.compression`), never on the
+N-row regressor.
+
+Both covariances count the ``N`` rows of each joint as independent (``covariance="iid"``).
+Filtered torque logs have residuals correlated over tens of samples, which makes them far too
+small; with ``covariance="coloured"`` (the default, ``"auto"``, unless ``loss="huber"``) each
+joint's rows count as ``N / τ_j`` independent ones, ``τ_j`` the
+integrated autocorrelation time of its residual (:func:`consistid.identification.statistics.autocorrelation_time`,
+one extra pass over the data), through the sandwich
+:func:`consistid.identification.statistics.coloured_covariance`
+
+.. math::  \operatorname{cov}(\hat\beta) = C \Big(\sum_j τ_j w_j^2 v_j R_{jb}^\top R_{jb}\Big) C,
+
+``C`` the covariance above, ``w_j = 1/σ_j²`` the weights it was computed with, ``v_j`` joint
+``j``'s own residual variance (:func:`consistid.identification.compression.joint_sigma` with ``τ_j``: OLS
+weighs the joints alike whatever their noise) and ``R_{jb}`` joint ``j``'s R factor restricted
+to the base columns (``Y_{jb}^\top Y_{jb} = R_{jb}^\top R_{jb}``).
+The estimate itself is unchanged. On white noise ``τ_j ≈ 1`` and the two agree.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+import warnings
+from typing import Any, Sequence
+
+import numpy as np
+import scipy.linalg
+
+from .base import BaseParameters, compute_base_parameters
+from .compression import CompressedProblem, compress, floor_sigma, joint_sigma
+from ..data.dataset import Dataset, as_dataset
+from ..errors import OptionError, PoorExcitationError, PoorExcitationWarning, check_option
+from ..robot.model import RobotModel, require_model
+from .regressor import DEFAULT_FRICTION, FrictionArg, RegressorSpec, parameter_names, prior_vector
+from .result import IdentificationResult, SolverReport
+from .statistics import autocorrelation_time, coloured_covariance
+
+METHODS = ("ols", "wls", "sdp")
+#: ``covariance=`` choices: rows counted as independent, or as ``N / τ_j`` per joint.
+COVARIANCES = ("iid", "coloured")
+#: ... and ``"auto"``: ``"coloured"``, except ``"iid"`` with ``loss="huber"`` (re-weighted rows).
+COVARIANCE_OPTIONS = ("auto", *COVARIANCES)
+#: Above this condition number of the (weighted) base regressor, a PoorExcitationWarning is issued.
+COND_WARN = 1e4
+#: Below this ratio of the smallest to the largest singular value, the base regressor is singular.
+RANK_RTOL = 1e-11
+
+
+def nearest_standard(base: BaseParameters, beta: np.ndarray, prior: np.ndarray) -> np.ndarray:
+    """The standard vector closest to ``prior`` (Euclidean) with ``B π = β``:
+    ``π = π₀ + B⁺(β − B π₀)``. Not necessarily physically consistent."""
+    B = base.matrix
+    return prior + np.linalg.lstsq(B, beta - B @ prior, rcond=None)[0]
+
+
+def check_excitation(r: np.ndarray, names: Sequence[str]) -> tuple[float, np.ndarray]:
+    """Singular values and condition number of a (weighted) base regressor factor ``r``.
+
+    Raises :class:`PoorExcitationError` naming the unexcited directions when ``r`` is singular.
+    """
+    _, s, vt = np.linalg.svd(r)
+    if s[0] == 0 or s[-1] < RANK_RTOL * s[0]:
+        dead = vt[s < RANK_RTOL * max(s[0], 1e-300)]
+        lines = []
+        for v in dead[:5]:
+            top = np.argsort(-np.abs(v))[:3]
+            lines.append(" + ".join(f"{v[i]:.2f}·{names[i]}" for i in top))
+        raise PoorExcitationError(
+            f"the data do not excite {len(dead)} base-parameter direction(s) "
+            f"(condition number {s[0] / max(s[-1], 1e-300):.3g}); e.g. {'; '.join(lines)}. "
+            "Use a richer excitation trajectory, or method='sdp' with a prior.")
+    return float(s[0] / s[-1]), s
+
+
+def least_squares(model: RobotModel, problem: CompressedProblem, base: BaseParameters,
+                  spec: RegressorSpec, weighted: bool) -> IdentificationResult:
+    """OLS (``weighted=False``) or per-joint-weighted WLS on the base parameters."""
+    start = time.perf_counter()
+    cols, n, b = base.independent, problem.n_samples, base.n_base
+    dof = n * problem.nv - b
+    if dof <= 0:
+        raise PoorExcitationError(f"{n} samples × {problem.nv} joints give {n * problem.nv} "
+                                  f"equations for {b} base parameters")
+    r, z, _ = problem.stacked(columns=cols)
+    cond, _ = check_excitation(r, base.names)
+    beta = scipy.linalg.solve_triangular(r, z)
+    sse = problem.sum_squares(beta, cols)
+    if weighted:
+        sigma = floor_sigma(joint_sigma(sse, n, b), problem)
+        r, z, _ = problem.stacked(sigma=sigma, columns=cols)
+        cond, _ = check_excitation(r, base.names)
+        beta = scipy.linalg.solve_triangular(r, z)
+        sse = problem.sum_squares(beta, cols)
+        scale = 1.0                       # the weights already whiten the residual
+    else:
+        sigma = np.full(problem.nv, np.sqrt(sse.sum() / dof))
+        scale = sigma[0] ** 2
+    r_inv = scipy.linalg.solve_triangular(r, np.eye(b))
+    cov = scale * r_inv @ r_inv.T
+    if cond > COND_WARN:
+        warnings.warn(f"base regressor condition number {cond:.3g} > {COND_WARN:.0e}: the data "
+                      "excite some base parameters poorly; check relative_std",
+                      PoorExcitationWarning, stacklevel=3)
+    prior = prior_vector(model, spec)
+    return IdentificationResult(
+        method="wls" if weighted else "ols", model=model, spec=spec, base=base,
+        parameters=nearest_standard(base, beta, prior),
+        parameter_names=tuple(parameter_names(model, spec)), prior=prior,
+        base_parameters=beta, base_covariance=cov, sigma=sigma, condition_number=cond,
+        train_rms=np.sqrt(sse / n), n_samples=n,
+        solver=SolverReport("numpy QR (compressed)", "optimal", time.perf_counter() - start))
+
+
+def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset], method: str = "sdp",
+             friction: FrictionArg = DEFAULT_FRICTION,
+             armature: bool | Sequence[int | str] = False,
+             constraints: str | dict[str, str] = "auto",
+             prior: str | None = "auto",
+             covariance: str = "auto",
+             **options: Any) -> IdentificationResult:
+    """Identify a robot's dynamic parameters from measured torques.
+
+    Parameters
+    ----------
+    model : the robot; its URDF inertias are the prior ``π₀``.
+    dataset : a :class:`Dataset` with torques, or several (stacked as separate recordings).
+    method : ``"ols"`` (least squares on base parameters), ``"wls"`` (weighted by per-joint noise
+        variance), ``"sdp"`` (physically consistent, see :mod:`consistid.identification.sdp`).
+    friction : per-joint friction/offset columns, see :meth:`RegressorSpec.make`.
+    armature : rotor-inertia columns (``True`` for all joints, or a list of joints).
+    constraints : consistency level(s) of the bodies (:func:`consistid.identification.sdp.identify_sdp`).
+        ``"auto"`` (default): ``"pseudo-inertia"`` for the SDP, none for OLS/WLS, which also
+        accept an explicit ``"none"`` and refuse any level.
+    prior : ``"logdet"``, ``"euclidean"`` or ``None``/``"none"`` (no prior). ``"auto"``
+        (default): ``"logdet"`` for the SDP, none for OLS/WLS, which also accept
+        ``None``/``"none"`` and refuse a prior.
+    covariance : ``"coloured"`` widens ``base_covariance`` for residuals correlated in time
+        (filtered torques), each joint's rows counting as ``N / τ_j`` (module docstring; one
+        extra pass over the data; the estimate is unchanged; on white noise ``τ_j ≈ 1``);
+        ``"iid"`` counts every row as an independent sample. ``"auto"`` (default):
+        ``"coloured"``, or ``"iid"`` with ``loss="huber"``, whose re-weighted rows the sandwich
+        does not cover. ``details["covariance"]`` names the choice; with ``"coloured"``,
+        ``details["autocorrelation_time"]`` gives ``τ_j`` (samples, per joint).
+    **options : keyword options of :func:`consistid.identification.sdp.identify_sdp`, for ``method="sdp"`` only.
+        Options that only the SDP uses are refused for OLS/WLS, never silently ignored.
+
+    Returns
+    -------
+    IdentificationResult
+
+    Raises
+    ------
+    OptionError for an unknown method or friction term; JointCountError when the dataset's joint
+    count differs from the model's; PoorExcitationError when the data cannot determine the base
+    parameters (OLS/WLS); IdentificationError / InfeasibleError when the SDP solver fails.
+    """
+    check_option("method", method, METHODS)
+    check_option("covariance", covariance, COVARIANCE_OPTIONS)
+    if covariance == "auto":
+        covariance = "iid" if options.get("loss") == "huber" else "coloured"
+    if covariance == "coloured" and options.get("loss") == "huber":
+        raise OptionError("covariance='coloured' needs the unweighted rows: not with loss='huber'")
+    prior = None if prior == "none" else prior
+    if method in ("ols", "wls"):
+        extra = sorted(options) + [k for k, v, none in (("constraints", constraints, ("none",)),
+                                                        ("prior", prior, (None,)))
+                                   if v != "auto" and v not in none]
+        if extra:
+            raise OptionError(f"option(s) {extra} apply to method='sdp' only, not {method!r} "
+                              "(OLS/WLS are unconstrained and have no prior)")
+    require_model(model)
+    dataset = as_dataset(dataset)
+    dataset.check_joints(model.nv, model.joint_names)
+    spec = RegressorSpec.make(model, friction, armature)
+    base = compute_base_parameters(model, spec)
+    problem = compress(model, dataset, spec)
+    if method in ("ols", "wls"):
+        result = least_squares(model, problem, base, spec, weighted=method == "wls")
+    else:
+        from .sdp import identify_sdp
+
+        result = identify_sdp(model, problem, base, spec,
+                              constraints="pseudo-inertia" if constraints == "auto"
+                              else constraints,
+                              prior="logdet" if prior == "auto" else prior, dataset=dataset,
+                              **options)
+    return with_covariance(result, problem, dataset, covariance)
+
+
+def with_covariance(result: IdentificationResult, problem: CompressedProblem, dataset: Dataset,
+                    covariance: str) -> IdentificationResult:
+    """``result`` with its base covariance counted as ``covariance`` says (module docstring)
+    and ``details["covariance"]``, ``details["autocorrelation_time"]`` recorded.
+
+    ``problem`` is the (unweighted) compressed ``dataset`` the result was fitted on; its weights
+    are ``w_j = 1/σ_j²`` from ``result.sigma`` (OLS: one ``σ`` for all joints).
+    """
+    check_option("covariance", covariance, COVARIANCES)
+    if covariance == "iid":
+        return dataclasses.replace(result, details={
+            **result.details, "covariance": "iid (every row an independent sample)"})
+    residual = result.residual(dataset)
+    tau = autocorrelation_time(dataset, residual)
+    cols = result.base.independent
+    r_b = problem.factors[:, :-1, :-1][:, :, cols]
+    grams = np.einsum("jkp,jkq->jpq", r_b, r_b)
+    sigma = np.asarray(result.sigma, dtype=float)
+    weights = np.where(sigma > 0, 1.0 / np.where(sigma > 0, sigma, 1.0) ** 2, 1.0)
+    # each joint's own residual variance (OLS weighs joints alike whatever their noise)
+    variances = joint_sigma(np.sum(residual ** 2, axis=0), dataset.n_samples,
+                            result.base.n_base, tau) ** 2
+    cov = coloured_covariance(result.base_covariance, grams, weights, tau,
+                              np.where(variances > 0, variances, 1.0 / weights))
+    shown = ", ".join(f"{n} {t:.3g}" for n, t in zip(result.model.joint_names, tau))
+    return dataclasses.replace(result, base_covariance=cov, details={
+        **result.details,
+        "covariance": f"coloured (sandwich, N/τ_j effective rows; τ_j in samples: {shown})",
+        "autocorrelation_time": tau})

@@ -1,0 +1,302 @@
+r"""The joint-torque regressor with named column blocks.
+
+The torque model is linear in the parameters (Atkeson, An, Hollerbach 1986; Khalil & Dombre,
+*Modeling, Identification and Control of Robots*, ch. 12):
+
+.. math::
+
+    \tau_k = Y_\text{rb}(q_k, \dot q_k, \ddot q_k)\,\pi
+           + \operatorname{diag}(\operatorname{sign}\dot q_k)\, f_c
+           + \operatorname{diag}(\dot q_k)\, f_v + f_o
+           + \operatorname{diag}(\sin q_k)\, p_s + \operatorname{diag}(\cos q_k)\, p_c
+           + \operatorname{diag}(\ddot q_k)\, I_a
+
+Columns, in this order:
+
+``rigid``
+    10 per body, Pinocchio order (``pinocchio.computeJointTorqueRegressor``), names
+    ``"<body>.<m|mx|my|mz|Ixx|Ixy|Iyy|Ixz|Iyz|Izz>"``.
+``coulomb``, ``viscous``, ``offset``
+    one column per enabled joint, names ``"<joint>.fc"``, ``".fv"``, ``".fo"``.
+``position``
+    two columns per enabled joint, ``sin q_j`` and ``cos q_j``, names ``"<joint>.ps1"``,
+    ``".pc1"``: the first harmonic of a torque that is periodic in the joint's own angle, one
+    cycle per revolution. Physically, what a joint torque sensor reads besides the joint torque
+    and that turns with the joint: cross-talk of the bending moments it carries (their direction
+    in the sensor frame turns with ``q_j``; S.-H. Lee, Y.-L. Kim, J.-B. Song, "Torque sensor
+    calibration using virtual load for a manipulator", Int. J. Precision Engineering and
+    Manufacturing 11(2), 219–225, 2010, doi:10.1007/s12541-010-0025-0), a mounting
+    eccentricity or misalignment of sensor or bearing, and the once-per-revolution component of
+    position-dependent transmission torque. It is not a rigid-body effect, so it is free of sign
+    and (like an offset) of any prior. On a joint whose axis keeps a fixed direction relative to
+    gravity while the joints before it move (a horizontal first joint; the second joint of an
+    arm whose vertical first axis meets it), the link's own gravity torque is already
+    ``a sin q_j + b cos q_j`` (D. Ma, J. M. Hollerbach, Y. Xu, "Gravity based autonomous
+    calibration for robot manipulators", IEEE ICRA 1994): there the two columns are dependent on
+    that link's first mass moments, and the base parameters (:mod:`consistid.identification.base`) regroup
+    them; torques cannot tell the two apart.
+``armature``
+    one column per enabled joint, names ``"<joint>.Ia"``.
+
+Rows are **sample-major**: row ``k·nv + j`` is joint ``j`` of sample ``k``, i.e.
+``Y.reshape(N, nv, p)[k, j]``.
+
+``pinocchio.rnea`` adds ``model.armature · q̈`` whereas the rigid-body regressor does not; the
+armature block is how rotor inertia enters here.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Iterator, Mapping, Sequence
+
+import numpy as np
+import pinocchio as pin
+
+from ..data.dataset import Dataset
+from ..errors import JointCountError, OptionError, check_option
+from ..robot.model import RobotModel
+
+JOINT_TERMS: tuple[str, ...] = ("coulomb", "viscous", "offset", "position", "armature")
+#: The terms chosen through ``friction=`` (every term but armature).
+FRICTION_TERMS: tuple[str, ...] = JOINT_TERMS[:4]
+#: Name suffixes of each term's columns, per enabled joint, in column order.
+TERM_COLUMNS: dict[str, tuple[str, ...]] = {
+    "coulomb": ("fc",), "viscous": ("fv",), "offset": ("fo",), "position": ("ps1", "pc1"),
+    "armature": ("Ia",)}
+#: The default ``friction=`` of :meth:`RegressorSpec.make`, ``identify``, ``recover_standard`` …
+DEFAULT_FRICTION: tuple[str, ...] = ("coulomb", "viscous", "offset")
+#: Terms whose values are physically ``≥ 0`` (``offset`` and ``position`` have a free sign).
+NONNEGATIVE_TERMS: tuple[str, ...] = ("coulomb", "viscous", "armature")
+
+FrictionArg = Sequence[str] | Mapping[str, Sequence[int | str] | bool] | None
+
+
+@dataclass(frozen=True)
+class RegressorSpec:
+    """Which per-joint columns the regressor carries, beside the rigid-body block.
+
+    ``masks[term]`` is a boolean tuple of length ``nv``. Build one with :meth:`make`. Columns
+    come term by term (order of :data:`JOINT_TERMS`), joint by joint within a term, and within a
+    joint in the order of :data:`TERM_COLUMNS` (:attr:`columns`).
+    """
+
+    nv: int
+    masks: tuple[tuple[str, tuple[bool, ...]], ...]
+
+    @classmethod
+    def make(cls, model: RobotModel, friction: FrictionArg = DEFAULT_FRICTION,
+             armature: bool | Sequence[int | str] = False) -> "RegressorSpec":
+        """Build a spec.
+
+        Parameters
+        ----------
+        friction : names among ``"coulomb", "viscous", "offset", "position"`` (all joints), or
+            a mapping ``{term: joints}`` where joints are indices or names (or ``True`` for
+            all), or ``None``. ``"position"`` is the per-joint ``sin q_j, cos q_j`` pair (module
+            docstring); it is not friction, but like the offset it is a per-joint torque term.
+        armature : ``True`` for a rotor-inertia column per joint, or the joints that get one.
+        """
+        nv = model.nv
+
+        def mask(selection: Sequence[int | str] | bool) -> tuple[bool, ...]:
+            if isinstance(selection, (bool, np.bool_)):
+                return (bool(selection),) * nv
+            if selection is None:
+                return (False,) * nv
+            if isinstance(selection, (str, int, np.integer)):
+                selection = (selection,)
+            if not isinstance(selection, (Sequence, np.ndarray)):
+                raise OptionError(f"joints must be True/False, a joint, or a list of joint names "
+                                  f"or indices, got {selection!r}")
+            out = [False] * nv
+            for j in selection:
+                if isinstance(j, str):
+                    check_option("joint", j, model.joint_names)
+                    j = model.joint_names.index(j)
+                if isinstance(j, bool) or not isinstance(j, (int, np.integer)):
+                    raise OptionError(f"a joint is a name or an index, got {j!r}")
+                if not 0 <= int(j) < nv:
+                    raise OptionError(f"joint index {j} out of range 0..{nv - 1}")
+                out[int(j)] = True
+            return tuple(out)
+
+        if friction is None:
+            friction = {}
+        if isinstance(friction, str):
+            friction = (friction,)
+        if not isinstance(friction, (Mapping, Sequence, np.ndarray)):
+            raise OptionError(f"friction must be term names, {{term: joints}} or None, got "
+                              f"{friction!r}")
+        if not isinstance(friction, Mapping):
+            friction = {term: True for term in friction}
+        for term in friction:
+            check_option("friction term", term, FRICTION_TERMS)
+        masks = {term: mask(friction.get(term, False)) for term in FRICTION_TERMS}
+        masks["armature"] = mask(armature)
+        return cls(nv, tuple((t, masks[t]) for t in JOINT_TERMS))
+
+    def mask(self, term: str) -> np.ndarray:
+        return np.array(dict(self.masks)[term], dtype=bool)
+
+    @property
+    def columns(self) -> tuple[tuple[str, int, str], ...]:
+        """``(term, joint index, suffix)`` of each per-joint column, in column order."""
+        return tuple((term, j, suffix) for term, m in self.masks for j in range(self.nv) if m[j]
+                     for suffix in TERM_COLUMNS[term])
+
+    @property
+    def n_joint_columns(self) -> int:
+        return len(self.columns)
+
+    @property
+    def nonnegative_columns(self) -> np.ndarray:
+        """Indices, among the per-joint columns, of the terms that are ≥ 0 physically
+        (:data:`NONNEGATIVE_TERMS`: Coulomb, viscous, armature)."""
+        return np.array([c for c, (term, _, _) in enumerate(self.columns)
+                         if term in NONNEGATIVE_TERMS], dtype=int)
+
+    def joint_column_names(self, joint_names: Sequence[str]) -> list[str]:
+        return [f"{joint_names[j]}.{suffix}" for _, j, suffix in self.columns]
+
+    def describe(self) -> str:
+        parts = [f"{term} on {sum(m)}/{self.nv}" for term, m in self.masks if any(m)]
+        return ", ".join(parts) if parts else "rigid body only"
+
+
+def matching_settings(model: RobotModel, accept: Callable[[RegressorSpec], bool]) -> list[str]:
+    """The ``friction``/``armature`` settings (each term on every joint or on none) whose spec
+    ``accept`` takes, as ``"friction=(…), armature=…"``: for errors that suggest what a user
+    meant when a coefficient count does not fit."""
+    found = []
+    for k in range(2 ** len(FRICTION_TERMS)):
+        terms = tuple(t for i, t in enumerate(FRICTION_TERMS) if k >> i & 1)
+        for armature in (False, True):
+            if accept(RegressorSpec.make(model, terms, armature)):
+                found.append(f"friction={terms or None}, armature={armature}")
+    return found
+
+
+def _is_auto(value: object) -> bool:
+    return isinstance(value, str) and value == "auto"
+
+
+def resolve_spec(model: RobotModel, friction: FrictionArg | str,
+                 armature: bool | Sequence[int | str] | str,
+                 given: RegressorSpec | None = None) -> RegressorSpec:
+    """The spec of ``friction``/``armature`` arguments whose default is ``"auto"``.
+
+    Without ``given`` (a bare parameter vector), ``"auto"`` means :data:`DEFAULT_FRICTION` and
+    no armature, the defaults of ``identify``. With ``given`` (the spec of an identification
+    result), ``"auto"`` takes its columns, and an explicit value must describe the same columns
+    for its terms: otherwise :class:`~consistid.errors.OptionError`, never a silent choice.
+    """
+    if given is None:
+        return RegressorSpec.make(model, DEFAULT_FRICTION if _is_auto(friction) else friction,
+                                  False if _is_auto(armature) else armature)
+    probe = RegressorSpec.make(model, None if _is_auto(friction) else friction,
+                               False if _is_auto(armature) else armature)
+    own = dict(given.masks)
+    stated = [t for t, _ in probe.masks
+              if not _is_auto(armature if t == "armature" else friction)]
+    differs = [t for t, m in probe.masks if t in stated and m != own[t]]
+    if differs:
+        raise OptionError(f"friction/armature describe other per-joint columns ({differs}: "
+                          f"{probe.describe()}) than the identification result's "
+                          f"({given.describe()}); leave them out: they are taken from the result")
+    return given
+
+
+def parameter_names(model: RobotModel, spec: RegressorSpec) -> list[str]:
+    """Names of all regressor columns: rigid-body block, then per-joint blocks."""
+    return [*model.parameter_names, *spec.joint_column_names(model.joint_names)]
+
+
+def prior_vector(model: RobotModel, spec: RegressorSpec) -> np.ndarray:
+    """The CAD prior extended by zeros for the per-joint (friction, offset, position, armature)
+    columns."""
+    return np.concatenate([model.prior_parameters, np.zeros(spec.n_joint_columns)])
+
+
+def joint_columns(q: np.ndarray, dq: np.ndarray, ddq: np.ndarray,
+                  spec: RegressorSpec) -> np.ndarray:
+    """The per-joint blocks for samples ``(N, nv)`` as an array ``(N, nv, n_joint_columns)``."""
+    n, nv = dq.shape
+    signals = {"fc": np.sign(dq), "fv": dq, "fo": np.ones_like(dq), "ps1": np.sin(q),
+               "pc1": np.cos(q), "Ia": ddq}
+    out = np.zeros((n, nv, spec.n_joint_columns))
+    for c, (_, j, suffix) in enumerate(spec.columns):
+        out[:, j, c] = signals[suffix][:, j]
+    return out
+
+
+def rigid_body_regressor(model: RobotModel, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray,
+                         out: np.ndarray | None = None) -> np.ndarray:
+    """Pinocchio's joint-torque regressor for each sample, shape ``(N, nv, 10·nbodies)``.
+
+    Satisfies ``Y[k] @ π = rnea(q_k, dq_k, ddq_k)`` for a model without armature. ``out`` may be
+    a preallocated array (or a view) of that shape to write into.
+    """
+    m, data = model.pin_model, model.pin_model.createData()
+    n = q.shape[0]
+    out = np.empty((n, model.nv, model.n_inertial)) if out is None else out
+    same = m.nq == m.nv
+    for k in range(n):
+        qk = q[k] if same else model.configuration(q[k])
+        out[k] = pin.computeJointTorqueRegressor(m, data, qk, dq[k], ddq[k])
+    return out
+
+
+def regressor(model: RobotModel, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray,
+              spec: RegressorSpec | None = None, out: np.ndarray | None = None) -> np.ndarray:
+    """The stacked regressor ``Y``, shape ``(N·nv, p)``, rows sample-major.
+
+    Parameters
+    ----------
+    q, dq, ddq : (N, nv) joint angles, velocities, accelerations (one sample may be 1-D).
+    spec : which per-joint columns to append; default rigid body only.
+    out : optional preallocated ``(N, nv, p)`` array to fill (avoids a copy for large N).
+    """
+    q, dq, ddq = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (q, dq, ddq))
+    if q.shape[1] != model.nv:
+        raise JointCountError(f"q has {q.shape[1]} joints but {model.name} has {model.nv}")
+    spec = spec or RegressorSpec.make(model, friction=None)
+    n, p = q.shape[0], model.n_inertial + spec.n_joint_columns
+    y = np.empty((n, model.nv, p)) if out is None else out
+    rigid_body_regressor(model, q, dq, ddq, out=y[:, :, :model.n_inertial])
+    if spec.n_joint_columns:
+        y[:, :, model.n_inertial:] = joint_columns(q, dq, ddq, spec)
+    return y.reshape(n * model.nv, p)
+
+
+def dataset_regressor(model: RobotModel, dataset: Dataset,
+                      spec: RegressorSpec | None = None) -> np.ndarray:
+    """:func:`regressor` of a dataset's samples (checks the joint count)."""
+    dataset.check_joints(model.nv, model.joint_names)
+    return regressor(model, dataset.q, dataset.dq, dataset.ddq, spec)
+
+
+def iter_regressor(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
+                   chunk: int = 4096) -> Iterator[tuple[slice, np.ndarray]]:
+    """Yield ``(sample slice, Y_chunk)`` with ``Y_chunk`` of shape ``(n, nv, p)``: O(chunk) memory.
+
+    The chunks share one buffer: each yielded array is overwritten by the next one.
+    """
+    dataset.check_joints(model.nv, model.joint_names)
+    buffer = np.empty((min(chunk, dataset.n_samples), model.nv,
+                       model.n_inertial + spec.n_joint_columns))
+    for start in range(0, dataset.n_samples, chunk):
+        s = slice(start, min(start + chunk, dataset.n_samples))
+        y = buffer[: s.stop - s.start]
+        regressor(model, dataset.q[s], dataset.dq[s], dataset.ddq[s], spec, out=y)
+        yield s, y
+
+
+def predict_torque(model: RobotModel, dataset: Dataset, spec: RegressorSpec, theta: np.ndarray,
+                   chunk: int = 4096) -> np.ndarray:
+    """``Y(q, q̇, q̈) θ`` for a dataset's samples, shape (N, nv), built chunk by chunk
+    (:func:`iter_regressor`): memory O(chunk·nv·p), never the N-row regressor."""
+    out = np.empty((dataset.n_samples, model.nv))
+    for s, y in iter_regressor(model, dataset, spec, chunk):
+        out[s] = y @ theta
+    return out

@@ -1,0 +1,164 @@
+"""The result of an identification: estimates, uncertainty, solver report, prediction."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import scipy.stats
+
+from .base import BaseParameters
+from ..data.dataset import Dataset
+from ..robot.model import RobotModel
+from ..robot.inertia import ConsistencyReport, is_physically_consistent
+from .regressor import RegressorSpec, predict_torque
+
+
+@dataclass(frozen=True)
+class SolverReport:
+    """What ran and how it ended: never a bare success flag."""
+
+    name: str
+    status: str
+    solve_time: float
+    compile_time: float = 0.0
+    iterations: int | None = None
+
+    def __str__(self) -> str:
+        it = f", {self.iterations} iterations" if self.iterations is not None else ""
+        return (f"{self.name}: {self.status} (solve {self.solve_time * 1e3:.1f} ms, "
+                f"setup {self.compile_time * 1e3:.1f} ms{it})")
+
+
+class StandardParameterSet:
+    """What any answer carrying a full standard vector offers: its consistency, its model and
+    its URDF. Subclasses (dataclasses) define ``model``, ``parameters`` (10 per body, then the
+    per-joint terms) and ``parameter_names``."""
+
+    model: RobotModel
+    parameters: np.ndarray
+    parameter_names: tuple[str, ...]
+
+    @property
+    def inertial_parameters(self) -> np.ndarray:
+        """The ``10·nbodies`` inertial entries of ``parameters``."""
+        return self.parameters[: self.model.n_inertial]
+
+    @cached_property
+    def consistency(self) -> ConsistencyReport:
+        """Per-body physical consistency at the pseudo-inertia level
+        (:func:`consistid.robot.inertia.is_physically_consistent`, its tolerance)."""
+        return is_physically_consistent(self.inertial_parameters, "pseudo-inertia",
+                                        self.model.body_names)
+
+    @property
+    def is_consistent(self) -> bool:
+        """``consistency.ok``: every body realizable."""
+        return self.consistency.ok
+
+    def identified_model(self) -> RobotModel:
+        """The robot model carrying these inertial parameters."""
+        return self.model.with_parameters(self.inertial_parameters)
+
+    def to_urdf(self, path: str | Path, merged: str = "auto") -> Path:
+        """Write the model's URDF with these inertias and Coulomb/viscous friction
+        (:func:`consistid.robot.export.write_urdf`); refuses an inconsistent body."""
+        from ..robot.export import write_urdf
+
+        return write_urdf(self.model, path, self.parameters, self.parameter_names, merged)
+
+
+@dataclass(frozen=True, eq=False)
+class IdentificationResult(StandardParameterSet):
+    """Identified parameters of a robot, with the numbers needed to trust them.
+
+    Attributes
+    ----------
+    method : ``"ols"``, ``"wls"`` or ``"sdp"``.
+    parameters : (p,) standard parameters (10 per body) then friction/armature, named by
+        ``parameter_names``. For OLS/WLS, which determine only base parameters, this is the
+        standard vector nearest to the prior (Euclidean) that has the identified base parameters.
+    base_parameters : (b,) identified base parameters ``β = B π``, named by ``base.names``.
+    base_covariance : (b, b) covariance ``σ² (W_bᵀ W_b)⁻¹`` (OLS) or ``(W_bᵀ Σ⁻¹ W_b)⁻¹`` (WLS,
+        SDP), Gautier & Khalil; for the SDP it is that of the unconstrained fit at the answer.
+    sigma : (nv,) per-joint torque-noise standard deviation used for weighting / estimated.
+    condition_number : of the (weighted) base regressor.
+    train_rms : (nv,) residual RMS on the training data.
+    solver : :class:`SolverReport`.
+    details : extra method-specific figures (SDP: margins, active constraints, prior weight …).
+    """
+
+    method: str
+    model: RobotModel
+    spec: RegressorSpec
+    base: BaseParameters
+    parameters: np.ndarray
+    parameter_names: tuple[str, ...]
+    prior: np.ndarray
+    base_parameters: np.ndarray
+    base_covariance: np.ndarray
+    sigma: np.ndarray
+    condition_number: float
+    train_rms: np.ndarray
+    n_samples: int
+    solver: SolverReport
+    details: dict[str, Any] = field(default_factory=dict)
+
+    # ----------------------------------------------------------------------------- uncertainty
+    @cached_property
+    def base_std(self) -> np.ndarray:
+        """Standard deviation of each base parameter, ``sqrt(diag(cov))``."""
+        return np.sqrt(np.clip(np.diag(self.base_covariance), 0.0, None))
+
+    @cached_property
+    def relative_std(self) -> np.ndarray:
+        """Relative standard deviation in % (Pressé & Gautier 1991; Rackl et al. 2012 eq. 13):
+        ``100 · σ_β / |β|``; ``inf`` where ``β = 0``."""
+        with np.errstate(divide="ignore"):
+            return 100.0 * self.base_std / np.abs(self.base_parameters)
+
+    def conf_int(self, alpha: float = 0.05) -> np.ndarray:
+        """Two-sided ``1 − alpha`` confidence intervals of the base parameters, shape (b, 2)."""
+        z = scipy.stats.norm.ppf(1 - alpha / 2)
+        return np.column_stack([self.base_parameters - z * self.base_std,
+                                self.base_parameters + z * self.base_std])
+
+    # ----------------------------------------------------------------------------- prediction
+    def predict(self, dataset: Dataset) -> np.ndarray:
+        """Predicted joint torques ``Y(q, q̇, q̈) π`` for a dataset's samples, shape (N, nv)."""
+        return predict_torque(self.model, dataset, self.spec, self.parameters)
+
+    def residual(self, dataset: Dataset) -> np.ndarray:
+        """Measured minus predicted torque, (N, nv)."""
+        return dataset.require_torque() - self.predict(dataset)
+
+    def rms(self, dataset: Dataset) -> np.ndarray:
+        """Per-joint RMS of the residual on a dataset, (nv,)."""
+        return np.sqrt(np.mean(self.residual(dataset) ** 2, axis=0))
+
+    def relative_error(self, dataset: Dataset) -> tuple[np.ndarray, float]:
+        """Per-joint and total relative error ``‖τ − τ̂‖ / ‖τ‖`` on a dataset."""
+        r, tau = self.residual(dataset), dataset.require_torque()
+        return (np.linalg.norm(r, axis=0) / np.linalg.norm(tau, axis=0),
+                float(np.linalg.norm(r) / np.linalg.norm(tau)))
+
+    # ----------------------------------------------------------------------------- reporting
+    def summary(self, max_rows: int | None = None) -> str:
+        """A readable table: one row per base parameter, then per-joint figures and notes."""
+        from .summary import identification_summary
+
+        return identification_summary(self, max_rows=max_rows)
+
+    def report(self, path: str | Path | None = None) -> str:
+        """The full :meth:`summary`; also written to ``path`` (a text file) when given, like
+        :meth:`consistid.diagnosis.diagnose.Diagnosis.report` writes its report."""
+        text = self.summary()
+        if path is not None:
+            Path(path).write_text(text + "\n", encoding="utf-8")
+        return text
+
+    def __str__(self) -> str:
+        return self.summary(max_rows=20)

@@ -1,0 +1,780 @@
+r"""Physically consistent identification as a compressed semidefinite program.
+
+The estimate is the maximum a-posteriori standard parameter vector under physical-consistency
+constraints (Wensing, Kim, Slotine 2017, "Linear matrix inequalities for physically consistent
+inertial parameter identification", IEEE RA-L 3(1), doi:10.1109/LRA.2017.2729659; Lee, Wensing,
+Park 2019, "Geometric robot dynamic identification: a convex programming approach", IEEE T-RO
+36(2), doi:10.1109/TRO.2019.2926491):
+
+.. math::
+
+    \min_\theta \; \|\Sigma^{-1/2}(Y\theta - \tau)\|^2 + \gamma \sum_i d(J_i(\theta) \,\|\, J_i(\pi_0))
+    \quad\text{s.t.}\quad J_i(\theta) \succeq \epsilon\, J_{\text{ref},i}
+    \;(\text{or body } i\text{'s level}),
+    \quad f_c, f_v, I_a \ge 0,
+
+* **Fisher weighting**: ``Σ = diag(σ_j²)`` per joint, from an OLS pass
+  (``σ_j² = ‖ρ_j‖² / (N − r/nv)``, ``r`` the rank of the base regressor) unless ``sigma`` is given;
+  optionally re-estimated from the SDP's own residuals (``reweight`` passes, IRLS) or, with
+  ``loss="huber"``, replaced by Huber weights per sample (Huber 1964, doi:10.1214/aoms/1177703732;
+  IRLS of Holland & Welsch 1977, doi:10.1080/03610927708827533) with a MAD noise scale.
+* **Compression**: the data term equals ``‖R θ − z‖² + ρ²`` with ``(R, z)`` the R factor of the
+  weighted ``[Y | τ]`` (:mod:`consistid.identification.compression`), so the program has ``p`` unknowns and a
+  ``p × p`` quadratic whatever the number of samples.
+* **Priors**: ``"logdet"``: the Bregman divergence
+  ``d(J‖J₀) = −log det J + log det J₀ + tr(J₀⁻¹J) − 4`` (Lee et al. 2019, eq. 24);
+  ``"euclidean"``: ``‖W(π − π₀)‖²`` with ``W`` by default the log-det metric at the prior
+  (:func:`consistid.identification.priors.logdet_metric`), so both priors have the same curvature at ``π₀``;
+  ``None``: constraints only. Optional hard :class:`~consistid.identification.priors.Neighbourhood` bounds.
+* **Default prior weight** (:func:`default_prior_weight`): ``γ = 2 / r²`` with ``r`` the relative
+  uncertainty of the CAD bodies (default :data:`DEFAULT_PRIOR_UNCERTAINTY`). Near the prior,
+  ``γ d ≈ ‖Ĵ − 1‖²_F / r²`` (``Ĵ = L⁻¹JL⁻ᵀ``, ``J₀ = LLᵀ``): a Gaussian prior of standard deviation
+  ``r`` on each entry of the normalised pseudo-inertia, in the same χ² units as the Fisher-weighted
+  data term (equivalently, a Wishart prior with ``ν − 5 = γ`` degrees of freedom). It depends on
+  neither the data set nor its length: as samples accumulate, the data dominate.
+* **Scaling**: the solver sees ``θ = θ_c + Φ w`` with ``Φᵀ(RᵀR + ½γ H₀)Φ = 1`` (``H₀`` the
+  prior's Hessian at ``π₀``; ``Φ`` from one QR factorisation, in per-body prior-normalised
+  coordinates) and ``θ_c`` the minimiser of that quadratic model: the objective's Hessian is
+  ``≈ 1`` in ``w`` for every prior weight, and every body's LMI is imposed on its prior-normalised
+  pseudo-inertia (:class:`~consistid.identification.constraints.BodyScaling`). Clarabel's own equilibration is
+  then redundant and is switched off. A solve that still ends ``optimal_inaccurate`` is rescaled
+  once around its answer and repeated (``details["refinements"]``). Changes of variables only:
+  the optimum is unchanged. Per-joint ``σ`` (also the Huber scale) is floored at
+  :data:`~consistid.identification.compression.SIGMA_FLOOR` times the joint's torque RMS
+  (:func:`~consistid.identification.compression.floor_sigma`), so noise-free data do not give infinite weights.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from dataclasses import dataclass
+from typing import Any, Mapping, Sequence
+
+import cvxpy as cp
+import numpy as np
+import scipy.linalg
+
+from . import constraints as cons
+from . import priors
+from .base import BaseParameters
+from .compression import CompressedProblem, compress, floor_sigma, joint_sigma
+from .solver import DEFAULT_SOLVER, check_solver, solve
+from ..data.dataset import Dataset
+from ..errors import (IdentificationError, InconsistentParametersError, InfeasibleError,
+                     ModelError, OptionError, PoorExcitationWarning, check_bounds, check_box,
+                     check_number, check_option)
+from .identify import COND_WARN, RANK_RTOL
+from ..robot.model import RobotModel
+from ..robot.inertia import from_pseudo_inertia, pseudo_inertia
+from .regressor import RegressorSpec, parameter_names, predict_torque, prior_vector
+from .result import IdentificationResult, SolverReport
+
+#: Relative uncertainty ``r`` of CAD pseudo-inertias assumed by :func:`default_prior_weight`.
+DEFAULT_PRIOR_UNCERTAINTY = 0.3
+#: ``None``: constraints only. (Recovery from base coefficients, :data:`consistid.estimation.recover.PRIORS`,
+#: has no ``None``: there only a prior picks a point in the null space of the base map.)
+PRIORS = (None, "euclidean", "logdet")
+LOSSES = ("squared", "huber")
+#: A constraint counts as active when its prior-normalised slack is below this …
+ACTIVE_TOL = 1e-6
+#: … and as violated (the answer is rejected) when its slack is below minus this.
+CHECK_TOL = 1e-6
+#: Huber's ``c`` (units of σ) when ``huber_threshold`` is not given: 95 % efficiency for Gaussian
+#: noise (Huber 1964).
+HUBER_DEFAULT = 1.345
+
+
+def default_prior_weight(uncertainty: float = DEFAULT_PRIOR_UNCERTAINTY) -> float:
+    """The documented default prior weight ``γ = 2 / r²`` (module docstring).
+
+    ``uncertainty`` ``r`` is the relative (one standard deviation) deviation expected between the
+    prior bodies' normalised pseudo-inertias and the truth; 0.3 gives ``γ ≈ 22``.
+    """
+    if not (np.isfinite(uncertainty) and uncertainty > 0):
+        raise OptionError(f"prior_uncertainty must be a finite number > 0, got {uncertainty}")
+    return 2.0 / uncertainty ** 2
+
+
+@dataclass(frozen=True, eq=False)
+class _Setup:
+    """Everything the program needs that does not change between re-weighting passes."""
+
+    levels: tuple[str, ...]
+    references: np.ndarray          # (10·nb,) realisable reference bodies (= prior if realisable)
+    scalings: tuple[cons.BodyScaling, ...]
+    bounds: tuple[np.ndarray | float, ...]  # per body: LMI lower bound, margin × J_ref (M_ref)
+    ellipsoids: tuple[cons.Ellipsoid | None, ...]
+    nonnegative: np.ndarray         # (p,) bool
+    euclid_w: np.ndarray | None     # (p_inertial, p_inertial) Euclidean prior weights
+    prior: str | None
+    gamma: float
+    neighbourhood: priors.Neighbourhood | None
+    com_boxes: Mapping[str, tuple[Sequence[float], Sequence[float]]]
+    mass_bounds: Mapping[str, tuple[float | None, float | None]]
+    total_mass: tuple[float | None, float | None] | None
+
+
+def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParameters,
+                 spec: RegressorSpec, constraints: str | Mapping[str, str] = "pseudo-inertia",
+                 prior: str | None = "logdet", *,
+                 prior_weight: float | None = None,
+                 prior_uncertainty: float | None = None,
+                 prior_weights: np.ndarray | None = None,
+                 neighbourhood: priors.Neighbourhood | None = None,
+                 ellipsoids: Mapping[str, cons.Ellipsoid] | str | None = None,
+                 com_boxes: Mapping[str, tuple[Sequence[float], Sequence[float]]] | None = None,
+                 mass_bounds: Mapping[str, tuple[float | None, float | None]] | None = None,
+                 total_mass: tuple[float | None, float | None] | None = None,
+                 friction_nonnegative: bool = True, margin: float = 1e-6,
+                 sigma: Sequence[float] | None = None, reweight: int | None = None,
+                 loss: str = "squared", huber_threshold: float | None = None,
+                 dataset: Dataset | None = None, solver: str = DEFAULT_SOLVER,
+                 solver_options: dict[str, Any] | None = None,
+                 scale: bool = True) -> IdentificationResult:
+    r"""Physically consistent identification on a compressed problem (module docstring).
+
+    Usually called through ``consistid.identify(model, data, method="sdp", ...)``.
+
+    Parameters
+    ----------
+    model, problem, base, spec : the robot, the compressed data (:func:`compression.compress`),
+        its base parameters and regressor columns.
+    constraints : consistency level of every body, ``"none" | "mass-inertia" | "triangle" |
+        "pseudo-inertia" | "ellipsoid"``, or a mapping ``{body: level}`` (unlisted bodies get
+        ``"pseudo-inertia"``). ``"triangle"`` is imposed as the pseudo-inertia LMI, which for one
+        body is exactly ``m ≥ 0`` plus the triangle inequalities. The log-det prior keeps every
+        ``J ≻ 0`` by its domain whatever the level.
+    prior : ``None``, ``"euclidean"`` or ``"logdet"``.
+    prior_weight : ``γ``; default :func:`default_prior_weight` of ``prior_uncertainty``.
+    prior_uncertainty : ``r`` of :func:`default_prior_weight` (default
+        :data:`DEFAULT_PRIOR_UNCERTAINTY`); give it or ``prior_weight``, not both.
+    prior_weights : Euclidean ``W`` on the inertial parameters, (10·nb,) diagonal or
+        (10·nb, 10·nb) full; default the log-det metric at the prior (``prior="euclidean"``
+        only).
+    neighbourhood : hard bounds around each prior body (:class:`~consistid.identification.priors.Neighbourhood`).
+    ellipsoids : ``{body: Ellipsoid}``, for (and only for) the bodies at level ``"ellipsoid"``;
+        or ``"collision"``: the minimum-volume ellipsoids of the URDF's collision geometry
+        (:func:`consistid.robot.shapes.collision_ellipsoids`) for the bodies at level
+        ``"ellipsoid"``. With ``constraints="ellipsoid"`` (a string), bodies without collision
+        geometry then get ``"pseudo-inertia"`` (a :class:`~consistid.errors.GeometryWarning`
+        names them); a ``{body: "ellipsoid"}`` body without geometry is refused.
+    com_boxes : ``{body: (lower, upper)}`` CoM boxes in the body frame (m).
+    mass_bounds : ``{body: (lower, upper)}`` in kg (``None`` for no bound).
+    total_mass : ``(lower, upper)`` bounds on the sum of the body masses (kg).
+    friction_nonnegative : constrain Coulomb, viscous friction and armature to be ``≥ 0``.
+    margin : ``J_i ⪰ margin·J_ref,i`` for the pseudo-inertia levels (``M_i ⪰ margin·M_ref,i``,
+        the 6×6 matrix, for ``"mass-inertia"``), ``J_ref`` the prior body (or its realisable
+        stand-in when the prior is not realisable): a margin relative to the prior in every
+        direction (:func:`consistid.identification.constraints.relative_bound`), the definition
+        :func:`consistid.estimation.recover.recover_standard` uses, so that answers are strictly realisable
+        despite the solver's tolerance. ``details["relative_margins"]`` reports it.
+    sigma : (nv,) per-joint torque-noise standard deviation; default from an OLS pass.
+    reweight : re-weighting passes after the first solve: σ re-estimated from the SDP residuals
+        (``loss="squared"``) or Huber weights and MAD scale updated (``loss="huber"``, which
+        needs at least 1). Default 0 for ``"squared"``, 5 for ``"huber"``.
+    loss : ``"squared"`` or ``"huber"`` (needs ``dataset``: per-sample weights re-compress it).
+    huber_threshold : Huber's ``c`` in units of σ (``loss="huber"`` only; default
+        :data:`HUBER_DEFAULT` = 1.345: 95 % efficiency for Gaussian noise).
+    dataset : the data ``problem`` was compressed from (needed for ``loss="huber"`` only).
+    solver, solver_options : cvxpy solver name and options (default Clarabel; with
+        ``scale=True`` its own equilibration is off unless ``solver_options`` says otherwise).
+    scale : solve in whitened, prior-normalised coordinates (default). ``False`` hands the
+        solver raw parameters and unscaled LMIs; it exists to measure what scaling buys.
+
+    Returns
+    -------
+    IdentificationResult
+        ``method="sdp"``; ``base_parameters = B θ`` of the answer with the covariance
+        ``(R_bᵀ R_b)⁻¹`` of the weighted fit. ``details``: ``constraints`` (levels and active
+        ones, text), ``prior``, ``prior_weight``, ``prior_weight_rule``, ``solver``,
+        ``sigma_source`` (``"ols" | "given" | "irls" | "huber"``), ``scaled``;
+        ``active_constraints`` (labels); ``min_eigenvalues`` (``λ_min(J)``, kg·m²) and
+        ``relative_margins`` (``λ_min(L⁻¹JL⁻ᵀ)``, prior-normalised) per body;
+        ``fit`` (``data_chi2``, ``prior_divergence``, ``default_prior_weight``);
+        ``timing`` (``solve``, ``compile``, ``setup`` seconds, also in ``solver``);
+        ``passes`` (``reweighting``, ``refinements``); ``program_size`` (variables,
+        constraints, data entries handed to cvxpy: independent of N).
+
+    Raises
+    ------
+    OptionError : unknown option value, body name, a missing ellipsoid / dataset, or an option
+        that the other options make meaningless (e.g. ``prior_weight`` with ``prior=None``,
+        ``huber_threshold`` with ``loss="squared"``): refused, never silently ignored.
+    InconsistentParametersError : a log-det prior body that is not realisable.
+    InfeasibleError : the constraints admit no solution (solver proved it).
+    IdentificationError : any other solver failure (status named), or an answer that violates
+        its constraints beyond tolerance.
+    """
+    start = time.perf_counter()
+    check_option("prior", prior, PRIORS)
+    check_option("loss", loss, LOSSES)
+    solver = check_solver(solver)
+    nv, n = problem.nv, problem.n_samples
+    if problem.n_columns != base.n_standard:
+        raise OptionError(f"the compressed problem has {problem.n_columns} columns but the base "
+                          f"parameters are of {base.n_standard} standard ones")
+    _check_combinations(prior, prior_weight, prior_uncertainty, prior_weights, loss,
+                        huber_threshold, reweight)
+    if loss == "huber" and dataset is None:
+        raise OptionError("loss='huber' re-weights individual samples: pass dataset=")
+    passes = ((5 if loss == "huber" else 0) if reweight is None
+              else check_number("reweight", reweight, 0, integer=True))
+    margin = check_number("margin", margin, 0)
+    huber_c = (HUBER_DEFAULT if huber_threshold is None
+               else check_number("huber_threshold", huber_threshold, 0, strict=True))
+    gamma_default = default_prior_weight(
+        DEFAULT_PRIOR_UNCERTAINTY if prior_uncertainty is None
+        else check_number("prior_uncertainty", prior_uncertainty, 0, strict=True))
+    gamma = 0.0 if prior is None else (gamma_default if prior_weight is None
+                                       else check_number("prior_weight", prior_weight, 0))
+    _check_bound_options(model, constraints, com_boxes, mass_bounds, total_mass)
+    constraints, ellipsoids = _collision_levels(model, constraints, ellipsoids)
+    prior_vec = prior_vector(model, spec)
+    setup = _make_setup(model, spec, prior_vec, constraints, prior, gamma, prior_weights,
+                        ellipsoids, neighbourhood, com_boxes, mass_bounds, total_mass,
+                        friction_nonnegative, margin)
+
+    if sigma is None:
+        sig, source = _ols_sigma(problem, base), "ols"
+    else:
+        try:
+            sig, source = np.asarray(sigma, dtype=float), "given"
+        except (TypeError, ValueError):
+            sig = np.array([np.nan])
+        if sig.shape != (nv,) or not np.all(np.isfinite(sig)) or np.any(sig <= 0):
+            raise OptionError(f"sigma must be {nv} finite values > 0 (one per joint), got "
+                              f"{sigma!r}")
+    sig = floor_sigma(sig, problem)
+
+    work, theta = problem, None
+    solve_time = compile_time = 0.0
+    iterations = refinements = 0
+    setup_time = time.perf_counter() - start
+    for k in range(passes + 1):
+        t0 = time.perf_counter()
+        r_full, z_full, _ = work.stacked(sigma=sig)
+        program = _build(model, spec, r_full, z_full, prior_vec, setup, scale)
+        setup_time += time.perf_counter() - t0
+        program, reports = _solve_pass(program, model, spec, r_full, z_full, prior_vec, setup,
+                                       solver, solver_options, scale)
+        report = reports[-1]
+        refinements += len(reports) - 1
+        solve_time += sum(rep.solve_time for rep in reports)
+        compile_time += sum(rep.compile_time for rep in reports)
+        iterations += sum(rep.iterations or 0 for rep in reports)
+        active = _check_answer(program)
+        new = program.theta()
+        done = theta is not None and (np.linalg.norm(new - theta)
+                                      <= 1e-8 * max(np.linalg.norm(theta), 1e-300))
+        theta = new
+        if k == passes or done:
+            break
+        t0 = time.perf_counter()
+        if loss == "huber":
+            sig, row_weights = _huber_weights(model, dataset, spec, theta, huber_c, problem)
+            work = compress(model, dataset, spec, weights=row_weights)
+            source = "huber"
+        else:
+            sig = floor_sigma(joint_sigma(problem.sum_squares(theta), n, base.n_base), problem)
+            source = "irls"
+        setup_time += time.perf_counter() - t0
+
+    r_b, _, _ = work.stacked(sigma=sig, columns=base.independent)
+    cond, cov = _base_covariance(r_b)
+    if prior is None and cond > COND_WARN:
+        warnings.warn(f"weighted base regressor condition number {cond:.3g} > {COND_WARN:.0e} "
+                      "and no prior: poorly excited directions are decided by the constraints "
+                      "alone; consider prior='logdet'", PoorExcitationWarning, stacklevel=3)
+    chi2 = float(np.sum(work.sum_squares(theta) / sig ** 2))
+    details = _details(model, theta, setup, prior_vec, gamma_default, prior_weight, active, chi2)
+    size = program.problem.size_metrics
+    details.update(program_size={"variables": int(size.num_scalar_variables),
+                                 "constraints": len(program.problem.constraints),
+                                 "data": int(size.num_scalar_data)},
+                   solver=solver, sigma_source=source,
+                   passes={"reweighting": k + 1, "refinements": refinements},
+                   timing={"solve": solve_time, "compile": compile_time, "setup": setup_time},
+                   scaled=scale)
+    return IdentificationResult(
+        method="sdp", model=model, spec=spec, base=base, parameters=theta,
+        parameter_names=tuple(parameter_names(model, spec)), prior=prior_vec,
+        base_parameters=base.project(theta), base_covariance=cov, sigma=sig,
+        condition_number=cond, train_rms=np.sqrt(problem.sum_squares(theta) / n), n_samples=n,
+        solver=SolverReport(f"{solver} via cvxpy (compressed{', scaled' if scale else ''})",
+                            report.status, solve_time, compile_time, iterations),
+        details=details)
+
+
+# ------------------------------------------------------------------------------------ options
+def _check_combinations(prior: str | None, prior_weight: float | None,
+                        prior_uncertainty: float | None, prior_weights: np.ndarray | None,
+                        loss: str, huber_threshold: float | None, reweight: int | None) -> None:
+    """Refuse options that the other options make meaningless (never ignore them silently)."""
+    if prior is None:
+        given = [k for k, v in (("prior_weight", prior_weight),
+                                ("prior_uncertainty", prior_uncertainty)) if v is not None]
+        if given:
+            raise OptionError(f"{given} weight a prior, but prior=None has none")
+    if prior_weight is not None and prior_uncertainty is not None:
+        raise OptionError("give prior_weight or prior_uncertainty (which sets the default "
+                          "prior_weight = 2/r²), not both")
+    if prior_weights is not None and prior != "euclidean":
+        raise OptionError(f"prior_weights are the Euclidean prior's metric; prior={prior!r}")
+    if huber_threshold is not None and loss != "huber":
+        raise OptionError(f"huber_threshold applies to loss='huber', not loss={loss!r}")
+    if loss == "huber" and reweight is not None and int(reweight) == 0:
+        raise OptionError("loss='huber' needs reweight ≥ 1: the first solve is a squared-loss "
+                          "fit, and the Huber weights come from its residuals")
+
+
+def _check_bound_options(model: RobotModel, constraints: object, com_boxes: object,
+                         mass_bounds: object, total_mass: object) -> None:
+    """Shapes and types of the per-body options, each error naming its option and body."""
+    if not isinstance(constraints, (str, Mapping)):
+        raise OptionError(f"constraints must be a level name or {{body: level}}, got "
+                          f"{constraints!r}")
+    for name, mapping in (("com_boxes", com_boxes), ("mass_bounds", mass_bounds)):
+        if mapping is not None and not isinstance(mapping, Mapping):
+            raise OptionError(f"{name} must be a mapping {{body: bounds}}, got {mapping!r}")
+    for body, box in (com_boxes or {}).items():
+        check_box(f"com_boxes[{body!r}]", box)
+    for body, bounds in (mass_bounds or {}).items():
+        check_bounds(f"mass_bounds[{body!r}]", bounds)
+    if total_mass is not None:
+        check_bounds("total_mass", total_mass)
+
+
+def _body_levels(model: RobotModel, constraints: str | Mapping[str, str]) -> tuple[str, ...]:
+    if isinstance(constraints, str):
+        check_option("constraints", constraints, cons.LEVELS)
+        return (constraints,) * model.n_bodies
+    unknown = sorted(set(constraints) - set(model.body_names))
+    if unknown:
+        raise OptionError(f"constraints name unknown bodies {unknown}; bodies are "
+                          f"{model.body_names}")
+    for body, level in constraints.items():
+        check_option(f"constraints[{body!r}]", level, cons.LEVELS)
+    return tuple(constraints.get(b, "pseudo-inertia") for b in model.body_names)
+
+
+def _collision_levels(model: RobotModel, constraints: str | Mapping[str, str],
+                      ellipsoids: Mapping[str, cons.Ellipsoid] | str | None
+                      ) -> tuple[str | Mapping[str, str], Mapping[str, cons.Ellipsoid] | None]:
+    """``(constraints, ellipsoids)`` with ``ellipsoids="collision"`` resolved (see
+    :func:`identify_sdp`); other values pass unchanged."""
+    if not isinstance(ellipsoids, str):
+        return constraints, ellipsoids
+    check_option("ellipsoids", ellipsoids, ("collision",))
+    levels = _body_levels(model, constraints)
+    if "ellipsoid" not in levels:
+        raise OptionError("ellipsoids='collision' bounds the bodies at level 'ellipsoid', and "
+                          "none is: use constraints='ellipsoid' or {body: 'ellipsoid'}")
+    from ..robot.shapes import collision_ellipsoids
+
+    try:
+        found = collision_ellipsoids(model)
+    except ModelError as exc:
+        raise ModelError(f"{exc} (ellipsoids='collision' reads the meshes with no package_dirs: "
+                         "build them with consistid.robot.shapes.collision_ellipsoids(model, "
+                         "package_dirs=[...]) and pass that dict as ellipsoids=)") from exc
+    missing = [b for b, lvl in zip(model.body_names, levels)
+               if lvl == "ellipsoid" and b not in found]
+    if missing and not isinstance(constraints, str):
+        raise OptionError(f"bodies {missing} have constraints='ellipsoid' but no <collision> "
+                          "geometry for ellipsoids='collision'")
+    chosen = {b: ("pseudo-inertia" if b in missing else lvl)
+              for b, lvl in zip(model.body_names, levels)}
+    return chosen, {b: e for b, e in found.items() if chosen[b] == "ellipsoid"}
+
+
+def _check_bodies(model: RobotModel, *mappings: Mapping[str, Any] | None) -> None:
+    for mapping in mappings:
+        unknown = sorted(set(mapping or {}) - set(model.body_names))
+        if unknown:
+            raise OptionError(f"unknown bodies {unknown}; bodies are {model.body_names}")
+
+
+def _reference(body: np.ndarray, fallback: float) -> np.ndarray:
+    """The prior body itself if realisable, else its pseudo-inertia with eigenvalues raised to
+    ``10⁻³`` of its largest (or to ``fallback`` for a massless body): a well-conditioned
+    realisable body that only scales the program (and the default Euclidean metric)."""
+    lam, vec = np.linalg.eigh(pseudo_inertia(body))
+    if lam[0] > 1e-9 * max(lam[-1], 0.0):
+        return body
+    floor = 1e-3 * lam[-1] if lam[-1] > 0 else fallback
+    return from_pseudo_inertia(vec @ np.diag(np.maximum(lam, floor)) @ vec.T)
+
+
+def _make_setup(model: RobotModel, spec: RegressorSpec, prior_vec: np.ndarray,
+                constraints: str | Mapping[str, str], prior: str | None, gamma: float,
+                prior_weights: np.ndarray | None, ellipsoids: Mapping[str, cons.Ellipsoid] | None,
+                neighbourhood: priors.Neighbourhood | None, com_boxes: Mapping | None,
+                mass_bounds: Mapping | None, total_mass: tuple | None,
+                friction_nonnegative: bool, margin: float) -> _Setup:
+    levels = _body_levels(model, constraints)
+    ellipsoids = dict(ellipsoids or {})
+    _check_bodies(model, ellipsoids, com_boxes, mass_bounds)
+    missing = [b for b, lvl in zip(model.body_names, levels)
+               if lvl == "ellipsoid" and b not in ellipsoids]
+    if missing:
+        raise OptionError(f"bodies {missing} have constraints='ellipsoid' but no ellipsoids[...]")
+    unused = [b for b, lvl in zip(model.body_names, levels)
+              if lvl != "ellipsoid" and b in ellipsoids]
+    if unused:
+        raise OptionError(f"ellipsoids given for bodies {unused}, whose constraints level is not "
+                          "'ellipsoid' (set constraints={body: 'ellipsoid'} for them)")
+    nb = model.n_bodies
+    bodies = prior_vec[:10 * nb].reshape(nb, 10)
+    if prior == "logdet":
+        for name, body in zip(model.body_names, bodies):
+            lam = np.linalg.eigvalsh(pseudo_inertia(body))
+            if not lam[0] > 0:
+                raise InconsistentParametersError(
+                    f"{name}: the prior (URDF) pseudo-inertia is not positive definite (min "
+                    f"eigenvalue {lam[0]:.3g}); the log-det prior needs realisable prior bodies. "
+                    "Fix the URDF inertia or use prior='euclidean' / None")
+    lam_max = max(float(np.linalg.eigvalsh(pseudo_inertia(b))[-1]) for b in bodies)
+    refs = np.concatenate([_reference(b, 1e-3 * max(lam_max, 1e-12)) for b in bodies])
+    scalings = tuple(cons.BodyScaling.from_reference(refs[10 * i:10 * i + 10])
+                     for i in range(nb))
+    bounds = tuple(cons.relative_bound(refs[10 * i:10 * i + 10], levels[i], margin)
+                   for i in range(nb))
+    nonneg = np.zeros(prior_vec.size, dtype=bool)
+    if friction_nonnegative:
+        nonneg[10 * nb + spec.nonnegative_columns] = True
+    euclid_w = None
+    if prior == "euclidean":
+        p_in = 10 * nb
+        if prior_weights is None:
+            euclid_w = scipy.linalg.block_diag(*(priors.logdet_metric(refs[10 * i:10 * i + 10])
+                                                 for i in range(nb)))
+        else:
+            w = np.asarray(prior_weights, dtype=float)
+            if w.shape == (p_in,):
+                w = np.diag(w)
+            if w.shape != (p_in, p_in) or not np.all(np.isfinite(w)):
+                raise OptionError(f"prior_weights must be finite, of shape ({p_in},) or "
+                                  f"({p_in}, {p_in}), got {np.shape(prior_weights)}")
+            euclid_w = w
+    return _Setup(levels, refs, scalings, bounds,
+                  tuple(ellipsoids.get(b) for b in model.body_names), nonneg, euclid_w, prior,
+                  gamma, neighbourhood, dict(com_boxes or {}), dict(mass_bounds or {}), total_mass)
+
+
+# ------------------------------------------------------------------------------------ noise
+def _ols_sigma(problem: CompressedProblem, base: BaseParameters) -> np.ndarray:
+    """Per-joint σ from the residual of an (unconstrained, minimum-norm) OLS fit; works for
+    rank-deficient data, where the residual is still unique."""
+    r, z, _ = problem.stacked(columns=base.independent)
+    beta, _, rank, _ = np.linalg.lstsq(r, z, rcond=1e-11)
+    sse = problem.sum_squares(beta, base.independent)
+    return joint_sigma(sse, problem.n_samples, rank)
+
+
+def _huber_weights(model: RobotModel, dataset: Dataset, spec: RegressorSpec, theta: np.ndarray,
+                   c: float, problem: CompressedProblem) -> tuple[np.ndarray, np.ndarray]:
+    """MAD noise scale per joint (floored as every σ, :func:`floor_sigma`: noise-free data have
+    MAD = 0) and Huber IRLS weights ``min(1, c σ / |r|)`` per sample, in ``[0, 1]``."""
+    res = dataset.require_torque() - predict_torque(model, dataset, spec, theta)
+    mad = np.median(np.abs(res - np.median(res, axis=0)), axis=0)
+    sig = floor_sigma(1.4826 * mad, problem)
+    u = np.abs(res) / sig
+    return sig, np.clip(c / np.maximum(u, c), 0.0, 1.0)
+
+
+# ------------------------------------------------------------------------------------ program
+def _prior_hessian(prior: str | None, setup: _Setup, nb: int,
+                   around: np.ndarray | None = None) -> np.ndarray:
+    """Curvature ``H₀`` of the prior term (per unit weight) on the inertial block, at ``π₀``
+    or, for the log-det prior, at ``around`` (bodies there that are not realisable: at ``π₀``)."""
+    if prior == "euclidean":
+        return 2.0 * setup.euclid_w.T @ setup.euclid_w
+    blocks = []
+    for i in range(nb):
+        at = setup.references[10 * i:10 * i + 10]
+        if around is not None and prior == "logdet":
+            body = around[10 * i:10 * i + 10]
+            if np.linalg.eigvalsh(pseudo_inertia(body))[0] > 0:
+                at = body
+        blocks.append(priors.logdet_metric(at))
+    metric = scipy.linalg.block_diag(*blocks)
+    return 2.0 * metric.T @ metric
+
+
+def _whitening(r: np.ndarray, z: np.ndarray, prior_vec: np.ndarray, setup: _Setup, nb: int,
+               around: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``(θ_c, Φ)`` with ``Φᵀ(RᵀR + ½γ_s H₀)Φ = 1`` and ``θ_c`` its quadratic-model minimiser
+    (both from one QR factorisation, so that noise-free data, whose weights are ~10⁶ σ⁻¹, stay
+    accurate).
+
+    Computed in prior-normalised coordinates ``θ = T y`` (per-body congruence, unit scale for the
+    joint columns), where the Cholesky factor is well conditioned. ``γ_s = γ`` (exact
+    whitening of the quadratic model, which keeps Clarabel accurate from ``γ = 10⁻⁶`` to ``10²``
+    times the default), or 1 without a prior: then unexcited directions get the unit scale of
+    ``Ĵ``. Only the coordinates change, not the optimum.
+
+    ``around`` (a previous, inaccurate answer): centre there instead, with the log-det
+    curvature ``J⁻¹ ⊗ J⁻¹`` of that answer rather than of the prior (one Newton-like rescaling).
+    """
+    prior, gamma = setup.prior, setup.gamma
+    p, p_in = prior_vec.size, 10 * nb
+    t = np.eye(p)
+    t[:p_in, :p_in] = scipy.linalg.block_diag(*(sc.parameter_map() for sc in setup.scalings))
+    a = r @ t
+    d = np.sum(a[:, p_in:] ** 2, axis=0)
+    t[:, p_in:] /= np.sqrt(np.where(d > 0, d, 1.0))
+    a = r @ t
+    h0 = np.zeros((p, p))
+    h0[:p_in, :p_in] = (t[:p_in, :p_in].T @ _prior_hessian(prior, setup, nb, around)
+                        @ t[:p_in, :p_in])
+    m2 = 0.5 * (gamma if gamma > 0 else 1.0) * h0
+    m2[p_in:, p_in:] += 1e-9 * np.eye(p - p_in)
+    m2 += 1e-12 * np.diag(np.sum(a ** 2, axis=0) + np.diag(m2))  # keeps m2 definite
+    m_half = np.linalg.cholesky(m2).T                       # m2 = m_halfᵀ m_half
+    # QR of [a; m_half] (not Cholesky of the normal matrix, whose condition number is squared):
+    # r_augᵀ r_aug = aᵀa + m2, and the centre minimises ‖a y − z‖² + ‖m_half (y − y0)‖².
+    y0 = np.linalg.solve(t, prior_vec)
+    q_aug, r_aug = np.linalg.qr(np.vstack([a, m_half]))
+    y_c = scipy.linalg.solve_triangular(r_aug, q_aug.T @ np.concatenate([z, m_half @ y0]))
+    phi = t @ scipy.linalg.solve_triangular(r_aug, np.eye(p))
+    if around is not None:
+        return around.copy(), phi
+    return t @ y_c, phi
+
+
+@dataclass(frozen=True, eq=False)
+class _Program:
+    """A built program: the cvxpy problem, its variable, ``θ(w) = θ_c + Φ w`` and the labelled
+    constraints (one label per constraint, or one per row of a vector constraint)."""
+
+    problem: cp.Problem
+    w: cp.Variable
+    theta_c: np.ndarray
+    phi: np.ndarray
+    labelled: tuple[tuple[cp.Constraint, tuple[str, ...]], ...]
+
+    def theta(self) -> np.ndarray:
+        return self.theta_c + self.phi @ self.w.value
+
+    def slacks(self) -> list[tuple[str, float]]:
+        """``(label, slack)`` of every constraint at ``w.value``: ``−expr`` for inequalities, the
+        smallest eigenvalue over ``max(1, largest)`` for LMIs (prior-normalised when scaled)."""
+        out = []
+        for con, labels in self.labelled:
+            value = np.asarray(con.expr.value, dtype=float)
+            if isinstance(con, cp.constraints.PSD):
+                # relative to the matrix's size: interior-point accuracy is relative
+                lam = np.linalg.eigvalsh(0.5 * (value + value.T))
+                out.append((labels[0], float(lam[0] / max(1.0, abs(lam[-1])))))
+            else:
+                out += list(zip(labels, (-value).ravel().tolist()))
+        return out
+
+
+def _build(model: RobotModel, spec: RegressorSpec, r: np.ndarray, z: np.ndarray,
+           prior_vec: np.ndarray, setup: _Setup, scale: bool,
+           around: np.ndarray | None = None) -> _Program:
+    """The cvxpy program of one pass (module docstring)."""
+    nb, p = model.n_bodies, prior_vec.size
+    prior, gamma, neighbourhood = setup.prior, setup.gamma, setup.neighbourhood
+    com_boxes, mass_bounds, total_mass = setup.com_boxes, setup.mass_bounds, setup.total_mass
+    if scale:
+        theta_c, phi = _whitening(r, z, prior_vec, setup, nb, around)
+    else:
+        theta_c, phi = np.zeros(p), np.eye(p)
+    w = cp.Variable(p, name="w")
+    theta = theta_c + phi @ w
+    objective = cp.sum_squares((r @ phi) @ w - (z - r @ theta_c))
+    labelled: list[tuple[cp.Constraint, tuple[str, ...]]] = []
+    prior_terms = []
+    for i, body in enumerate(model.body_names):
+        x = theta[10 * i:10 * i + 10]
+        body_prior = prior_vec[10 * i:10 * i + 10]
+        for con in cons.body_constraints(x, setup.levels[i], setup.bounds[i],
+                                         setup.ellipsoids[i],
+                                         setup.scalings[i] if scale else None):
+            level = "pseudo-inertia" if setup.levels[i] == "ellipsoid" else setup.levels[i]
+            kind = f"{level} LMI" if isinstance(con, cp.constraints.PSD) else "bounding ellipsoid"
+            labelled.append((con, (f"{body}: {kind}",)))
+        if prior == "logdet":
+            prior_terms.append(priors.logdet_divergence(x, body_prior, normalised=scale))
+        if neighbourhood is not None:
+            kinds = [k for k in ("mass", "com", "inertia") if getattr(neighbourhood, k) is not None]
+            labelled += [(con, (f"{body}: {k} neighbourhood",)) for con, k in zip(
+                priors.neighbourhood_constraints(x, body_prior, neighbourhood), kinds)]
+        m_ref = max(setup.references[10 * i], 1e-12) if scale else 1.0
+        if com_boxes and body in com_boxes:
+            lo, hi = (np.asarray(v, dtype=float) for v in com_boxes[body])
+            c_lo, c_hi = cons.com_box(x / m_ref, lo, hi)
+            labelled += [(c_lo, tuple(f"{body}: c{a} ≥ {v:g}" for a, v in zip("xyz", lo))),
+                         (c_hi, tuple(f"{body}: c{a} ≤ {v:g}" for a, v in zip("xyz", hi)))]
+        if mass_bounds and body in mass_bounds:
+            lo, hi = mass_bounds[body]
+            for con, bound in zip(cons.mass_bounds(x / m_ref, None if lo is None else lo / m_ref,
+                                                   None if hi is None else hi / m_ref),
+                                  [f"m ≥ {v:g}" if k == 0 else f"m ≤ {v:g}"
+                                   for k, v in enumerate((lo, hi)) if v is not None]):
+                labelled.append((con, (f"{body}: {bound}",)))
+    if prior == "euclidean":
+        prior_terms.append(priors.euclidean(theta[:10 * nb], prior_vec[:10 * nb], setup.euclid_w))
+    if total_mass is not None:
+        m_tot = max(float(np.sum(setup.references[0:10 * nb:10])), 1e-12) if scale else 1.0
+        masses = cp.sum(theta[0:10 * nb:10]) / m_tot
+        lo, hi = total_mass
+        if lo is not None:
+            labelled.append((masses >= lo / m_tot, (f"total mass ≥ {lo:g}",)))
+        if hi is not None:
+            labelled.append((masses <= hi / m_tot, (f"total mass ≤ {hi:g}",)))
+    idx = np.flatnonzero(setup.nonnegative)
+    if idx.size:
+        names = parameter_names(model, spec)
+        # unit scale per column: the whitening's scale of that parameter
+        col = np.maximum(np.linalg.norm(phi[idx], axis=1), 1e-300) if scale else np.ones(idx.size)
+        labelled.append((cp.multiply(1.0 / col, theta[idx]) >= 0,
+                         tuple(f"{names[k]} ≥ 0" for k in idx)))
+    if prior_terms and gamma > 0:
+        objective = objective + gamma * cp.sum(cp.hstack(prior_terms))
+    problem = cp.Problem(cp.Minimize(objective), [c for c, _ in labelled])
+    return _Program(problem, w, theta_c, phi, tuple(labelled))
+
+
+def _solve_pass(program: _Program, model: RobotModel, spec: RegressorSpec, r: np.ndarray,
+                z: np.ndarray, prior_vec: np.ndarray, setup: _Setup, solver: str,
+                options: dict[str, Any] | None, scale: bool
+                ) -> tuple[_Program, list[SolverReport]]:
+    """Solve; if the scaled program ends ``optimal_inaccurate``, rescale around that answer
+    (:func:`_whitening` with ``around``) and solve once more. The refined answer replaces the
+    first only if its solve succeeds; otherwise the first stands, with its warning."""
+    if not scale:
+        return program, [_solve(program, model, prior_vec, solver, options, scale)]
+    caught: list[warnings.WarningMessage] = []
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            first = _solve(program, model, prior_vec, solver, options, scale)
+    except Exception:
+        _rewarn(caught)  # what the solver said before failing is part of the diagnosis
+        raise
+    if first.status != cp.OPTIMAL_INACCURATE:
+        _rewarn(caught)
+        return program, [first]
+    refined = _build(model, spec, r, z, prior_vec, setup, scale, around=program.theta())
+    try:
+        second = _solve(refined, model, prior_vec, solver, options, scale)
+    except IdentificationError:
+        _rewarn(caught)
+        return program, [first]
+    return refined, [first, second]
+
+
+def _rewarn(caught: list[warnings.WarningMessage]) -> None:
+    for w in caught:
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+
+
+def _solve(program: _Program, model: RobotModel, prior_vec: np.ndarray, solver: str,
+           options: dict[str, Any] | None, scale: bool) -> SolverReport:
+    """:func:`consistid.identification.solver.solve` (status contract), with a diagnosis added to its errors.
+
+    An infeasibility claim is checked at the prior: if the prior satisfies every constraint the
+    claim is numerical (typically: no prior, and parameters the data leave free are unbounded),
+    and an :class:`IdentificationError` says so; otherwise the constraints the prior violates
+    are named.
+    """
+    if scale and solver == "CLARABEL":
+        # The variables are already whitened: Clarabel's Ruiz equilibration is redundant, and
+        # with it the Panda sweep over prior weights 1e-6..1e2 × default ended inaccurate once
+        # (at 1e-6) in 54 solves, without it never.
+        options = {"equilibrate_enable": False, **(options or {})}
+    try:
+        return solve(program.problem, f"SDP identification of {model.name!r}", solver, options)
+    except InfeasibleError as exc:
+        program.w.value = np.linalg.solve(program.phi, prior_vec - program.theta_c)
+        violated = [f"{label} (slack {v:.3g})" for label, v in program.slacks()
+                    if v < -CHECK_TOL]
+        if not violated:
+            raise IdentificationError(
+                f"{exc}, but the prior satisfies every constraint, so the problem is feasible "
+                "and the solver failed numerically. Hint: without a prior, parameters the data "
+                "do not determine (e.g. the first link's mass on a fixed base) are unbounded; "
+                "use prior='logdet' (a small prior_weight keeps it weak) or bound the masses "
+                "(mass_bounds, total_mass)") from exc
+        raise InfeasibleError(
+            f"{exc}. Hint: the prior violates {len(violated)} of the constraints: "
+            + "; ".join(violated[:5]) + ". Check com_boxes, mass_bounds, total_mass, ellipsoids "
+            "and neighbourhood bounds against each other") from exc
+    except IdentificationError as exc:
+        hint = ("scale=False hands the solver badly scaled data: use scale=True" if not scale
+                else "bounds (com_boxes, mass_bounds, total_mass, ellipsoids, neighbourhood) may "
+                "contradict each other without the solver proving it; a prior (prior='logdet') "
+                "bounds directions the data leave free; solver_options={'max_iter': ...} or "
+                "another solver may help")
+        raise IdentificationError(f"{exc}. Hint: {hint}") from exc
+
+
+# ------------------------------------------------------------------------------------ answer
+def _check_answer(program: _Program) -> tuple[str, ...]:
+    """FloBaRoID-style check of the answer against every constraint, beyond the status: raises
+    when one is violated by more than the solver's tolerance, else returns the active ones."""
+    slacks = program.slacks()
+    bad = [f"{label} (slack {v:.3g})" for label, v in slacks if v < -CHECK_TOL]
+    if bad:
+        raise IdentificationError("the solver reported success but the answer violates "
+                                  f"{len(bad)} constraint(s): " + "; ".join(bad[:5])
+                                  + ". Hint: keep scale=True, or try another solver")
+    return tuple(label for label, v in slacks if v < ACTIVE_TOL)
+
+
+def _base_covariance(r_b: np.ndarray) -> tuple[float, np.ndarray]:
+    """Condition number of the weighted base factor and ``(R_bᵀR_b)⁻¹``; parameters touched by
+    directions the data do not excite (singular value below
+    :data:`~consistid.identification.identify.RANK_RTOL` of the largest) get infinite variance."""
+    _, s, vt = np.linalg.svd(r_b)
+    if s[0] == 0:
+        return float("inf"), np.full((s.size, s.size), np.inf)
+    keep = s > RANK_RTOL * s[0]
+    cond = float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
+    cov = (vt[keep].T / s[keep] ** 2) @ vt[keep]
+    if not np.all(keep):
+        touched = np.linalg.norm(vt[~keep], axis=0) > 1e-6
+        cov[touched, :] = np.inf
+        cov[:, touched] = np.inf
+    return cond, cov
+
+
+def _details(model: RobotModel, theta: np.ndarray, setup: _Setup, prior_vec: np.ndarray,
+             gamma_default: float, given: float | None, active: tuple[str, ...],
+             chi2: float) -> dict[str, Any]:
+    nb, prior, gamma = model.n_bodies, setup.prior, setup.gamma
+    lam, rel = {}, {}
+    for i, b in enumerate(model.body_names):
+        j = pseudo_inertia(theta[10 * i:10 * i + 10])
+        l_inv = setup.scalings[i].l_inv
+        lam[b] = float(np.linalg.eigvalsh(j)[0])
+        rel[b] = float(np.linalg.eigvalsh(l_inv @ j @ l_inv.T)[0])
+    divergence = float("nan")
+    if prior == "logdet":
+        divergence = sum(priors.logdet_divergence_value(theta[10 * i:10 * i + 10],
+                                                        prior_vec[10 * i:10 * i + 10])
+                         for i in range(nb))
+    elif prior == "euclidean":
+        divergence = float(np.sum((setup.euclid_w @ (theta[:10 * nb] - prior_vec[:10 * nb])) ** 2))
+    levels = set(setup.levels)
+    described = (levels.pop() if len(levels) == 1 else
+                 ", ".join(f"{b}={lvl}" for b, lvl in zip(model.body_names, setup.levels)))
+    shown = ", ".join(active[:4]) + (f" … ({len(active)} in all)" if len(active) > 4 else "")
+    return {
+        # strings and numbers (the summary prints these)
+        "constraints": f"{described}; active: {shown or 'none'}",
+        "prior": str(prior),
+        "prior_weight": gamma,
+        "prior_weight_rule": "no prior" if prior is None else "given" if given is not None
+        else f"default 2/r², r = {np.sqrt(2.0 / gamma_default):.3g}",
+        # structured figures
+        "active_constraints": active,
+        "min_eigenvalues": lam,
+        "relative_margins": rel,
+        "fit": {"data_chi2": chi2, "prior_divergence": divergence,
+                "default_prior_weight": gamma_default},
+    }

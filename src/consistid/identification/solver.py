@@ -1,0 +1,88 @@
+"""Solving a cvxpy problem under consistid's status contract.
+
+:func:`solve` calls cvxpy and turns the status into: optimal → a
+:class:`~consistid.identification.result.SolverReport`; ``optimal_inaccurate`` → the same plus an
+:class:`~consistid.errors.InaccurateSolutionWarning`; infeasible → :class:`InfeasibleError`;
+anything else (or no values) → :class:`IdentificationError`. Never a silent ``None`` (the cvxpy
+behaviour the style guide warns about). An unknown or uninstalled solver name is an
+:class:`~consistid.errors.OptionError` (:func:`check_solver`), never a substitution. Used by
+:mod:`consistid.identification.sdp`, :mod:`consistid.estimation.recover` and :mod:`consistid.estimation.payload`.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from typing import Any
+
+import cvxpy as cp
+
+from ..errors import IdentificationError, InaccurateSolutionWarning, InfeasibleError, OptionError
+from .result import SolverReport
+
+#: Default solver: interior point, accurate on the semidefinite cone (SCS is not; stack notes).
+DEFAULT_SOLVER = "CLARABEL"
+
+
+def check_solver(solver: str) -> str:
+    """The cvxpy name of ``solver`` (case-insensitive, returned upper-case).
+
+    Raises :class:`OptionError` naming the installed solvers unless ``solver`` is one of them.
+    """
+    installed = tuple(cp.installed_solvers())
+    name = str(solver).upper()
+    if name not in installed:
+        raise OptionError(f"solver={solver!r} is not supported (not a cvxpy solver, or not "
+                          f"installed); installed: {', '.join(installed)}")
+    return name
+
+
+def solve(problem: cp.Problem, what: str, solver: str = DEFAULT_SOLVER,
+          options: dict[str, Any] | None = None) -> SolverReport:
+    """Solve ``problem`` and map its status to a report, a warning or an exception.
+
+    Parameters
+    ----------
+    problem : the cvxpy problem.
+    what : a short description used in messages, e.g. ``"exact recovery"``.
+    solver : a cvxpy solver name (any case); an unknown or uninstalled one raises
+        :class:`OptionError` (no substitution).
+    options : keyword options passed to the solver.
+
+    Raises
+    ------
+    OptionError : ``solver`` is not an installed cvxpy solver, or it refused ``options``.
+    InfeasibleError : the solver proved (or nearly proved) infeasibility.
+    IdentificationError : the solver failed or returned no solution (status named).
+    """
+    solver = check_solver(solver)
+    start = time.perf_counter()
+    try:
+        with warnings.catch_warnings():
+            # cvxpy's own "Solution may be inaccurate" would duplicate the warning issued below.
+            warnings.filterwarnings("ignore", message="Solution may be inaccurate")
+            problem.solve(solver=solver, **(options or {}))
+    except cp.error.SolverError as exc:
+        raise IdentificationError(f"{what}: solver {solver} failed: {exc}") from exc
+    except (TypeError, ValueError) as exc:
+        if not options:
+            raise
+        raise OptionError(f"{what}: solver {solver} could not run with the options "
+                          f"{options}: {exc}") from exc
+    wall = time.perf_counter() - start
+    stats = problem.solver_stats
+    status = problem.status
+    solve_time = float(stats.solve_time) if stats and stats.solve_time is not None else wall
+    report = SolverReport(solver, status, solve_time, max(wall - solve_time, 0.0),
+                          None if stats is None else stats.num_iters)
+    if status in (cp.INFEASIBLE, cp.INFEASIBLE_INACCURATE):
+        raise InfeasibleError(f"{what}: the constraints admit no solution (solver {solver} "
+                              f"status {status!r})")
+    if status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) or any(
+            v.value is None for v in problem.variables()):
+        raise IdentificationError(f"{what}: solver {solver} returned status {status!r}")
+    if status == cp.OPTIMAL_INACCURATE:
+        warnings.warn(f"{what}: solver {solver} stopped at reduced accuracy ({status}); check "
+                      "the reported residuals and margins", InaccurateSolutionWarning,
+                      stacklevel=3)
+    return report

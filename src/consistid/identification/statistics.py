@@ -1,0 +1,97 @@
+r"""Least-squares statistics under serially correlated (coloured) residuals.
+
+Filtered torque logs have residuals whose samples are far from independent; counting their rows
+as independent makes every least-squares standard deviation too small. Two building blocks:
+
+:func:`autocorrelation_time`
+    the integrated autocorrelation time ``τ_j`` (samples) of each joint's residual: its ``N``
+    rows are worth ``N / τ_j`` independent ones.
+:func:`coloured_covariance`
+    the sandwich covariance of (weighted) least squares with joint ``j``'s errors counted that
+    way, from the per-joint R factors (no N-row matrices).
+
+Used by :mod:`consistid.diagnose` (selection tests and parameter ±) and
+:func:`consistid.identify` (``covariance="coloured"``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..data.dataset import Dataset
+
+
+def autocorrelation_time(dataset: Dataset, residual: np.ndarray, c: float = 5.0,
+                         max_lag: int = 2000) -> np.ndarray:
+    r"""Integrated autocorrelation time per joint, ``τ = 1 + 2 Σ_k ρ_k`` (in samples).
+
+    ``N / τ`` is the number of effectively independent samples of a correlated residual (e.g.
+    low-pass filtered noise): least-squares tests that count rows as independent are ``τ`` times
+    too confident. Autocorrelations are pooled over recordings (FFT, mean removed per recording),
+    and the sum is truncated by Sokal's automatic window, the first lag ``M ≥ c·τ(M)`` (Sokal
+    1997, "Monte Carlo methods in statistical mechanics", doi:10.1007/978-1-4899-0319-8_6).
+    """
+    nv = residual.shape[1]
+    acf_sum, count = None, 0
+    for s in np.unique(dataset.segment):
+        idx = np.flatnonzero(dataset.segment == s)
+        if idx.size < 16:
+            continue
+        x = residual[idx] - residual[idx].mean(axis=0)
+        n = x.shape[0]
+        f = np.fft.rfft(x, n=2 * n, axis=0)
+        acov = np.fft.irfft(np.abs(f) ** 2, axis=0)[: min(n, max_lag + 1)]
+        acf_sum = acov if acf_sum is None else acf_sum[: acov.shape[0]] + acov[: acf_sum.shape[0]]
+        count += 1
+    if acf_sum is None:
+        return np.ones(nv)
+    rho = acf_sum / np.where(acf_sum[0] > 0, acf_sum[0], 1.0)
+    tau = np.ones(nv)
+    for j in range(nv):
+        running = 1.0 + 2.0 * np.cumsum(rho[1:, j])
+        lags = np.arange(1, rho.shape[0])
+        stop = np.flatnonzero(lags >= c * running)
+        tau[j] = max(1.0, running[stop[0]] if stop.size else running[-1])
+    return tau
+
+
+def coloured_covariance(cov: np.ndarray, grams: np.ndarray, weights: np.ndarray,
+                        tau: np.ndarray, variances: np.ndarray | None = None) -> np.ndarray:
+    r"""Sandwich covariance of weighted least squares whose per-joint errors are coloured.
+
+    .. math::
+
+        \operatorname{Cov}(\hat β) = C \Big(\sum_j τ_j\, w_j^2 v_j\, Φ_j^\top Φ_j\Big) C,
+        \qquad C = \Big(\sum_j w_j\, Φ_j^\top Φ_j\Big)^{-1},
+
+    ``C`` the covariance that counts rows as independent (for OLS ``C = s² G⁻¹`` with
+    ``w_j = 1/s²``; for WLS ``w_j = 1/σ_j²``), ``Φ_jᵀΦ_j = R_jᵀR_j`` joint ``j``'s Gram matrix
+    from its R factor and ``v_j`` joint ``j``'s error variance (default ``1/w_j``, the variance
+    the weights assume: then the meat is ``Σ_j τ_j w_j Φ_jᵀΦ_j``; pass the per-joint residual
+    variances when the weights do not follow them, e.g. OLS on joints of unequal noise). It is
+    the sandwich ``C (Σ_j w_j² Φ_jᵀ Cov(e_j) Φ_j) C`` of least squares
+    with serially correlated errors, with ``Φ_jᵀ Cov(e_j) Φ_j ≈ v_j τ_j Φ_jᵀΦ_j`` for columns
+    that vary slowly against the residual's correlation time: the variance of a mean of ``N``
+    correlated samples is ``τ σ²/N`` (Bayley & Hammersley, "The 'effective' number of
+    independent observations in an autocorrelated time series", J. R. Stat. Soc. Suppl. 8(2),
+    184–197, 1946; the general lag-window form is Newey & West, Econometrica 55(3), 703–708,
+    1987, doi:10.2307/1913610). With every ``τ_j = 1`` it returns ``C``.
+
+    Parameters
+    ----------
+    cov : (b, b) ``C``; rows/columns with infinite entries (unexcited directions) stay infinite.
+    grams : (nv, b, b) ``Φ_jᵀΦ_j``.
+    weights : (nv,) ``w_j``.
+    tau : (nv,) ``τ_j`` (:func:`autocorrelation_time`).
+    variances : (nv,) ``v_j``; default ``1/w_j``.
+    """
+    cov = np.asarray(cov, dtype=float)
+    finite = np.isfinite(np.diag(cov))
+    out = np.array(cov, copy=True)
+    c = cov[np.ix_(finite, finite)]
+    w = np.asarray(weights, dtype=float)
+    v = 1.0 / w if variances is None else np.asarray(variances, dtype=float)
+    meat = np.einsum("j,jpq->pq", np.asarray(tau, dtype=float) * w ** 2 * v,
+                     np.asarray(grams, dtype=float)[:, finite][:, :, finite])
+    out[np.ix_(finite, finite)] = c @ meat @ c
+    return out

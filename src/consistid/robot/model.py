@@ -1,0 +1,340 @@
+"""Robot models: a Pinocchio model plus the names and the prior (CAD) parameters consistid needs.
+
+A :class:`RobotModel` wraps a ``pinocchio.Model`` built from a URDF (dynamics only; meshes are never
+loaded). It keeps Pinocchio's description/workspace split: the model is immutable, and every
+algorithm creates its own ``pinocchio.Data``.
+
+Joint coordinates in consistid are always *angles* (one per velocity DoF). Pinocchio represents an
+unbounded revolute joint (URDF ``continuous``) by ``(cos θ, sin θ)``; :meth:`RobotModel.configuration`
+converts, so datasets stay ``(N, nv)`` for every robot.
+"""
+
+from __future__ import annotations
+
+import site
+import sys
+from dataclasses import dataclass
+from functools import cached_property
+from pathlib import Path
+from typing import Iterable, Sequence
+
+import numpy as np
+import pinocchio as pin
+
+from ..errors import JointCountError, ModelError, check_option
+from .inertia import INERTIAL_NAMES
+
+#: Gravity (m/s², base frame) of a level base: what a URDF implies.
+DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
+
+#: example-robot-data arms consistid knows by name: URDF path below ``robots/`` and joints to lock.
+EXAMPLE_ROBOTS: dict[str, tuple[str, tuple[str, ...]]] = {
+    "panda": ("panda_description/urdf/panda.urdf", ("panda_finger_joint1", "panda_finger_joint2")),
+    "ur3": ("ur_description/urdf/ur3_robot.urdf", ()),
+    "ur5": ("ur_description/urdf/ur5_robot.urdf", ()),
+    "ur10": ("ur_description/urdf/ur10_robot.urdf", ()),
+    "xarm7": ("xarm_description/urdf/xarm7.urdf", ()),
+    "kinova": ("kinova_description/robots/kinova.urdf", ()),
+    "z1": ("z1_description/urdf/z1.urdf", ("jointGripper",)),
+    "double_pendulum": ("double_pendulum_description/urdf/double_pendulum.urdf", ()),
+}
+
+
+def example_robot_data_dir() -> Path:
+    """The ``robots/`` folder that the ``example-robot-data`` wheel installs.
+
+    The wheel ships URDFs under ``site-packages/cmeel.prefix/share/example-robot-data/robots``
+    and no Python module (see the project's stack notes), so we look for that folder on the path.
+    """
+    roots = [*sys.path, *site.getsitepackages(), site.getusersitepackages()]
+    for root in roots:
+        candidate = Path(root) / "cmeel.prefix" / "share" / "example-robot-data" / "robots"
+        if candidate.is_dir():
+            return candidate
+    raise ModelError(
+        "example-robot-data is not installed (no cmeel.prefix/share/example-robot-data/robots on "
+        "the Python path); install it with `pip install example-robot-data`"
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class JointLimits:
+    """Joint limits read from the URDF, one entry per velocity DoF (SI units)."""
+
+    lower: np.ndarray
+    upper: np.ndarray
+    velocity: np.ndarray
+    effort: np.ndarray
+
+
+class RobotModel:
+    """A fixed-base robot for identification.
+
+    Parameters
+    ----------
+    model : pinocchio.Model
+        Dynamics model; bodies are the joints' child links (locked joints already merged).
+    name : str
+        A label used in reports.
+    source : pathlib.Path, optional
+        The URDF the model was read from (used by exporters and the MuJoCo simulator).
+    locked_joints : tuple of str
+        Joints that were locked (merged into their parent) when building the model.
+
+    Attributes
+    ----------
+    joint_names : list of str, length ``nv``
+    body_names : list of str, length ``nbodies`` (the link that moves with each joint)
+    parameter_names : list of str, length ``10·nbodies``, e.g. ``"panda_link3.Izz"``
+    prior_parameters : ndarray, shape (10·nbodies,)
+        The URDF's standard parameters in Pinocchio order
+        ``[m, m·cx, m·cy, m·cz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz]`` per body, inertia about the joint
+        frame origin (``pinocchio.Inertia.toDynamicParameters``).
+    """
+
+    def __init__(
+        self,
+        model: pin.Model,
+        name: str = "robot",
+        source: Path | None = None,
+        locked_joints: Sequence[str] = (),
+        locked_configuration: dict[str, float] | None = None,
+    ) -> None:
+        for j in range(1, model.njoints):
+            if model.joints[j].nv != 1:
+                raise ModelError(
+                    f"joint {model.names[j]!r} has {model.joints[j].nv} DoF; consistid handles "
+                    "fixed-base robots with 1-DoF joints (revolute, continuous, prismatic)"
+                )
+        self.pin_model = model
+        self.name = name
+        self.source = Path(source) if source is not None else None
+        self.locked_joints = tuple(locked_joints)
+        self.locked_configuration = dict(locked_configuration or {})
+
+    # ----------------------------------------------------------------------------- construction
+    @classmethod
+    def from_urdf(
+        cls,
+        path: str | Path,
+        locked_joints: Iterable[str] = (),
+        locked_configuration: dict[str, float] | None = None,
+        name: str | None = None,
+        gravity: Sequence[float] | None = None,
+    ) -> "RobotModel":
+        """Read a URDF (dynamics only) and lock the named joints.
+
+        Parameters
+        ----------
+        path : path to the URDF file. Meshes are not loaded, so ``package://`` URIs need not resolve.
+        locked_joints : joints merged into their parent link (e.g. a gripper's fingers).
+        locked_configuration : angle (rad) or position (m) at which to lock each joint, default 0.
+        name : label for reports; default the file stem.
+        gravity : gravity vector in the base frame, default ``(0, 0, -9.81)``.
+        """
+        path = Path(path)
+        if not path.is_file():
+            raise ModelError(f"URDF file {str(path)!r} does not exist")
+        try:
+            full = pin.buildModelFromUrdf(str(path))
+        except Exception as exc:  # Pinocchio raises plain RuntimeError / ValueError
+            raise ModelError(f"Pinocchio could not read URDF {str(path)!r}: {exc}") from exc
+        locked = list(locked_joints)
+        config = dict(locked_configuration or {})
+        unknown = [j for j in [*locked, *config] if not full.existJointName(j)]
+        if unknown:
+            raise ModelError(
+                f"unknown joint(s) {unknown} in {path.name}; joints are {list(full.names)[1:]}"
+            )
+        unlocked = sorted(set(config) - set(locked))
+        if unlocked:
+            raise ModelError(f"locked_configuration names joint(s) {unlocked} that are not in "
+                             f"locked_joints {locked}")
+        model = full
+        if locked:
+            q_ref = pin.neutral(full)
+            for joint in locked:
+                jid = full.getJointId(joint)
+                if full.joints[jid].nq != 1:
+                    raise ModelError(f"cannot lock joint {joint!r}: only 1-coordinate joints")
+                q_ref[full.joints[jid].idx_q] = config.get(joint, 0.0)
+            model = pin.buildReducedModel(full, [full.getJointId(j) for j in locked], q_ref)
+        if gravity is not None:
+            model.gravity.linear = np.asarray(gravity, dtype=float)
+        return cls(model, name=name or path.stem, source=path, locked_joints=locked,
+                   locked_configuration=config)
+
+    @classmethod
+    def example(cls, name: str) -> "RobotModel":
+        """An arm shipped by ``example-robot-data``, grippers locked.
+
+        Known names: ``panda, ur3, ur5, ur10, xarm7, kinova, z1, double_pendulum``.
+        """
+        check_option("robot", name, tuple(EXAMPLE_ROBOTS))
+        relative, locked = EXAMPLE_ROBOTS[name]
+        return cls.from_urdf(example_robot_data_dir() / relative, locked_joints=locked, name=name)
+
+    def with_parameters(self, parameters: np.ndarray) -> "RobotModel":
+        """A copy whose body inertias are ``parameters`` (standard vector, 10 per body).
+
+        Extra entries after the ``10·nbodies`` inertial ones (friction, armature) are ignored here.
+        """
+        from .inertia import inertias_from_vector
+
+        parameters = np.asarray(parameters, dtype=float)
+        if parameters.shape[0] < self.n_inertial:
+            raise ModelError(
+                f"parameter vector has {parameters.shape[0]} entries; {self.name} needs "
+                f"{self.n_inertial} inertial parameters (10 per body)"
+            )
+        model = self.pin_model.copy()
+        for j, inertia in enumerate(inertias_from_vector(parameters[: self.n_inertial]), start=1):
+            model.inertias[j] = inertia
+        return RobotModel(model, name=self.name, source=self.source,
+                          locked_joints=self.locked_joints,
+                          locked_configuration=self.locked_configuration)
+
+    def with_gravity(self, gravity: Sequence[float]) -> "RobotModel":
+        """A copy whose gravity vector (base frame, m/s²) is ``gravity``; inertias unchanged.
+
+        E.g. the gravity of a tilted mounting, :func:`consistid.estimation.mounting.estimate_mounting`.
+        """
+        g = np.asarray(gravity, dtype=float)
+        if g.shape != (3,) or not np.all(np.isfinite(g)):
+            raise ModelError(f"gravity must be 3 finite numbers (m/s², base frame), got "
+                             f"{gravity!r}")
+        model = self.pin_model.copy()
+        model.gravity = pin.Motion(g, np.zeros(3))
+        return RobotModel(model, name=self.name, source=self.source,
+                          locked_joints=self.locked_joints,
+                          locked_configuration=self.locked_configuration)
+
+    def to_urdf(self, path: str | Path, parameters: np.ndarray | None = None,
+                parameter_names: Sequence[str] | None = None, merged: str = "auto") -> Path:
+        """Write the source URDF carrying this model's inertias (or ``parameters``, with optional
+        friction entries named by ``parameter_names``); see :func:`consistid.robot.export.write_urdf`.
+
+        Refuses (``InconsistentParametersError``) to write a physically inconsistent body.
+        """
+        from .export import write_urdf
+
+        return write_urdf(self, path, parameters, parameter_names, merged)
+
+    # ----------------------------------------------------------------------------- description
+    @property
+    def nv(self) -> int:
+        """Number of joints (velocity DoF)."""
+        return int(self.pin_model.nv)
+
+    @property
+    def n_bodies(self) -> int:
+        """Number of moving bodies (one per joint)."""
+        return int(self.pin_model.njoints - 1)
+
+    @property
+    def n_inertial(self) -> int:
+        """Number of standard inertial parameters, ``10·n_bodies``."""
+        return 10 * self.n_bodies
+
+    @cached_property
+    def joint_names(self) -> list[str]:
+        return list(self.pin_model.names)[1:]
+
+    @cached_property
+    def body_names(self) -> list[str]:
+        names = []
+        for j in range(1, self.pin_model.njoints):
+            bodies = [f.name for f in self.pin_model.frames
+                      if f.parentJoint == j and f.type == pin.FrameType.BODY]
+            names.append(bodies[0] if bodies else f"body{j}")
+        return names
+
+    @cached_property
+    def parameter_names(self) -> list[str]:
+        return [f"{body}.{p}" for body in self.body_names for p in INERTIAL_NAMES]
+
+    @property
+    def prior_parameters(self) -> np.ndarray:
+        return np.concatenate([self.pin_model.inertias[j].toDynamicParameters()
+                               for j in range(1, self.pin_model.njoints)])
+
+    @property
+    def gravity(self) -> np.ndarray:
+        return np.array(self.pin_model.gravity.linear)
+
+    @property
+    def has_default_gravity(self) -> bool:
+        """Gravity is the level default ``(0, 0, −9.81)`` m/s², the one a URDF implies (a URDF
+        has no tag for gravity: anything else must travel beside the file)."""
+        return bool(np.allclose(self.gravity, DEFAULT_GRAVITY))
+
+    @cached_property
+    def limits(self) -> JointLimits:
+        """Joint limits per DoF; ``±inf`` where the URDF sets none.
+
+        Unbounded (continuous) joints get ``±inf``. A URDF ``<limit>`` with an empty position
+        range (``lower ≥ upper``) or a zero velocity/effort — example-robot-data's double pendulum
+        writes ``0`` for all four, meaning "not set" — is read as unlimited, not as a joint that
+        cannot move.
+        """
+        m = self.pin_model
+        lower, upper = np.empty(self.nv), np.empty(self.nv)
+        for j in range(1, m.njoints):
+            joint = m.joints[j]
+            if joint.nq == 1:
+                lower[joint.idx_v] = m.lowerPositionLimit[joint.idx_q]
+                upper[joint.idx_v] = m.upperPositionLimit[joint.idx_q]
+            else:
+                lower[joint.idx_v], upper[joint.idx_v] = -np.inf, np.inf
+        unset = lower >= upper
+        lower[unset | ~np.isfinite(lower) | (lower < -1e10)] = -np.inf
+        upper[unset | ~np.isfinite(upper) | (upper > 1e10)] = np.inf
+        velocity, effort = np.array(m.velocityLimit), np.array(m.effortLimit)
+        velocity[velocity <= 0] = np.inf
+        effort[effort <= 0] = np.inf
+        return JointLimits(lower, upper, velocity, effort)
+
+    def __repr__(self) -> str:
+        return (f"RobotModel({self.name!r}, nv={self.nv}, bodies={self.n_bodies}, "
+                f"locked={list(self.locked_joints)})")
+
+    # ----------------------------------------------------------------------------- kinematics
+    def configuration(self, q: np.ndarray) -> np.ndarray:
+        """Pinocchio configuration (``nq``) from joint angles (``nv``)."""
+        q = np.asarray(q, dtype=float)
+        m = self.pin_model
+        if m.nq == m.nv:
+            return q
+        out = np.empty(m.nq)
+        for j in range(1, m.njoints):
+            joint = m.joints[j]
+            if joint.nq == 1:
+                out[joint.idx_q] = q[joint.idx_v]
+            else:  # unbounded revolute: (cos, sin)
+                out[joint.idx_q] = np.cos(q[joint.idx_v])
+                out[joint.idx_q + 1] = np.sin(q[joint.idx_v])
+        return out
+
+    def rnea(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> np.ndarray:
+        """Rigid-body inverse dynamics ``τ = M(q)q̈ + C(q,q̇)q̇ + g(q)`` for each sample, (N, nv).
+
+        Uses ``pinocchio.rnea`` (which adds ``model.armature · q̈``); samples along axis 0.
+        """
+        q, dq, ddq = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (q, dq, ddq))
+        for name, a in (("q", q), ("dq", dq), ("ddq", ddq)):
+            if a.shape[1] != self.nv:
+                raise JointCountError(f"{name} has {a.shape[1]} joints but {self.name} has "
+                                      f"{self.nv}")
+        data = self.pin_model.createData()
+        out = np.empty_like(dq)
+        for k in range(q.shape[0]):
+            out[k] = pin.rnea(self.pin_model, data, self.configuration(q[k]), dq[k], ddq[k])
+        return out
+
+
+def require_model(model: object) -> RobotModel:
+    """``model`` if it is a :class:`RobotModel`, else :class:`ModelError` saying how to make one."""
+    if not isinstance(model, RobotModel):
+        raise ModelError(f"model must be a consistid.RobotModel (RobotModel.from_urdf(path) or "
+                         f"RobotModel.example(name)), got {type(model).__name__} {model!r:.60}")
+    return model
