@@ -37,7 +37,8 @@ from consistid.identification.identify import with_covariance
 from consistid.estimation.mounting import estimate_mounting
 from consistid.data.recordings import Recording, load_recording
 from consistid.identification.summary import table
-from consistid.robot.urdf import joint_dynamics, model_without_dynamics
+from consistid.robot.model import model_without_dynamics
+from consistid.robot.urdf import joint_dynamics
 from consistid.identification.scoring import (refit_joint_terms, rigid_model, score, scores_table,
                                   with_urdf_friction)
 

@@ -12,7 +12,7 @@ import pytest
 import consistid as ci
 from consistid.errors import JointNameError
 from consistid.data.recordings import Recording, load_recording
-from consistid.robot.urdf import model_without_dynamics
+from consistid.robot.model import model_without_dynamics
 from consistid.identification.scoring import refit_joint_terms, rigid_model, score
 
 JOINTS = [f"lwr_{i}_joint" for i in range(7)]

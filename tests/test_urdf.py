@@ -3,7 +3,8 @@ import pytest
 
 import consistid as ci
 from consistid.errors import ModelError
-from consistid.robot.urdf import joint_dynamics, model_without_dynamics, strip_dynamics
+from consistid.robot.model import model_without_dynamics
+from consistid.robot.urdf import joint_dynamics, strip_dynamics
 
 from .conftest import PLANAR_2R, PLANAR_2R_VALUES
 

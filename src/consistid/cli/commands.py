@@ -208,7 +208,7 @@ def diagnose(args: argparse.Namespace) -> int:
     ``[data]`` logs (:mod:`consistid.diagnose`); the report goes to ``[diagnose] output``."""
     import consistid as ci
     from consistid.cli.config import config_model, config_recordings, load_config
-    from consistid.robot.urdf import model_without_dynamics
+    from consistid.robot.model import model_without_dynamics
 
     config = load_config(args.config)
     model = config_model(config)

@@ -166,7 +166,7 @@ def config_model(config: RunConfig, allow_tilt: bool = False) -> RobotModel:
         if key in t:
             kwargs[key] = t[key]
     if t.get("strip_dynamics", False):
-        from ..robot.urdf import model_without_dynamics
+        from ..robot.model import model_without_dynamics
 
         return model_without_dynamics(urdf, **kwargs)[0]
     return RobotModel.from_urdf(urdf, **kwargs)

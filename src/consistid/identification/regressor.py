@@ -55,19 +55,9 @@ import pinocchio as pin
 
 from ..data.dataset import Dataset
 from ..errors import JointCountError, OptionError, check_option
+from ..robot.joint_terms import (DEFAULT_FRICTION, FRICTION_TERMS, JOINT_TERMS,
+                                 NONNEGATIVE_TERMS, TERM_COLUMNS)
 from ..robot.model import RobotModel
-
-JOINT_TERMS: tuple[str, ...] = ("coulomb", "viscous", "offset", "position", "armature")
-#: The terms chosen through ``friction=`` (every term but armature).
-FRICTION_TERMS: tuple[str, ...] = JOINT_TERMS[:4]
-#: Name suffixes of each term's columns, per enabled joint, in column order.
-TERM_COLUMNS: dict[str, tuple[str, ...]] = {
-    "coulomb": ("fc",), "viscous": ("fv",), "offset": ("fo",), "position": ("ps1", "pc1"),
-    "armature": ("Ia",)}
-#: The default ``friction=`` of :meth:`RegressorSpec.make`, ``identify``, ``recover_standard`` …
-DEFAULT_FRICTION: tuple[str, ...] = ("coulomb", "viscous", "offset")
-#: Terms whose values are physically ``≥ 0`` (``offset`` and ``position`` have a free sign).
-NONNEGATIVE_TERMS: tuple[str, ...] = ("coulomb", "viscous", "armature")
 
 FrictionArg = Sequence[str] | Mapping[str, Sequence[int | str] | bool] | None
 

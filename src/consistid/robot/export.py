@@ -41,16 +41,18 @@ import warnings
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 import pinocchio as pin
 
 from ..errors import ExportWarning, InconsistentParametersError, ModelError, check_option
-from .model import RobotModel
 from .inertia import check_body
-from ..identification.regressor import TERM_COLUMNS
+from .joint_terms import TERM_COLUMNS
 from .urdf import parse_urdf, remove_dynamics
+
+if TYPE_CHECKING:
+    from .model import RobotModel
 
 MERGED = ("auto", "lump", "subtract")
 #: Per-joint parameter name suffixes (``"<joint>.<suffix>"``); only fc and fv have URDF tags.

@@ -13,16 +13,19 @@ from __future__ import annotations
 
 import site
 import sys
+import tempfile
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
-from typing import Iterable, Sequence
+from typing import Any, Iterable, Sequence
 
 import numpy as np
 import pinocchio as pin
 
 from ..errors import JointCountError, ModelError, check_option
-from .inertia import INERTIAL_NAMES
+from .export import write_urdf
+from .inertia import INERTIAL_NAMES, inertias_from_vector
+from .urdf import JointDynamics, joint_dynamics, strip_dynamics
 
 #: Gravity (m/s², base frame) of a level base: what a URDF implies.
 DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
@@ -179,8 +182,6 @@ class RobotModel:
 
         Extra entries after the ``10·nbodies`` inertial ones (friction, armature) are ignored here.
         """
-        from .inertia import inertias_from_vector
-
         parameters = np.asarray(parameters, dtype=float)
         if parameters.shape[0] < self.n_inertial:
             raise ModelError(
@@ -216,8 +217,6 @@ class RobotModel:
 
         Refuses (``InconsistentParametersError``) to write a physically inconsistent body.
         """
-        from .export import write_urdf
-
         return write_urdf(self, path, parameters, parameter_names, merged)
 
     # ----------------------------------------------------------------------------- description
@@ -338,3 +337,23 @@ def require_model(model: object) -> RobotModel:
         raise ModelError(f"model must be a consistid.RobotModel (RobotModel.from_urdf(path) or "
                          f"RobotModel.example(name)), got {type(model).__name__} {model!r:.60}")
     return model
+
+
+def model_without_dynamics(path: str | Path, **from_urdf: Any
+                           ) -> tuple[RobotModel, dict[str, JointDynamics]]:
+    """Load a URDF whose ``<dynamics>`` tags Pinocchio refuses; return the model and the tags.
+
+    The tags are stripped into a temporary copy (deleted afterwards), which is loaded with
+    :meth:`RobotModel.from_urdf` (``from_urdf`` keyword arguments are passed on; the model's
+    ``source`` and default name are those of the original file). Rigid-body dynamics are
+    unaffected: Pinocchio does not use the tags in ``rnea`` or the regressor.
+    """
+    path = Path(path)
+    dynamics = joint_dynamics(path)
+    from_urdf.setdefault("name", path.stem)
+    with tempfile.TemporaryDirectory(prefix="consistid-urdf-") as tmp:
+        loaded = RobotModel.from_urdf(strip_dynamics(path, Path(tmp) / path.name), **from_urdf)
+    model = RobotModel(loaded.pin_model, name=loaded.name, source=path,
+                       locked_joints=loaded.locked_joints,
+                       locked_configuration=loaded.locked_configuration)
+    return model, dynamics

@@ -14,14 +14,11 @@ a temporary copy first, and returns the tags alongside so nothing is lost.
 
 from __future__ import annotations
 
-import tempfile
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 from ..errors import ModelError
-from .model import RobotModel
 
 
 @dataclass(frozen=True)
@@ -80,23 +77,3 @@ def strip_dynamics(path: str | Path, out: str | Path) -> Path:
     out = Path(out)
     tree.write(out, encoding="utf-8", xml_declaration=True)
     return out
-
-
-def model_without_dynamics(path: str | Path, **from_urdf: Any
-                           ) -> tuple[RobotModel, dict[str, JointDynamics]]:
-    """Load a URDF whose ``<dynamics>`` tags Pinocchio refuses; return the model and the tags.
-
-    The tags are stripped into a temporary copy (deleted afterwards), which is loaded with
-    :meth:`RobotModel.from_urdf` (``from_urdf`` keyword arguments are passed on; the model's
-    ``source`` and default name are those of the original file). Rigid-body dynamics are
-    unaffected: Pinocchio does not use the tags in ``rnea`` or the regressor.
-    """
-    path = Path(path)
-    dynamics = joint_dynamics(path)
-    from_urdf.setdefault("name", path.stem)
-    with tempfile.TemporaryDirectory(prefix="consistid-urdf-") as tmp:
-        loaded = RobotModel.from_urdf(strip_dynamics(path, Path(tmp) / path.name), **from_urdf)
-    model = RobotModel(loaded.pin_model, name=loaded.name, source=path,
-                       locked_joints=loaded.locked_joints,
-                       locked_configuration=loaded.locked_configuration)
-    return model, dynamics
