@@ -40,6 +40,12 @@ class OptionError(ConsistidError, ValueError):
     """An option takes a value outside its allowed set; the message lists the allowed values."""
 
 
+class OutputPathError(ConfigError):
+    """An output path is unsafe: the file exists (pass ``--force`` / ``force=True`` to replace
+    it), it is one of the run's inputs (never overwritten, even with ``--force``), or its folder
+    does not exist or is not writable. Raised before any long work starts."""
+
+
 class ModelError(ConsistidError, ValueError):
     """A robot model cannot be built or does not fit the request (unknown joint, robot, file)."""
 

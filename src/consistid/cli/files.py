@@ -1,0 +1,157 @@
+"""CLI file safety: check output paths before the long work, never overwrite an input, never
+overwrite an existing output without ``--force``, and write atomically.
+
+Rules (issue 14), for every ``consistid`` subcommand that writes files:
+
+1. **Check first.** :func:`check_output` (a file) or :func:`check_output_dir` (a folder of
+   files) runs *before* any simulation, identification or design, so a bad path costs nothing.
+2. **Never over an input.** An output that resolves (symlinks followed) to one of the run's
+   inputs — the configuration, a URDF, a data file — is refused even with ``--force``.
+3. **No silent overwrite.** An existing output is refused unless ``force=True`` (``--force``).
+4. **Atomic.** :func:`atomic_path` hands the writer a temporary file in the same folder (same
+   suffix, so writers that choose the format by suffix still work) and renames it over the target
+   only when the writer returned (``os.replace``: atomic on POSIX and Windows within one
+   filesystem); on failure the temporary file is removed and the target is untouched.
+   :func:`atomic_dir` does the same for a folder of files (each file renamed into place).
+
+Usage in a subcommand::
+
+    inputs = config_inputs(config)                     # consistid.cli.config
+    out = check_output(args.output, inputs=inputs, force=args.force, what="--output")
+    ...                                                # the long work
+    with atomic_path(out) as tmp:
+        design.save_csv(tmp, rate)
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import tempfile
+import uuid
+from pathlib import Path
+from typing import Iterable, Iterator
+
+from ..errors import OutputPathError
+
+__all__ = ["check_output", "check_output_dir", "atomic_path", "atomic_dir", "same_file"]
+
+
+def _resolved(path: str | os.PathLike) -> Path:
+    return Path(path).expanduser().resolve()
+
+
+def same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:
+    """Whether ``a`` and ``b`` name the same file (after resolving symlinks and ``..``; hard
+    links to an existing file count too)."""
+    ra, rb = _resolved(a), _resolved(b)
+    if ra == rb:
+        return True
+    try:
+        return ra.exists() and rb.exists() and os.path.samefile(ra, rb)
+    except OSError:
+        return False
+
+
+def _check_not_input(path: Path, inputs: Iterable[str | os.PathLike], what: str) -> None:
+    for source in inputs:
+        if same_file(path, source):
+            raise OutputPathError(
+                f"{what} {str(path)!r} is an input of this run ({str(source)!r}): consistid "
+                "never writes over its inputs, even with --force; choose another output path")
+
+
+def _check_folder(folder: Path, what: str, path: Path) -> None:
+    if not folder.is_dir():
+        raise OutputPathError(f"{what} {str(path)!r}: folder {str(folder)!r} does not exist; "
+                              "create it first or choose another path")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise OutputPathError(f"{what} {str(path)!r}: folder {str(folder)!r} is not writable")
+
+
+def check_output(path: str | os.PathLike, *, inputs: Iterable[str | os.PathLike] = (),
+                 force: bool = False, what: str = "output") -> Path:
+    """The output file ``path`` (absolute) if it is safe to write, else :class:`OutputPathError`.
+
+    Parameters
+    ----------
+    path : the file the command will write.
+    inputs : every file the run reads (configuration, URDFs, data): never written over.
+    force : replace an existing output (``--force``); inputs stay protected.
+    what : how the message names the output (``"--output"``, ``"[recover] urdf"`` …).
+
+    Raises
+    ------
+    OutputPathError : ``path`` is an input, an existing folder, an existing file without
+        ``force``, or its folder does not exist or is not writable.
+    """
+    if path is None or str(path) == "":
+        raise OutputPathError(f"{what} is empty: give a file path")
+    out = _resolved(path)
+    _check_not_input(out, inputs, what)
+    if out.is_dir():
+        raise OutputPathError(f"{what} {str(out)!r} is an existing folder, not a file")
+    if out.exists() and not force:
+        raise OutputPathError(f"{what} {str(out)!r} exists; pass --force to replace it (or "
+                              "choose another path)")
+    _check_folder(out.parent, what, out)
+    return out
+
+
+def check_output_dir(path: str | os.PathLike, names: Iterable[str], *,
+                     inputs: Iterable[str | os.PathLike] = (), force: bool = False,
+                     what: str = "output") -> Path:
+    """The output folder ``path`` (absolute) if writing ``names`` into it is safe, else
+    :class:`OutputPathError`. The folder itself may exist (or will be created, its parent must
+    exist); each of ``names`` that exists needs ``force``; none may be an input."""
+    if path is None or str(path) == "":
+        raise OutputPathError(f"{what} is empty: give a folder path")
+    out = _resolved(path)
+    if out.exists() and not out.is_dir():
+        raise OutputPathError(f"{what} {str(out)!r} is an existing file, not a folder")
+    inputs = list(inputs)
+    for name in names:
+        target = out / name
+        _check_not_input(target, inputs, what)
+        if target.is_dir():
+            raise OutputPathError(f"{what}: {str(target)!r} is an existing folder, not a file")
+        if target.exists() and not force:
+            raise OutputPathError(f"{what}: {str(target)!r} exists; pass --force to replace it "
+                                  "(or choose another folder)")
+    _check_folder(out if out.is_dir() else out.parent, what, out)
+    return out
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
+    """A temporary path beside ``path`` (same suffix) for a writer; renamed over ``path`` when
+    the ``with`` block ends without an exception, removed otherwise (``path`` untouched)."""
+    out = _resolved(path)
+    # a fresh name, not a created file: the writer creates it with the usual permissions
+    tmp = out.parent / f".{out.stem}.{uuid.uuid4().hex[:12]}.part{out.suffix}"
+    try:
+        yield tmp
+        if not tmp.is_file():
+            raise OutputPathError(f"the writer of {str(out)!r} wrote no file")
+        os.replace(tmp, out)
+    finally:
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
+
+
+@contextlib.contextmanager
+def atomic_dir(path: str | os.PathLike) -> Iterator[Path]:
+    """A temporary folder beside ``path`` for a writer of several files; on success each file
+    is renamed into ``path`` (created if missing; other files there are left alone), on failure
+    the temporary folder is removed and ``path`` untouched."""
+    out = _resolved(path)
+    parent = out if out.is_dir() else out.parent
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.part-", dir=parent))
+    try:
+        yield tmp
+        out.mkdir(exist_ok=True)
+        for item in sorted(tmp.iterdir()):
+            os.replace(item, out / item.name)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
