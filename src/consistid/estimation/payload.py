@@ -47,7 +47,8 @@ from ..errors import (ModelError, OptionError, PoorExcitationError, PoorExcitati
 from ..robot.model import RobotModel, require_model
 from ..robot.inertia import INERTIAL_NAMES, from_mass_com_inertia, pseudo_inertia, to_mass_com_inertia
 from ..identification.regressor import FrictionArg, matching_settings, regressor, resolve_spec
-from ..identification.result import IdentificationResult, SolverReport
+from ..identification.result import IdentificationResult
+from ..identification.solver import SolverReport
 
 #: A payload direction is unidentified when its singular value of the column-normalised payload
 #: regressor is below this fraction of the largest (looser than identify's numerical rank

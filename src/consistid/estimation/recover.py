@@ -67,7 +67,8 @@ from ..identification.priors import euclidean, logdet_divergence, logdet_diverge
 from ..identification.regressor import (FRICTION_TERMS, FrictionArg, RegressorSpec,
                         dataset_regressor, matching_settings, parameter_names, prior_vector,
                         resolve_spec)
-from ..identification.result import IdentificationResult, SolverReport, StandardParameterSet
+from ..identification.result import IdentificationResult, StandardParameterSet
+from ..identification.solver import SolverReport
 
 MODES = ("exact", "nearest")
 #: Unlike the SDP's (:data:`consistid.identification.sdp.PRIORS`), no ``None``: the coefficients leave the null

@@ -25,6 +25,11 @@ import scipy.linalg
 from ..robot.model import RobotModel
 from .regressor import RegressorSpec, parameter_names, regressor
 
+#: Above this condition number of the (weighted) base regressor, a PoorExcitationWarning is issued.
+COND_WARN = 1e4
+#: Below this ratio of the smallest to the largest singular value, the base regressor is singular.
+RANK_RTOL = 1e-11
+
 
 def random_states(model: RobotModel, n: int, rng: np.random.Generator
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

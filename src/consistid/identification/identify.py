@@ -39,13 +39,14 @@ from typing import Any, Sequence
 import numpy as np
 import scipy.linalg
 
-from .base import BaseParameters, compute_base_parameters
+from .base import COND_WARN, RANK_RTOL, BaseParameters, compute_base_parameters
 from .compression import CompressedProblem, compress, floor_sigma, joint_sigma
 from ..data.dataset import Dataset, as_dataset
 from ..errors import OptionError, PoorExcitationError, PoorExcitationWarning, check_option
 from ..robot.model import RobotModel, require_model
 from .regressor import DEFAULT_FRICTION, FrictionArg, RegressorSpec, parameter_names, prior_vector
-from .result import IdentificationResult, SolverReport
+from .result import IdentificationResult
+from .solver import SolverReport
 from .statistics import autocorrelation_time, coloured_covariance
 
 METHODS = ("ols", "wls", "sdp")
@@ -53,10 +54,6 @@ METHODS = ("ols", "wls", "sdp")
 COVARIANCES = ("iid", "coloured")
 #: ... and ``"auto"``: ``"coloured"``, except ``"iid"`` with ``loss="huber"`` (re-weighted rows).
 COVARIANCE_OPTIONS = ("auto", *COVARIANCES)
-#: Above this condition number of the (weighted) base regressor, a PoorExcitationWarning is issued.
-COND_WARN = 1e4
-#: Below this ratio of the smallest to the largest singular value, the base regressor is singular.
-RANK_RTOL = 1e-11
 
 
 def nearest_standard(base: BaseParameters, beta: np.ndarray, prior: np.ndarray) -> np.ndarray:

@@ -12,25 +12,12 @@ import scipy.stats
 
 from .base import BaseParameters
 from ..data.dataset import Dataset
+from ..robot.export import write_urdf
 from ..robot.model import RobotModel
 from ..robot.inertia import ConsistencyReport, is_physically_consistent
 from .regressor import RegressorSpec, predict_torque
-
-
-@dataclass(frozen=True)
-class SolverReport:
-    """What ran and how it ended: never a bare success flag."""
-
-    name: str
-    status: str
-    solve_time: float
-    compile_time: float = 0.0
-    iterations: int | None = None
-
-    def __str__(self) -> str:
-        it = f", {self.iterations} iterations" if self.iterations is not None else ""
-        return (f"{self.name}: {self.status} (solve {self.solve_time * 1e3:.1f} ms, "
-                f"setup {self.compile_time * 1e3:.1f} ms{it})")
+from .solver import SolverReport
+from .summary import identification_summary
 
 
 class StandardParameterSet:
@@ -66,8 +53,6 @@ class StandardParameterSet:
     def to_urdf(self, path: str | Path, merged: str = "auto") -> Path:
         """Write the model's URDF with these inertias and Coulomb/viscous friction
         (:func:`consistid.robot.export.write_urdf`); refuses an inconsistent body."""
-        from ..robot.export import write_urdf
-
         return write_urdf(self.model, path, self.parameters, self.parameter_names, merged)
 
 
@@ -148,8 +133,6 @@ class IdentificationResult(StandardParameterSet):
     # ----------------------------------------------------------------------------- reporting
     def summary(self, max_rows: int | None = None) -> str:
         """A readable table: one row per base parameter, then per-joint figures and notes."""
-        from .summary import identification_summary
-
         return identification_summary(self, max_rows=max_rows)
 
     def report(self, path: str | Path | None = None) -> str:

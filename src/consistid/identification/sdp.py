@@ -57,18 +57,17 @@ import scipy.linalg
 
 from . import constraints as cons
 from . import priors
-from .base import BaseParameters
+from .base import COND_WARN, RANK_RTOL, BaseParameters
 from .compression import CompressedProblem, compress, floor_sigma, joint_sigma
-from .solver import DEFAULT_SOLVER, check_solver, solve
+from .solver import DEFAULT_SOLVER, SolverReport, check_solver, solve
 from ..data.dataset import Dataset
 from ..errors import (IdentificationError, InconsistentParametersError, InfeasibleError,
                      ModelError, OptionError, PoorExcitationWarning, check_bounds, check_box,
                      check_number, check_option)
-from .identify import COND_WARN, RANK_RTOL
 from ..robot.model import RobotModel
 from ..robot.inertia import from_pseudo_inertia, pseudo_inertia
 from .regressor import RegressorSpec, parameter_names, predict_torque, prior_vector
-from .result import IdentificationResult, SolverReport
+from .result import IdentificationResult
 
 #: Relative uncertainty ``r`` of CAD pseudo-inertias assumed by :func:`default_prior_weight`.
 DEFAULT_PRIOR_UNCERTAINTY = 0.3

@@ -1,7 +1,7 @@
 """Solving a cvxpy problem under consistid's status contract.
 
 :func:`solve` calls cvxpy and turns the status into: optimal → a
-:class:`~consistid.identification.result.SolverReport`; ``optimal_inaccurate`` → the same plus an
+:class:`SolverReport`; ``optimal_inaccurate`` → the same plus an
 :class:`~consistid.errors.InaccurateSolutionWarning`; infeasible → :class:`InfeasibleError`;
 anything else (or no values) → :class:`IdentificationError`. Never a silent ``None`` (the cvxpy
 behaviour the style guide warns about). An unknown or uninstalled solver name is an
@@ -13,15 +13,32 @@ from __future__ import annotations
 
 import time
 import warnings
-from typing import Any
-
-import cvxpy as cp
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 from ..errors import IdentificationError, InaccurateSolutionWarning, InfeasibleError, OptionError
-from .result import SolverReport
+
+if TYPE_CHECKING:
+    import cvxpy as cp
 
 #: Default solver: interior point, accurate on the semidefinite cone (SCS is not; stack notes).
 DEFAULT_SOLVER = "CLARABEL"
+
+
+@dataclass(frozen=True)
+class SolverReport:
+    """What ran and how it ended: never a bare success flag."""
+
+    name: str
+    status: str
+    solve_time: float
+    compile_time: float = 0.0
+    iterations: int | None = None
+
+    def __str__(self) -> str:
+        it = f", {self.iterations} iterations" if self.iterations is not None else ""
+        return (f"{self.name}: {self.status} (solve {self.solve_time * 1e3:.1f} ms, "
+                f"setup {self.compile_time * 1e3:.1f} ms{it})")
 
 
 def check_solver(solver: str) -> str:
@@ -29,6 +46,8 @@ def check_solver(solver: str) -> str:
 
     Raises :class:`OptionError` naming the installed solvers unless ``solver`` is one of them.
     """
+    import cvxpy as cp  # heavy: loaded with the first conic solve
+
     installed = tuple(cp.installed_solvers())
     name = str(solver).upper()
     if name not in installed:
@@ -55,6 +74,8 @@ def solve(problem: cp.Problem, what: str, solver: str = DEFAULT_SOLVER,
     InfeasibleError : the solver proved (or nearly proved) infeasibility.
     IdentificationError : the solver failed or returned no solution (status named).
     """
+    import cvxpy as cp  # heavy: loaded with the first conic solve
+
     solver = check_solver(solver)
     start = time.perf_counter()
     try:

@@ -6,7 +6,7 @@ from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
-from .identify import COND_WARN
+from .base import COND_WARN
 
 if TYPE_CHECKING:
     from .result import IdentificationResult
