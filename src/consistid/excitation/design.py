@@ -43,7 +43,7 @@ from .criteria import CRITERIA, criteria_values, criterion_and_gradient, prior_c
 from .criteria import regressor_sensitivity
 from .limits import ConstraintBlock, ConstraintReport, ConstraintSet, ExcitationLimits
 from .trajectory import (BoundaryConditions, BSplineParameterisation, FourierPolynomial,
-                         Parameterisation, Trajectory, _position_range)
+                         Parameterisation, Trajectory, position_range)
 
 logger = logging.getLogger(__name__)
 
@@ -280,7 +280,7 @@ def random_feasible(problem: _FeasibilityProblem, rng: np.random.Generator, max_
     """
     param, lim = problem.param, problem.constraints.limits
     nv, nc = problem.shape
-    lo, hi = _position_range(lim.lower, lim.upper)
+    lo, hi = position_range(lim.lower, lim.upper)
     mid, half = 0.5 * (lo + hi), 0.25 * (hi - lo)
     safety, worst = problem.safety, None
     for _ in range(max_tries):

@@ -24,7 +24,7 @@ import pinocchio as pin
 
 from ..errors import ExcitationError, InfeasibleExcitationError, ModelError
 from ..robot.model import RobotModel
-from .trajectory import DEFAULT_ACCELERATION_LIMIT, _joint_vector, _position_range
+from .trajectory import DEFAULT_ACCELERATION_LIMIT, joint_vector, position_range
 
 
 def end_effector_frame(model: RobotModel) -> str:
@@ -168,15 +168,15 @@ class ExcitationLimits:
         elif torque is False or torque is None:
             tau = None
         else:
-            tau = _joint_vector("torque limit", torque, nv, allow_infinite=True)
+            tau = joint_vector("torque limit", torque, nv, allow_infinite=True)
         if tau is not None and not np.isfinite(tau).any():
             tau = None
         return cls(
-            lower=lim.lower.copy() if lower is None else _joint_vector("lower", lower, nv, True),
-            upper=lim.upper.copy() if upper is None else _joint_vector("upper", upper, nv, True),
-            velocity=lim.velocity.copy() if velocity is None else _joint_vector(
+            lower=lim.lower.copy() if lower is None else joint_vector("lower", lower, nv, True),
+            upper=lim.upper.copy() if upper is None else joint_vector("upper", upper, nv, True),
+            velocity=lim.velocity.copy() if velocity is None else joint_vector(
                 "velocity limit", velocity, nv, allow_infinite=True),
-            acceleration=_joint_vector("acceleration limit", acceleration, nv),
+            acceleration=joint_vector("acceleration limit", acceleration, nv),
             torque=tau, workspace=workspace, floor=floor, sphere=sphere)
 
     @property
@@ -326,7 +326,7 @@ class ConstraintSet:
         lim, names, nv = self.limits, self.model.joint_names, self.model.nv
         n = q.shape[0]
         out = []
-        lo_range, hi_range = _position_range(lim.lower, lim.upper)
+        lo_range, hi_range = position_range(lim.lower, lim.upper)
         span = hi_range - lo_range            # 2π for a joint bounded on one side only
         specs = [("position", 0, q, lim.lower, lim.upper, span),
                  ("velocity", 1, dq, -lim.velocity, lim.velocity, lim.velocity),

@@ -50,7 +50,7 @@ from ..robot.model import RobotModel
 DEFAULT_ACCELERATION_LIMIT = 10.0
 
 
-def _joint_vector(name: str, value: float | Sequence[float] | np.ndarray, nv: int,
+def joint_vector(name: str, value: float | Sequence[float] | np.ndarray, nv: int,
                   allow_infinite: bool = False) -> np.ndarray:
     """``value`` (a scalar for every joint, or ``nv`` values) as an (nv,) float array.
 
@@ -69,7 +69,7 @@ def _joint_vector(name: str, value: float | Sequence[float] | np.ndarray, nv: in
     return a.copy()
 
 
-def _position_range(lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def position_range(lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Finite stand-ins for position limits, per joint: the limits where both are finite, one
     turn ``2π`` from the finite one when only one is, ``±π`` when neither is.
 
@@ -109,11 +109,11 @@ class BoundaryConditions:
         if self.q_start is None and self.q_end is not None:
             raise ExcitationError("boundary q_end is given but q_start is free; give q_start too "
                                   "(q_end defaults to q_start)")
-        q_start = None if self.q_start is None else _joint_vector("q_start", self.q_start, nv)
+        q_start = None if self.q_start is None else joint_vector("q_start", self.q_start, nv)
         q_end = None if q_start is None else (
-            q_start.copy() if self.q_end is None else _joint_vector("q_end", self.q_end, nv))
+            q_start.copy() if self.q_end is None else joint_vector("q_end", self.q_end, nv))
         return BoundaryConditions(
-            q_start, q_end, *(_joint_vector(n, getattr(self, n), nv)
+            q_start, q_end, *(joint_vector(n, getattr(self, n), nv)
                               for n in ("dq_start", "dq_end", "ddq_start", "ddq_end")))
 
     @property
@@ -563,7 +563,7 @@ class FourierTrajectory:
         """
         rng = np.random.default_rng(seed)
         lim = model.limits
-        lo, hi = _position_range(lim.lower, lim.upper)
+        lo, hi = position_range(lim.lower, lim.upper)
         a = rng.standard_normal((model.nv, harmonics))
         b = rng.standard_normal((model.nv, harmonics))
         q0 = 0.5 * (lo + hi)
