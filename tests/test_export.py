@@ -110,3 +110,119 @@ def test_recovered_parameters_to_urdf(panda, truth, tmp_path):
     rec = recover_standard(panda, base.project(truth), friction=None)
     back = _reload(panda, rec.to_urdf(tmp_path / "rec.urdf"))
     assert np.max(np.abs(back.prior_parameters - rec.inertial_parameters)) < 1e-9
+
+
+# ------------------------------------------------------------------ URDFs with ROS transmissions
+#: A spatial 3R arm (no mimic joints) whose joints are named again inside ROS 1 <transmission>,
+#: ros2_control and Gazebo blocks placed *after* the real joints: a writer that looks the joint
+#: up by tag name anywhere in the tree finds the last of them.
+ARM_3R = """<?xml version="1.0"?>
+<robot name="arm3r">
+  <link name="base"/>
+  <link name="l1"><inertial><origin xyz="0 0.02 0.1"/><mass value="3.0"/>
+    <inertia ixx="0.03" ixy="0.001" ixz="0" iyy="0.025" iyz="0.002" izz="0.01"/></inertial></link>
+  <link name="l2"><inertial><origin xyz="0.2 0 0.01"/><mass value="2.0"/>
+    <inertia ixx="0.004" ixy="0" ixz="0.0005" iyy="0.03" iyz="0" izz="0.03"/></inertial></link>
+  <link name="l3"><inertial><origin xyz="0.1 0.01 0"/><mass value="1.0"/>
+    <inertia ixx="0.002" ixy="0" ixz="0" iyy="0.008" iyz="0.0003" izz="0.008"/></inertial></link>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/>
+    <axis xyz="0 0 1"/><limit lower="-3" upper="3" velocity="3" effort="100"/>
+    <dynamics damping="0.5" friction="0.25"/></joint>
+  <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/>
+    <origin xyz="0 0 0.2" rpy="1.5707963267948966 0 0"/><axis xyz="0 0 1"/>
+    <limit lower="-2" upper="2" velocity="3" effort="100"/></joint>
+  <joint name="j3" type="revolute"><parent link="l2"/><child link="l3"/>
+    <origin xyz="0.4 0 0"/><axis xyz="0 0 1"/>
+    <limit lower="-2.5" upper="2.5" velocity="3" effort="50"/></joint>
+  <transmission name="t1"><type>transmission_interface/SimpleTransmission</type>
+    <joint name="j1"><hardwareInterface>hardware_interface/EffortJointInterface</hardwareInterface>
+    </joint>
+    <actuator name="m1"><mechanicalReduction>100</mechanicalReduction></actuator></transmission>
+  <transmission name="t2"><type>transmission_interface/SimpleTransmission</type>
+    <joint name="j2"><hardwareInterface>EffortJointInterface</hardwareInterface></joint>
+    <actuator name="m2"><mechanicalReduction>100</mechanicalReduction></actuator></transmission>
+  <transmission name="t3"><type>transmission_interface/SimpleTransmission</type>
+    <joint name="j3"><hardwareInterface>EffortJointInterface</hardwareInterface></joint>
+    <actuator name="m3"><mechanicalReduction>50</mechanicalReduction></actuator></transmission>
+  <ros2_control name="arm" type="system"><hardware><plugin>mock_components/GenericSystem</plugin>
+    </hardware>
+    <joint name="j1"><command_interface name="effort"/><state_interface name="position"/></joint>
+    <joint name="j3"><command_interface name="effort"/><state_interface name="position"/></joint>
+  </ros2_control>
+  <gazebo reference="j2"><implicitSpringDamper>true</implicitSpringDamper></gazebo>
+</robot>
+"""
+
+
+@pytest.fixture(scope="module")
+def arm_3r(tmp_path_factory):
+    path = tmp_path_factory.mktemp("arm3r") / "arm3r.urdf"
+    path.write_text(ARM_3R)
+    return ci.RobotModel.from_urdf(path)
+
+
+def _friction_data(model, fc, fv, n=400, seed=0):
+    """Noise-free torques computed independently of the regressor: ``pin.rnea`` plus
+    ``fc·sign(q̇) + fv·q̇``."""
+    rng = np.random.default_rng(seed)
+    q, dq, ddq = rng.uniform(-1.5, 1.5, (n, 3)), rng.normal(size=(n, 3)), rng.normal(size=(n, 3))
+    tau = model.rnea(q, dq, ddq) + fc * np.sign(dq) + fv * dq
+    return ci.Dataset(t=np.arange(n) * 0.01, q=q, dq=dq, ddq=ddq, tau=tau)
+
+
+def test_friction_goes_into_the_joint_not_the_transmission(arm_3r, tmp_path):
+    """The identified friction lands in each real <joint>'s <dynamics>; <transmission>,
+    <ros2_control> and <gazebo> blocks are left exactly as they were; Pinocchio reads it back."""
+    import pinocchio as pin
+
+    fc, fv = np.array([0.7, 1.1, 0.3]), np.array([0.4, 0.9, 0.15])
+    res = ci.identify(arm_3r, _friction_data(arm_3r, fc, fv), method="ols",
+                      friction=("coulomb", "viscous"))
+    out = res.to_urdf(tmp_path / "identified.urdf")
+    root = ET.parse(out).getroot()
+    for block in ("transmission", "ros2_control"):
+        for joint in root.iter(block):
+            assert all(j.find("dynamics") is None for j in joint.iter("joint")), block
+    source = ET.parse(arm_3r.source).getroot()
+    for block in ("transmission", "ros2_control", "gazebo"):
+        assert [ET.tostring(e) for e in root.iter(block)] == \
+            [ET.tostring(e) for e in source.iter(block)]
+    written = {j.get("name"): j.find("dynamics") for j in root.findall("joint")}
+    assert float(written["j2"].get("friction")) == pytest.approx(fc[1], rel=1e-8)
+    # an independent reader: Pinocchio's URDF parser
+    back = pin.buildModelFromUrdf(str(out))
+    assert np.allclose(back.friction, fc, rtol=1e-8)
+    assert np.allclose(back.damping, fv, rtol=1e-8)
+    assert np.allclose(back.friction, res.parameters[-6:-3], rtol=1e-14)
+    # and the inertias: the identified rigid-body torques
+    reloaded = ci.RobotModel.from_urdf(out)
+    data = _friction_data(arm_3r, fc, fv, n=50, seed=3)
+    assert np.allclose(reloaded.rnea(data.q, data.dq, data.ddq),
+                       arm_3r.with_parameters(res.parameters).rnea(data.q, data.dq, data.ddq),
+                       atol=1e-9)
+
+
+def test_joint_dynamics_ignores_transmission_joints(arm_3r):
+    tags = joint_dynamics(arm_3r.source)
+    assert set(tags) == {"j1"}                     # the transmission's <joint name="j1"> has none
+    assert tags["j1"].damping == 0.5 and tags["j1"].friction == 0.25
+
+
+def test_transmission_with_panda_multi_joint(panda, truth, tmp_path):
+    """A real multi-joint URDF with a transmission per joint appended: same file as without."""
+    tree = ET.parse(panda.source)
+    root = tree.getroot()
+    for name in panda.joint_names:
+        t = ET.SubElement(root, "transmission", name=f"{name}_trans")
+        ET.SubElement(ET.SubElement(t, "joint", name=name), "hardwareInterface").text = "Effort"
+    src = tmp_path / "panda_trans.urdf"
+    tree.write(src)
+    with_trans = ci.RobotModel.from_urdf(src, locked_joints=panda.locked_joints)
+    spec = RegressorSpec.make(panda, ("coulomb", "viscous"))
+    fc, fv = np.linspace(0.2, 0.8, 7), np.linspace(0.05, 0.35, 7)
+    theta = np.concatenate([truth, fc, fv])
+    out = write_urdf(with_trans, tmp_path / "out.urdf", theta, parameter_names(panda, spec))
+    back = _reload(with_trans, out)
+    assert np.allclose(back.pin_model.friction, fc, atol=1e-15)
+    assert np.allclose(back.pin_model.damping, fv, atol=1e-15)
+    assert np.max(np.abs(back.prior_parameters - truth)) < 1e-9

@@ -3,7 +3,9 @@ r"""Write identified parameters back into a URDF.
 The source URDF is copied with each moving body's ``<inertial>`` replaced by the identified mass,
 centre of mass and inertia, and (when friction entries are given) each joint's
 ``<dynamics damping="f_v" friction="f_c"/>`` (the convention read by :mod:`consistid.robot.urdf` and by
-Pinocchio, Gazebo, FloBaRoID). A URDF ``<inertial>`` holds the mass, the CoM as ``<origin xyz>``
+Pinocchio, Gazebo, FloBaRoID), on the ``<joint>`` children of ``<robot>`` only: a ROS
+``<transmission>``, ``<ros2_control>`` or ``<gazebo>`` block names joints in ``<joint>``
+elements of its own, which are left as they are (:func:`consistid.robot.urdf.robot_joints`). A URDF ``<inertial>`` holds the mass, the CoM as ``<origin xyz>``
 in the link frame, and the inertia **about the CoM**; consistid's 10-vector has the inertia about
 the joint frame origin, so
 
@@ -49,7 +51,7 @@ import pinocchio as pin
 from ..errors import ExportWarning, InconsistentParametersError, ModelError, check_option
 from .inertia import check_body
 from .joint_terms import TERM_COLUMNS
-from .urdf import parse_urdf, remove_dynamics
+from .urdf import parse_urdf, remove_dynamics, robot_joints, robot_links
 
 if TYPE_CHECKING:
     from .model import RobotModel
@@ -114,7 +116,7 @@ def _links(model: RobotModel, full: pin.Model, root: ET.Element) -> list[_Link]:
     data = full.createData()
     pin.forwardKinematics(full, data, q)
     pin.updateFramePlacements(full, data)
-    child_of = {j.find("child").get("link"): j.get("name") for j in root.iter("joint")
+    child_of = {j.find("child").get("link"): j.get("name") for j in robot_joints(root)
                 if j.find("child") is not None}
     out = []
     for fid, frame in enumerate(full.frames):
@@ -218,7 +220,7 @@ def write_urdf(model: RobotModel, path: str | Path, parameters: np.ndarray | Non
     tree = parse_urdf(source)
     root = tree.getroot()
     links = _links(model, _kinematic_model(root), root)
-    elements = {link.get("name"): link for link in root.iter("link")}
+    elements = {link.get("name"): link for link in robot_links(root)}
 
     for body, name in enumerate(model.body_names):
         pi = params[10 * body:10 * body + 10]
@@ -252,7 +254,7 @@ def write_urdf(model: RobotModel, path: str | Path, parameters: np.ndarray | Non
                 _set_inertial(elements[ln.name], None)
 
     dropped = []
-    joints = {j.get("name"): j for j in root.iter("joint")}
+    joints = {j.get("name"): j for j in robot_joints(root)}
     for joint, values in terms.items():
         for term, attr in (("fc", "friction"), ("fv", "damping")):
             if values.get(term, 0.0) < 0:

@@ -41,11 +41,27 @@ def parse_urdf(path: Path) -> ET.ElementTree:
         raise ModelError(f"{path.name} is not well-formed XML: {exc}") from exc
 
 
+def robot_joints(root: ET.Element) -> list[ET.Element]:
+    """The URDF's ``<joint>`` elements: the children of ``<robot>`` only.
+
+    Other elements reuse the tag name: a ROS ``<transmission>`` names its joint in
+    ``<joint name="…"><hardwareInterface>…``, ``<ros2_control>`` in ``<joint name="…">
+    <command_interface …>``. Those are not joints; ``root.iter("joint")`` would find them too
+    (and a later one would shadow the real joint of the same name).
+    """
+    return root.findall("joint")
+
+
+def robot_links(root: ET.Element) -> list[ET.Element]:
+    """The URDF's ``<link>`` elements (children of ``<robot>``; see :func:`robot_joints`)."""
+    return root.findall("link")
+
+
 def joint_dynamics(path: str | Path) -> dict[str, JointDynamics]:
     """The ``<dynamics>`` tag of every joint that has one, by joint name (file order)."""
     path = Path(path)
     out: dict[str, JointDynamics] = {}
-    for joint in parse_urdf(path).getroot().iter("joint"):
+    for joint in robot_joints(parse_urdf(path).getroot()):
         tag = joint.find("dynamics")
         if tag is None:
             continue
@@ -64,7 +80,7 @@ def joint_dynamics(path: str | Path) -> dict[str, JointDynamics]:
 
 def remove_dynamics(root: ET.Element) -> ET.Element:
     """Remove every joint ``<dynamics>`` tag from a parsed URDF tree, in place; returns ``root``."""
-    for joint in root.iter("joint"):
+    for joint in robot_joints(root):
         for tag in joint.findall("dynamics"):
             joint.remove(tag)
     return root
