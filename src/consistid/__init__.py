@@ -18,13 +18,13 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
-from .errors import (ConfigError, ConsistidError, DatasetError, ExcitationError, ExportWarning,
-                     GeometryWarning, IdentificationError, InaccurateSolutionWarning,
-                     InconsistentParametersError, InfeasibleError, InfeasibleExcitationError,
-                     JointCountError, JointNameError, MissingColumnsError, ModelError,
-                     OptionError, ParameterShapeError, PoorExcitationError,
-                     PoorExcitationWarning, SolverError, TrackingWarning,
-                     UnrealizableCoefficientsError)
+from . import errors
+
+#: every exception and warning class of :mod:`consistid.errors`, at the top level
+_ERRORS = {name: value for name, value in vars(errors).items()
+           if isinstance(value, type) and issubclass(value, (Exception, Warning))
+           and value.__module__ == errors.__name__}
+globals().update(_ERRORS)
 
 __version__ = "0.1.0"
 
@@ -67,13 +67,7 @@ _EXPORTS: dict[str, str] = {
 _SUBPACKAGES = ("robot", "data", "identification", "estimation", "excitation", "simulate",
                 "diagnosis", "kinematics", "online", "friction", "cli")
 
-__all__ = sorted([*_EXPORTS, "simulate", "ConfigError", "ConsistidError", "DatasetError",
-                  "ExcitationError", "ExportWarning", "GeometryWarning", "IdentificationError",
-                  "InaccurateSolutionWarning", "InconsistentParametersError", "InfeasibleError",
-                  "InfeasibleExcitationError", "JointCountError", "JointNameError",
-                  "MissingColumnsError", "ModelError", "OptionError", "ParameterShapeError",
-                  "PoorExcitationError", "PoorExcitationWarning", "SolverError",
-                  "TrackingWarning", "UnrealizableCoefficientsError"])
+__all__ = sorted([*_EXPORTS, "simulate", "errors", *_ERRORS])
 
 
 def __getattr__(name: str) -> Any:

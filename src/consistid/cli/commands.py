@@ -13,6 +13,9 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+import consistid as ci
+from consistid.errors import ConfigError, ConsistidError, check_option
+
 
 def _log(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
@@ -20,7 +23,6 @@ def _log(msg: str) -> None:
 
 def demo(args: argparse.Namespace) -> int:
     """Simulate, identify, report."""
-    import consistid as ci
     from consistid.robot.inertia import perturb
 
     model = ci.RobotModel.example(args.robot)
@@ -59,7 +61,6 @@ def demo(args: argparse.Namespace) -> int:
 
 def identify(args: argparse.Namespace) -> int:
     """Identify from the recordings of a TOML configuration (:mod:`consistid.cli.config`)."""
-    import consistid as ci
     from consistid.cli.config import (config_identify, config_model, config_recordings,
                                   estimates_tilt, load_config)
     from consistid.identification.scoring import score, scores_table
@@ -128,9 +129,7 @@ PAYLOAD_ROUTES = ("torque", "base-change")
 def recover(args: argparse.Namespace) -> int:
     """Consistent standard parameters from base coefficients (:mod:`consistid.estimation.recover`): from a
     ``coefficients`` file (npz: ``beta`` [, ``covariance``]) or by OLS on the ``[data]`` logs."""
-    import consistid as ci
     from consistid.cli.config import config_model, config_recordings, load_config
-    from consistid.errors import ConfigError
     from consistid.identification.regressor import DEFAULT_FRICTION
 
     config = load_config(args.config)
@@ -163,11 +162,8 @@ def payload(args: argparse.Namespace) -> int:
     """Payload from unloaded ``[data]`` logs and ``[payload] loaded`` logs
     (:mod:`consistid.estimation.payload`); the robot is identified as ``[identify]`` says (default OLS)."""
     import dataclasses
-
-    import consistid as ci
     from consistid.cli.config import (config_ellipsoid, config_identify, config_model,
                                   config_recordings, load_config)
-    from consistid.errors import ConfigError, check_option
 
     config = load_config(args.config)
     model = config_model(config)
@@ -206,7 +202,6 @@ DIAGNOSE_KEYS = DIAGNOSE_OPTIONS + ("nominal_urdf", "output")
 def diagnose(args: argparse.Namespace) -> int:
     """Sim-to-real gap diagnosis of the ``[model]`` (or ``[diagnose] nominal_urdf``) against the
     ``[data]`` logs (:mod:`consistid.diagnose`); the report goes to ``[diagnose] output``."""
-    import consistid as ci
     from consistid.cli.config import config_model, config_recordings, load_config
     from consistid.robot.model import model_without_dynamics
 
@@ -289,7 +284,6 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    from consistid.errors import ConsistidError
 
     try:
         return COMMANDS[args.command][0](args)
