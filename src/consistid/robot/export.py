@@ -2,11 +2,12 @@ r"""Write identified parameters back into a URDF.
 
 The source URDF is copied with each moving body's ``<inertial>`` replaced by the identified mass,
 centre of mass and inertia, and (when friction entries are given) each joint's
-``<dynamics damping="f_v" friction="f_c"/>`` (the convention read by :mod:`consistid.robot.urdf` and by
-Pinocchio, Gazebo, FloBaRoID), on the ``<joint>`` children of ``<robot>`` only: a ROS
-``<transmission>``, ``<ros2_control>`` or ``<gazebo>`` block names joints in ``<joint>``
-elements of its own, which are left as they are (:func:`consistid.robot.urdf.robot_joints`). A URDF ``<inertial>`` holds the mass, the CoM as ``<origin xyz>``
-in the link frame, and the inertia **about the CoM**; consistid's 10-vector has the inertia about
+``<dynamics damping="f_v" friction="f_c"/>`` (the convention read by
+:mod:`consistid.robot.urdf` and by Pinocchio, Gazebo, FloBaRoID), on the ``<joint>`` children of
+``<robot>`` only: a ROS ``<transmission>``, ``<ros2_control>`` or ``<gazebo>`` block names joints
+in ``<joint>`` elements of its own, which are left as they are
+(:func:`consistid.robot.urdf.robot_joints`). A URDF ``<inertial>`` holds the mass, the CoM as
+``<origin xyz>`` in the link frame, and the inertia **about the CoM**; consistid's 10-vector has the inertia about
 the joint frame origin, so
 
 .. math::  c = h / m, \qquad I_c = I_O - m\,[c]_\times^\top [c]_\times
