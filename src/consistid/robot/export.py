@@ -7,8 +7,8 @@ centre of mass and inertia, and (when friction entries are given) each joint's
 ``<robot>`` only: a ROS ``<transmission>``, ``<ros2_control>`` or ``<gazebo>`` block names joints
 in ``<joint>`` elements of its own, which are left as they are
 (:func:`consistid.robot.urdf.robot_joints`). A URDF ``<inertial>`` holds the mass, the CoM as
-``<origin xyz>`` in the link frame, and the inertia **about the CoM**; consistid's 10-vector has the inertia about
-the joint frame origin, so
+``<origin xyz>`` in the link frame, and the inertia **about the CoM**; consistid's 10-vector has
+the inertia about the joint frame origin, so
 
 .. math::  c = h / m, \qquad I_c = I_O - m\,[c]_\times^\top [c]_\times
 
