@@ -31,8 +31,16 @@ def autocorrelation_time(dataset: Dataset, residual: np.ndarray, c: float = 5.0,
     and the sum is truncated by Sokal's automatic window, the first lag ``M ≥ c·τ(M)`` (Sokal
     1997, "Monte Carlo methods in statistical mechanics", doi:10.1007/978-1-4899-0319-8_6).
     """
-    nv = residual.shape[1]
-    acf_sum, count = None, 0
+    return integrated_time(autocovariance_sum(dataset, residual, max_lag), residual.shape[1], c)
+
+
+def autocovariance_sum(dataset: Dataset, residual: np.ndarray, max_lag: int = 2000,
+                       pooled: np.ndarray | None = None) -> np.ndarray | None:
+    """Autocovariance sums (lags ``0 … max_lag``, per joint) of the residual, pooled over the
+    dataset's recordings (mean removed per recording; recordings under 16 samples skipped) and
+    added to ``pooled`` (the sums of other data, e.g. earlier chunks of a stream; lags beyond the
+    shorter of the two are dropped). ``None`` when nothing was pooled."""
+    acf_sum = pooled
     for s in np.unique(dataset.segment):
         idx = np.flatnonzero(dataset.segment == s)
         if idx.size < 16:
@@ -42,7 +50,12 @@ def autocorrelation_time(dataset: Dataset, residual: np.ndarray, c: float = 5.0,
         f = np.fft.rfft(x, n=2 * n, axis=0)
         acov = np.fft.irfft(np.abs(f) ** 2, axis=0)[: min(n, max_lag + 1)]
         acf_sum = acov if acf_sum is None else acf_sum[: acov.shape[0]] + acov[: acf_sum.shape[0]]
-        count += 1
+    return acf_sum
+
+
+def integrated_time(acf_sum: np.ndarray | None, nv: int, c: float = 5.0) -> np.ndarray:
+    """``τ_j`` from pooled autocovariance sums (:func:`autocovariance_sum`; Sokal's window, see
+    :func:`autocorrelation_time`); all ones when ``acf_sum`` is ``None``."""
     if acf_sum is None:
         return np.ones(nv)
     rho = acf_sum / np.where(acf_sum[0] > 0, acf_sum[0], 1.0)
