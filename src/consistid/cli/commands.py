@@ -9,12 +9,15 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from pathlib import Path
 from typing import Callable, Sequence
 
 import numpy as np
 
 import consistid as ci
-from consistid.errors import ConfigError, ConsistidError, check_option
+from consistid.errors import ConfigError, ConsistidError, OutputPathError, check_option
+
+from .files import atomic_dir, atomic_path, check_output, check_output_dir
 
 
 def _log(msg: str) -> None:
@@ -95,14 +98,19 @@ def identify(args: argparse.Namespace) -> int:
 
 def excite(args: argparse.Namespace) -> int:
     """Design an optimal excitation trajectory (:mod:`consistid.excitation.config`), write CSV."""
+    from consistid.cli.config import config_inputs, load_config
     from consistid.excitation.config import load_excitation_config
 
     config = load_excitation_config(args.config)
+    inputs = config_inputs(load_config(args.config), config.model)
+    output = check_output(args.output or config.output, inputs=inputs, force=args.force,
+                          what="--output" if args.output else "[excite] output")
     _log(f"designing an excitation trajectory for {config.model.name} "
          f"({config.options.get('n_starts', 4)} starts)")
     design = config.run(progress=lambda start: _log(f"      {start}"))
     print(design)
-    output = design.save_csv(args.output or config.output, config.rate)
+    with atomic_path(output) as tmp:
+        design.save_csv(tmp, config.rate)
     _log(f"wrote {output} ({config.rate:g} Hz, one period of {design.period:g} s)")
     return 0
 
@@ -112,11 +120,14 @@ def simulate(args: argparse.Namespace) -> int:
     (:mod:`consistid.cli.residual_demo`)."""
     from consistid.cli.residual_demo import DEFAULT_EFFECTS, run
 
+    plot = (check_output(args.plot, force=args.force, what="--plot") if args.plot else None)
     demo_run = run(args.robot, args.effect or DEFAULT_EFFECTS, duration=args.duration,
                    torque_noise=args.noise, seed=args.seed, progress=_log)
     print(demo_run)
-    if args.plot:
-        _log(f"wrote {demo_run.plot(args.plot)}")
+    if plot is not None:
+        with atomic_path(plot) as tmp:
+            demo_run.plot(tmp)
+        _log(f"wrote {plot}")
     return 0
 
 
@@ -129,21 +140,24 @@ PAYLOAD_ROUTES = ("torque", "base-change")
 def recover(args: argparse.Namespace) -> int:
     """Consistent standard parameters from base coefficients (:mod:`consistid.estimation.recover`): from a
     ``coefficients`` file (npz: ``beta`` [, ``covariance``]) or by OLS on the ``[data]`` logs."""
-    from consistid.cli.config import config_model, config_recordings, load_config
+    from consistid.cli.config import config_inputs, config_model, config_recordings, load_config
     from consistid.identification.regressor import DEFAULT_FRICTION
 
     config = load_config(args.config)
     model = config_model(config)
     t = config.table("recover", RECOVER_KEYS, required=False)
+    for key, kind in (("coefficients", "string"), ("urdf", "string"), ("merged", "string"),
+                      ("mode", "string"), ("prior", "string"), ("margin", "number"),
+                      ("armature", "boolean")):
+        if key in t and not (key == "armature" and isinstance(t[key], list)):
+            config.expect("recover", key, t[key], kind)
+    urdf = (check_output(config.resolve(t["urdf"]), inputs=config_inputs(config, model),
+                         force=args.force, what="[recover] urdf") if "urdf" in t else None)
     options = {k: t[k] for k in ("mode", "prior", "margin", "slack") if k in t}
     # the same columns in both branches: identify's default unless [recover] says otherwise
     friction, armature = t.get("friction", DEFAULT_FRICTION), t.get("armature", False)
     if "coefficients" in t:
-        with np.load(config.resolve(t["coefficients"])) as f:
-            if "beta" not in f.files:
-                raise ConfigError(f"{t['coefficients']}: needs an array 'beta'")
-            beta = f["beta"]
-            cov = f["covariance"] if "covariance" in f.files else None
+        beta, cov = _coefficients(config.resolve(t["coefficients"]), t["coefficients"])
         rec = ci.recover_standard(model, beta, covariance=cov, friction=friction,
                                   armature=armature, **options)
     else:
@@ -153,9 +167,29 @@ def recover(args: argparse.Namespace) -> int:
                           armature=armature)
         rec = ci.recover_standard(model, res, **options)
     print(rec.summary(max_rows=None if args.all else 20))
-    if "urdf" in t:
-        _log(f"wrote {rec.to_urdf(config.resolve(t['urdf']), t.get('merged', 'auto'))}")
+    if urdf is not None:
+        with atomic_path(urdf) as tmp:
+            rec.to_urdf(tmp, t.get("merged", "auto"))
+        _log(f"wrote {urdf}")
     return 0
+
+
+def _coefficients(path, written: str) -> tuple[np.ndarray, np.ndarray | None]:
+    """``beta`` and the optional ``covariance`` of a ``[recover] coefficients`` .npz file."""
+    if not path.is_file():
+        raise ConfigError(f"[recover] coefficients = {written!r}: file {str(path)!r} does not "
+                          "exist")
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            if "beta" not in f.files:
+                raise ConfigError(f"[recover] coefficients = {written!r}: needs an array 'beta'"
+                                  f"; it has {sorted(f.files)}")
+            beta = f["beta"]
+            cov = f["covariance"] if "covariance" in f.files else None
+    except (OSError, ValueError, EOFError) as exc:    # not an npz, a pickled array …
+        raise ConfigError(f"[recover] coefficients = {written!r}: not a readable .npz file "
+                          f"({exc})") from exc
+    return beta, cov
 
 
 def payload(args: argparse.Namespace) -> int:
@@ -202,13 +236,21 @@ DIAGNOSE_KEYS = DIAGNOSE_OPTIONS + ("nominal_urdf", "output")
 def diagnose(args: argparse.Namespace) -> int:
     """Sim-to-real gap diagnosis of the ``[model]`` (or ``[diagnose] nominal_urdf``) against the
     ``[data]`` logs (:mod:`consistid.diagnose`); the report goes to ``[diagnose] output``."""
-    from consistid.cli.config import config_model, config_recordings, load_config
+    from consistid.cli.config import config_inputs, config_model, config_recordings, load_config
     from consistid.robot.model import model_without_dynamics
 
     config = load_config(args.config)
     model = config_model(config)
-    train, held = config_recordings(config, model)
     t = config.table("diagnose", DIAGNOSE_KEYS, required=False)
+    for key in ("nominal_urdf", "output"):
+        if key in t:
+            config.expect("diagnose", key, t[key], "string")
+    output = args.output or t.get("output")
+    if output:
+        output = _report_target(output if args.output else config.resolve(output),
+                                config_inputs(config, model), args.force,
+                                "--output" if args.output else "[diagnose] output")
+    train, held = config_recordings(config, model)
     options = {k: t[k] for k in DIAGNOSE_OPTIONS if k in t}
     nominal = None
     if "nominal_urdf" in t:  # same joints, locks and gravity as [model], other inertias
@@ -223,10 +265,30 @@ def diagnose(args: argparse.Namespace) -> int:
                        **options)
     _log(f"      done in {time.perf_counter() - t0:.2f} s")
     print(diag.summary())
-    output = args.output or t.get("output")
     if output:
-        _log(f"wrote {diag.report(config.resolve(output) if not args.output else output)}")
+        if output.suffix in (".html", ".txt"):
+            with atomic_path(output) as tmp:
+                diag.report(tmp)
+        else:
+            with atomic_dir(output) as tmp:
+                diag.report(tmp)
+        _log(f"wrote {output}")
     return 0
+
+
+def _report_target(path, inputs: list, force: bool, what: str) -> Path:
+    """A report file (``.html``/``.txt``) or folder, checked before the work
+    (:mod:`consistid.cli.files`). A folder receives ``report.txt``, ``report.html`` and PNG
+    plots: any such file already there needs ``--force``, and none may be an input."""
+    path = Path(path)
+    if path.suffix in (".html", ".txt"):
+        return check_output(path, inputs=inputs, force=force, what=what)
+    folder = check_output_dir(path, ("report.txt", "report.html"), inputs=inputs, force=force,
+                              what=what)
+    if folder.is_dir():
+        plots = sorted(f.name for f in folder.iterdir() if f.suffix == ".png")
+        check_output_dir(folder, plots, inputs=inputs, force=force, what=what)
+    return folder
 
 
 COMMANDS: dict[str, tuple[Callable[[argparse.Namespace], int], str]] = {
@@ -259,6 +321,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("excite", help=COMMANDS["excite"][1])
     p.add_argument("config", help="TOML file with [model] and [excite] tables")
     p.add_argument("--output", help="CSV path (default: [excite] output)")
+    _add_force(p)
     p = sub.add_parser("simulate", help=COMMANDS["simulate"][1])
     p.add_argument("--robot", default="panda", help="example-robot-data arm (default panda)")
     p.add_argument("--effect", action="append", metavar="NAME=VALUE",
@@ -268,18 +331,27 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--duration", type=float, default=20.0, help="seconds logged at 1 kHz")
     p.add_argument("--noise", type=float, default=0.05, help="torque noise σ in N·m")
     p.add_argument("--plot", metavar="PNG", help="write the residuals to this PNG")
+    _add_force(p)
     p.add_argument("--seed", type=int, default=0)
     p = sub.add_parser("recover", help=COMMANDS["recover"][1])
     p.add_argument("config", help="TOML file with [model], [recover] and [data] or "
                                   "[recover] coefficients")
     p.add_argument("--all", action="store_true", help="list every moved coefficient")
+    _add_force(p)
     p = sub.add_parser("payload", help=COMMANDS["payload"][1])
     p.add_argument("config", help="TOML file with [model], [data] (unloaded) and [payload]")
     p = sub.add_parser("diagnose", help=COMMANDS["diagnose"][1])
     p.add_argument("config", help="TOML file with [model], [data] and optionally [diagnose]")
     p.add_argument("--output", help="report directory, .html or .txt (default: [diagnose] "
                                     "output; none: text to stdout only)")
+    _add_force(p)
     return parser
+
+
+def _add_force(parser: argparse.ArgumentParser) -> None:
+    """``--force``: replace existing outputs (never an input; :mod:`consistid.cli.files`)."""
+    parser.add_argument("--force", action="store_true",
+                        help="replace existing output files (inputs are never overwritten)")
 
 
 def main(argv: Sequence[str] | None = None) -> int:

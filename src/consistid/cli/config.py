@@ -103,6 +103,36 @@ class RunConfig:
                                   f"allowed: {sorted(allowed)}")
         return dict(value)
 
+    def expect(self, table: str, key: str, value: Any, kind: str) -> Any:
+        """``value`` (of ``[table] key``) if it has the TOML type ``kind``, else
+        :class:`ConfigError` written in TOML terms. ``kind``: ``"string"``, ``"boolean"``,
+        ``"number"`` (integer or float), ``"integer"``, ``"array of strings"``, ``"array of
+        numbers"``, ``"string or array of strings"``, ``"string or table"``."""
+        def number(v: Any) -> bool:
+            return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+        checks = {
+            "string": lambda v: isinstance(v, str),
+            "boolean": lambda v: isinstance(v, bool),
+            "number": number,
+            "integer": lambda v: isinstance(v, int) and not isinstance(v, bool),
+            "array of strings": lambda v: isinstance(v, list) and all(isinstance(x, str)
+                                                                      for x in v),
+            "array of numbers": lambda v: isinstance(v, list) and all(number(x) for x in v),
+            "string or array of strings": lambda v: isinstance(v, str) or (
+                isinstance(v, list) and all(isinstance(x, str) for x in v)),
+            "string or table": lambda v: isinstance(v, (str, Mapping)),
+        }
+        if not checks[kind](value):
+            example = {"string": '"text"', "boolean": "true", "number": "1.5",
+                       "integer": "3", "array of strings": '["a", "b"]',
+                       "array of numbers": "[0.0, 1.0]",
+                       "string or array of strings": '"a" or ["a", "b"]',
+                       "string or table": '"name" or {t = "time", ...}'}[kind]
+            raise ConfigError(f"{self.path.name}: [{table}] {key} must be a {kind} (e.g. "
+                              f"{key} = {example}), got {key} = {_toml(value)}")
+        return value
+
     def resolve(self, value: str, *, under: str | None = None) -> Path:
         """A path from the configuration: absolute as is, else relative to ``root`` (then to
         ``under``, itself relative to ``root``, when given)."""
@@ -111,6 +141,19 @@ class RunConfig:
             return p
         base = self.root if under is None else self.resolve(under)
         return (base / p).resolve()
+
+
+def _toml(value: Any) -> str:
+    """``value`` written as TOML would write it (for messages)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return '"' + value.replace('"', '\\"') + '"'
+    if isinstance(value, Mapping):
+        return "{" + ", ".join(f"{k} = {_toml(v)}" for k, v in value.items()) + "}"
+    if isinstance(value, list):
+        return "[" + ", ".join(_toml(v) for v in value) + "]"
+    return repr(value)
 
 
 def load_config(path: str | Path) -> RunConfig:
@@ -133,6 +176,37 @@ def load_config(path: str | Path) -> RunConfig:
     return RunConfig(path.resolve(), (path.resolve().parent / root).resolve(), tables)
 
 
+def config_inputs(config: RunConfig, model: RobotModel | None = None) -> list[Path]:
+    """Every file the configuration reads: itself, ``[model] urdf``, the ``[data]`` and
+    ``[payload] loaded`` logs, ``[recover] coefficients``, ``[diagnose] nominal_urdf`` (and
+    ``model.source`` when given). Outputs must never be one of these
+    (:mod:`consistid.cli.files`). Values of the wrong type are skipped here (their own readers
+    name them)."""
+    out = [config.path]
+    if model is not None and model.source is not None:
+        out.append(Path(model.source))
+
+    def add(value: Any, under: str | None = None) -> None:
+        values = [value] if isinstance(value, str) else value if isinstance(value, list) else []
+        for v in values:
+            if isinstance(v, str) and v:
+                try:
+                    out.append(config.resolve(v, under=under))
+                except (TypeError, ValueError, OSError):
+                    pass
+
+    tables = {k: v for k, v in config.tables.items() if isinstance(v, Mapping)}
+    data_dir = tables.get("data", {}).get("dir")
+    data_dir = data_dir if isinstance(data_dir, str) else None
+    add(tables.get("model", {}).get("urdf"))
+    add(tables.get("data", {}).get("train"), data_dir)
+    add(tables.get("data", {}).get("held_out"), data_dir)
+    add(tables.get("payload", {}).get("loaded"), data_dir)
+    add(tables.get("recover", {}).get("coefficients"))
+    add(tables.get("diagnose", {}).get("nominal_urdf"))
+    return out
+
+
 def estimates_tilt(config: RunConfig) -> bool:
     """Whether ``[model] tilt = "estimate"`` (module docstring)."""
     return "tilt" in config.table("model", MODEL_KEYS)
@@ -142,6 +216,11 @@ def config_model(config: RunConfig, allow_tilt: bool = False) -> RobotModel:
     """The robot of the ``[model]`` table, level as configured. ``tilt = "estimate"`` is
     accepted only with ``allow_tilt`` (a command that estimates it from the data)."""
     t = config.table("model", MODEL_KEYS)
+    for key, kind in (("urdf", "string"), ("example", "string"), ("name", "string"),
+                      ("strip_dynamics", "boolean"), ("locked_joints", "array of strings"),
+                      ("tilt", "string")):
+        if key in t:
+            config.expect("model", key, t[key], kind)
     tilt = t.pop("tilt", None)
     if tilt is not None and (tilt != "estimate" or not allow_tilt):
         raise ConfigError(f"{config.path.name}: [model] tilt = \"estimate\" is the only value, "
@@ -177,6 +256,13 @@ def config_recordings(config: RunConfig, model: RobotModel | None = None
     """The ``train`` recordings (stacked as segments) and the ``held_out`` ones (or ``None``)
     of the ``[data]`` table, each trimmed and matched to ``model``'s joints."""
     t = config.table("data", DATA_KEYS)
+    for key, kind in (("dir", "string"), ("keys", "string or table"),
+                      ("joint_names", "array of strings"), ("trim_start", "number"),
+                      ("trim_end", "number"), ("duplicates", "string"),
+                      ("train", "string or array of strings"),
+                      ("held_out", "string or array of strings")):
+        if key in t:
+            config.expect("data", key, t[key], kind)
     if not t.get("train"):
         raise ConfigError(f"{config.path.name}: [data] needs train = [\"file.npz\", ...]")
     options = {k: t[k] for k in ("joint_names", "trim_start", "trim_end", "duplicates") if k in t}
