@@ -45,7 +45,8 @@ from ..data.dataset import Dataset
 from ..errors import (ModelError, OptionError, PoorExcitationError, PoorExcitationWarning,
                      check_bounds, check_box, check_option)
 from ..robot.model import RobotModel, require_model
-from ..robot.inertia import INERTIAL_NAMES, from_mass_com_inertia, pseudo_inertia, to_mass_com_inertia
+from ..robot.inertia import (INERTIAL_NAMES, body_slice, from_mass_com_inertia, pseudo_inertia,
+                             to_mass_com_inertia)
 from ..identification.regressor import FrictionArg, matching_settings, regressor, resolve_spec
 from ..identification.result import IdentificationResult
 from ..identification.solver import SolverReport
@@ -258,7 +259,7 @@ def minimum_states(model: RobotModel, body: int, transform: np.ndarray, seed: in
     more samples than these lower bounds (noise, correlated samples).
     """
     rng = np.random.default_rng(seed)
-    cols = slice(10 * body, 10 * body + 10)
+    cols = body_slice(body)
     q, dq, ddq = random_states(model, 12, rng)
     out = []
     for static in (False, True):
@@ -447,7 +448,7 @@ def estimate_payload(model: RobotModel, loaded: Dataset | IdentificationResult,
         raise PoorExcitationError(f"{n} samples × {model.nv} joints give {n * model.nv} "
                                   "equations for 10 payload parameters")
     problem = compress(model, loaded, spec).minus(theta)     # what the robot leaves: τ − Y θ
-    cols = np.arange(10 * index, 10 * index + 10)
+    cols = np.r_[body_slice(index)]
     # Per-joint noise from the unconstrained fit, then the weighted problem (as identify's WLS).
     r1, z1, _ = problem.stacked(columns=cols)
     theta_ls = np.linalg.lstsq(r1 @ transform, z1, rcond=None)[0]
@@ -600,7 +601,7 @@ def payload_from_base_change(model: RobotModel, unloaded: IdentificationResult |
     except np.linalg.LinAlgError as exc:
         raise OptionError("the covariance of the coefficient change is not positive definite")\
             from exc
-    r = weight @ base_u.matrix[:, 10 * index:10 * index + 10] @ transform
+    r = weight @ base_u.matrix[:, body_slice(index)] @ transform
     z = weight @ (beta_l - beta_u)
     ident = _identifiability(r)
     notes, _ = _notes(model, index, transform, ident[0], ident[4], "change of coefficients")

@@ -62,7 +62,7 @@ from ..errors import (IdentificationError, InconsistentParametersError, Infeasib
                      ModelError, OptionError, UnrealizableCoefficientsError, check_number,
                      check_option)
 from ..robot.model import RobotModel, require_model
-from ..robot.inertia import is_physically_consistent, pseudo_inertia
+from ..robot.inertia import body_slice, is_physically_consistent, pseudo_inertia
 from ..identification.priors import euclidean, logdet_divergence, logdet_divergence_value
 from ..identification.regressor import (FRICTION_TERMS, FrictionArg, RegressorSpec,
                         dataset_regressor, matching_settings, parameter_names, prior_vector,
@@ -300,7 +300,7 @@ class _Problem:
         constraints: list[cp.Constraint] = []
         objective: cp.Expression = cp.Constant(0.0)
         for i, body in enumerate(self.model.body_names):
-            xi, pi = x[10 * i:10 * i + 10], self.prior[10 * i:10 * i + 10]
+            xi, pi = x[body_slice(i)], self.prior[body_slice(i)]
             # J ⪰ margin·J₀ (⟺ L₀⁻¹ J L₀⁻ᵀ ⪰ margin·1): the SDP's relative margin
             constraints += body_constraints(xi, "pseudo-inertia",
                                             relative_bound(pi, "pseudo-inertia", self.margin),
@@ -334,7 +334,7 @@ class _Problem:
 def _flat_bodies(model: RobotModel, prior: np.ndarray) -> list[str]:
     out = []
     for i, body in enumerate(model.body_names):
-        eig = np.linalg.eigvalsh(pseudo_inertia(prior[10 * i:10 * i + 10]))
+        eig = np.linalg.eigvalsh(pseudo_inertia(prior[body_slice(i)]))
         if eig[-1] > FLAT_PRIOR * eig[0]:
             out.append(body)
     return out
@@ -457,7 +457,7 @@ def _finish(problem: _Problem, mode: str, x: np.ndarray, reports: tuple[SolverRe
         details["pseudo_std"] = problem.undetermined
     margins, divergences = np.empty(model.n_bodies), np.empty(model.n_bodies)
     for i in range(model.n_bodies):
-        xi, pi = x[10 * i:10 * i + 10], problem.prior[10 * i:10 * i + 10]
+        xi, pi = x[body_slice(i)], problem.prior[body_slice(i)]
         margins[i] = np.linalg.eigvalsh(pseudo_inertia(xi))[0]
         divergences[i] = (logdet_divergence_value(xi, pi) if problem.prior_kind == "logdet"
                           else float(np.sum((euclidean_weights(pi) * (xi - pi)) ** 2)))
@@ -498,8 +498,8 @@ def _nearest(problem: _Problem, slack: float, solver: str, options: dict[str, An
     # The distance alone leaves the null space of B free (and unbounded), which stalls an
     # interior-point method; a tiny well-conditioned pull to the prior fixes it and can only
     # raise d* (the stage-1 point stays feasible for stage 2).
-    tie = STAGE1_TIE * sum(euclidean(x1[10 * i:10 * i + 10], problem.prior[10 * i:10 * i + 10],
-                                     euclidean_weights(problem.prior[10 * i:10 * i + 10]))
+    tie = STAGE1_TIE * sum(euclidean(x1[body_slice(i)], problem.prior[body_slice(i)],
+                                     euclidean_weights(problem.prior[body_slice(i)]))
                            for i in range(problem.model.n_bodies))
     # Both stages end on the boundary of the cone, where Clarabel's gap and residuals stall
     # near 1e-6..1e-8 ("AlmostSolved"); ask for what is needed (NEAREST_CLARABEL).

@@ -65,7 +65,7 @@ from ..errors import (IdentificationError, InconsistentParametersError, Infeasib
                      ModelError, OptionError, PoorExcitationWarning, check_bounds, check_box,
                      check_number, check_option)
 from ..robot.model import RobotModel
-from ..robot.inertia import from_pseudo_inertia, pseudo_inertia
+from ..robot.inertia import body_slice, from_pseudo_inertia, pseudo_inertia
 from .regressor import RegressorSpec, parameter_names, predict_torque, prior_vector
 from .result import IdentificationResult
 
@@ -435,9 +435,9 @@ def _make_setup(model: RobotModel, spec: RegressorSpec, prior_vec: np.ndarray,
                     "Fix the URDF inertia or use prior='euclidean' / None")
     lam_max = max(float(np.linalg.eigvalsh(pseudo_inertia(b))[-1]) for b in bodies)
     refs = np.concatenate([_reference(b, 1e-3 * max(lam_max, 1e-12)) for b in bodies])
-    scalings = tuple(cons.BodyScaling.from_reference(refs[10 * i:10 * i + 10])
+    scalings = tuple(cons.BodyScaling.from_reference(refs[body_slice(i)])
                      for i in range(nb))
-    bounds = tuple(cons.relative_bound(refs[10 * i:10 * i + 10], levels[i], margin)
+    bounds = tuple(cons.relative_bound(refs[body_slice(i)], levels[i], margin)
                    for i in range(nb))
     nonneg = np.zeros(prior_vec.size, dtype=bool)
     if friction_nonnegative:
@@ -446,7 +446,7 @@ def _make_setup(model: RobotModel, spec: RegressorSpec, prior_vec: np.ndarray,
     if prior == "euclidean":
         p_in = 10 * nb
         if prior_weights is None:
-            euclid_w = scipy.linalg.block_diag(*(priors.logdet_metric(refs[10 * i:10 * i + 10])
+            euclid_w = scipy.linalg.block_diag(*(priors.logdet_metric(refs[body_slice(i)])
                                                  for i in range(nb)))
         else:
             w = np.asarray(prior_weights, dtype=float)
@@ -491,9 +491,9 @@ def _prior_hessian(prior: str | None, setup: _Setup, nb: int,
         return 2.0 * setup.euclid_w.T @ setup.euclid_w
     blocks = []
     for i in range(nb):
-        at = setup.references[10 * i:10 * i + 10]
+        at = setup.references[body_slice(i)]
         if around is not None and prior == "logdet":
-            body = around[10 * i:10 * i + 10]
+            body = around[body_slice(i)]
             if np.linalg.eigvalsh(pseudo_inertia(body))[0] > 0:
                 at = body
         blocks.append(priors.logdet_metric(at))
@@ -588,8 +588,8 @@ def _build(model: RobotModel, spec: RegressorSpec, r: np.ndarray, z: np.ndarray,
     labelled: list[tuple[cp.Constraint, tuple[str, ...]]] = []
     prior_terms = []
     for i, body in enumerate(model.body_names):
-        x = theta[10 * i:10 * i + 10]
-        body_prior = prior_vec[10 * i:10 * i + 10]
+        x = theta[body_slice(i)]
+        body_prior = prior_vec[body_slice(i)]
         for con in cons.body_constraints(x, setup.levels[i], setup.bounds[i],
                                          setup.ellipsoids[i],
                                          setup.scalings[i] if scale else None):
@@ -748,14 +748,14 @@ def _details(model: RobotModel, theta: np.ndarray, setup: _Setup, prior_vec: np.
     nb, prior, gamma = model.n_bodies, setup.prior, setup.gamma
     lam, rel = {}, {}
     for i, b in enumerate(model.body_names):
-        j = pseudo_inertia(theta[10 * i:10 * i + 10])
+        j = pseudo_inertia(theta[body_slice(i)])
         l_inv = setup.scalings[i].l_inv
         lam[b] = float(np.linalg.eigvalsh(j)[0])
         rel[b] = float(np.linalg.eigvalsh(l_inv @ j @ l_inv.T)[0])
     divergence = float("nan")
     if prior == "logdet":
-        divergence = sum(priors.logdet_divergence_value(theta[10 * i:10 * i + 10],
-                                                        prior_vec[10 * i:10 * i + 10])
+        divergence = sum(priors.logdet_divergence_value(theta[body_slice(i)],
+                                                        prior_vec[body_slice(i)])
                          for i in range(nb))
     elif prior == "euclidean":
         divergence = float(np.sum((setup.euclid_w @ (theta[:10 * nb] - prior_vec[:10 * nb])) ** 2))

@@ -50,7 +50,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import ExportWarning, InconsistentParametersError, ModelError, check_option
-from .inertia import check_body
+from .inertia import InertialParameters, body_slice
 from .joint_terms import TERM_COLUMNS
 from .urdf import parse_urdf, remove_dynamics, robot_joints, robot_links
 
@@ -224,8 +224,8 @@ def write_urdf(model: RobotModel, path: str | Path, parameters: np.ndarray | Non
     elements = {link.get("name"): link for link in robot_links(root)}
 
     for body, name in enumerate(model.body_names):
-        pi = params[10 * body:10 * body + 10]
-        verdict = check_body(pi, "pseudo-inertia", name)
+        inertial = InertialParameters(params[body_slice(body)])
+        verdict = inertial.consistent(name=name)
         if not verdict.ok:
             raise InconsistentParametersError(f"refusing to write an inconsistent body: "
                                               f"{verdict.reason}")
@@ -237,18 +237,18 @@ def write_urdf(model: RobotModel, path: str | Path, parameters: np.ndarray | Non
         keep = [ln for ln in mine if ln.via != "child"
                 and (merged == "subtract" or (merged == "auto" and ln.via == "locked"))]
         lump = [ln for ln in mine if ln.via != "child" and ln not in keep]
-        rest = pi.copy()
+        rest = inertial
         for ln in keep:
             own = _read_inertial(elements[ln.name], source.name)
             if own is not None:
-                rest -= ln.placement.act(own).toDynamicParameters()
-        verdict = check_body(rest, "pseudo-inertia", child[0].name)
+                rest = rest - InertialParameters.from_pinocchio(ln.placement.act(own))
+        verdict = rest.consistent(name=child[0].name)
         if not verdict.ok:
             raise InconsistentParametersError(
                 f"body {name!r}: after subtracting the source inertials of "
                 f"{[ln.name for ln in keep]}, link {child[0].name!r} would be inconsistent "
                 f"({verdict.reason}); use merged='lump'")
-        written = child[0].placement.actInv(pin.Inertia.FromDynamicParameters(rest))
+        written = child[0].placement.actInv(rest.to_pinocchio())
         _set_inertial(elements[child[0].name], written)
         for ln in lump:
             if _read_inertial(elements[ln.name], source.name) is not None:

@@ -240,7 +240,7 @@ def is_physically_consistent(parameters: np.ndarray, level: str = "pseudo-inerti
             raise ParameterShapeError(
                 f"{parameters.size} parameters for {n} bodies; need {10 * n}")
     return ConsistencyReport(level, tuple(
-        check_body(parameters[10 * i:10 * i + 10], level, names[i], tol) for i in range(n)))
+        check_body(body, level, name, tol) for body, name in zip(bodies(parameters, n), names)))
 
 
 def perturb(parameters: np.ndarray, relative: float, rng: np.random.Generator) -> np.ndarray:
@@ -257,8 +257,155 @@ def perturb(parameters: np.ndarray, relative: float, rng: np.random.Generator) -
     if out.ndim != 1 or out.size % 10:
         raise ParameterShapeError(
             f"perturb: a stacked standard vector has 10 entries per body, got shape {out.shape}")
-    for i in range(out.size // 10):
-        m, c, inertia_com = to_mass_com_inertia(out[10 * i:10 * i + 10])
+    for body in bodies(out):  # rows are views: written in place
+        m, c, inertia_com = to_mass_com_inertia(body)
         f = rng.uniform(1 - relative, 1 + relative, size=5)
-        out[10 * i:10 * i + 10] = from_mass_com_inertia(m * f[0], c * f[1:4], inertia_com * f[4])
+        body[:] = from_mass_com_inertia(m * f[0], c * f[1:4], inertia_com * f[4])
     return out
+
+
+def body_slice(i: int) -> slice:
+    """The entries of body ``i`` (0-based) in a stacked standard vector: ``10 i … 10 i + 9``.
+
+    For numpy arrays prefer :func:`bodies`; this serves cvxpy expressions and index arrays.
+    """
+    return slice(10 * i, 10 * i + 10)
+
+
+def bodies(parameters: np.ndarray, n: int | None = None) -> np.ndarray:
+    """The first ``n`` bodies of a stacked standard vector as an ``(n, 10)`` view (row ``i`` is
+    body ``i``; writing to it writes to ``parameters``). ``n`` defaults to ``size // 10`` and
+    must then divide the size exactly."""
+    parameters = np.asarray(parameters)
+    if parameters.ndim != 1:
+        raise ParameterShapeError(f"a stacked standard vector is 1-D, got shape "
+                                  f"{parameters.shape}")
+    if n is None:
+        if parameters.size % 10:
+            raise ParameterShapeError(f"{parameters.size} entries are not 10 per body")
+        n = parameters.size // 10
+    if parameters.size < 10 * n:
+        raise ParameterShapeError(f"{parameters.size} entries for {n} bodies; need {10 * n}")
+    return parameters[:10 * n].reshape(n, 10)
+
+
+@dataclass(frozen=True, eq=False)
+class InertialParameters:
+    r"""One rigid body's standard inertial parameters, as a value.
+
+    .. math:: \pi = [m,\; h_x,\; h_y,\; h_z,\; I_{xx},\; I_{xy},\; I_{yy},\; I_{xz},\;
+              I_{yz},\; I_{zz}], \qquad h = m c,
+
+    the inertia ``I`` about the body-frame origin (Pinocchio's ``Inertia.toDynamicParameters``
+    order). The same body is also ``(m, c, I_c)`` and the pseudo-inertia
+    ``J = [[½ tr(I) 1 − I, h], [hᵀ, m]]`` (Wensing, Kim, Slotine 2017), which is linear in ``π``
+    and transforms as ``J' = T J Tᵀ`` under a rigid motion ``T`` (homogeneous 4×4). Modelled on
+    rigeo's ``InertialParameters`` (constructors from a vector or a pseudo-inertia, ``.J``,
+    ``.consistent()``, ``.transform()``).
+
+    >>> body = InertialParameters.from_mass_com_inertia(2.0, [0, 0, 0.1], np.eye(3) * 0.01)
+    >>> body.consistent(), body.mass, body.com
+    """
+
+    vector: np.ndarray
+
+    def __post_init__(self) -> None:
+        v = np.array(self.vector, dtype=float)  # a private copy: the value cannot change
+        if v.shape != (10,):
+            raise ParameterShapeError(f"a body's standard parameters have shape (10,), got "
+                                      f"{v.shape}")
+        if not np.all(np.isfinite(v)):
+            raise InconsistentParametersError(
+                f"a body's standard parameters must be finite, got {v.tolist()}")
+        v.flags.writeable = False
+        object.__setattr__(self, "vector", v)
+
+    # ------------------------------------------------------------------------ constructors
+    @classmethod
+    def from_mass_com_inertia(cls, mass: float, com: Sequence[float],
+                              inertia_com: np.ndarray) -> "InertialParameters":
+        """From mass (kg), centre of mass (m) and the 3×3 inertia about the CoM (kg·m²)."""
+        return cls(from_mass_com_inertia(mass, com, inertia_com))
+
+    @classmethod
+    def from_pseudo_inertia(cls, J: np.ndarray) -> "InertialParameters":
+        """From a symmetric 4×4 pseudo-inertia (its symmetric part is used)."""
+        return cls(from_pseudo_inertia(J))
+
+    @classmethod
+    def from_pinocchio(cls, inertia: pin.Inertia) -> "InertialParameters":
+        return cls(np.asarray(inertia.toDynamicParameters()))
+
+    @classmethod
+    def split(cls, parameters: np.ndarray, n: int | None = None
+              ) -> tuple["InertialParameters", ...]:
+        """Every body of a stacked standard vector (the first ``n`` bodies, see :func:`bodies`)."""
+        return tuple(cls(row) for row in bodies(np.asarray(parameters, dtype=float), n))
+
+    # ------------------------------------------------------------------------ views
+    @property
+    def mass(self) -> float:
+        return float(self.vector[0])
+
+    @property
+    def first_moment(self) -> np.ndarray:
+        """``h = m c`` (kg·m)."""
+        return self.vector[1:4].copy()
+
+    @property
+    def com(self) -> np.ndarray:
+        """The centre of mass ``c = h / m`` (m); :class:`InconsistentParametersError` if
+        ``m ≤ 0``."""
+        return to_mass_com_inertia(self.vector)[1]
+
+    @property
+    def inertia(self) -> np.ndarray:
+        """The 3×3 rotational inertia about the body-frame origin (kg·m²)."""
+        return inertia_about_origin(self.vector)
+
+    @property
+    def inertia_com(self) -> np.ndarray:
+        """The 3×3 rotational inertia about the centre of mass (kg·m²)."""
+        return to_mass_com_inertia(self.vector)[2]
+
+    @property
+    def J(self) -> np.ndarray:  # noqa: N802 — the symbol of the literature
+        """The 4×4 pseudo-inertia."""
+        return pseudo_inertia(self.vector)
+
+    def to_pinocchio(self) -> pin.Inertia:
+        return pin.Inertia.FromDynamicParameters(self.vector)
+
+    # ------------------------------------------------------------------------ physics
+    def consistent(self, level: str = "pseudo-inertia", tol: float = 0.0,
+                   name: str = "body") -> BodyConsistency:
+        """The check of :func:`check_body` (truthy through ``.ok``)."""
+        return check_body(self.vector, level, name, tol)
+
+    def transform(self, rotation: np.ndarray, translation: Sequence[float]
+                  ) -> "InertialParameters":
+        """The same body expressed in a frame where the old frame has orientation ``rotation``
+        and origin ``translation``: ``J' = T J Tᵀ`` with ``T = [[R, p], [0, 1]]``."""
+        t = np.eye(4)
+        t[:3, :3] = np.asarray(rotation, dtype=float)
+        t[:3, 3] = np.asarray(translation, dtype=float)
+        return InertialParameters.from_pseudo_inertia(t @ self.J @ t.T)
+
+    def __add__(self, other: "InertialParameters") -> "InertialParameters":
+        """Two bodies rigidly joined, both expressed in the same frame (parameters add)."""
+        return InertialParameters(self.vector + other.vector)
+
+    def __sub__(self, other: "InertialParameters") -> "InertialParameters":
+        """What remains of this body when the part ``other`` (same frame) is taken away."""
+        return InertialParameters(self.vector - other.vector)
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, InertialParameters) and bool(np.array_equal(self.vector,
+                                                                             other.vector))
+
+    def __hash__(self) -> int:
+        return hash(self.vector.tobytes())
+
+    def __repr__(self) -> str:
+        return (f"InertialParameters(m={self.mass:.6g} kg, h={np.round(self.vector[1:4], 6)}, "
+                f"I_origin=[{', '.join(f'{x:.4g}' for x in self.vector[4:])}])")
