@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import consistid as ci
+from consistid.identification import base
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared"
 
@@ -58,4 +59,4 @@ def kuka_dir() -> Path:
 
 def random_states(model: ci.RobotModel, n: int, seed: int):
     """:func:`consistid.identification.base.random_states` seeded by an integer (hypothesis draws integers)."""
-    return ci.identification.base.random_states(model, n, np.random.default_rng(seed))
+    return base.random_states(model, n, np.random.default_rng(seed))

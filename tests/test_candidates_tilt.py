@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import consistid as ci
+from consistid.robot.inertia import perturb
 from consistid.diagnosis.candidates import EffectLibrary, GapData
 from consistid.diagnosis.diagnose import diagnose
 from consistid.estimation.mounting import gravity_from_tilt
@@ -66,7 +67,7 @@ def test_level_robot_with_wrong_inertias_is_not_named_tilt(panda):
     """Part of a tilt lies in the span of ``inertia``; a pure rigid-body mismatch must not be
     reported as a tilt. (A level robot without any mismatch names nothing at all:
     ``test_diagnose.test_no_effect_names_nothing_and_is_at_the_noise_floor``.)"""
-    params = ci.robot.inertia.perturb(panda.prior_parameters, 0.2, np.random.default_rng(3))
+    params = perturb(panda.prior_parameters, 0.2, np.random.default_rng(3))
     train, held = _runs(panda, params)
     diag = diagnose(panda, train, held_out=held)
     assert [e.name for e in diag.effects] == ["inertia"], [str(e) for e in diag.effects]

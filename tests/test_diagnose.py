@@ -11,6 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import consistid as ci
+from consistid.robot.inertia import perturb
 from consistid.diagnosis.candidates import Atom, EffectLibrary, GapData
 from consistid.data.dataset import Dataset
 from consistid.diagnosis.diagnose import _solve, diagnose, exact_delay
@@ -63,7 +64,7 @@ INJECTED = {"ripple": (0.8, 23), "position": (0.4, 1)}
 @pytest.mark.parametrize("effect", list(SCENARIOS))
 def test_effect_injected_alone_is_named_first(panda, effect):
     effects, joint = SCENARIOS[effect]
-    params = (ci.robot.inertia.perturb(panda.prior_parameters, 0.2, np.random.default_rng(3))
+    params = (perturb(panda.prior_parameters, 0.2, np.random.default_rng(3))
               if effect == "inertia" else None)
     train, held = mujoco_pair(panda, effects, params,
                               ripple=(joint, *INJECTED[effect]) if effect in INJECTED else None)

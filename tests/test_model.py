@@ -3,6 +3,7 @@ import pinocchio as pin
 import pytest
 
 import consistid as ci
+from consistid.identification.base import random_states
 from consistid.robot.model import EXAMPLE_ROBOTS
 
 
@@ -82,7 +83,7 @@ def test_unset_urdf_limits_read_as_unlimited_and_excite_the_double_pendulum():
     assert np.all(np.isinf(lim.velocity)) and np.all(np.isinf(lim.effort))
     # random states now move, so the base map sees every identifiable column (link1.mz included)
     base = ci.compute_base_parameters(pend)
-    q, dq, ddq = ci.identification.base.random_states(pend, 400, np.random.default_rng(0))
+    q, dq, ddq = random_states(pend, 400, np.random.default_rng(0))
     y = ci.regressor(pend, q, dq, ddq)
     assert base.n_base == np.linalg.matrix_rank(y)
     assert np.ptp(q) > 1.0

@@ -10,7 +10,8 @@ from consistid.cli import main
 from consistid.errors import (InfeasibleError, JointCountError, ModelError, OptionError,
                               UnrealizableCoefficientsError)
 from consistid.identification.identify import nearest_standard
-from consistid.robot.inertia import from_mass_com_inertia, is_physically_consistent, perturb
+from consistid.robot.inertia import (from_mass_com_inertia, is_physically_consistent, perturb,
+                                     pseudo_inertia)
 from consistid.estimation.recover import recover_standard
 from consistid.identification.regressor import regressor
 
@@ -175,7 +176,7 @@ def test_is_consistent_means_what_consistency_says(panda, setup):
     point = rec.parameters.copy()
     point[60:70] = from_mass_com_inertia(1.0, [0.0, 0.0, 0.1], np.zeros((3, 3)))
     margins = rec.margins.copy()
-    margins[6] = np.linalg.eigvalsh(ci.robot.inertia.pseudo_inertia(point[60:70]))[0]
+    margins[6] = np.linalg.eigvalsh(pseudo_inertia(point[60:70]))[0]
     assert margins[6] > -1e-12                       # ⪰ 0 to round-off
     boundary = dataclasses.replace(rec, parameters=point, margins=margins)
     assert not boundary.consistency.ok and not boundary.is_consistent

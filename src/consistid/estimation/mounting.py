@@ -55,6 +55,7 @@ import scipy.optimize
 from ..identification.compression import accumulate, joint_sigma
 from ..data.dataset import Dataset, as_dataset
 from ..errors import ModelError, PoorExcitationWarning
+from ..threads import single_blas_thread
 from ..robot.model import RobotModel, require_model
 from ..identification.regressor import (DEFAULT_FRICTION, FrictionArg, RegressorSpec, predict_torque,
                         prior_vector, regressor, rigid_body_regressor)
@@ -216,6 +217,7 @@ def _profile(factors: np.ndarray, n_in: int, p: int, gravity: np.ndarray, space:
     return theta, np.einsum("jrc,c->jr", a, theta) - b
 
 
+@single_blas_thread
 def estimate_mounting(model: RobotModel, dataset: Dataset,
                       friction: FrictionArg = DEFAULT_FRICTION,
                       armature: bool = False) -> MountingEstimate:

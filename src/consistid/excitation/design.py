@@ -37,6 +37,7 @@ import scipy.sparse
 from ..identification.base import BaseParameters, compute_base_parameters
 from ..data.dataset import Dataset
 from ..errors import InfeasibleExcitationError, OptionError, check_number, check_option
+from ..threads import single_blas_thread
 from ..robot.model import RobotModel, require_model
 from ..identification.regressor import FrictionArg, RegressorSpec, prior_vector, regressor
 from .criteria import CRITERIA, criteria_values, criterion_and_gradient, prior_column_scale
@@ -476,6 +477,7 @@ def make_parameterisation(nv: int, trajectory: str = "fourier", harmonics: int =
     return BSplineParameterisation(nv, via_points, period, degree, boundary)
 
 
+@single_blas_thread
 def design_excitation(model: RobotModel, harmonics: int = 5, period: float = 10.0,
                       criterion: str = "cond", seed: int = 0, *,
                       trajectory: str = "fourier", via_points: int | Sequence[float] = 10,
