@@ -60,6 +60,7 @@ import scipy.optimize
 import scipy.stats
 
 from .candidates import EFFECT_NAMES, SIGNATURES, Atom, EffectLibrary, GapData
+from .effects import REGISTRY, EffectParameter
 from ..data.dataset import Dataset, as_dataset
 from ..errors import ModelError, OptionError, check_number, check_option
 from .gap import (FILTERED_ROLLOFF, GapBreakdown, gap_breakdown,
@@ -71,42 +72,9 @@ from ..identification.statistics import autocorrelation_time, coloured_covarianc
 
 #: A held-out shrink below this fraction does not list a joint under an arm-wide effect.
 JOINT_SHRINK_FLOOR = 0.05
-#: Effects whose (first) parameter must be positive to be physical: friction, rotor inertia,
-#: compliance, payload mass. A candidate fitted negative is not selected.
-POSITIVE = ("coulomb", "viscous", "armature", "elasticity", "payload")
 
 
 # --------------------------------------------------------------------------------- results
-@dataclass(frozen=True)
-class EffectParameter:
-    """One estimated parameter of a selected effect, with its standard deviation.
-
-    ``value`` and ``std`` are in ``unit`` (SI: a delay in s, a tilt in rad); the text shows
-    delays in ms and angles in degrees.
-    """
-
-    name: str
-    value: float
-    std: float
-    unit: str
-    joint: str | None = None
-    effect: str = ""
-    note: str = ""
-
-    def __str__(self) -> str:
-        words = {"coulomb": "Coulomb friction", "viscous": "viscous friction",
-                 "offset": "torque offset", "gain": "torque gain error", "armature": "armature",
-                 "delay": "delay", "elasticity": "stiffness", "ripple": "ripple"}
-        what = words.get(self.effect, self.name)
-        scale, unit = {"s": (1e3, "ms"), "rad": (180 / np.pi, "°")}.get(self.unit,
-                                                                       (1.0, self.unit))
-        where = f"{self.joint} " if self.joint else ""
-        if self.effect in ("inertia", "payload", "ripple", "position", "tilt"):
-            what, where = self.name, ""
-        return (f"{where}{what} {self.value * scale:.4g} ± {self.std * scale:.2g}"
-                + (f" {unit}" if unit else "") + (f" ({self.note})" if self.note else ""))
-
-
 @dataclass(frozen=True)
 class EffectFinding:
     """A selected effect: where it acts, how far it shrinks the held-out residual, its parameters.
@@ -473,9 +441,9 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
             relevance = float(per_joint.max())
             if gain <= 0:
                 return "does not reduce the held-out residual", dbic, p
-            if atom.effect in POSITIVE and s[6][0] < 0:
-                return (f"its {atom.parameter_names[0]} is negative: not a physical "
-                        f"{atom.effect}", dbic, p)
+            unphysical = REGISTRY[atom.effect].unphysical(atom, s[6])
+            if unphysical is not None:
+                return unphysical, dbic, p
             if dbic >= 0:
                 return f"ΔBIC {dbic:.3g} ≥ 0", dbic, p
             if p >= alpha:
@@ -692,34 +660,36 @@ def _tuned_atoms(library: EffectLibrary, train: GapData, floor: np.ndarray
     training columns ``(N, nv, P)``.
 
     The settings are tuned against the residual of the *saturated* fit (every linear candidate
-    at once): the Coulomb smoothing speed on that residual plus the joint's own sign-Coulomb
-    fit, the ripple order on that residual; so other effects do not masquerade as them.
+    at once): a *tuned* effect's setting (the Coulomb smoothing speed) on that residual plus the
+    atom's own fit, a *searched* effect's atoms (ripple orders) on that residual; so other
+    effects do not masquerade as them. Searched effects' atoms come last.
     """
     model = library.model
-    plain = [e for e in library.effects if e != "ripple"]
+    plain = [e for e in library.effects if not REGISTRY[e].searched]
+    searched = [e for e in library.effects if REGISTRY[e].searched]
     atoms = EffectLibrary(model, tuple(plain), base=library.base).atoms()
     if not atoms:
         return [], np.zeros((train.n, model.nv, 0))
     blocks = [library.columns(a, train) for a in atoms]
     phi_tr = np.concatenate(blocks, axis=2)
-    tune = "ripple" in library.effects or "coulomb" in plain
-    if not tune:
+    if not searched and not any(REGISTRY[e].tuned for e in plain):
         return atoms, phi_tr
     g = _Grams.build(phi_tr, train.residual)
     theta, _, _ = _solve(*g.weighted(1.0 / floor ** 2, np.arange(phi_tr.shape[2])))
     rest = train.residual - phi_tr @ theta
     o = 0
     for i, a in enumerate(atoms):
-        if a.effect == "coulomb":
-            partial = rest[:, a.joint] + blocks[i][:, a.joint, 0] * theta[o]
-            atoms[i] = library.tune_coulomb(train, partial, a)
+        if REGISTRY[a.effect].tuned and a.joint is not None:
+            own = theta[o:o + a.n_parameters]
+            partial = rest[:, a.joint] + blocks[i][:, a.joint, :] @ own
+            atoms[i] = library.tune(train, partial, a)
             blocks[i] = library.columns(atoms[i], train)
         o += a.n_parameters
-    if "ripple" in library.effects:
-        for a in library.atoms(train, rest):
-            if a.effect == "ripple":
-                atoms.append(a)
-                blocks.append(library.columns(a, train))
+    if searched:
+        for a in EffectLibrary(model, tuple(searched), base=library.base,
+                               ripple_orders=library.ripple_orders).atoms(train, rest):
+            atoms.append(a)
+            blocks.append(library.columns(a, train))
     return atoms, np.concatenate(blocks, axis=2)
 
 
@@ -885,7 +855,7 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     for atom, th, sd in zip(fit.atoms, fit.theta, final_stds):
         joint = names[atom.joint] if atom.joint is not None else None
         lst = params_by_effect.setdefault(atom.effect, [])
-        lst += _parameters(atom, th, sd, joint, fit, library)
+        lst += REGISTRY[atom.effect].parameters(library, atom, th, sd, joint, fit)
     findings = [replace(f, parameters=tuple(params_by_effect.get(f.name, ()))) for f in findings]
     notes += _asymmetric_friction(fit, names)
     notes += _contained(prob, cumulative, names)
@@ -959,37 +929,3 @@ def _asymmetric_friction(fit: GapModel, names: list[str]) -> list[str]:
             f"{v['offset'] + v['coulomb']:.3g} N·m moving +, {v['offset'] - v['coulomb']:.3g} N·m "
             "moving − (or a sensor offset beside symmetric friction: the data cannot tell)"
             for j, v in sorted(found.items()) if len(v) == 2]
-
-
-def _parameters(atom: Atom, theta: np.ndarray, std: np.ndarray, joint: str | None,
-                fit: GapModel, library: EffectLibrary) -> list[EffectParameter]:
-    """Readable parameters of a fitted atom (inertia: the most significant base changes)."""
-    if atom.effect == "inertia":
-        if fit.inertial is not None:
-            beta = library.base.project(fit.inertial - fit.nominal)
-        else:
-            beta = theta
-        z = np.abs(beta) / np.where(std > 0, std, np.inf)
-        top = np.argsort(-z)[:6]
-        return [EffectParameter(atom.parameter_names[i], float(beta[i]), float(std[i]),
-                                atom.units[i], None, "inertia") for i in top]
-    if atom.effect == "ripple":
-        amp = float(np.hypot(*theta))
-        amp_std = float(np.sqrt((theta[0] * std[0]) ** 2 + (theta[1] * std[1]) ** 2)
-                        / max(amp, 1e-300))
-        seen = (f", seen through a ≈{atom.cutoff:.3g} Hz low-pass" if np.isfinite(atom.cutoff)
-                else "")
-        return [EffectParameter(f"{joint} ripple amplitude (k = {atom.setting:g}/rad{seen})",
-                                amp, amp_std, "N·m", joint, "ripple")]
-    if atom.effect == "coulomb" and (atom.setting or np.isfinite(atom.cutoff)):
-        law = f"tanh(q̇/{atom.setting:g} rad/s)" if atom.setting else "sign(q̇)"
-        seen = (f" seen through a ≈{atom.cutoff:.3g} Hz low-pass" if np.isfinite(atom.cutoff)
-                else "")
-        return [EffectParameter(f"{joint}.fc", float(theta[0]), float(std[0]), "N·m", joint,
-                                "coulomb", law + seen)]
-    if atom.effect == "elasticity" and theta[0] > 0:
-        c, sc = float(theta[0]), float(std[0])
-        return [EffectParameter(f"{joint}.stiffness", 1.0 / c, sc / c ** 2, "N·m/rad", joint,
-                                "elasticity")]
-    return [EffectParameter(n, float(v), float(s), u, joint, atom.effect)
-            for n, v, s, u in zip(atom.parameter_names, theta, std, atom.units)]

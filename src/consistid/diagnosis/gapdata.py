@@ -1,0 +1,232 @@
+r"""The signals every diagnosis effect's columns need, computed once per recording.
+
+:class:`GapData` holds one dataset seen through the nominal model: the nominal torque
+``τ_nom = Y(q, q̇, q̈) π₀`` (Pinocchio's joint torque regressor), the residual ``r = τ − τ_nom``,
+the gravity torque, Savitzky–Golay time derivatives of the nominal torque (Savitzky & Golay 1964,
+doi:10.1021/ac60214a047) and the RNEA derivatives (Carpentier & Mansard 2018,
+doi:10.15607/RSS.2018.XIV.038). :func:`lowpass_segments` passes a column through the signal
+chain's zero-phase low-pass per recording segment, for effects seen through filtered torques.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+import pinocchio as pin
+import scipy.signal
+
+from ..data.dataset import Dataset
+from ..data.signals import lowpass
+from ..errors import DatasetError, ModelError
+from ..estimation.mounting import tilt_axes
+from ..identification.regressor import rigid_body_regressor
+from ..robot.model import RobotModel
+
+#: Savitzky–Golay window (s) for the time derivatives of the nominal torque (delay, elasticity).
+DERIVATIVE_WINDOW = 0.04
+
+
+def _segment_derivatives(t: np.ndarray, x: np.ndarray, window: float
+                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Savitzky–Golay smoothed value, first and second time derivative of ``x`` (n, m).
+
+    Savitzky & Golay 1964, doi:10.1021/ac60214a047: local cubic fits over ``window`` seconds,
+    on a uniform grid at the median step (the samples are interpolated onto it and back).
+    """
+    n = t.size
+    if n < 7:
+        raise DatasetError(f"a recording segment has only {n} samples; time derivatives "
+                           "need at least 7")
+    dt = float(np.median(np.diff(t)))
+    grid = t[0] + dt * np.arange(int(np.floor((t[-1] - t[0]) / dt)) + 1)
+    xi = np.column_stack([np.interp(grid, t, x[:, i]) for i in range(x.shape[1])])
+    length = max(7, int(round(window / dt)) | 1)
+    length = min(length, grid.size if grid.size % 2 else grid.size - 1)
+    out = []
+    for deriv in (0, 1, 2):
+        y = scipy.signal.savgol_filter(xi, length, 3, deriv=deriv, delta=dt, axis=0,
+                                       mode="interp")
+        out.append(np.column_stack([np.interp(t, grid, y[:, i]) for i in range(x.shape[1])]))
+    return out[0], out[1], out[2]
+
+
+def time_derivatives(dataset: Dataset, x: np.ndarray, window: float = DERIVATIVE_WINDOW
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Smoothed ``x``, ``ẋ`` and ``ẍ`` for each recording segment of ``dataset`` (never across)."""
+    out = [np.empty_like(x) for _ in range(3)]
+    for s in np.unique(dataset.segment):
+        idx = np.flatnonzero(dataset.segment == s)
+        for o, v in zip(out, _segment_derivatives(dataset.t[idx], x[idx], window)):
+            o[idx] = v
+    return out[0], out[1], out[2]
+
+
+def tilt_directions(gravity: np.ndarray) -> np.ndarray:
+    """``(∂g/∂a₁, ∂g/∂a₂)`` at ``a = 0`` of ``g(a) = R_v(a₂) R_u(a₁) g₀``
+    (:func:`consistid.estimation.mounting.gravity_from_tilt`): ``u × g₀`` and ``v × g₀`` with ``u, v`` the
+    axes of :func:`consistid.estimation.mounting.tilt_axes` (``x``, ``y`` for ``g₀ ∥ −z``), shape (2, 3)."""
+    g0 = np.asarray(gravity, dtype=float)
+    return np.cross(tilt_axes(g0), g0)
+
+
+@dataclass(frozen=True, eq=False)
+class GapData:
+    """One dataset seen through the nominal model: the signals every effect's columns need.
+
+    Parameters
+    ----------
+    model : the robot (joint order, kinematics).
+    dataset : measured samples with torques.
+    nominal : (10·nbodies,) the nominal (simulator) standard inertial parameters ``π₀``.
+    nominal_extra : (N, nv) torque the nominal model adds beyond the rigid body (e.g. the friction
+        of an :class:`~consistid.IdentificationResult` used as nominal), or ``None``.
+    derivative_window : Savitzky–Golay window (s) for ``τ̇_nom`` and ``τ̈_nom``.
+    rigid_regressor : the rigid-body regressor of ``dataset``'s samples, (N, nv, 10·nbodies), if
+        already computed (e.g. stacked from parts by :meth:`concatenate`); default computed on
+        first use of :attr:`rigid`. Not checked against the samples, only its shape.
+
+    Raises
+    ------
+    DatasetError : ``rigid_regressor`` of the wrong shape.
+    """
+
+    model: RobotModel
+    dataset: Dataset
+    nominal: np.ndarray
+    nominal_extra: np.ndarray | None = None
+    derivative_window: float = DERIVATIVE_WINDOW
+    rigid_regressor: np.ndarray | None = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        expected = (self.dataset.n_samples, self.model.nv, self.model.n_inertial)
+        if self.rigid_regressor is not None and np.shape(self.rigid_regressor) != expected:
+            raise DatasetError(f"GapData.rigid_regressor has shape "
+                               f"{np.shape(self.rigid_regressor)}; the dataset's samples need "
+                               f"{expected} (N, nv, 10·nbodies)")
+
+    @classmethod
+    def concatenate(cls, parts: Sequence["GapData"]) -> "GapData":
+        """The parts stacked as :meth:`Dataset.concatenate` stacks their datasets (same model,
+        nominal parameters and derivative window), with the rigid-body regressor of the parts
+        (computed once each) stacked and passed as ``rigid_regressor`` instead of recomputed on
+        every sample (it is per sample, so stacking equals recomputing)."""
+        first = parts[0]
+        if any(p.model is not first.model or not np.array_equal(p.nominal, first.nominal)
+               or p.derivative_window != first.derivative_window
+               or (p.nominal_extra is None) != (first.nominal_extra is None) for p in parts):
+            raise ModelError("GapData.concatenate: the parts differ in model, nominal "
+                             "parameters, nominal extra torque or derivative window")
+        extra = (None if first.nominal_extra is None
+                 else np.concatenate([p.nominal_extra for p in parts]))
+        return cls(first.model, Dataset.concatenate([p.dataset for p in parts]), first.nominal,
+                   extra, first.derivative_window,
+                   rigid_regressor=np.concatenate([p.rigid for p in parts]))
+
+    @property
+    def n(self) -> int:
+        return self.dataset.n_samples
+
+    @property
+    def nv(self) -> int:
+        return self.model.nv
+
+    @cached_property
+    def tau(self) -> np.ndarray:
+        return self.dataset.require_torque()
+
+    @cached_property
+    def rigid(self) -> np.ndarray:
+        """Rigid-body regressor ``(N, nv, 10·nbodies)``: ``rigid_regressor`` if given, else
+        computed (once)."""
+        if self.rigid_regressor is not None:
+            return np.asarray(self.rigid_regressor, dtype=float)
+        d = self.dataset
+        return rigid_body_regressor(self.model, d.q, d.dq, d.ddq)
+
+    @cached_property
+    def tau_nom(self) -> np.ndarray:
+        """Nominal torque ``Y π₀`` (+ ``nominal_extra``), (N, nv)."""
+        tau = self.rigid @ self.nominal
+        return tau if self.nominal_extra is None else tau + self.nominal_extra
+
+    @cached_property
+    def residual(self) -> np.ndarray:
+        """Measured minus nominal torque, (N, nv)."""
+        return self.tau - self.tau_nom
+
+    @cached_property
+    def gravity(self) -> np.ndarray:
+        """Nominal gravity torque ``g(q)``, (N, nv)."""
+        d = self.dataset
+        zero = np.zeros_like(d.q)
+        return rigid_body_regressor(self.model, d.q, zero, zero) @ self.nominal
+
+    @cached_property
+    def tilt_gravity(self) -> np.ndarray:
+        """Nominal gravity torque under the tilt derivatives of gravity, (N, nv, 2): column ``k``
+        is ``Y(q, 0, 0; ∂g/∂a_k) π₀`` (:func:`tilt_directions`), the ``tilt`` atom's columns."""
+        d = self.dataset
+        zero = np.zeros_like(d.dq)
+        return np.stack([rigid_body_regressor(self.model.with_gravity(dg), d.q, zero, zero)
+                         @ self.nominal for dg in tilt_directions(self.model.gravity)], axis=2)
+
+    @cached_property
+    def tau_nom_derivatives(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Smoothed ``τ_nom``, ``τ̇_nom``, ``τ̈_nom`` (each (N, nv))."""
+        return time_derivatives(self.dataset, self.tau_nom, self.derivative_window)
+
+    @cached_property
+    def rnea_derivatives(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``∂τ/∂q``, ``∂τ/∂q̇`` and ``M(q)`` of the nominal model, each (N, nv, nv)."""
+        m = self.model.with_parameters(self.nominal).pin_model
+        m.armature[:] = 0.0
+        data = m.createData()
+        d = self.dataset
+        out = [np.empty((self.n, self.nv, self.nv)) for _ in range(3)]
+        for k in range(self.n):
+            dq_, dv_, mm = pin.computeRNEADerivatives(m, data, self.model.configuration(d.q[k]),
+                                                      d.dq[k], d.ddq[k])
+            out[0][k], out[1][k] = dq_, dv_
+            out[2][k] = np.triu(mm) + np.triu(mm, 1).T
+        return out[0], out[1], out[2]
+
+
+
+
+def lowpass_segments(dataset: Dataset, x: np.ndarray, cutoff: float) -> np.ndarray:
+    """``x`` (N,) or (N, m) through the signal chain's zero-phase Butterworth low-pass
+    (:func:`consistid.data.signals.lowpass`) at ``cutoff`` Hz, per recording segment (resampled to a
+    uniform grid at its median step and back when the steps vary); ``inf``: ``x`` unchanged."""
+    if not np.isfinite(cutoff):
+        return x
+    flat = x.reshape(x.shape[0], -1)
+    out = np.empty_like(flat)
+    for s in np.unique(dataset.segment):
+        idx = np.flatnonzero(dataset.segment == s)
+        t = dataset.t[idx]
+        if idx.size < 8:
+            out[idx] = flat[idx]
+            continue
+        dt = float(np.median(np.diff(t)))
+        rate = 1.0 / dt
+        if cutoff >= 0.45 * rate:
+            out[idx] = flat[idx]
+            continue
+        uniform = np.ptp(np.diff(t)) <= 1e-6 * dt
+        if uniform:
+            out[idx] = lowpass(flat[idx], cutoff, rate)
+        else:
+            grid = t[0] + dt * np.arange(int(np.floor((t[-1] - t[0]) / dt)) + 1)
+            xi = np.column_stack([np.interp(grid, t, c) for c in flat[idx].T])
+            yi = lowpass(xi, cutoff, rate)
+            out[idx] = np.column_stack([np.interp(t, grid, c) for c in yi.T])
+    return out.reshape(x.shape)
+
+
+def smooth_sign(x: np.ndarray, speed: float) -> np.ndarray:
+    """``tanh(x / speed)``, or ``sign(x)`` when ``speed`` is 0."""
+    return np.sign(x) if speed <= 0 else np.tanh(x / speed)
+
