@@ -34,20 +34,22 @@ from __future__ import annotations
 import dataclasses
 import time
 import warnings
-from typing import Any, Sequence
+from typing import Any, Iterable, Sequence
 
 import numpy as np
 import scipy.linalg
 
 from .base import COND_WARN, RANK_RTOL, BaseParameters, compute_base_parameters
-from .compression import CompressedProblem, compress, floor_sigma, joint_sigma
+from .compression import CompressedProblem, floor_sigma, joint_sigma
 from ..data.dataset import Dataset, as_dataset
 from ..errors import OptionError, PoorExcitationError, PoorExcitationWarning, check_option
 from ..robot.model import RobotModel, require_model
 from .regressor import DEFAULT_FRICTION, FrictionArg, RegressorSpec, parameter_names, prior_vector
 from .result import IdentificationResult
 from .solver import SolverReport
-from .statistics import autocorrelation_time, coloured_covariance
+from .statistics import coloured_covariance
+from .streaming import (DataStream, as_stream, compress_data, is_one_pass, is_stream,
+                        residual_statistics)
 
 METHODS = ("ols", "wls", "sdp")
 #: ``covariance=`` choices: rows counted as independent, or as ``N / τ_j`` per joint.
@@ -121,7 +123,8 @@ def least_squares(model: RobotModel, problem: CompressedProblem, base: BaseParam
         solver=SolverReport("numpy QR (compressed)", "optimal", time.perf_counter() - start))
 
 
-def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset], method: str = "sdp",
+def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable | DataStream,
+             method: str = "sdp",
              friction: FrictionArg = DEFAULT_FRICTION,
              armature: bool | Sequence[int | str] = False,
              constraints: str | dict[str, str] = "auto",
@@ -133,7 +136,11 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset], method: st
     Parameters
     ----------
     model : the robot; its URDF inertias are the prior ``π₀``.
-    dataset : a :class:`Dataset` with torques, or several (stacked as separate recordings).
+    dataset : a :class:`Dataset` with torques, or a list of them (stacked as separate
+        recordings); or a stream, read one recording at a time and never held in memory whole
+        (:mod:`consistid.identification.streaming`): files (``.npz``/``.csv``), a generator of
+        Datasets, a :class:`~consistid.identification.streaming.DataStream`, or a Dask
+        collection (:mod:`consistid.identification.distributed`). Same answer as the stacked data.
     method : ``"ols"`` (least squares on base parameters), ``"wls"`` (weighted by per-joint noise
         variance), ``"sdp"`` (physically consistent, see :mod:`consistid.identification.sdp`).
     friction : per-joint friction/offset columns, see :meth:`RegressorSpec.make`.
@@ -149,7 +156,8 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset], method: st
         extra pass over the data; the estimate is unchanged; on white noise ``τ_j ≈ 1``);
         ``"iid"`` counts every row as an independent sample. ``"auto"`` (default):
         ``"coloured"``, or ``"iid"`` with ``loss="huber"``, whose re-weighted rows the sandwich
-        does not cover. ``details["covariance"]`` names the choice; with ``"coloured"``,
+        does not cover, and for a stream that can be read only once (a generator: the sandwich
+        needs a second reading). ``details["covariance"]`` names the choice; with ``"coloured"``,
         ``details["autocorrelation_time"]`` gives ``τ_j`` (samples, per joint).
     **options : keyword options of :func:`consistid.identification.sdp.identify_sdp`, for ``method="sdp"`` only.
         Options that only the SDP uses are refused for OLS/WLS, never silently ignored.
@@ -167,7 +175,8 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset], method: st
     check_option("method", method, METHODS)
     check_option("covariance", covariance, COVARIANCE_OPTIONS)
     if covariance == "auto":
-        covariance = "iid" if options.get("loss") == "huber" else "coloured"
+        covariance = ("iid" if options.get("loss") == "huber" or is_one_pass(dataset)
+                      else "coloured")
     if covariance == "coloured" and options.get("loss") == "huber":
         raise OptionError("covariance='coloured' needs the unweighted rows: not with loss='huber'")
     prior = None if prior == "none" else prior
@@ -179,11 +188,14 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset], method: st
             raise OptionError(f"option(s) {extra} apply to method='sdp' only, not {method!r} "
                               "(OLS/WLS are unconstrained and have no prior)")
     require_model(model)
-    dataset = as_dataset(dataset)
-    dataset.check_joints(model.nv, model.joint_names)
+    if is_stream(dataset):  # read part by part (joints checked per part)
+        dataset = as_stream(dataset, covariance, options.get("loss"))
+    else:
+        dataset = as_dataset(dataset)
+        dataset.check_joints(model.nv, model.joint_names)
     spec = RegressorSpec.make(model, friction, armature)
     base = compute_base_parameters(model, spec)
-    problem = compress(model, dataset, spec)
+    problem = compress_data(model, dataset, spec)
     if method in ("ols", "wls"):
         result = least_squares(model, problem, base, spec, weighted=method == "wls")
     else:
@@ -192,13 +204,14 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset], method: st
         result = identify_sdp(model, problem, base, spec,
                               constraints="pseudo-inertia" if constraints == "auto"
                               else constraints,
-                              prior="logdet" if prior == "auto" else prior, dataset=dataset,
+                              prior="logdet" if prior == "auto" else prior,
+                              dataset=dataset if isinstance(dataset, Dataset) else None,
                               **options)
     return with_covariance(result, problem, dataset, covariance)
 
 
-def with_covariance(result: IdentificationResult, problem: CompressedProblem, dataset: Dataset,
-                    covariance: str) -> IdentificationResult:
+def with_covariance(result: IdentificationResult, problem: CompressedProblem,
+                    dataset: Dataset | DataStream, covariance: str) -> IdentificationResult:
     """``result`` with its base covariance counted as ``covariance`` says (module docstring)
     and ``details["covariance"]``, ``details["autocorrelation_time"]`` recorded.
 
@@ -207,18 +220,20 @@ def with_covariance(result: IdentificationResult, problem: CompressedProblem, da
     """
     check_option("covariance", covariance, COVARIANCES)
     if covariance == "iid":
+        once = isinstance(dataset, DataStream) and not dataset.rereadable
         return dataclasses.replace(result, details={
-            **result.details, "covariance": "iid (every row an independent sample)"})
-    residual = result.residual(dataset)
-    tau = autocorrelation_time(dataset, residual)
+            **result.details, "covariance": "iid (every row an independent sample" + (
+                "; a one-pass stream: the coloured sandwich needs a second reading)" if once
+                else ")")})
+    stats = residual_statistics(result.model, result.spec, result.parameters, dataset)
+    tau = stats.autocorrelation_time()
     cols = result.base.independent
     r_b = problem.factors[:, :-1, :-1][:, :, cols]
     grams = np.einsum("jkp,jkq->jpq", r_b, r_b)
     sigma = np.asarray(result.sigma, dtype=float)
     weights = np.where(sigma > 0, 1.0 / np.where(sigma > 0, sigma, 1.0) ** 2, 1.0)
     # each joint's own residual variance (OLS weighs joints alike whatever their noise)
-    variances = joint_sigma(np.sum(residual ** 2, axis=0), dataset.n_samples,
-                            result.base.n_base, tau) ** 2
+    variances = joint_sigma(stats.sum_squares, stats.n_samples, result.base.n_base, tau) ** 2
     cov = coloured_covariance(result.base_covariance, grams, weights, tau,
                               np.where(variances > 0, variances, 1.0 / weights))
     shown = ", ".join(f"{n} {t:.3g}" for n, t in zip(result.model.joint_names, tau))

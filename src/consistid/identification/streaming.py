@@ -1,0 +1,288 @@
+r"""Streaming identification: recordings read one at a time, never all in memory.
+
+The compressed least-squares problem (:mod:`consistid.identification.compression`) is a
+*reduction* over samples. For two disjoint sets of rows ``a`` and ``b`` of joint ``j``,
+
+.. math::  \begin{bmatrix} A_{j,a} \\ A_{j,b} \end{bmatrix}^\top
+           \begin{bmatrix} A_{j,a} \\ A_{j,b} \end{bmatrix}
+           = \bar R_{j,a}^\top \bar R_{j,a} + \bar R_{j,b}^\top \bar R_{j,b}
+           = \bar R_{j,ab}^\top \bar R_{j,ab},
+           \qquad \bar R_{j,ab} = \operatorname{qr}\!\begin{bmatrix} \bar R_{j,a} \\
+           \bar R_{j,b} \end{bmatrix}
+
+so the R factor of all rows is the R factor of the stacked R factors (Golub & Van Loan,
+*Matrix Computations*, 4th ed., §5.2 and §6.5, "updating the QR factorisation"; the tall-skinny
+QR of Demmel, Grigori, Hoemmen, Langou 2012, doi:10.1137/080731992, is the same tree). Each
+recording is compressed on its own (:func:`~consistid.identification.compression.compress`,
+memory ``O(chunk·nv·p)``) and merged into the running factors (:func:`merge`); the problem handed
+to OLS/WLS/SDP is then the one a single in-memory dataset would give, to round-off.
+
+What ``identify`` reads as a stream (:func:`is_stream`): any iterable of
+:class:`~consistid.Dataset` s or of files (``str`` / :class:`~pathlib.Path`, read with
+:meth:`Dataset.load <consistid.Dataset.load>` or a given ``loader``) that is not a list or tuple
+of Datasets (those are already in memory and are stacked, as before), and a :class:`DataStream`.
+
+The coloured covariance (``covariance="coloured"``, :mod:`consistid.identification.statistics`)
+needs the residual of the fitted model, so it reads the data a second time
+(:meth:`DataStream.residual_statistics`). A list of files, or a :class:`DataStream` built on a
+function that returns a fresh iterable, can be read again; a generator cannot, and is refused with
+``covariance="coloured"`` (``covariance="auto"``, the default, then counts rows as independent
+and says so in ``details["covariance"]``; make the stream re-readable for the sandwich). Huber
+re-weighting (``loss="huber"``) re-compresses every sample at every pass and is refused on
+streams.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Iterable, Iterator
+
+import numpy as np
+
+from ..data.dataset import Dataset
+from ..errors import DatasetError, OptionError
+from ..robot.model import RobotModel
+from .compression import CompressedProblem, compress
+from .regressor import RegressorSpec, predict_torque
+from .statistics import autocovariance_sum, integrated_time
+
+#: What a stream yields: a dataset, or a file holding one.
+Part = Dataset | str | os.PathLike
+#: A stream source: an iterable of parts, or a function returning a fresh one (re-readable).
+Source = Iterable[Part] | Callable[[], Iterable[Part]]
+
+
+def merge(a: CompressedProblem, b: CompressedProblem) -> CompressedProblem:
+    """The compressed problem of the rows of ``a`` and ``b`` together (module docstring):
+    per joint ``R̄ = qr([R̄_a; R̄_b])``, sample counts and torque sums of squares added.
+
+    Raises :class:`~consistid.errors.DatasetError` when the two have different shapes
+    (another robot or other regressor columns).
+    """
+    if a.factors.shape != b.factors.shape:
+        raise DatasetError(f"cannot merge compressed problems of shapes {a.factors.shape} and "
+                           f"{b.factors.shape}: other joints or regressor columns")
+    size = a.factors.shape[1]
+    factors = np.empty_like(a.factors)
+    for j in range(a.nv):
+        r = np.linalg.qr(np.vstack([a.factors[j], b.factors[j]]), mode="r")
+        factors[j] = r[:size] if r.shape[0] >= size else np.vstack(
+            [r, np.zeros((size - r.shape[0], size))])
+    return CompressedProblem(factors, a.n_samples + b.n_samples,
+                             a.tau_sum_squares + b.tau_sum_squares)
+
+
+def merge_all(problems: Iterable[CompressedProblem]) -> CompressedProblem:
+    """:func:`merge` folded over ``problems`` (at least one)."""
+    out = None
+    for p in problems:
+        out = p if out is None else merge(out, p)
+    if out is None:
+        raise DatasetError("nothing to merge: no compressed problem was given")
+    return out
+
+
+@dataclass(frozen=True)
+class ResidualStatistics:
+    """What the coloured covariance needs from the residual ``τ − Y θ`` of the fitted model.
+
+    Attributes
+    ----------
+    autocovariance : (lags, nv) autocovariance sums pooled over recordings
+        (:func:`consistid.identification.statistics.autocovariance_sum`), or ``None``.
+    sum_squares : (nv,) residual sum of squares per joint (N·m)².
+    n_samples : samples read.
+    """
+
+    autocovariance: np.ndarray | None
+    sum_squares: np.ndarray
+    n_samples: int
+
+    @classmethod
+    def of(cls, model: RobotModel, spec: RegressorSpec, theta: np.ndarray,
+           dataset: Dataset) -> "ResidualStatistics":
+        """The statistics of one in-memory dataset (one pass, chunked by
+        :func:`~consistid.identification.regressor.predict_torque`)."""
+        residual = dataset.require_torque() - predict_torque(model, dataset, spec, theta)
+        return cls(autocovariance_sum(dataset, residual), np.sum(residual ** 2, axis=0),
+                   dataset.n_samples)
+
+    def __add__(self, other: "ResidualStatistics") -> "ResidualStatistics":
+        a, b = self.autocovariance, other.autocovariance
+        pooled = a if b is None else b if a is None else a[: b.shape[0]] + b[: a.shape[0]]
+        return ResidualStatistics(pooled, self.sum_squares + other.sum_squares,
+                                  self.n_samples + other.n_samples)
+
+    def autocorrelation_time(self) -> np.ndarray:
+        """``τ_j`` per joint (:func:`consistid.identification.statistics.integrated_time`)."""
+        return integrated_time(self.autocovariance, self.sum_squares.size)
+
+
+def _label(part: Part, k: int) -> str:
+    return f"file {str(part)!r}" if isinstance(part, (str, os.PathLike)) else f"data[{k}]"
+
+
+class DataStream:
+    """Recordings read one at a time, for :func:`consistid.identify` (module docstring).
+
+    Parameters
+    ----------
+    source : an iterable of :class:`~consistid.Dataset` s and/or files, or a function of no
+        argument returning one (then the stream can be read again, e.g. for the coloured
+        covariance). A list or tuple can be read again; an iterator or generator only once.
+    loader : reads a file into a Dataset; default :meth:`Dataset.load` (``.npz``/``.csv``). E.g.
+        ``lambda path: consistid.load_recording(path, model=model).dataset`` for robot logs.
+
+    Examples
+    --------
+    >>> files = sorted(Path("logs").glob("*.npz"))
+    >>> res = ci.identify(model, files)                            # read one file at a time
+    >>> res = ci.identify(model, (make_chunk(k) for k in range(100)), covariance="iid")
+    """
+
+    def __init__(self, source: Source, loader: Callable[[Path], Dataset] | None = None) -> None:
+        if isinstance(source, (Dataset, str, bytes, os.PathLike)):
+            raise DatasetError(f"a stream is an iterable of Datasets or files, got one "
+                               f"{type(source).__name__}: pass [it], or the Dataset itself "
+                               "to identify")
+        if not callable(source):
+            try:
+                iter(source)  # type: ignore[call-overload]
+            except TypeError:
+                raise DatasetError(f"a stream is an iterable of Datasets or files, got "
+                                   f"{type(source).__name__} {source!r:.60}") from None
+        if loader is not None and not callable(loader):
+            raise OptionError(f"loader must be a function path → Dataset, got {loader!r:.60}")
+        self.source = source
+        self.loader = loader or Dataset.load
+        self._read = False
+
+    @property
+    def rereadable(self) -> bool:
+        """Whether the stream can be read more than once (a function or a container, not an
+        iterator)."""
+        if callable(self.source):
+            return True
+        return iter(self.source) is not self.source  # type: ignore[call-overload]
+
+    def __repr__(self) -> str:
+        kind = "re-readable" if self.rereadable else "one pass"
+        return f"DataStream({type(self.source).__name__}, {kind})"
+
+    # -------------------------------------------------------------------------- reading
+    def parts(self, model: RobotModel | None = None) -> Iterator[tuple[str, Dataset]]:
+        """``(label, dataset)`` of each part in turn, files loaded, joints checked against
+        ``model``. Raises :class:`DatasetError` naming the part that is not a dataset or file, and
+        when a one-pass stream is read a second time."""
+        if self._read and not self.rereadable:
+            raise DatasetError("this stream (an iterator or generator) was already read once; "
+                               "build the DataStream on a list of files or on a function that "
+                               "returns a fresh iterable to read it again")
+        self._read = True
+        source = self.source() if callable(self.source) else self.source
+        for k, part in enumerate(source):
+            label = _label(part, k)
+            if isinstance(part, (str, os.PathLike)):
+                try:
+                    data = self.loader(Path(part))
+                except DatasetError as exc:
+                    raise DatasetError(f"{label}: {exc}") from exc
+            else:
+                data = part
+            if not isinstance(data, Dataset):
+                raise DatasetError(f"{label} is a {type(data).__name__}, not a Dataset or a file "
+                                   "(the loader must return a Dataset)")
+            if model is not None:
+                try:
+                    data.check_joints(model.nv, model.joint_names)
+                    data.require_torque()
+                except DatasetError as exc:
+                    raise type(exc)(f"{label}: {exc}") from exc
+            yield label, data
+
+    def compress(self, model: RobotModel, spec: RegressorSpec) -> CompressedProblem:
+        """The compressed problem of every part: one pass, each part compressed and merged
+        (:func:`merge`); memory that of one part plus ``O(nv·p²)``."""
+        problem = None
+        for _, data in self.parts(model):
+            part = compress(model, data, spec)
+            problem = part if problem is None else merge(problem, part)
+        if problem is None:
+            raise DatasetError("the data stream is empty: it yielded no Dataset or file")
+        return problem
+
+    def residual_statistics(self, model: RobotModel, spec: RegressorSpec,
+                            theta: np.ndarray) -> ResidualStatistics:
+        """:class:`ResidualStatistics` of ``τ − Y θ`` over every part (a second pass; each part
+        counts as its own recordings for the autocorrelation)."""
+        total = None
+        for _, data in self.parts(model):
+            stats = ResidualStatistics.of(model, spec, theta, data)
+            total = stats if total is None else total + stats
+        if total is None:
+            raise DatasetError("the data stream is empty on its second reading: a function "
+                               "source must return a fresh iterable each time")
+        return total
+
+
+def is_stream(data: Any) -> bool:
+    """Whether ``identify`` reads ``data`` as a stream (module docstring): a
+    :class:`DataStream`, a list/tuple holding a file, or any other iterable that is not a
+    Dataset (a generator, a ``map``, …). A list or tuple of Datasets is not (it is stacked)."""
+    if isinstance(data, DataStream):
+        return True
+    if isinstance(data, (Dataset, str, bytes, os.PathLike)):
+        return False
+    if isinstance(data, (list, tuple)):
+        return any(isinstance(d, (str, os.PathLike)) for d in data)
+    try:
+        iter(data)
+    except TypeError:
+        return False
+    return True
+
+
+def is_one_pass(data: Any) -> bool:
+    """Whether ``data`` is a stream that can be read only once (an iterator or generator)."""
+    return is_stream(data) and not (data if isinstance(data, DataStream)
+                                    else DataStream(data)).rereadable
+
+
+def as_stream(data: Any, covariance: str = "iid", loss: str | None = None) -> DataStream:
+    """``data`` as a :class:`DataStream`, refusing options a stream cannot honour:
+    ``loss="huber"`` (re-reads every sample per pass) and ``covariance="coloured"`` on a
+    one-pass stream (the residual needs a second reading)."""
+    stream = data if isinstance(data, DataStream) else DataStream(data)
+    if loss == "huber":
+        raise OptionError("loss='huber' re-weights every sample at every pass, which a stream of "
+                          "recordings does not allow: load the data as one Dataset, or use "
+                          "loss='squared'")
+    if covariance == "coloured" and not stream.rereadable:
+        raise OptionError("covariance='coloured' (the default) reads the data a second time for "
+                          "the residual's autocorrelation, and this stream (an iterator or "
+                          "generator) can be read once: pass covariance='iid', or a list of "
+                          "files, or DataStream(function returning a fresh iterable)")
+    return stream
+
+
+def compress_data(model: RobotModel, data: Dataset | DataStream,
+                  spec: RegressorSpec) -> CompressedProblem:
+    """The compressed problem of an in-memory dataset or of a stream."""
+    if isinstance(data, DataStream):
+        return data.compress(model, spec)
+    return compress(model, data, spec)
+
+
+def residual_statistics(model: RobotModel, spec: RegressorSpec, theta: np.ndarray,
+                        data: Dataset | DataStream) -> ResidualStatistics:
+    """:class:`ResidualStatistics` of ``τ − Y θ`` on an in-memory dataset or a stream."""
+    if isinstance(data, DataStream):
+        return data.residual_statistics(model, spec, theta)
+    return ResidualStatistics.of(model, spec, theta, data)
+
+
+__all__ = ["DataStream", "ResidualStatistics", "as_stream", "compress_data", "is_one_pass",
+           "is_stream",
+           "merge", "merge_all", "residual_statistics"]
