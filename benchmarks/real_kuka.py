@@ -8,7 +8,7 @@ Data: ``../shared/data/kuka_lwr4`` beside the checkout (FloBaRoID project, LGPL-
 into consistid), or ``--data DIR``. The upstream recipe: identify on measurements_2 +
 measurements_3 (stacked as two segments), validate on measurements_1 (the same trajectory as
 measurements_2, recorded 29 min earlier). Every recording loses its first 2 s (run-in from rest:
-see docs/tutorial_real_kuka.md for the measurement behind the rule).
+see docs/tutorials/real_kuka.md for the measurement behind the rule).
 
 Prints: (1) what the loader did; (2) the held-out table — per-joint and total relative error (%),
 RMS (N·m) — for every model; (3) physical consistency (minimum pseudo-inertia eigenvalue per

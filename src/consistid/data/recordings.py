@@ -29,7 +29,7 @@ what was done:
    The start of an excitation run — the move away from rest, the filters' start-up — is not
    described by a steady model; how long it lasts depends on the set-up, so the durations are
    explicit arguments (0 by default) and always recorded. For the KUKA LWR4+ logs the tutorial
-   measures it (``docs/tutorial_real_kuka.md``: a model fitted on the steady part leaves 2–5×
+   measures it (``docs/tutorials/real_kuka.md``: a model fitted on the steady part leaves 2–5×
    its steady residual during the first 2 s): 2 s.
 """
 
