@@ -1,0 +1,535 @@
+r"""Recursive least squares on the base parameters, with forgetting, anti-windup and change
+detection: the estimate a controller loop can update at 1 kHz.
+
+The torque model is linear in the base parameters (:mod:`consistid.identification.base`),
+``τ_k = W_k β + ε_k`` with ``W_k`` the independent columns of the regressor row
+(:mod:`consistid.identification.regressor`: rigid body, then the friction/offset/armature columns)
+and ``ε_k ~ N(0, Σ)``, ``Σ = diag(σ_j²)``. One sample (``n_v`` equations at once) updates the
+estimate ``β̂`` and its covariance ``P`` as the Kalman filter of a constant parameter does
+(Ljung & Söderström, *Theory and Practice of Recursive Identification*, MIT Press 1983, §2.6;
+Åström & Wittenmark, *Adaptive Control*, 2nd ed., §2.2):
+
+.. math::
+
+    \bar P = P_{k-1}/\lambda_k, \quad
+    S_k = W_k \bar P W_k^\top + \Sigma, \quad
+    K_k = \bar P W_k^\top S_k^{-1}, \\
+    e_k = \tau_k - W_k \hat\beta_{k-1}, \quad
+    \hat\beta_k = \hat\beta_{k-1} + K_k e_k, \quad
+    P_k = \bar P - K_k S_k K_k^\top .
+
+``λ ∈ (0, 1]`` is exponential forgetting: old samples weigh ``λ^age``, a memory of
+``1/(1 − λ)`` samples. The cost per sample is ``O(n_v b²)`` flops and the memory ``O(b²)``,
+independent of time.
+
+Windup. When the motion stops exciting some directions, forgetting divides their variance by
+``λ`` every sample and ``P`` grows without bound, so the next informative sample makes the
+estimate jump. ``windup="trace"`` bounds ``tr P``: the sample's forgetting factor is raised
+towards 1 so that ``tr(P_{k−1}/λ_k) ≤ t_max`` (the "constant trace" idea of Sripada & Fisher,
+"Improved least squares identification", Int. J. Control 46(6), 1987,
+doi:10.1080/00207178708933989; Åström & Wittenmark §11.2), ``λ_k = max(λ, tr P_{k−1}/t_max)``
+capped at 1; ``t_max`` defaults to the trace of the initial covariance. Information in the
+directions the data keep exciting is still forgotten at rate λ while the trace is below the
+bound.
+
+Change detection: ``χ²_k = e_kᵀ S_k⁻¹ e_k`` (the whitened innovation, before the sample updates
+the estimate) feeds a detector of :mod:`consistid.online.change`. On a flag the estimator
+adapts (``on_change``): ``"payload"`` adds the prior covariance of a payload on the last body
+(:data:`PAYLOAD_PRIOR_MASS`, :data:`PAYLOAD_PRIOR_RADIUS`; the rule of change of Gaz & De Luca
+2017 cited in :mod:`consistid.estimation.payload`: ``β_L = β + B_{[:, n]} π_L``) to ``P``, so the
+ten directions a payload moves are re-learnt at once and the rest is kept; ``"reset"`` divides
+the information by :data:`RESET_FACTOR` (every direction re-learnt); ``None`` only flags. The
+estimate and covariance just before the flag are kept (:attr:`RecursiveEstimator.changes`), and
+:meth:`RecursiveEstimator.payload` runs :func:`consistid.payload_from_base_change` between them
+and the current estimate.
+
+Noise. ``noise_std`` (per joint, N·m) weights the joints and scales ``S``; without it ``σ_j`` is
+estimated from the a-posteriori residuals (an exponential average over
+:data:`NOISE_MEMORY` samples, frozen while a change is being absorbed), and the detector is armed
+only after ``warmup`` samples.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Sequence
+
+import numpy as np
+import pinocchio as pin
+from scipy.linalg.lapack import dpotrf as _potrf, dtrtri as _trtri
+
+from ..errors import (DatasetError, IdentificationError, JointCountError, OptionError,
+                      check_number, check_option)
+from ..identification.base import BaseParameters, compute_base_parameters, random_states
+from ..identification.regressor import (DEFAULT_FRICTION, FrictionArg, RegressorSpec,
+                                        parameter_names, prior_vector, regressor)
+from ..robot.model import RobotModel, require_model
+from .change import ChangeDetector, Cusum, WindowedChiSquare
+
+WINDUP = (None, "trace")
+ON_CHANGE = (None, "payload", "reset")
+DETECTORS = (None, "chi2", "cusum")
+#: Default a-priori standard deviation of each base parameter, as the torque (N·m) it makes
+#: on the random states of the base map: ``std_i = PRIOR_TORQUE / rms(W_i)``.
+PRIOR_TORQUE = 10.0
+#: Prior of a grasped payload used by ``on_change="payload"``: mass standard deviation (kg) and
+#: the size (m) that scales its first and second moments (``m r``, ``m r²``).
+PAYLOAD_PRIOR_MASS, PAYLOAD_PRIOR_RADIUS = 10.0, 0.3
+#: ``on_change="reset"`` multiplies the information ``P⁻¹`` by this.
+RESET_FACTOR = 1e-4
+#: Samples of the exponential average that estimates σ when ``noise_std`` is not given.
+NOISE_MEMORY = 2000
+#: Initial σ (N·m) while it is being estimated.
+NOISE_START = 1.0
+
+
+@dataclass(frozen=True, eq=False)
+class Change:
+    """A flagged change.
+
+    Attributes
+    ----------
+    index : the sample (count of updates from 0) at which it was flagged.
+    time : its time (s), if the samples were given times (``t=``), else ``None``.
+    statistic, threshold : the detector's value and threshold at the flag.
+    base_parameters, covariance : the estimate ``β̂`` and ``P`` just before the sample that
+        flagged it (what the robot was before the change, for :meth:`RecursiveEstimator.payload`).
+    """
+
+    index: int
+    time: float | None
+    statistic: float
+    threshold: float
+    base_parameters: np.ndarray = field(repr=False)
+    covariance: np.ndarray = field(repr=False)
+
+    def __str__(self) -> str:
+        when = f"t = {self.time:.3f} s" if self.time is not None else f"sample {self.index}"
+        return f"change flagged at {when} (statistic {self.statistic:.4g} > {self.threshold:.4g})"
+
+
+@dataclass(frozen=True, eq=False)
+class RecursiveTrace:
+    """What :meth:`RecursiveEstimator.update_batch` saw, one row per sample.
+
+    Attributes
+    ----------
+    index : (N,) sample indices (counts of updates).
+    t : (N,) times, or ``None``.
+    base_parameters : (N, b) the estimate after each sample (``None`` with ``record=False``).
+    std : (N, b) its standard deviations ``sqrt(diag P)`` (``None`` with ``record=False``).
+    statistic : (N,) the per-sample ``χ²`` of the whitened innovation.
+    flagged : indices (into this batch) of the samples that flagged a change.
+    """
+
+    index: np.ndarray
+    t: np.ndarray | None
+    base_parameters: np.ndarray | None
+    std: np.ndarray | None
+    statistic: np.ndarray
+    flagged: np.ndarray
+
+
+class RecursiveEstimator:
+    r"""Recursive least squares on the base parameters (module docstring).
+
+    Parameters
+    ----------
+    model : the robot.
+    friction, armature : per-joint columns (:meth:`RegressorSpec.make`); default Coulomb,
+        viscous and offset on every joint, no armature (as :func:`consistid.identify`).
+    forgetting : ``λ ∈ (0, 1]`` (1: no forgetting; ``0.9999`` at 1 kHz is a 10 s memory).
+    noise_std : per-joint torque noise σ (N·m), a number or ``(nv,)``; default estimated online.
+    windup : ``None`` or ``"trace"`` (bounded trace, module docstring).
+    max_trace : the trace bound of ``windup="trace"``; default the initial covariance's trace.
+    detector : ``"chi2"`` (:class:`~consistid.online.change.WindowedChiSquare`, default),
+        ``"cusum"``, ``None``, or a detector object.
+    on_change : ``"payload"`` (default), ``"reset"`` or ``None`` (module docstring).
+    warmup : samples before the detector is armed; default 0 with ``noise_std``, else
+        ``2·NOISE_MEMORY``.
+    initial : (b,) initial base estimate; default the URDF's (``B π₀``, zero friction).
+    initial_std : (b,) or a number: its standard deviations; default ``PRIOR_TORQUE/rms(W_i)``.
+    base : the base map (default :func:`compute_base_parameters` of the spec).
+    payload_frame : frame of the payload for ``on_change="payload"`` and :meth:`payload`
+        (default the last joint's).
+
+    Attributes
+    ----------
+    base : :class:`BaseParameters`; ``spec`` the regressor columns; ``parameter_names`` the
+        base names (``base.names``); ``n_updates``.
+
+    Raises
+    ------
+    OptionError : a bad option (named, with its allowed values or range).
+    """
+
+    def __init__(self, model: RobotModel, friction: FrictionArg = DEFAULT_FRICTION,
+                 armature: bool | Sequence[int | str] = False, forgetting: float = 1.0, *,
+                 noise_std: float | Sequence[float] | None = None,
+                 windup: str | None = None, max_trace: float | None = None,
+                 detector: str | ChangeDetector | None = "chi2",
+                 on_change: str | None = "payload", warmup: int | None = None,
+                 initial: np.ndarray | None = None,
+                 initial_std: float | np.ndarray | None = None,
+                 base: BaseParameters | None = None,
+                 payload_frame: str | None = None) -> None:
+        self.model = require_model(model)
+        self.spec = RegressorSpec.make(model, friction, armature)
+        self.forgetting = check_number("forgetting", forgetting, 0, strict=True)
+        if self.forgetting > 1:
+            raise OptionError(f"forgetting must lie in (0, 1] (1: no forgetting), got "
+                              f"{forgetting!r}")
+        check_option("windup", windup, WINDUP)
+        check_option("on_change", on_change, ON_CHANGE)
+        self.windup, self.on_change = windup, on_change
+        self.base = base or compute_base_parameters(model, self.spec)
+        names = parameter_names(model, self.spec)
+        if tuple(self.base.standard_names) != tuple(names):
+            raise OptionError(f"base= is a map of {self.base.n_standard} columns "
+                              f"({self.base.standard_names[-1]!r} last), but friction/armature "
+                              f"give {len(names)} ({names[-1]!r} last)")
+        self.parameter_names = tuple(self.base.names)
+        nv, b = model.nv, self.base.n_base
+        self._prepare_columns()
+        self._scale = self._column_rms()
+        self._beta = (self.base.project(prior_vector(model, self.spec)) if initial is None
+                      else self._vector("initial", initial, b))
+        if initial_std is None:
+            std = PRIOR_TORQUE / self._scale
+        elif np.ndim(initial_std) == 0:
+            std = np.full(b, check_number("initial_std", initial_std, 0, strict=True))
+        else:
+            std = self._vector("initial_std", initial_std, b)
+            if np.any(std <= 0):
+                raise OptionError("initial_std must be > 0 for every base parameter")
+        self._p = np.diag(std ** 2)
+        self.max_trace = (float(np.trace(self._p)) if max_trace is None
+                          else check_number("max_trace", max_trace, 0, strict=True))
+        if noise_std is None:
+            self._sigma2 = np.full(nv, NOISE_START ** 2)
+            self.noise_given = False
+        else:
+            sigma = (np.full(nv, check_number("noise_std", noise_std, 0, strict=True))
+                     if np.ndim(noise_std) == 0 else self._vector("noise_std", noise_std, nv))
+            if np.any(sigma <= 0):
+                raise OptionError("noise_std must be > 0 on every joint")
+            self._sigma2 = sigma ** 2
+            self.noise_given = True
+        self._sigma_matrix = np.diag(self._sigma2)
+        self.warmup = (check_number("warmup", warmup, 0, integer=True) if warmup is not None
+                       else 0 if self.noise_given else 2 * NOISE_MEMORY)
+        if isinstance(detector, str) or detector is None:
+            check_option("detector", detector, DETECTORS)
+            self.detector = (None if detector is None else WindowedChiSquare()
+                             if detector == "chi2" else Cusum())
+        elif hasattr(detector, "step") and hasattr(detector, "reset"):
+            self.detector = detector
+        else:
+            raise OptionError(f"detector must be 'chi2', 'cusum', None or an object with step() "
+                              f"and reset(), got {detector!r}")
+        self.payload_frame = payload_frame
+        self._payload_cov = self._payload_covariance() if on_change == "payload" else None
+        self._data = model.pin_model.createData()
+        self._changes: list[Change] = []
+        self._flag = False
+        self._absorbing = 0
+        self.n_updates = 0
+        self.last_statistic = float("nan")
+        self.last_forgetting = self.forgetting
+
+    # ------------------------------------------------------------------------- set-up helpers
+    @staticmethod
+    def _vector(name: str, value: Any, size: int) -> np.ndarray:
+        try:
+            out = np.array(value, dtype=float).reshape(-1)
+        except (TypeError, ValueError) as exc:
+            raise OptionError(f"{name} must be {size} numbers, got {value!r:.80}") from exc
+        if out.shape != (size,) or not np.all(np.isfinite(out)):
+            raise OptionError(f"{name} must be {size} finite numbers, got shape {out.shape}")
+        return out
+
+    def _prepare_columns(self) -> None:
+        """Index arrays that build the base row from one regressor call and the joint signals."""
+        n_in, base = self.model.n_inertial, self.base
+        independent = base.independent
+        self._rigid_src = independent[independent < n_in]
+        self._rigid_dst = np.flatnonzero(independent < n_in)
+        suffixes = ("fc", "fv", "fo", "ps1", "pc1", "Ia")
+        rows, dst, src = [], [], []
+        columns = self.spec.columns
+        for d, i in enumerate(independent):
+            if i < n_in:
+                continue
+            _, j, suffix = columns[i - n_in]
+            rows.append(j)
+            dst.append(d)
+            src.append(suffixes.index(suffix) * self.model.nv + j)
+        self._joint_rows = np.array(rows, dtype=int)
+        self._joint_dst = np.array(dst, dtype=int)
+        self._joint_src = np.array(src, dtype=int)
+        self._n_rigid = self._rigid_src.size          # rigid columns come first (sorted)
+        self._w = np.zeros((self.model.nv, base.n_base))
+        self._ones = np.ones(self.model.nv)
+
+    def _column_rms(self) -> np.ndarray:
+        """RMS of each base column over the base map's random states (torque per unit)."""
+        q, dq, ddq = random_states(self.model, 200, np.random.default_rng(0))
+        w = self.base.base_columns(regressor(self.model, q, dq, ddq, self.spec))
+        rms = np.sqrt(np.mean(w ** 2, axis=0))
+        return np.where(rms > 0, rms, 1.0)
+
+    def _payload_covariance(self) -> np.ndarray:
+        """``B_{[:, n]} A diag(s²) Aᵀ B_{[:, n]}ᵀ``: the base-parameter covariance of a payload
+        of the prior size on the last body (``A`` the change from ``payload_frame``)."""
+        from ..estimation.payload import frame_transform  # noqa: PLC0415 (cvxpy)
+
+        pm = self.model.pin_model
+        joint = self.model.nv
+        rotation, translation = np.eye(3), np.zeros(3)
+        if self.payload_frame is not None:
+            if not pm.existFrame(self.payload_frame):
+                raise OptionError(f"payload_frame {self.payload_frame!r} is not a frame of "
+                                  f"{self.model.name}")
+            frame = pm.frames[pm.getFrameId(self.payload_frame)]
+            joint = frame.parentJoint
+            rotation, translation = frame.placement.rotation, frame.placement.translation
+        a = frame_transform(rotation, translation)
+        m, r = PAYLOAD_PRIOR_MASS, PAYLOAD_PRIOR_RADIUS
+        s = np.array([m, m * r, m * r, m * r] + [m * r * r] * 6)
+        cols = self.base.matrix[:, 10 * (joint - 1):10 * joint] @ a
+        return (cols * s ** 2) @ cols.T
+
+    # ------------------------------------------------------------------------- properties
+    @property
+    def base_parameters(self) -> np.ndarray:
+        """(b,) the current estimate ``β̂`` (a copy), named by :attr:`parameter_names`."""
+        return self._beta.copy()
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """(b, b) its covariance ``P`` (a copy)."""
+        return self._p.copy()
+
+    @property
+    def std(self) -> np.ndarray:
+        """(b,) ``sqrt(diag P)``."""
+        return np.sqrt(np.diag(self._p))
+
+    @property
+    def noise_std(self) -> np.ndarray:
+        """(nv,) the σ in use (given, or the running estimate)."""
+        return np.sqrt(self._sigma2)
+
+    @property
+    def change_detected(self) -> bool:
+        """``True`` when the last :meth:`update` flagged a change."""
+        return self._flag
+
+    @property
+    def changes(self) -> tuple[Change, ...]:
+        """Every change flagged so far, in order."""
+        return tuple(self._changes)
+
+    def predict(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> np.ndarray:
+        """``W(q, q̇, q̈) β̂`` for one sample (vectors) or many (``(N, nv)`` arrays)."""
+        q, dq, ddq = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (q, dq, ddq))
+        out = np.empty_like(q)
+        for k in range(q.shape[0]):
+            out[k] = self.row(q[k], dq[k], ddq[k]) @ self._beta
+        return out
+
+    # ------------------------------------------------------------------------- one sample
+    def row(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> np.ndarray:
+        """The base regressor row ``W(q, q̇, q̈)``, shape ``(nv, b)`` (inputs not checked)."""
+        m = self.model.pin_model
+        qc = q if m.nq == m.nv else self.model.configuration(q)
+        y = pin.computeJointTorqueRegressor(m, self._data, qc, dq, ddq)
+        w = self._w
+        w[:, :self._n_rigid] = y[:, self._rigid_src]
+        if self._joint_dst.size:
+            signals = np.concatenate([np.sign(dq), dq, self._ones, np.sin(q), np.cos(q), ddq])
+            w[self._joint_rows, self._joint_dst] = signals[self._joint_src]
+        return w.copy()
+
+    def _check(self, q: Any, dq: Any, ddq: Any, tau: Any) -> tuple[np.ndarray, ...]:
+        nv = self.model.nv
+        out = tuple(np.asarray(v, dtype=float) for v in (q, dq, ddq, tau))
+        if all(a.shape == (nv,) for a in out) and math.isfinite(
+                float(out[0].sum() + out[1].sum() + out[2].sum() + out[3].sum())):
+            return out
+        for name, a in zip(("q", "dq", "ddq", "tau"), out):        # say what is wrong
+            if a.shape != (nv,):
+                raise JointCountError(f"update: {name} has shape {a.shape}; {self.model.name} "
+                                      f"needs a vector of {nv} (one sample; update_batch takes "
+                                      "(N, nv) arrays)")
+            bad = np.flatnonzero(~np.isfinite(a))
+            if bad.size:
+                raise DatasetError(
+                    f"update: sample {self.n_updates}: {name}[{self.model.joint_names[bad[0]]!r}]"
+                    f" is {a[bad[0]]} ({bad.size} non-finite value(s)); the sample was refused "
+                    "and the estimate is unchanged")
+        raise DatasetError(f"update: sample {self.n_updates} overflows (sum of its entries is "
+                           "not finite); the sample was refused and the estimate is unchanged")
+
+    def update(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray, tau: np.ndarray,
+               t: float | None = None) -> np.ndarray:
+        """Take one sample (vectors of length ``nv``); return the updated ``β̂`` (a view: copy it
+        to keep it).
+
+        A sample with a NaN or infinite entry, or of the wrong width, raises
+        (:class:`~consistid.errors.DatasetError`, :class:`~consistid.errors.JointCountError`)
+        before touching the estimate. ``t`` (s) is recorded with a flagged change.
+        """
+        q, dq, ddq, tau = self._check(q, dq, ddq, tau)
+        return self._update(self.row(q, dq, ddq), tau, t)
+
+    def _update(self, w: np.ndarray, tau: np.ndarray, t: float | None) -> np.ndarray:
+        p, beta = self._p, self._beta
+        lam = self.forgetting
+        if self.windup == "trace" and lam < 1.0:
+            lam = min(1.0, max(lam, float(np.trace(p)) / self.max_trace))
+        self.last_forgetting = lam
+        p_bar = p / lam if lam != 1.0 else p
+        pw = p_bar @ w.T                                            # (b, nv)
+        s = w @ pw + self._sigma_matrix
+        chol, info = _potrf(s, lower=1)                             # S = L Lᵀ
+        if info != 0:
+            raise IdentificationError(
+                f"update: sample {self.n_updates}: the innovation covariance is not positive "
+                "definite (the covariance P lost definiteness); the estimate is unchanged")
+        l_inv, _ = _trtri(chol, lower=1)       # dpotrf zeroed the upper triangle (clean=1)
+        e = tau - w @ beta
+        white = l_inv @ e                                           # S^{-1/2} e
+        chi2 = float(white @ white)
+        self.last_statistic = chi2
+        self._flag = False
+        if (self.detector is not None and self.n_updates >= self.warmup
+                and self._absorbing == 0):
+            flag, value = self.detector.step(chi2, self.model.nv)
+            if flag:
+                self._flag = True
+                self._changes.append(Change(self.n_updates, t, float(value),
+                                            float(self.detector.threshold), beta.copy(),
+                                            p.copy()))
+                self.detector.reset()
+                if self.on_change is not None:
+                    return self._absorb(w, tau, t)
+        g = pw @ l_inv.T                                            # K = G L⁻¹
+        new_beta = beta + g @ white
+        new_p = p_bar - g @ g.T                                     # symmetric (syrk)
+        if not (math.isfinite(float(new_beta.sum())) and math.isfinite(float(new_p.sum()))):
+            raise IdentificationError(f"update: sample {self.n_updates} made the estimate "
+                                      "non-finite; it was not applied (check the sample's scale)")
+        self._beta, self._p = new_beta, new_p
+        if not self.noise_given and self._absorbing == 0:
+            r = tau - w @ new_beta
+            self._sigma2 += (r * r - self._sigma2) / min(self.n_updates + 1, NOISE_MEMORY)
+            self._sigma_matrix = np.diag(self._sigma2)
+        if self._absorbing:
+            self._absorbing -= 1
+        self.n_updates += 1
+        return self._beta
+
+    def _absorb(self, w: np.ndarray, tau: np.ndarray, t: float | None) -> np.ndarray:
+        """Adapt to a flagged change (``on_change``), then take the flagging sample."""
+        if self.on_change == "payload":
+            self._p = self._p + self._payload_cov
+        else:
+            self._p = self._p / RESET_FACTOR
+        window = getattr(self.detector, "window", getattr(self.detector, "refractory", 0))
+        self._absorbing = max(int(window), 1)
+        return self._update_after_flag(w, tau, t)
+
+    def _update_after_flag(self, w: np.ndarray, tau: np.ndarray, t: float | None) -> np.ndarray:
+        flag = self._flag
+        out = self._update(w, tau, t)
+        self._flag = flag
+        return out
+
+    # ------------------------------------------------------------------------- many samples
+    def update_batch(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray, tau: np.ndarray,
+                     t: np.ndarray | None = None, record: bool = True) -> RecursiveTrace:
+        """:meth:`update` on each row of ``(N, nv)`` arrays, in order (the same code path).
+
+        All rows are checked before the first is used: a NaN anywhere raises
+        :class:`~consistid.errors.DatasetError` naming the field, the row and the joint, and no
+        row is taken. ``record=False`` keeps only the statistics (O(N) memory, not O(N b)).
+        """
+        arrays = []
+        for name, value in (("q", q), ("dq", dq), ("ddq", ddq), ("tau", tau)):
+            a = np.asarray(value, dtype=float)
+            if a.ndim != 2 or a.shape[1] != self.model.nv:
+                raise JointCountError(f"update_batch: {name} has shape {a.shape}; expected "
+                                      f"(N, {self.model.nv})")
+            arrays.append(a)
+        n = arrays[0].shape[0]
+        for name, a in zip(("q", "dq", "ddq", "tau"), arrays):
+            if a.shape[0] != n:
+                raise DatasetError(f"update_batch: {name} has {a.shape[0]} rows, q has {n}")
+            bad = np.argwhere(~np.isfinite(a))
+            if bad.size:
+                k, j = (int(i) for i in bad[0])
+                raise DatasetError(f"update_batch: {name}[{k}, {self.model.joint_names[j]!r}] "
+                                   f"is {a[k, j]}; no sample of the batch was taken")
+        times = None if t is None else np.asarray(t, dtype=float).reshape(-1)
+        if times is not None and times.shape != (n,):
+            raise DatasetError(f"update_batch: t has shape {times.shape}; expected ({n},)")
+        start = self.n_updates
+        b = self.base.n_base
+        betas = np.empty((n, b)) if record else None
+        stds = np.empty((n, b)) if record else None
+        stats = np.empty(n)
+        flagged = []
+        qa, dqa, ddqa, taua = arrays
+        for k in range(n):
+            self._update(self.row(qa[k], dqa[k], ddqa[k]), taua[k],
+                         None if times is None else float(times[k]))
+            stats[k] = self.last_statistic
+            if self._flag:
+                flagged.append(k)
+            if record:
+                betas[k] = self._beta
+                stds[k] = np.sqrt(np.diag(self._p))
+        return RecursiveTrace(np.arange(start, start + n), times, betas, stds, stats,
+                              np.array(flagged, dtype=int))
+
+    # ------------------------------------------------------------------------- answers
+    def payload(self, change: Change | int = -1, **options: Any):
+        """The payload between the estimate before ``change`` (default the last) and now:
+        :func:`consistid.payload_from_base_change` with both covariances.
+
+        ``options`` go to it (``ellipsoid``, ``com_bounds``, ``mass_range``, ``solver`` …).
+        Raises :class:`~consistid.errors.OptionError` when no change was flagged.
+        """
+        from ..estimation.payload import payload_from_base_change  # noqa: PLC0415 (cvxpy)
+
+        if isinstance(change, (int, np.integer)):
+            if not self._changes:
+                raise OptionError("payload(): no change has been flagged yet (est.changes is "
+                                  "empty); pass a Change")
+            change = self._changes[int(change)]
+        return payload_from_base_change(
+            self.model, change.base_parameters, self._beta, base=self.base,
+            covariance_unloaded=change.covariance, covariance_loaded=self._p,
+            frame=self.payload_frame, **options)
+
+    def consistent_parameters(self, projector: Any = None):
+        """The current estimate projected onto the physically consistent set
+        (:class:`consistid.online.projection.ConsistencyProjector`, built on first use and
+        reused, so later calls only re-solve): a
+        :class:`~consistid.online.projection.ProjectedEstimate` with the standard parameters,
+        the solver's status and the projection's time."""
+        from .projection import ConsistencyProjector  # noqa: PLC0415 (cvxpy)
+
+        if projector is not None:
+            self._projector = projector
+        elif getattr(self, "_projector", None) is None:
+            self._projector = ConsistencyProjector(self.model, self.base, self.spec)
+        return self._projector.project(self._beta, self._p)
+
+    def __repr__(self) -> str:
+        return (f"RecursiveEstimator({self.model.name!r}, {self.base.n_base} base parameters, "
+                f"{self.spec.describe()}, forgetting={self.forgetting:g}, windup={self.windup}, "
+                f"detector={self.detector!r}, on_change={self.on_change}, "
+                f"{self.n_updates} updates, {len(self._changes)} change(s))")
