@@ -1,0 +1,126 @@
+"""The compressed problem reduced on Dask equals the single-machine one (4-worker LocalCluster)."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import consistid as ci
+from consistid.errors import DatasetError, JointCountError, OptionError
+from consistid.identification.compression import compress
+from consistid.identification.regressor import RegressorSpec
+
+distributed = pytest.importorskip("distributed")
+pytest.importorskip("dask.bag")
+
+from consistid.identification.distributed import (DaskData, compress_on_dask,  # noqa: E402
+                                                  on_dask)
+
+DOCS = Path(__file__).resolve().parents[1] / "docs" / "tutorials"
+
+
+def runs(model, n, duration=2.0, rate=200.0):
+    return [ci.simulate.excitation_run(model, duration=duration, rate=rate, seed=s,
+                                       torque_noise=0.05).dataset for s in range(n)]
+
+
+@pytest.fixture(scope="module")
+def ur5():
+    return ci.RobotModel.example("ur5")
+
+
+def test_without_a_client_the_threaded_scheduler_runs_and_says_so(planar_2r):
+    """(First in the file: no Client exists yet, so none is current.)"""
+    data = runs(planar_2r, 3)
+    dask_data = on_dask(data)
+    res = ci.identify(planar_2r, dask_data, method="ols")
+    assert "threads" in dask_data.scheduler
+    ref = ci.identify(planar_2r, data, method="ols")
+    np.testing.assert_allclose(res.base_parameters, ref.base_parameters, rtol=1e-10,
+                               atol=1e-12 * np.max(np.abs(ref.base_parameters)))
+
+
+@pytest.fixture(scope="module")
+def client():
+    cluster = distributed.LocalCluster(n_workers=4, threads_per_worker=1, processes=False,
+                                       dashboard_address=":0")
+    c = distributed.Client(cluster)
+    yield c
+    c.close()
+    cluster.close()
+
+
+def normal_equations(problem):
+    r, z, _ = problem.stacked()
+    return r.T @ r, r.T @ z
+
+
+def test_compressed_problem_equals_the_local_one(client, ur5):
+    data = runs(ur5, 9)
+    spec = RegressorSpec.make(ur5)
+    assert len(client.scheduler_info()["workers"]) == 4
+    remote = compress_on_dask(ur5, data, spec, client=client, split_every=2)  # a 4-level tree
+    local = compress(ur5, ci.Dataset.concatenate(data), spec)
+    assert remote.n_samples == local.n_samples
+    for got, want in zip(normal_equations(remote), normal_equations(local)):
+        np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-10 * np.max(np.abs(want)))
+
+
+@pytest.mark.parametrize("method", ["ols", "wls", "sdp"])
+def test_identify_on_dask_equals_the_local_answer(client, ur5, tmp_path, method):
+    """Files read on the workers; OLS/WLS and both covariances to 1e-10; the SDP solves the same
+    program, to its solver's tolerance."""
+    data = runs(ur5, 6)
+    paths = []
+    for k, d in enumerate(data):
+        paths.append(tmp_path / f"run{k}.npz")
+        d.save(paths[-1])
+    dask_data = on_dask(paths, client=client, npartitions=4)
+    remote = ci.identify(ur5, dask_data, method=method)
+    local = ci.identify(ur5, data, method=method)
+    assert dask_data.scheduler.startswith("distributed.Client")
+    tol = 1e-10 if method != "sdp" else 1e-6
+    np.testing.assert_allclose(remote.base_parameters, local.base_parameters,
+                               atol=tol * np.max(np.abs(local.base_parameters)))
+    np.testing.assert_allclose(remote.base_covariance, local.base_covariance,
+                               rtol=tol, atol=tol * np.max(np.abs(local.base_covariance)))
+    np.testing.assert_allclose(remote.details["autocorrelation_time"],
+                               local.details["autocorrelation_time"], rtol=1e-10)
+
+
+def test_the_current_client_is_used_when_none_is_given(client, planar_2r):
+    data = on_dask(runs(planar_2r, 2))
+    ci.identify(planar_2r, data, method="ols", covariance="iid")
+    assert data.scheduler == f"distributed.Client {client.scheduler.address}"
+    assert re.match(r"DaskData\(2 partitions", repr(data))
+
+
+def test_bad_collections_are_named(client, planar_2r, ur5, tmp_path):
+    with pytest.raises(DatasetError, match="empty"):
+        on_dask([])
+    with pytest.raises(DatasetError, match="item 1 is a int"):
+        on_dask([runs(planar_2r, 1)[0], 3])
+    with pytest.raises(DatasetError, match="pass \\[it\\]"):
+        on_dask(runs(planar_2r, 1)[0])
+    with pytest.raises(OptionError, match="split_every"):
+        on_dask(runs(planar_2r, 1), split_every=1)
+    runs(ur5, 1, duration=0.5)[0].save(tmp_path / "ur5.npz")
+    with pytest.raises(JointCountError, match="ur5.npz"):
+        ci.identify(planar_2r, on_dask([tmp_path / "ur5.npz"], client=client), method="ols")
+    assert isinstance(on_dask(runs(planar_2r, 1)), DaskData)
+
+
+def test_the_dask_tutorial_runs(tmp_path, monkeypatch):
+    """Every ```python block of docs/tutorials/dask.md, in order, in one namespace."""
+    text = (DOCS / "dask.md").read_text()
+    blocks = re.findall(r"```python\n(.*?)```", text, flags=re.S)
+    assert len(blocks) >= 3
+    monkeypatch.chdir(tmp_path)
+    namespace: dict = {}
+    for block in blocks:
+        exec(compile(block, str(DOCS / "dask.md"), "exec"), namespace)
+    assert namespace["gap"] < 1e-9 * np.max(np.abs(namespace["local"].base_parameters))
+    assert 0.5 < np.mean(namespace["inside"]) <= 1.0
