@@ -22,6 +22,17 @@ name            field(s)                      added drive torque
                                               or :math:`f_c\tanh(\dot q/v_s)` as an external
                                               torque (``coulomb_model="tanh"``, ``v_s`` =
                                               ``coulomb_speed``)
+``stribeck``    ``static_friction`` f_s       :math:`(f_c + (f_s - f_c)e^{-|\dot q/v_s|^δ})\operatorname{sign}\dot q`:
+                (N·m ≥ f_c), ``stribeck_speed``  MuJoCo's ``frictionloss`` set to :math:`f_s` (it holds
+                v_s (rad/s), ``stribeck_exponent`` the joint up to f_s at rest) and, as an external torque
+                δ (≥ 1)                       computed per step, the relief
+                                              :math:`(f_s-f_c)(1-e^{-|\dot q/v_s|^δ})\operatorname{sign}\dot q`
+                                              (zero at rest, continuous); needs
+                                              ``coulomb_model="frictionloss"``
+``sigmoid``     ``sigmoid_amplitude`` φ1      Gaz et al. 2019 (RA-L 4(4), eq. 8):
+                (N·m), ``sigmoid_steepness``  :math:`φ_1/(1+e^{-φ_2(\dot q+φ_3)}) - φ_1/(1+e^{-φ_2φ_3})`
+                φ2 (s/rad), ``sigmoid_shift`` as an external torque computed per step
+                φ3 (rad/s)
 ``armature``    ``armature`` (kg·m²)          :math:`I_a\,\ddot q` (MuJoCo ``dof_armature``)
 ``payload``     ``payload``                   a rigid body on the flange (:class:`MountedPayload`)
 ``elasticity``  ``stiffness`` K (N·m/rad),    a motor inertia B coupled to the link by a spring
@@ -72,11 +83,16 @@ JointValues = float | Sequence[float] | Mapping[str | int, float] | np.ndarray
 #: Per-joint magnitude fields of :class:`Effects`.
 JOINT_FIELDS: tuple[str, ...] = (
     "viscous", "coulomb", "armature", "stiffness", "motor_inertia", "spring_damping",
-    "torque_offset", "torque_gain", "delay", "torque_noise", "position_noise", "quantisation")
+    "torque_offset", "torque_gain", "delay", "torque_noise", "position_noise", "quantisation",
+    "static_friction", "stribeck_speed", "stribeck_exponent", "sigmoid_amplitude",
+    "sigmoid_steepness", "sigmoid_shift")
+#: Per-joint fields that may be negative.
+SIGNED_FIELDS: tuple[str, ...] = ("torque_offset", "sigmoid_shift")
 
 #: Effect names (those of :mod:`consistid.diagnose` where they overlap) → field of the magnitude.
 EFFECT_FIELDS: dict[str, str] = {
     "viscous": "viscous", "coulomb": "coulomb", "armature": "armature",
+    "stribeck": "static_friction", "sigmoid": "sigmoid_amplitude",
     "elasticity": "stiffness", "offset": "torque_offset", "gain": "torque_gain",
     "delay": "delay", "torque_noise": "torque_noise", "position_noise": "position_noise",
     "quantisation": "quantisation",
@@ -193,6 +209,32 @@ def _joint_array(name: str, value: JointValues, model: RobotModel) -> np.ndarray
     return out
 
 
+def _check_nonlinear_friction(effects: "Effects", values: dict[str, np.ndarray],
+                              model: RobotModel) -> None:
+    """Stribeck and sigmoid fields of resolved ``values``: raise :class:`ModelError` naming
+    the field and the joint of a value the simulator cannot apply."""
+    names = model.joint_names
+    stribeck = values["static_friction"] > 0
+    checks = [
+        (stribeck & (values["static_friction"] < values["coulomb"]), "static_friction",
+         "must be ≥ effects.coulomb (f_s ≥ f_c) where the Stribeck effect is on"),
+        (stribeck & ~(values["stribeck_speed"] > 0), "stribeck_speed",
+         "must be > 0 rad/s where static_friction > 0"),
+        (stribeck & ~(values["stribeck_exponent"] >= 1), "stribeck_exponent",
+         "must be ≥ 1 where static_friction > 0 (the relief torque is applied per step; "
+         "below 1 its slope at rest is unbounded)"),
+        ((values["sigmoid_amplitude"] > 0) & ~(values["sigmoid_steepness"] > 0),
+         "sigmoid_steepness", "must be > 0 s/rad where sigmoid_amplitude > 0")]
+    for bad, name, what in checks:
+        if bad.any():
+            j = int(np.flatnonzero(bad)[0])
+            raise ModelError(f"effects.{name}[{names[j]!r}] = {values[name][j]:.6g}: it {what}")
+    if stribeck.any() and effects.coulomb_model != "frictionloss":
+        raise ModelError("effects.static_friction (Stribeck) needs coulomb_model="
+                         f"'frictionloss' (MuJoCo holds the joint at rest), not "
+                         f"{effects.coulomb_model!r}")
+
+
 @dataclass(frozen=True, eq=False)
 class Effects:
     """What the simulated robot adds to the nominal rigid-body model; all zero = nothing.
@@ -219,6 +261,14 @@ class Effects:
     delay : s, ≥ 0, lag of the torque channel behind the position channel.
     torque_noise, position_noise : standard deviations (N·m, rad), ≥ 0.
     quantisation : rad per encoder count, ≥ 0.
+    static_friction : N·m, ``f_s`` of the Stribeck curve (0: no Stribeck effect on that joint;
+        else ``≥ coulomb``, with ``coulomb_model="frictionloss"``).
+    stribeck_speed : rad/s, > 0, ``v_s``.
+    stribeck_exponent : ``δ ≥ 1`` (the relief torque is applied explicitly; below 1 its slope at
+        rest is unbounded).
+    sigmoid_amplitude : N·m, ``φ1 ≥ 0`` of Gaz et al.'s sigmoid (0: off).
+    sigmoid_steepness : s/rad, ``φ2 > 0``.
+    sigmoid_shift : rad/s, ``φ3``, either sign.
 
     Examples
     --------
@@ -242,6 +292,12 @@ class Effects:
     torque_noise: JointValues = 0.0
     position_noise: JointValues = 0.0
     quantisation: JointValues = 0.0
+    static_friction: JointValues = 0.0
+    stribeck_speed: JointValues = 0.1
+    stribeck_exponent: JointValues = 2.0
+    sigmoid_amplitude: JointValues = 0.0
+    sigmoid_steepness: JointValues = 10.0
+    sigmoid_shift: JointValues = 0.0
 
     def __post_init__(self) -> None:
         check_option("effects.coulomb_model", self.coulomb_model, COULOMB_MODELS)
@@ -292,7 +348,7 @@ class Effects:
         """
         values = {name: _joint_array(name, getattr(self, name), model) for name in JOINT_FIELDS}
         for name, v in values.items():
-            if name == "torque_offset":
+            if name in SIGNED_FIELDS:
                 continue
             bad = np.flatnonzero(v <= -1.0) if name == "torque_gain" else np.flatnonzero(v < 0)
             if bad.size:
@@ -305,6 +361,7 @@ class Effects:
         if loose.size:
             raise ModelError(f"effects: joint {model.joint_names[loose[0]]!r} has a motor inertia "
                              "or spring damping but no stiffness (it is not elastic)")
+        _check_nonlinear_friction(self, values, model)
         values["motor_inertia"] = np.where(elastic & (values["motor_inertia"] == 0),
                                            DEFAULT_MOTOR_INERTIA, values["motor_inertia"])
         if self.payload is not None:
@@ -386,6 +443,84 @@ def measure_position(q_sensor: np.ndarray, effects: Effects,
     return np.where(step > 0, np.round(q / np.where(step > 0, step, 1.0)) * step, q)
 
 
+# --------------------------------------------------------------------------------- friction laws
+def _stribeck_decay(eff: Effects, dq: np.ndarray) -> np.ndarray:
+    """``e^{-|q̇/v_s|^δ}`` per joint (1 where the Stribeck effect is off, unused there)."""
+    vs = np.where(np.asarray(eff.static_friction) > 0, np.asarray(eff.stribeck_speed), 1.0)
+    return np.exp(-(np.abs(dq) / vs) ** np.asarray(eff.stribeck_exponent))
+
+
+def _sigmoid(eff: Effects, dq: np.ndarray) -> np.ndarray:
+    """Gaz et al.'s sigmoid friction per joint (module docstring), 0 where it is off."""
+    a, b, c = (np.asarray(getattr(eff, f)) for f in ("sigmoid_amplitude", "sigmoid_steepness",
+                                                     "sigmoid_shift"))
+    return a * (_logistic(b * (dq + c)) - _logistic(b * c))
+
+
+def _logistic(x: np.ndarray) -> np.ndarray:
+    return 0.5 * (1.0 + np.tanh(0.5 * x))          # 1/(1 + e^{-x}) without overflow
+
+
+def has_explicit_friction(effects: Effects) -> bool:
+    """Whether the simulator must add a friction torque per step (:func:`explicit_friction`):
+    a ``tanh`` Coulomb, a Stribeck relief or a sigmoid on some joint. ``effects`` resolved."""
+    return bool((effects.coulomb_model == "tanh" and np.any(effects.coulomb))
+                or np.any(effects.static_friction) or np.any(effects.sigmoid_amplitude))
+
+
+def explicit_friction(effects: Effects, dq: np.ndarray) -> np.ndarray:
+    r"""The friction torque the simulator applies per step outside MuJoCo's ``frictionloss``
+    (the torque the drive must supply, so the simulator applies its negative), shape of ``dq``:
+
+    .. math:: f_c	anh(\dot q/v_s)\;[	ext{tanh model}]
+              \;-\;(f_s - f_c)(1 - e^{-|\dot q/v_s|^δ})\operatorname{sign}\dot q
+              \;+\;φ_1ig(σ(φ_2(\dot q+φ_3)) - σ(φ_2φ_3)ig)
+
+    With ``frictionloss = f_s`` on a Stribeck joint, the total is the Stribeck curve in motion
+    and MuJoCo's dry friction (up to ``f_s``) at rest. ``effects`` must be resolved.
+    """
+    effects._require_resolved()
+    dq = np.asarray(dq, dtype=float)
+    out = _sigmoid(effects, dq)
+    if effects.coulomb_model == "tanh":
+        out = out + np.asarray(effects.coulomb) * np.tanh(dq / effects.coulomb_speed)
+    excess = np.asarray(effects.static_friction) - np.asarray(effects.coulomb)
+    relief = np.where(np.asarray(effects.static_friction) > 0, excess, 0.0)
+    return out - relief * (1.0 - _stribeck_decay(effects, dq)) * np.sign(dq)
+
+
+def explicit_friction_slope(effects: Effects) -> np.ndarray:
+    """(nv,) bound on ``|∂/∂q̇|`` of :func:`explicit_friction` per joint (for the stability of
+    applying it once per step): ``f_c/v_s`` (tanh), ``φ1 φ2 / 4`` (sigmoid) and
+    ``(f_s − f_c) max_x δ x^{δ−1} e^{−x^δ} / v_s`` (Stribeck relief, ``x = |q̇|/v_s``)."""
+    effects._require_resolved()
+    slope = 0.25 * np.asarray(effects.sigmoid_amplitude) * np.asarray(effects.sigmoid_steepness)
+    if effects.coulomb_model == "tanh":
+        slope = slope + np.asarray(effects.coulomb) / effects.coulomb_speed
+    on = np.asarray(effects.static_friction) > 0
+    delta = np.where(on, np.asarray(effects.stribeck_exponent), 1.0)
+    x = ((delta - 1.0) / delta) ** (1.0 / delta)               # maximiser of δ x^{δ−1} e^{−x^δ}
+    peak = delta * x ** (delta - 1.0) * np.exp(-x ** delta)
+    vs = np.where(on, np.asarray(effects.stribeck_speed), 1.0)
+    excess = np.asarray(effects.static_friction) - np.asarray(effects.coulomb)
+    return slope + np.where(on, excess * peak / vs, 0.0)
+
+
+def friction_torque(effects: Effects, dq: np.ndarray) -> np.ndarray:
+    """The dry and nonlinear friction the drive supplies in motion (viscous excluded), shape of
+    ``dq``: ``f_c sign q̇`` (frictionloss, or the Stribeck curve where ``f_s > 0``), or
+    ``f_c tanh(q̇/v_s)``, plus the sigmoid. ``effects`` must be resolved."""
+    dq = np.asarray(dq, dtype=float)
+    dry = (np.asarray(effects.coulomb) * np.sign(dq) if effects.coulomb_model == "frictionloss"
+           else np.zeros_like(dq))
+    static = np.asarray(effects.static_friction)
+    stribeck = np.where(static > 0, (static - np.asarray(effects.coulomb))
+                        * _stribeck_decay(effects, dq) * np.sign(dq), 0.0)
+    tanh = (np.asarray(effects.coulomb) * np.tanh(dq / effects.coulomb_speed)
+            if effects.coulomb_model == "tanh" else 0.0)
+    return dry + stribeck + tanh + _sigmoid(effects, dq)
+
+
 # --------------------------------------------------------------------------------- closed forms
 def effect_torque(model: RobotModel, effects: Effects, q: np.ndarray, dq: np.ndarray,
                   ddq: np.ndarray) -> np.ndarray:
@@ -394,7 +529,7 @@ def effect_torque(model: RobotModel, effects: Effects, q: np.ndarray, dq: np.nda
     .. math:: \Delta\tau = f_v \dot q + f_c s(\dot q) + I_a \ddot q + Y_p(q,\dot q,\ddot q)\,\pi_p
 
     with ``s = sign`` for ``"frictionloss"`` (what MuJoCo applies once ``|q̇|`` ≳ 0.01 rad/s)
-    or ``tanh(·/v_s)``, and ``Y_p π_p`` the payload through the regressor of the body that
+    or ``tanh(·/v_s)``, the Stribeck and sigmoid terms added (:func:`friction_torque`), and ``Y_p π_p`` the payload through the regressor of the body that
     carries it. On an elastic joint the drive-side terms ``f_v q̇ + f_c s + I_a q̈`` are zero:
     they act on the motor, and the torque sensor at the spring reads the link-side torque
     (rigid body and payload) only. Sensor effects are not included (see :func:`sensor_torque`).
@@ -405,9 +540,8 @@ def effect_torque(model: RobotModel, effects: Effects, q: np.ndarray, dq: np.nda
     """
     eff = effects if effects.resolved else effects.for_model(model)
     q, dq, ddq = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (q, dq, ddq))
-    fc = np.asarray(eff.coulomb)
-    s = np.sign(dq) if eff.coulomb_model == "frictionloss" else np.tanh(dq / eff.coulomb_speed)
-    drive = np.asarray(eff.viscous) * dq + fc * s + np.asarray(eff.armature) * ddq
+    drive = (np.asarray(eff.viscous) * dq + friction_torque(eff, dq)
+             + np.asarray(eff.armature) * ddq)
     out = np.where(eff.elastic, 0.0, drive)
     if eff.payload is not None:
         joint, p = eff.payload.parameters(model)

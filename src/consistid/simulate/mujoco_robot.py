@@ -20,7 +20,9 @@ The effects of :class:`~consistid.simulate.effects.Effects` enter as MuJoCo elem
 and for an elastic joint a *rotor* body (a sibling of the link, same joint placement and axis,
 negligible mass, the motor inertia as ``armature`` so that it only adds to its own diagonal of the
 mass matrix, as in Spong's reduced model) coupled to the link joint by a fixed tendon
-``θ − q`` with the joint stiffness and damping. The smooth (``tanh``) Coulomb model and the
+``θ − q`` with the joint stiffness and damping. The smooth (``tanh``) Coulomb model, the
+Stribeck relief (``frictionloss`` is then the static friction ``f_s``), the sigmoid friction
+(:func:`~consistid.simulate.effects.explicit_friction`, evaluated at each step's velocity) and the
 controller torque are applied through ``qfrc_applied``, held over each physics step.
 
 MuJoCo (Todorov, Erez, Tassa 2012, "MuJoCo: a physics engine for model-based control", IROS,
@@ -52,7 +54,8 @@ import pinocchio as pin
 
 from ..errors import ModelError, check_option
 from ..robot.model import RobotModel
-from .effects import Effects, MountedPayload
+from .effects import (Effects, MountedPayload, explicit_friction, explicit_friction_slope,
+                      has_explicit_friction)
 
 INTEGRATORS = ("Euler", "RK4", "implicitfast")
 #: Impedance of the friction-loss constraint (``solimpfriction``); with the time constant at its
@@ -153,7 +156,8 @@ def _mjcf(model: RobotModel, eff: Effects, payload: tuple[int, np.ndarray] | Non
     pm = model.pin_model
     kinds, axes = joint_axes(model)
     elastic = eff.elastic
-    frictionloss = eff.coulomb if eff.coulomb_model == "frictionloss" else np.zeros(model.nv)
+    frictionloss = (np.where(eff.static_friction > 0, eff.static_friction, eff.coulomb)
+                    if eff.coulomb_model == "frictionloss" else np.zeros(model.nv))
     armature = np.asarray(pm.armature, dtype=float)
     friction_solver = (f'solreffriction="{2 * timestep:.17g} 1" '
                        f'solimpfriction="{_num(FRICTION_SOLIMP)}"')
@@ -365,12 +369,14 @@ class MujocoRobot:
         data.qpos[drive] = q
 
     def _check_tanh_step(self, q: np.ndarray) -> None:
-        """The tanh friction is applied explicitly, once per step: it is stable only while
-        ``h·f_c / (v_s·M_jj(q)) < 1`` (its linearisation about 0 must not overshoot), checked
-        with each drive's smallest ``M_jj`` over the link positions ``q`` (S, nv), e.g. the
-        desired trajectory (at most :data:`TANH_CHECK_SAMPLES` of them, evenly spaced)."""
+        """The tanh friction (and the Stribeck relief and sigmoid,
+        :func:`~consistid.simulate.effects.explicit_friction`) is applied explicitly, once per
+        step: it is stable only while ``h·s / M_jj(q) < 1``, ``s`` its largest slope
+        (``f_c/v_s`` for the tanh; :func:`~consistid.simulate.effects.explicit_friction_slope`),
+        checked with each drive's smallest ``M_jj`` over the link positions ``q`` (S, nv), e.g.
+        the desired trajectory (at most :data:`TANH_CHECK_SAMPLES` of them, evenly spaced)."""
         e = self.effects
-        if e.coulomb_model != "tanh" or not np.any(e.coulomb):
+        if not has_explicit_friction(e):
             return
         mj = self.mj_model
         data = mujoco.MjData(mj)
@@ -386,8 +392,14 @@ class MujocoRobot:
             mujoco.mj_crb(mj, data)
             mujoco.mj_fullM(mj, data, full)
             diag = np.minimum(diag, np.diag(full)[self.motor_dof])
-        ratio = self.timestep * np.asarray(e.coulomb) / (e.coulomb_speed * diag)
+        ratio = self.timestep * explicit_friction_slope(e) / diag
         worst = int(np.argmax(ratio))
+        if ratio[worst] >= 1.0 and not (e.coulomb_model == "tanh" and e.coulomb[worst] > 0):
+            raise ModelError(
+                f"the Stribeck/sigmoid friction on {self.model.joint_names[worst]!r} is too steep "
+                f"for the physics step: h·slope/M_jj = {ratio[worst]:.3g} ≥ 1 (smallest M_jj "
+                f"{diag[worst]:.3g} kg·m²); raise stribeck_speed, lower sigmoid_steepness, add "
+                "armature, or shorten the step")
         if ratio[worst] >= 1.0:
             raise ModelError(
                 f"tanh Coulomb friction on {self.model.joint_names[worst]!r} is too stiff for the "
@@ -439,8 +451,7 @@ class MujocoRobot:
         kp, kd = gains
         pm = nominal.pin_model
         pdata = pm.createData()
-        tanh_fc = np.asarray(eff.coulomb) if eff.coulomb_model == "tanh" else np.zeros(nv)
-        use_tanh = bool(np.any(tanh_fc))
+        use_explicit = has_explicit_friction(eff)
         logged = np.arange(log_from, steps, log_every)
         n = logged.size
         out = {k: np.empty((n, nv)) for k in ("q", "dq", "ddq", "motor_q", "motor_dq",
@@ -453,8 +464,8 @@ class MujocoRobot:
             u = pin.rnea(pm, pdata, nominal.configuration(qs), vs,
                          ddqd[k] + kp * (qd[k] - qs) + kd * (dqd[k] - vs))
             applied[drive] = u
-            if use_tanh:
-                applied[drive] -= tanh_fc * np.tanh(data.qvel[drive] / eff.coulomb_speed)
+            if use_explicit:
+                applied[drive] -= explicit_friction(eff, data.qvel[drive])
             data.qfrc_applied[:] = applied
             tau_fine[k] = np.where(elastic, self.spring_torque(data), u) if any_elastic else u
             if row < n and k == logged[row]:
