@@ -22,10 +22,10 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 import pinocchio as pin
 
-from ..errors import JointCountError, ModelError, check_option
+from ..errors import DatasetError, JointCountError, ModelError, check_option
 from .export import write_urdf
 from .inertia import INERTIAL_NAMES, inertias_from_vector
-from .urdf import JointDynamics, joint_dynamics, strip_dynamics
+from .urdf import JointDynamics, check_urdf, joint_dynamics, strip_dynamics
 
 #: Gravity (m/s², base frame) of a level base: what a URDF implies.
 DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
@@ -58,6 +58,18 @@ def example_robot_data_dir() -> Path:
         "example-robot-data is not installed (no cmeel.prefix/share/example-robot-data/robots on "
         "the Python path); install it with `pip install example-robot-data`"
     )
+
+
+def _check_gravity(gravity: object) -> np.ndarray:
+    """``gravity`` as 3 finite floats (m/s², base frame), else :class:`ModelError`."""
+    try:
+        g = np.asarray(gravity, dtype=float)
+    except (TypeError, ValueError):
+        g = np.full(1, np.nan)
+    if g.shape != (3,) or not np.all(np.isfinite(g)):
+        raise ModelError(f"gravity must be 3 finite numbers (m/s², base frame), got "
+                         f"{gravity!r}")
+    return g
 
 
 @dataclass(frozen=True, eq=False)
@@ -103,12 +115,23 @@ class RobotModel:
         locked_joints: Sequence[str] = (),
         locked_configuration: dict[str, float] | None = None,
     ) -> None:
+        if model.nv == 0:
+            locked = f" (locked: {list(locked_joints)})" if locked_joints else ""
+            raise ModelError(f"robot {name!r} has no moving joint{locked}: nothing to identify; "
+                             "a URDF needs revolute, continuous or prismatic joints, and "
+                             "locked_joints must leave at least one of them")
         for j in range(1, model.njoints):
             if model.joints[j].nv != 1:
                 raise ModelError(
                     f"joint {model.names[j]!r} has {model.joints[j].nv} DoF; consistid handles "
                     "fixed-base robots with 1-DoF joints (revolute, continuous, prismatic)"
                 )
+            values = model.inertias[j].toDynamicParameters()
+            if not np.all(np.isfinite(values)):
+                k = int(np.flatnonzero(~np.isfinite(values))[0])
+                raise ModelError(f"robot {name!r}: the body of joint {model.names[j]!r} has "
+                                 f"{INERTIAL_NAMES[k]} = {values[k]} (not finite)")
+        _check_gravity(model.gravity.linear)
         self.pin_model = model
         self.name = name
         self.source = Path(source) if source is not None else None
@@ -138,12 +161,19 @@ class RobotModel:
         path = Path(path)
         if not path.is_file():
             raise ModelError(f"URDF file {str(path)!r} does not exist")
+        if isinstance(locked_joints, (str, bytes)):
+            raise ModelError(f"locked_joints must be a list of joint names, got "
+                             f"{locked_joints!r} (write [{locked_joints!r}])")
+        g = None if gravity is None else _check_gravity(gravity)
         try:
             full = pin.buildModelFromUrdf(str(path))
         except Exception as exc:  # Pinocchio raises plain RuntimeError / ValueError
             raise ModelError(f"Pinocchio could not read URDF {str(path)!r}: {exc}") from exc
         locked = list(locked_joints)
         config = dict(locked_configuration or {})
+        bad_names = [j for j in locked if not isinstance(j, str)]
+        if bad_names:
+            raise ModelError(f"locked_joints must be joint names (strings), got {bad_names}")
         unknown = [j for j in [*locked, *config] if not full.existJointName(j)]
         if unknown:
             raise ModelError(
@@ -153,6 +183,7 @@ class RobotModel:
         if unlocked:
             raise ModelError(f"locked_configuration names joint(s) {unlocked} that are not in "
                              f"locked_joints {locked}")
+        check_urdf(path, locked)  # what Pinocchio accepts silently: bad masses, axes, mimics
         model = full
         if locked:
             q_ref = pin.neutral(full)
@@ -162,8 +193,8 @@ class RobotModel:
                     raise ModelError(f"cannot lock joint {joint!r}: only 1-coordinate joints")
                 q_ref[full.joints[jid].idx_q] = config.get(joint, 0.0)
             model = pin.buildReducedModel(full, [full.getJointId(j) for j in locked], q_ref)
-        if gravity is not None:
-            model.gravity.linear = np.asarray(gravity, dtype=float)
+        if g is not None:
+            model.gravity.linear = g
         return cls(model, name=name or path.stem, source=path, locked_joints=locked,
                    locked_configuration=config)
 
@@ -182,12 +213,25 @@ class RobotModel:
 
         Extra entries after the ``10·nbodies`` inertial ones (friction, armature) are ignored here.
         """
-        parameters = np.asarray(parameters, dtype=float)
-        if parameters.shape[0] < self.n_inertial:
+        try:
+            parameters = np.asarray(parameters, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise ModelError(f"parameters must be a vector of numbers: {exc}") from None
+        if parameters.ndim != 1 or parameters.shape[0] < self.n_inertial:
             raise ModelError(
-                f"parameter vector has {parameters.shape[0]} entries; {self.name} needs "
-                f"{self.n_inertial} inertial parameters (10 per body)"
+                f"parameter vector has shape {parameters.shape}; {self.name} needs a vector of "
+                f"at least {self.n_inertial} inertial parameters (10 per body)"
             )
+        inertial = parameters[: self.n_inertial]
+        bad = np.flatnonzero(~np.isfinite(inertial))
+        if bad.size:
+            raise ModelError(f"parameters[{int(bad[0])}] ({self.parameter_names[bad[0]]}) is "
+                             f"{inertial[bad[0]]}: {bad.size} non-finite inertial parameter(s)")
+        massless = [self.body_names[i] for i in range(self.n_bodies) if inertial[10 * i] == 0
+                    and np.any(inertial[10 * i + 1:10 * i + 4])]
+        if massless:
+            raise ModelError(f"bodies {massless} have mass 0 but a non-zero first moment m·c: "
+                             "no centre of mass represents that (c = m·c / m)")
         model = self.pin_model.copy()
         for j, inertia in enumerate(inertias_from_vector(parameters[: self.n_inertial]), start=1):
             model.inertias[j] = inertia
@@ -200,13 +244,25 @@ class RobotModel:
 
         E.g. the gravity of a tilted mounting, :func:`consistid.estimation.mounting.estimate_mounting`.
         """
-        g = np.asarray(gravity, dtype=float)
-        if g.shape != (3,) or not np.all(np.isfinite(g)):
-            raise ModelError(f"gravity must be 3 finite numbers (m/s², base frame), got "
-                             f"{gravity!r}")
+        g = _check_gravity(gravity)
         model = self.pin_model.copy()
         model.gravity = pin.Motion(g, np.zeros(3))
         return RobotModel(model, name=self.name, source=self.source,
+                          locked_joints=self.locked_joints,
+                          locked_configuration=self.locked_configuration)
+
+    def with_kinematics(self, pin_model: pin.Model, source: str | Path | None = None
+                        ) -> "RobotModel":
+        """A copy built on ``pin_model``: the same joints (names, order) with other kinematics,
+        e.g. the calibrated joint placements and axes of
+        :func:`consistid.kinematics.calibrate_kinematics`. Inertias and gravity are
+        ``pin_model``'s. ``source`` is the URDF that describes it (default none: this model's
+        source no longer does, so exporters refuse rather than write the old kinematics)."""
+        if not isinstance(pin_model, pin.Model) or list(pin_model.names) != \
+                list(self.pin_model.names):
+            raise ModelError(f"with_kinematics needs a pinocchio.Model with the joints "
+                             f"{self.joint_names} of {self.name}")
+        return RobotModel(pin_model, name=self.name, source=source,
                           locked_joints=self.locked_joints,
                           locked_configuration=self.locked_configuration)
 
@@ -321,9 +377,17 @@ class RobotModel:
         """
         q, dq, ddq = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (q, dq, ddq))
         for name, a in (("q", q), ("dq", dq), ("ddq", ddq)):
+            if a.ndim != 2:
+                raise JointCountError(f"{name} has shape {a.shape}, not (N, {self.nv}) for the "
+                                      f"{self.nv} joints of {self.name}")
             if a.shape[1] != self.nv:
                 raise JointCountError(f"{name} has {a.shape[1]} joints but {self.name} has "
                                       f"{self.nv}")
+            bad = np.argwhere(~np.isfinite(a))
+            if bad.size:
+                k, j = (int(i) for i in bad[0])
+                raise DatasetError(f"{name}[{k}, {self.joint_names[j]!r}] is {a[k, j]} "
+                                   f"({len(bad)} non-finite value(s) in {name})")
         data = self.pin_model.createData()
         out = np.empty_like(dq)
         for k in range(q.shape[0]):

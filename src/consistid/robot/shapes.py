@@ -49,9 +49,21 @@ import numpy as np
 import pinocchio as pin
 from scipy.spatial import ConvexHull
 
-from ..errors import GeometryWarning, InaccurateSolutionWarning, ModelError, check_number
+from ..errors import (GeometryWarning, InaccurateSolutionWarning, ModelError, OptionError,
+                      check_number)
 from .model import RobotModel, example_robot_data_dir
 from .urdf import parse_urdf
+
+
+def _vector(name: str, value: object, size: int) -> np.ndarray:
+    """``value`` as ``size`` finite floats, else :class:`OptionError` naming ``name``."""
+    try:
+        v = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        v = np.full(1, np.nan)
+    if v.shape != (size,) or not np.all(np.isfinite(v)):
+        raise OptionError(f"{name} must be {size} finite numbers, got {value!r}")
+    return v
 
 
 @dataclass(frozen=True, eq=False)
@@ -61,11 +73,45 @@ class Ellipsoid:
     center: np.ndarray
     shape: np.ndarray
 
+    def __post_init__(self) -> None:
+        """Refuse (:class:`OptionError`) a centre that is not ``d`` finite numbers (3 for a
+        body) and a shape that is not a finite, symmetric, positive definite ``d×d`` matrix (a
+        degenerate ellipsoid has no volume and no inverse)."""
+        try:
+            d = int(np.size(self.center))
+        except (TypeError, ValueError):
+            d = 0
+        center = _vector("Ellipsoid center", self.center, max(d, 1))
+        try:
+            shape = np.asarray(self.shape, dtype=float)
+        except (TypeError, ValueError):
+            shape = np.full(1, np.nan)
+        if shape.shape != (d, d) or not np.all(np.isfinite(shape)) \
+                or not np.allclose(shape, shape.T, rtol=1e-9, atol=1e-15):
+            raise OptionError(f"Ellipsoid shape must be a finite symmetric {d}×{d} matrix (m²), "
+                              f"got {self.shape!r}")
+        lam = np.linalg.eigvalsh(shape)
+        if not lam[0] > 0:
+            raise OptionError(f"Ellipsoid shape must be positive definite (every semi-axis > 0); "
+                              f"its smallest eigenvalue is {lam[0]:.3g} m²")
+        object.__setattr__(self, "center", center)
+        object.__setattr__(self, "shape", shape)
+
     @classmethod
     def from_semi_axes(cls, center: Sequence[float], semi_axes: Sequence[float],
                        rotation: np.ndarray | None = None) -> "Ellipsoid":
+        """The ellipsoid with these semi-axes (m, each finite and > 0) along the columns of
+        ``rotation`` (a 3×3 rotation matrix, default the body axes), centred at ``center``."""
+        axes = _vector("Ellipsoid semi_axes", semi_axes, 3)
+        bad = np.flatnonzero(~(axes > 0))
+        if bad.size:
+            raise OptionError(f"Ellipsoid semi_axes[{int(bad[0])}] = {axes[bad[0]]:g} must be > 0 "
+                              f"(m); got {semi_axes!r}")
         r = np.eye(3) if rotation is None else np.asarray(rotation, dtype=float)
-        return cls(np.asarray(center, float), r @ np.diag(np.square(semi_axes)) @ r.T)
+        if r.shape != (3, 3) or not np.all(np.isfinite(r)) \
+                or not np.allclose(r.T @ r, np.eye(3), atol=1e-8):
+            raise OptionError(f"Ellipsoid rotation must be a 3×3 rotation matrix, got {rotation!r}")
+        return cls(_vector("Ellipsoid center", center, 3), r @ np.diag(np.square(axes)) @ r.T)
 
     def q_matrix(self) -> np.ndarray:
         inv = np.linalg.inv(self.shape)

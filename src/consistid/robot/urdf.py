@@ -17,6 +17,9 @@ from __future__ import annotations
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Sequence
+
+import numpy as np
 
 from ..errors import ModelError
 
@@ -55,6 +58,65 @@ def robot_joints(root: ET.Element) -> list[ET.Element]:
 def robot_links(root: ET.Element) -> list[ET.Element]:
     """The URDF's ``<link>`` elements (children of ``<robot>``; see :func:`robot_joints`)."""
     return root.findall("link")
+
+
+def check_urdf(path: str | Path, locked_joints: Sequence[str] = ()) -> None:
+    """Refuse (:class:`ModelError`, naming the link or joint) what Pinocchio's URDF parser
+    accepts but consistid cannot model: an ``<inertial>`` mass that is negative or not a finite
+    number (Pinocchio prints an error and goes on), an inertia entry that is not a finite
+    number, a moving joint whose ``<axis>`` is zero or not finite, and ``<mimic>`` joints
+    (one joint driven by another: the regressor would treat them as independent) unless they
+    are among ``locked_joints`` (e.g. the Panda's second finger)."""
+    locked = set(locked_joints)
+    path = Path(path)
+    root = parse_urdf(path).getroot()
+    for link in root.iter("link"):
+        inertial = link.find("inertial")
+        if inertial is None:
+            continue
+        name = link.get("name", "?")
+        mass = inertial.find("mass")
+        text = None if mass is None else mass.get("value")
+        if text is not None:
+            value = _float(text)
+            if not (np.isfinite(value) and value >= 0):
+                raise ModelError(f"{path.name}: link {name!r} has <mass value={text!r}>: a mass "
+                                 "must be a finite number ≥ 0 (kg)")
+        tensor = inertial.find("inertia")
+        for attr in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz"):
+            text = None if tensor is None else tensor.get(attr)
+            if text is not None and not np.isfinite(_float(text)):
+                raise ModelError(f"{path.name}: link {name!r} has <inertia {attr}={text!r}>: "
+                                 "not a finite number (kg·m²)")
+    for joint in root.iter("joint"):
+        name, kind = joint.get("name", "?"), joint.get("type", "?")
+        if name in locked:
+            continue
+        mimic = joint.find("mimic")
+        if mimic is not None:
+            raise ModelError(
+                f"{path.name}: joint {name!r} mimics joint {mimic.get('joint', '?')!r} "
+                f"(multiplier {mimic.get('multiplier', '1')}, offset {mimic.get('offset', '0')}): "
+                "consistid models every joint as independently actuated and would identify a "
+                "wrong model. Remove the <mimic> tag (an independent joint), or lock the joint "
+                "(locked_joints=[...]) if it does not move in your logs")
+        if kind in ("fixed", "floating", "planar"):
+            continue
+        axis = joint.find("axis")
+        text = "1 0 0" if axis is None else axis.get("xyz", "1 0 0")
+        values = np.array([_float(v) for v in text.split()] or [np.nan])
+        if values.shape != (3,) or not np.all(np.isfinite(values)) \
+                or np.linalg.norm(values) < 1e-12:
+            raise ModelError(f"{path.name}: joint {name!r} has <axis xyz={text!r}>: a {kind} "
+                             "joint needs 3 finite numbers, not all zero (the direction it "
+                             "moves along)")
+
+
+def _float(text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        return float("nan")
 
 
 def joint_dynamics(path: str | Path) -> dict[str, JointDynamics]:
