@@ -32,6 +32,11 @@ class JointNameError(DatasetError):
     """A log's joint names do not match the model's (lists the names missing on each side)."""
 
 
+class MissingDependencyError(ConsistidError, ImportError):
+    """An optional dependency is not installed (pyarrow for Parquet, rosbags for ROS bags and
+    MCAP …); the message names the package and the ``consistid[extra]`` that installs it."""
+
+
 class ConfigError(ConsistidError, ValueError):
     """A run configuration (TOML) is missing a table or key, or has an unknown one."""
 
