@@ -306,6 +306,25 @@ class MujocoRobot:
                 + np.asarray(e.spring_damping)
                 * (data.qvel[self.motor_dof] - data.qvel[self.link_dof]))
 
+    def set_payload(self, attached: bool) -> None:
+        """Attach or detach the payload in place, e.g. a grasp in the middle of a run: its
+        jointless body keeps its place and gets the payload's mass and inertia, or zero.
+
+        MuJoCo reads ``body_mass`` and ``body_inertia`` at every step (``mj_comPos``), so the
+        change acts from the next step. Needs a robot built with ``effects.payload``.
+        """
+        if self.payload is None:
+            raise ModelError("set_payload: this robot was built without a payload; give "
+                             "Effects(payload=MountedPayload(...)) and detach it at the start")
+        mj = self.mj_model
+        name = self.model.body_names[self.payload[0]] + "__payload"
+        body = mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_BODY, name)
+        if not hasattr(self, "_payload_inertial"):
+            self._payload_inertial = (float(mj.body_mass[body]), mj.body_inertia[body].copy())
+        mass, inertia = self._payload_inertial
+        mj.body_mass[body] = mass if attached else 0.0
+        mj.body_inertia[body] = inertia if attached else 0.0
+
     def inverse(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> np.ndarray:
         """``mj_inverse``: the drive torque for each sample, (N, nv), rigid robots only.
 
