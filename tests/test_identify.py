@@ -88,8 +88,13 @@ def test_no_motion_raises_with_the_unexcited_directions(panda):
     q = np.tile(np.array([0, -0.5, 0, -2.0, 0, 1.5, 0.5]), (n, 1))
     still = ci.Dataset(t=np.arange(n) / 100, q=q, dq=np.zeros((n, 7)), ddq=np.zeros((n, 7)),
                        tau=panda.rnea(q, 0 * q, 0 * q))
-    with pytest.raises(ci.PoorExcitationError, match="condition number") as err:
+    with pytest.raises(ci.PoorExcitationError, match="no motion at all"):
         ci.identify(panda, still, method="ols", friction=None)
+    # one moving state repeated: motion, but the same regressor rows over and over
+    dq = np.tile(np.linspace(0.1, 0.7, 7), (n, 1))
+    repeated = ci.Dataset(t=still.t, q=q, dq=dq, ddq=0 * q, tau=panda.rnea(q, dq, 0 * q))
+    with pytest.raises(ci.PoorExcitationError, match="condition number") as err:
+        ci.identify(panda, repeated, method="ols", friction=None)
     assert "panda_link" in str(err.value)
 
 

@@ -156,6 +156,11 @@ class PoorExcitationWarning(UserWarning):
     """The data excite the base parameters poorly (large condition number)."""
 
 
+class DataQualityWarning(UserWarning):
+    """The data look suspicious but usable (e.g. a lone glitch in a torque channel): names the
+    field, sample and joint, and what to do."""
+
+
 class InaccurateSolutionWarning(UserWarning):
     """The solver stopped at reduced accuracy (status ``optimal_inaccurate``)."""
 

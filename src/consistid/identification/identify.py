@@ -41,6 +41,7 @@ import scipy.linalg
 
 from .base import COND_WARN, RANK_RTOL, BaseParameters, compute_base_parameters
 from .compression import CompressedProblem, floor_sigma, joint_sigma
+from ..data.checks import check_for_identification
 from ..data.dataset import Dataset, as_dataset
 from ..errors import OptionError, PoorExcitationError, PoorExcitationWarning, check_option
 from ..robot.model import RobotModel, require_model
@@ -48,6 +49,7 @@ from .regressor import DEFAULT_FRICTION, FrictionArg, RegressorSpec, parameter_n
 from .result import IdentificationResult
 from .solver import SolverReport
 from .statistics import coloured_covariance
+from .uninformed import uninformed_directions
 from .streaming import (DataStream, as_stream, compress_data, is_one_pass, is_stream,
                         residual_statistics)
 
@@ -65,22 +67,21 @@ def nearest_standard(base: BaseParameters, beta: np.ndarray, prior: np.ndarray) 
     return prior + np.linalg.lstsq(B, beta - B @ prior, rcond=None)[0]
 
 
-def check_excitation(r: np.ndarray, names: Sequence[str]) -> tuple[float, np.ndarray]:
+def check_excitation(r: np.ndarray, base: BaseParameters) -> tuple[float, np.ndarray]:
     """Singular values and condition number of a (weighted) base regressor factor ``r``.
 
-    Raises :class:`PoorExcitationError` naming the unexcited directions when ``r`` is singular.
+    Raises :class:`PoorExcitationError` naming the unexcited directions as base groupings
+    (:func:`consistid.identification.uninformed.uninformed_directions`) when ``r`` is singular.
     """
-    _, s, vt = np.linalg.svd(r)
+    s = np.linalg.svd(r, compute_uv=False)
     if s[0] == 0 or s[-1] < RANK_RTOL * s[0]:
-        dead = vt[s < RANK_RTOL * max(s[0], 1e-300)]
-        lines = []
-        for v in dead[:5]:
-            top = np.argsort(-np.abs(v))[:3]
-            lines.append(" + ".join(f"{v[i]:.2f}·{names[i]}" for i in top))
+        dead = uninformed_directions(r, base)
         raise PoorExcitationError(
-            f"the data do not excite {len(dead)} base-parameter direction(s) "
-            f"(condition number {s[0] / max(s[-1], 1e-300):.3g}); e.g. {'; '.join(lines)}. "
-            "Use a richer excitation trajectory, or method='sdp' with a prior.")
+            f"the data do not excite {len(dead)} of {base.n_base} base-parameter direction(s) "
+            f"(condition number {s[0] / max(s[-1], 1e-300):.3g}), which least squares cannot "
+            f"determine: {'; '.join(dead[:3])}{' …' if len(dead) > 3 else ''}. Use a richer "
+            "excitation trajectory, or method='sdp' with a prior (its result names the "
+            "directions the prior decides, res.uninformed)")
     return float(s[0] / s[-1]), s
 
 
@@ -94,13 +95,13 @@ def least_squares(model: RobotModel, problem: CompressedProblem, base: BaseParam
         raise PoorExcitationError(f"{n} samples × {problem.nv} joints give {n * problem.nv} "
                                   f"equations for {b} base parameters")
     r, z, _ = problem.stacked(columns=cols)
-    cond, _ = check_excitation(r, base.names)
+    cond, _ = check_excitation(r, base)
     beta = scipy.linalg.solve_triangular(r, z)
     sse = problem.sum_squares(beta, cols)
     if weighted:
         sigma = floor_sigma(joint_sigma(sse, n, b), problem)
         r, z, _ = problem.stacked(sigma=sigma, columns=cols)
-        cond, _ = check_excitation(r, base.names)
+        cond, _ = check_excitation(r, base)
         beta = scipy.linalg.solve_triangular(r, z)
         sse = problem.sum_squares(beta, cols)
         scale = 1.0                       # the weights already whiten the residual
@@ -193,6 +194,7 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
     else:
         dataset = as_dataset(dataset)
         dataset.check_joints(model.nv, model.joint_names)
+        check_for_identification(dataset, model.joint_names)  # magnitudes, motion, glitches
     spec = RegressorSpec.make(model, friction, armature)
     base = compute_base_parameters(model, spec)
     problem = compress_data(model, dataset, spec)

@@ -11,7 +11,8 @@ import numpy as np
 import scipy.stats
 
 from .base import BaseParameters
-from ..data.dataset import Dataset
+from ..data.checks import check_magnitudes
+from ..data.dataset import Dataset, as_dataset
 from ..robot.export import write_urdf
 from ..robot.model import RobotModel
 from ..robot.inertia import ConsistencyReport, is_physically_consistent
@@ -74,6 +75,11 @@ class IdentificationResult(StandardParameterSet):
     train_rms : (nv,) residual RMS on the training data.
     solver : :class:`SolverReport`.
     details : extra method-specific figures (SDP: margins, active constraints, prior weight …).
+    uninformed : the base-parameter directions the data do not inform, as readable groupings
+        (:func:`consistid.identification.uninformed.uninformed_directions`); their values come
+        from the prior (or the constraints) alone, their ``base_std`` is ``inf``. Empty when
+        the data inform every direction. Shown by :meth:`summary`; a
+        :class:`~consistid.errors.PoorExcitationWarning` names them when the result is made.
     """
 
     method: str
@@ -91,6 +97,7 @@ class IdentificationResult(StandardParameterSet):
     n_samples: int
     solver: SolverReport
     details: dict[str, Any] = field(default_factory=dict)
+    uninformed: tuple[str, ...] = ()
 
     # ----------------------------------------------------------------------------- uncertainty
     @cached_property
@@ -101,9 +108,10 @@ class IdentificationResult(StandardParameterSet):
     @cached_property
     def relative_std(self) -> np.ndarray:
         """Relative standard deviation in % (Pressé & Gautier 1991; Rackl et al. 2012 eq. 13):
-        ``100 · σ_β / |β|``; ``inf`` where ``β = 0``."""
-        with np.errstate(divide="ignore"):
-            return 100.0 * self.base_std / np.abs(self.base_parameters)
+        ``100 · σ_β / |β|``; ``inf`` where ``β = 0`` (``0`` where ``σ_β`` is 0 too, never NaN)."""
+        std, beta = self.base_std, np.abs(self.base_parameters)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(std == 0, 0.0, 100.0 * std / beta)
 
     def conf_int(self, alpha: float = 0.05) -> np.ndarray:
         """Two-sided ``1 − alpha`` confidence intervals of the base parameters, shape (b, 2)."""
@@ -113,7 +121,13 @@ class IdentificationResult(StandardParameterSet):
 
     # ----------------------------------------------------------------------------- prediction
     def predict(self, dataset: Dataset) -> np.ndarray:
-        """Predicted joint torques ``Y(q, q̇, q̈) π`` for a dataset's samples, shape (N, nv)."""
+        """Predicted joint torques ``Y(q, q̇, q̈) π`` for a dataset's samples, shape (N, nv).
+
+        Raises :class:`~consistid.errors.DatasetError` for a dataset that is not one, has
+        another joint count, or values beyond :data:`consistid.data.checks.MAX_ABS`."""
+        dataset = as_dataset(dataset)
+        dataset.check_joints(self.model.nv, self.model.joint_names)
+        check_magnitudes(dataset, ("q", "dq", "ddq"), self.model.joint_names)
         return predict_torque(self.model, dataset, self.spec, self.parameters)
 
     def residual(self, dataset: Dataset) -> np.ndarray:

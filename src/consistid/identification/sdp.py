@@ -60,6 +60,7 @@ from . import priors
 from .base import COND_WARN, RANK_RTOL, BaseParameters
 from .compression import CompressedProblem, compress, floor_sigma, joint_sigma
 from .solver import DEFAULT_SOLVER, SolverReport, check_solver, solve
+from .uninformed import uninformed_directions
 from ..data.dataset import Dataset
 from ..errors import (IdentificationError, InconsistentParametersError, InfeasibleError,
                      ModelError, OptionError, PoorExcitationWarning, check_bounds, check_box,
@@ -281,7 +282,17 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
 
     r_b, _, _ = work.stacked(sigma=sig, columns=base.independent)
     cond, cov = _base_covariance(r_b)
-    if prior is None and cond > COND_WARN:
+    uninformed = uninformed_directions(r_b, base)
+    if uninformed:
+        source = (f"the {prior} prior alone (prior_weight {gamma:.3g})" if prior is not None
+                  else "the constraints alone, arbitrary within them (no prior)")
+        warnings.warn(
+            f"the data do not inform {len(uninformed)} of {base.n_base} base-parameter "
+            f"direction(s) (cond {cond:.3g}): their values come from {source}, and their "
+            f"base_std is inf; e.g. {'; '.join(uninformed[:3])}. res.uninformed lists them "
+            "all; excite the robot more richly (consistid.design_excitation) to identify "
+            "them", PoorExcitationWarning, stacklevel=3)
+    elif prior is None and cond > COND_WARN:
         warnings.warn(f"weighted base regressor condition number {cond:.3g} > {COND_WARN:.0e} "
                       "and no prior: poorly excited directions are decided by the constraints "
                       "alone; consider prior='logdet'", PoorExcitationWarning, stacklevel=3)
@@ -302,7 +313,7 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
         condition_number=cond, train_rms=np.sqrt(problem.sum_squares(theta) / n), n_samples=n,
         solver=SolverReport(f"{solver} via cvxpy (compressed{', scaled' if scale else ''})",
                             report.status, solve_time, compile_time, iterations),
-        details=details)
+        details=details, uninformed=uninformed)
 
 
 # ------------------------------------------------------------------------------------ options
@@ -709,7 +720,7 @@ def _solve(program: _Program, model: RobotModel, prior_vec: np.ndarray, solver: 
                 "contradict each other without the solver proving it; a prior (prior='logdet') "
                 "bounds directions the data leave free; solver_options={'max_iter': ...} or "
                 "another solver may help")
-        raise IdentificationError(f"{exc}. Hint: {hint}") from exc
+        raise type(exc)(f"{exc}. Hint: {hint}") from exc
 
 
 # ------------------------------------------------------------------------------------ answer

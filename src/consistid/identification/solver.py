@@ -16,7 +16,8 @@ import warnings
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from ..errors import IdentificationError, InaccurateSolutionWarning, InfeasibleError, OptionError
+from ..errors import (IdentificationError, InaccurateSolutionWarning, InfeasibleError,
+                      OptionError, SolverError)
 
 if TYPE_CHECKING:
     import cvxpy as cp
@@ -72,7 +73,9 @@ def solve(problem: cp.Problem, what: str, solver: str = DEFAULT_SOLVER,
     ------
     OptionError : ``solver`` is not an installed cvxpy solver, or it refused ``options``.
     InfeasibleError : the solver proved (or nearly proved) infeasibility.
-    IdentificationError : the solver failed or returned no solution (status named).
+    SolverError : the solver crashed (a Rust ``PanicException`` from Clarabel, a cvxpy
+        ``SolverError``) or cvxpy refused the problem data.
+    IdentificationError : the solver returned no solution (status named).
     """
     import cvxpy as cp  # heavy: loaded with the first conic solve
 
@@ -84,12 +87,24 @@ def solve(problem: cp.Problem, what: str, solver: str = DEFAULT_SOLVER,
             warnings.filterwarnings("ignore", message="Solution may be inaccurate")
             problem.solve(solver=solver, **(options or {}))
     except cp.error.SolverError as exc:
-        raise IdentificationError(f"{what}: solver {solver} failed: {exc}") from exc
+        raise SolverError(f"{what}: solver {solver} failed ({exc}). Hint: check the data for "
+                          "extreme magnitudes (|values| ≫ 1e8 or ≪ 1e-8 of the others); "
+                          "another solver may help") from exc
     except (TypeError, ValueError) as exc:
         if not options:
-            raise
+            raise SolverError(f"{what}: cvxpy refused the problem before solver {solver} ran: "
+                              f"{exc}") from exc
         raise OptionError(f"{what}: solver {solver} could not run with the options "
                           f"{options}: {exc}") from exc
+    except (KeyboardInterrupt, SystemExit, GeneratorExit):
+        raise
+    except BaseException as exc:  # noqa: BLE001 - Clarabel's Rust panic is a BaseException
+        # pyo3's PanicException derives from BaseException so that `except Exception` does not
+        # swallow it; a crashed solve is a named SolverError here, which callers do catch.
+        raise SolverError(f"{what}: solver {solver} crashed ({type(exc).__name__}: {exc}). "
+                          "This is a solver bug, usually triggered by extreme or degenerate "
+                          "data; check the inputs' magnitudes, or pass solver='SCS' to try "
+                          "another solver") from exc
     wall = time.perf_counter() - start
     stats = problem.solver_stats
     status = problem.status

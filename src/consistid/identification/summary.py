@@ -60,4 +60,11 @@ def identification_summary(res: "IdentificationResult", max_rows: int | None = N
     if res.condition_number > COND_WARN:
         notes.append("the condition number is large: some base parameters are poorly excited")
     lines += ["", "Notes:"] + [f"  - {n}" for n in notes]
+    uninformed = getattr(res, "uninformed", ())
+    if uninformed:
+        source = ("the prior alone" if res.details.get("prior") not in (None, "None")
+                  else "the constraints alone (no prior: arbitrary within them)")
+        lines += ["", f"Not informed by the data ({len(uninformed)} direction(s); their values "
+                      f"come from {source}, ± std = inf):"]
+        lines += [f"  - {u}" for u in uninformed]
     return "\n".join(lines)

@@ -1,0 +1,128 @@
+r"""Checks of a dataset before any numerics: magnitudes, motion, dead torque channels, glitches.
+
+:class:`~consistid.data.dataset.Dataset` already refuses NaN/inf, wrong shapes and
+non-increasing time. What it accepts can still break or fool the linear algebra downstream:
+
+* **Magnitudes** beyond :data:`MAX_ABS` (``|x| > 10⁸`` in SI units: rad, rad/s, rad/s², N·m) are
+  no physical joint value; their squares overflow a QR factorisation ("SVD did not converge")
+  long before they mean anything. :func:`check_magnitudes` names the first one
+  (:class:`~consistid.errors.DatasetError`): a glitch, or wrong units.
+* **No motion at all** (every ``q`` constant, ``q̇ = q̈ = 0``): one static pose informs at most
+  the gravity torques there; :func:`check_motion` raises
+  :class:`~consistid.errors.PoorExcitationError`.
+* **A dead torque channel** (``τ_j = 0`` in every sample): no joint of a real arm carries no
+  torque at all, and per-joint noise weights ``1/σ_j`` would be infinite (σ is floored at a
+  multiple of the channel's RMS, here 0): :func:`check_torque` raises :class:`DatasetError`.
+* **A single glitch**: a sample further than :data:`GLITCH_FACTOR` robust standard deviations
+  (``1.4826 · MAD``) from its channel's median, in a channel whose other samples stay within
+  ``GLITCH_FACTOR / 10`` of them. Least squares follows such a sample; the warning
+  (:class:`~consistid.errors.DataQualityWarning`) names it and suggests ``loss="huber"``.
+  Robust scale: Hampel 1974, doi:10.1080/01621459.1974.10482962.
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import Sequence
+
+import numpy as np
+
+from ..errors import DataQualityWarning, DatasetError, PoorExcitationError
+from .dataset import FIELDS, Dataset
+
+#: Largest magnitude accepted in ``q, dq, ddq, tau`` (SI units) before identification.
+MAX_ABS = 1e8
+#: Robust z-score above which a lone sample is called a glitch (see the module docstring).
+GLITCH_FACTOR = 1e3
+
+__all__ = ["MAX_ABS", "GLITCH_FACTOR", "check_magnitudes", "check_motion", "check_torque",
+           "check_glitches", "check_for_identification"]
+
+
+def _joint(dataset: Dataset, j: int, joint_names: Sequence[str] | None = None) -> str | int:
+    names = dataset.joint_names or joint_names
+    return str(names[j]) if names and len(names) == dataset.nv else int(j)
+
+
+def _where(dataset: Dataset, name: str, k: int, j: int,
+           joint_names: Sequence[str] | None = None) -> str:
+    return f"dataset.{name}[{int(k)}, {_joint(dataset, j, joint_names)!r}]"
+
+
+def check_magnitudes(dataset: Dataset, fields: Sequence[str] = FIELDS,
+                     joint_names: Sequence[str] | None = None) -> None:
+    """:class:`DatasetError` naming the first sample (field, index, joint) with
+    ``|value| > MAX_ABS``."""
+    for name in fields:
+        a = getattr(dataset, name)
+        if a is None:
+            continue
+        big = np.argwhere(np.abs(a) > MAX_ABS)
+        if big.size:
+            k, j = (int(i) for i in big[0])
+            raise DatasetError(
+                f"{_where(dataset, name, k, j, joint_names)} = {a[k, j]:.3g}: beyond ±{MAX_ABS:.0e}, no "
+                f"physical joint value in SI units ({len(big)} such value(s) in {name}); a "
+                "glitch or wrong units (degrees? mN·m?). Remove or rescale those samples")
+
+
+def check_motion(dataset: Dataset) -> None:
+    """:class:`PoorExcitationError` when nothing moves: every ``q`` constant, ``q̇ = q̈ = 0``."""
+    still = (np.all(np.ptp(dataset.q, axis=0) == 0) and not np.any(dataset.dq)
+             and not np.any(dataset.ddq))
+    if still:
+        raise PoorExcitationError(
+            f"the dataset has no motion at all ({dataset.n_samples} sample(s) of one static "
+            "pose, dq = ddq = 0): it cannot inform the dynamic parameters; record an "
+            "excitation trajectory (consistid.design_excitation)")
+
+
+def check_torque(dataset: Dataset, joint_names: Sequence[str] | None = None) -> None:
+    """:class:`DatasetError` naming a torque channel that is zero in every sample."""
+    tau = dataset.require_torque()
+    dead = np.flatnonzero(~np.any(tau, axis=0))
+    if dead.size:
+        names = [_joint(dataset, j, joint_names) for j in dead]
+        raise DatasetError(
+            f"dataset.tau[:, {names[0]!r}] is 0 in all {dataset.n_samples} samples (dead "
+            f"torque channel(s): {names}); no joint of a moving or loaded arm carries no "
+            "torque, and its noise weight would be infinite. Check the log's torque columns "
+            "(keys=) or drop that joint")
+
+
+def check_glitches(dataset: Dataset, fields: Sequence[str] = ("tau",),
+                   joint_names: Sequence[str] | None = None, stacklevel: int = 3) -> list[str]:
+    """Warn (:class:`DataQualityWarning`) about lone samples far from their channel (module
+    docstring); returns their descriptions (``[]`` when none)."""
+    found = []
+    for name in fields:
+        a = getattr(dataset, name)
+        if a is None or a.shape[0] < 10:
+            continue
+        med = np.median(a, axis=0)
+        dev = np.abs(a - med)
+        scale = 1.4826 * np.median(dev, axis=0)
+        for j in np.flatnonzero(scale > 0):
+            z = dev[:, j] / scale[j]
+            far = np.flatnonzero(z > GLITCH_FACTOR)
+            if far.size and far.size <= max(1, a.shape[0] // 1000) \
+                    and np.max(np.delete(z, far)) < GLITCH_FACTOR / 10:
+                k = int(far[np.argmax(z[far])])
+                found.append(f"{_where(dataset, name, k, j, joint_names)} = {a[k, j]:.4g} ({z[k]:.3g} robust "
+                             f"σ from the channel's median {med[j]:.4g})")
+    if found:
+        warnings.warn(f"lone outlying sample(s), likely glitches: {'; '.join(found[:5])}. Least "
+                      "squares follows them: remove those samples, or use method='sdp' with "
+                      "loss='huber'", DataQualityWarning, stacklevel=stacklevel)
+    return found
+
+
+def check_for_identification(dataset: Dataset, joint_names: Sequence[str] | None = None
+                             ) -> None:
+    """All of the above, in order, for data about to be identified (needs torques);
+    ``joint_names`` (the model's) name the joints when the dataset does not."""
+    dataset.require_torque()
+    check_magnitudes(dataset, joint_names=joint_names)
+    check_motion(dataset)
+    check_torque(dataset, joint_names)
+    check_glitches(dataset, joint_names=joint_names, stacklevel=5)
