@@ -226,3 +226,86 @@ def test_transmission_with_panda_multi_joint(panda, truth, tmp_path):
     assert np.allclose(back.pin_model.friction, fc, atol=1e-15)
     assert np.allclose(back.pin_model.damping, fv, atol=1e-15)
     assert np.max(np.abs(back.prior_parameters - truth)) < 1e-9
+
+
+# ------------------------------------------------------------------ MJCF through MuJoCo's MjSpec
+def _mj_inverse(path, q, dq, ddq, frictionloss=True):
+    import mujoco
+
+    mm = mujoco.MjModel.from_xml_path(str(path))
+    if not frictionloss:
+        mm.dof_frictionloss[:] = 0.0         # a constraint force: not a function of (q, q̇, q̈)
+    d = mujoco.MjData(mm)
+    out = np.empty_like(q)
+    for k in range(q.shape[0]):
+        d.qpos[:], d.qvel[:], d.qacc[:] = q[k], dq[k], ddq[k]
+        mujoco.mj_inverse(mm, d)
+        out[k] = d.qfrc_inverse
+    return out
+
+
+def _inside_limits(model, n, seed):
+    rng = np.random.default_rng(seed)
+    lo, hi = model.limits.lower, model.limits.upper
+    lo, hi = np.where(np.isfinite(lo), lo, -np.pi), np.where(np.isfinite(hi), hi, np.pi)
+    q = rng.uniform(lo + 0.05 * (hi - lo), hi - 0.05 * (hi - lo), (n, model.nv))
+    return q, rng.normal(size=(n, model.nv)), rng.normal(size=(n, model.nv))
+
+
+@pytest.mark.parametrize("name", ["panda", "ur5", "kinova"])
+def test_mjcf_inverse_dynamics_equal_rnea(name, tmp_path):
+    """MuJoCo's inverse dynamics of the written file = pinocchio.rnea with the identified
+    parameters (an independent implementation), under a tilted gravity too."""
+    from consistid.robot.mjcf import write_mjcf
+
+    model = ci.RobotModel.example(name).with_gravity([0.4, -0.3, -9.79])
+    theta = perturb(model.prior_parameters, 0.2, np.random.default_rng(11))
+    out = write_mjcf(model, tmp_path / f"{name}.xml", theta)
+    q, dq, ddq = _inside_limits(model, 20, 1)
+    expected = model.with_parameters(theta).rnea(q, dq, ddq)
+    assert np.max(np.abs(_mj_inverse(out, q, dq, ddq) - expected)) < 1e-9
+
+
+def test_mjcf_friction_and_armature(arm_3r, tmp_path):
+    """fv → damping, fc → frictionloss, Ia → armature: MuJoCo's inverse dynamics carries the
+    viscous and rotor terms, Pinocchio's MJCF reader reads all three back."""
+    import pinocchio as pin
+
+    fc, fv, ia = np.array([0.7, 1.1, 0.3]), np.array([0.4, 0.9, 0.15]), np.array([0.1, 0.2, 0.05])
+    data = _friction_data(arm_3r, fc, fv)
+    data = ci.Dataset(t=data.t, q=data.q, dq=data.dq, ddq=data.ddq,
+                      tau=data.tau + ia * data.ddq)
+    res = ci.identify(arm_3r, data, method="sdp", friction=("coulomb", "viscous"),
+                      armature=True)
+    assert res.is_consistent
+    named = dict(zip(res.parameter_names, res.parameters))
+    r_fc, r_fv, r_ia = (np.array([named[f"{j}.{s}"] for j in arm_3r.joint_names])
+                        for s in ("fc", "fv", "Ia"))
+    assert np.allclose(r_fv, fv, rtol=1e-3) and np.allclose(r_fc, fc, rtol=1e-3)
+    out = res.to_mjcf(tmp_path / "arm.xml")
+    q, dq, ddq = _inside_limits(arm_3r, 15, 2)
+    expected = (arm_3r.with_parameters(res.parameters).rnea(q, dq, ddq) + r_fv * dq
+                + r_ia * ddq)
+    assert np.max(np.abs(_mj_inverse(out, q, dq, ddq, frictionloss=False) - expected)) < 1e-9
+    back = pin.buildModelFromMJCF(str(out))
+    assert np.allclose(back.damping, r_fv, rtol=1e-14)
+    assert np.allclose(back.friction, r_fc, rtol=1e-14)
+    assert np.allclose(back.armature, r_ia, rtol=1e-14)
+
+
+def test_mjcf_refusals_and_warnings(panda, truth, tmp_path):
+    from consistid.robot.mjcf import write_mjcf
+
+    bad = truth.copy()
+    bad[20:30] = from_mass_com_inertia(3.0, [0.0, 0.0, 0.0], np.diag([0.01, 0.01, 0.05]))
+    with pytest.raises(InconsistentParametersError, match="panda_link3"):
+        write_mjcf(panda, tmp_path / "bad.xml", bad)
+    assert not (tmp_path / "bad.xml").exists()
+    spec = RegressorSpec.make(panda, ("coulomb", "offset"))
+    names = parameter_names(panda, spec)
+    theta = np.concatenate([truth, np.full(7, 0.3), np.full(7, 0.05)])
+    with pytest.warns(ExportWarning, match="panda_joint1.fo=0.05"):
+        write_mjcf(panda, tmp_path / "f.xml", theta, names)
+    theta[70] = -0.1
+    with pytest.raises(InconsistentParametersError, match="panda_joint1.*frictionloss"):
+        write_mjcf(panda, tmp_path / "g.xml", theta, names)

@@ -55,6 +55,11 @@ class ModelError(ConsistidError, ValueError):
     """A robot model cannot be built or does not fit the request (unknown joint, robot, file)."""
 
 
+class ResultFileError(ConsistidError, ValueError):
+    """A saved result file cannot be read back: missing, not JSON, another format or version,
+    a field missing or of the wrong shape (names the file and the field)."""
+
+
 class IdentificationError(ConsistidError, RuntimeError):
     """A numerical identification step failed (solver status, rank deficiency)."""
 

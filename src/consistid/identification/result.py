@@ -2,22 +2,26 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
-from typing import Any
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 import scipy.stats
 
+from . import persistence
 from .base import BaseParameters
 from ..data.checks import check_magnitudes
 from ..data.dataset import Dataset, as_dataset
 from ..robot.export import write_urdf
+from ..robot.mjcf import write_mjcf
 from ..robot.model import RobotModel
 from ..robot.inertia import ConsistencyReport, is_physically_consistent
 from .regressor import RegressorSpec, predict_torque
 from .solver import SolverReport
+from .report import identification_page
 from .summary import identification_summary
 
 
@@ -56,6 +60,12 @@ class StandardParameterSet:
         (:func:`consistid.robot.export.write_urdf`); refuses an inconsistent body."""
         return write_urdf(self.model, path, self.parameters, self.parameter_names, merged)
 
+    def to_mjcf(self, path: str | Path) -> Path:
+        """Write an MJCF of the model with these inertias, Coulomb friction (``frictionloss``),
+        viscous friction (``damping``) and armature, built through MuJoCo's ``MjSpec``
+        (:func:`consistid.robot.mjcf.write_mjcf`); refuses an inconsistent body."""
+        return write_mjcf(self.model, path, self.parameters, self.parameter_names)
+
 
 @dataclass(frozen=True, eq=False)
 class IdentificationResult(StandardParameterSet):
@@ -75,6 +85,9 @@ class IdentificationResult(StandardParameterSet):
     train_rms : (nv,) residual RMS on the training data.
     solver : :class:`SolverReport`.
     details : extra method-specific figures (SDP: margins, active constraints, prior weight …).
+    provenance : what computed it (package versions, input files and their SHA-256, the run
+        configuration; :func:`consistid.identification.persistence.make_provenance`), filled
+        by :meth:`with_provenance`, :meth:`save` and :meth:`load`.
     uninformed : the base-parameter directions the data do not inform, as readable groupings
         (:func:`consistid.identification.uninformed.uninformed_directions`); their values come
         from the prior (or the constraints) alone, their ``base_std`` is ``inf``. Empty when
@@ -97,6 +110,7 @@ class IdentificationResult(StandardParameterSet):
     n_samples: int
     solver: SolverReport
     details: dict[str, Any] = field(default_factory=dict)
+    provenance: dict[str, Any] = field(default_factory=dict)
     uninformed: tuple[str, ...] = ()
 
     # ----------------------------------------------------------------------------- uncertainty
@@ -149,13 +163,66 @@ class IdentificationResult(StandardParameterSet):
         """A readable table: one row per base parameter, then per-joint figures and notes."""
         return identification_summary(self, max_rows=max_rows)
 
-    def report(self, path: str | Path | None = None) -> str:
-        """The full :meth:`summary`; also written to ``path`` (a text file) when given, like
-        :meth:`consistid.diagnosis.diagnose.Diagnosis.report` writes its report."""
-        text = self.summary()
-        if path is not None:
-            Path(path).write_text(text + "\n", encoding="utf-8")
-        return text
+    def report(self, path: str | Path | None = None, *, data: Dataset | None = None,
+               held_out: Dataset | None = None, max_rows: int | None = None):
+        """Write the report, as :meth:`consistid.diagnosis.diagnose.Diagnosis.report` does:
+        ``*.html`` one self-contained page (plots embedded), ``*.txt`` the text
+        :meth:`summary`, any other path a folder holding ``report.html``, ``report.txt`` and
+        the plots as PNG files. Returns the path written (with ``path=None``: the text).
+
+        ``data`` (the training data) and ``held_out`` add the measured-vs-predicted torque per
+        joint, residual histograms and spectra (:mod:`consistid.identification.report`).
+        """
+        text = self.summary(max_rows=max_rows)
+        if path is None:
+            return text
+        path = Path(path)
+        if path.suffix.lower() == ".txt":
+            path.write_text(text + "\n", encoding="utf-8")
+            return path
+        page = identification_page(self, data, held_out, max_rows=max_rows)
+        out = page.write(path, text + "\n")
+        return out if path.suffix.lower() in (".html", ".htm") else path
+
+    def _repr_html_(self) -> str:
+        """Jupyter: the report without plots."""
+        return identification_page(self, figures=False, max_rows=20).fragment()
+
+    # ----------------------------------------------------------------------------- files
+    def with_provenance(self, inputs: Sequence[str | Path] = (),
+                        config: Mapping[str, Any] | None = None) -> "IdentificationResult":
+        """A copy whose :attr:`provenance` records package versions, the ``inputs`` files
+        (path, size, SHA-256) and the run ``config`` (a mapping, e.g. the TOML tables)."""
+        return dataclasses.replace(self, provenance=persistence.make_provenance(
+            self.provenance, inputs, config))
+
+    def save(self, path: str | Path, *, inputs: Sequence[str | Path] = (),
+             config: Mapping[str, Any] | None = None) -> Path:
+        """Write this result as JSON (:mod:`consistid.identification.persistence`): names,
+        values, σ, covariance, solver report, consistency margins, the model (URDF text
+        included) and provenance (with ``inputs`` and ``config`` added).
+        :meth:`load` gives back an equal result. Returns the path."""
+        res = self.with_provenance(inputs, config) if (inputs or config is not None) else self
+        return persistence.write_result(res, path)
+
+    @classmethod
+    def load(cls, path: str | Path, model: RobotModel | None = None,
+             urdf: str | Path | None = None) -> "IdentificationResult":
+        """Read a result written by :meth:`save`.
+
+        The robot is rebuilt from the saved URDF path when its SHA-256 still matches, else from
+        the URDF text stored in the file; give ``model`` (same joints and bodies) or ``urdf`` to
+        use your own. Raises :class:`~consistid.errors.ResultFileError` naming the file and the
+        field that is missing or wrong.
+        """
+        fields = persistence.read_result_fields(path, model, urdf)
+        known = {f.name for f in dataclasses.fields(cls)}
+        return cls(**{k: v for k, v in fields.items() if k in known})
+
+    def to_csv(self, path: str | Path) -> Path:
+        """The parameter table as CSV: base parameters ± σ with their groupings, then every
+        standard parameter (:func:`consistid.identification.persistence.write_csv`)."""
+        return persistence.write_csv(self, path)
 
     def __str__(self) -> str:
         return self.summary(max_rows=20)

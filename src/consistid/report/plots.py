@@ -1,0 +1,157 @@
+r"""Plots that several reports draw, as matplotlib ``Figure`` objects (no pyplot, no global state).
+
+``torque_fit``
+    measured and predicted torque against time, one panel per joint.
+``residual_histograms``
+    the residual's distribution per joint, with the normal density of the noise σ the
+    identification assumed: a residual wider than it, skewed or with two modes (Coulomb friction
+    left out) shows there.
+``residual_spectra``
+    Welch's power spectral density of the residual per joint (Welch 1967, doi:10.1109/TAU.1967.1161901)
+    with each joint's white-noise level :math:`\sigma_j^2 / (f_s/2)` (one-sided PSD of white
+    noise of variance σ² sampled at :math:`f_s`): a residual above it at low frequency is
+    model error, one above it at high frequency unmodelled dynamics or a delay.
+``grouped_bars``
+    values per joint for several series, with a reference level per joint drawn as a line across
+    each joint's group (e.g. a noise floor); the legend is placed below the axes so that it never
+    hides a bar.
+
+Every figure is at most 10 inches wide, so that at the reports' 100 dpi its PNG is no wider
+than the page (1000 px; the page shrinks it further on a narrow screen).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Sequence
+
+import numpy as np
+
+#: Width (inches) of a full-width figure; at 100 dpi, 1000 px.
+WIDTH = 10.0
+#: Most points drawn per line (longer series are decimated evenly for the picture only).
+MAX_POINTS = 4000
+
+
+def _figure(width: float, height: float) -> Any:
+    from matplotlib.figure import Figure  # heavy: loaded with the first plot
+
+    return Figure(figsize=(min(width, WIDTH), height), layout="constrained")
+
+
+def _grid(n: int, max_cols: int = 3) -> tuple[int, int]:
+    cols = min(n, max_cols)
+    return int(np.ceil(n / cols)), cols
+
+
+def _thin(n: int) -> np.ndarray:
+    step = max(1, int(np.ceil(n / MAX_POINTS)))
+    return np.arange(0, n, step)
+
+
+def torque_fit(t: np.ndarray, measured: np.ndarray, predicted: np.ndarray,
+               joint_names: Sequence[str], title: str = "") -> Any:
+    """Measured (grey) and predicted (blue) torque against time, one panel per joint; the
+    panel title gives the residual RMS."""
+    n = len(joint_names)
+    rows, cols = _grid(n)
+    fig = _figure(WIDTH, 2.1 * rows + 0.5)
+    keep = _thin(len(t))
+    for j, name in enumerate(joint_names):
+        ax = fig.add_subplot(rows, cols, j + 1)
+        ax.plot(t[keep], measured[keep, j], color="0.55", lw=0.8, label="measured")
+        ax.plot(t[keep], predicted[keep, j], color="tab:blue", lw=0.8, label="predicted")
+        rms = float(np.sqrt(np.mean((measured[:, j] - predicted[:, j]) ** 2)))
+        ax.set_title(f"{name}  (RMS {rms:.3g} N·m)", fontsize=8)
+        ax.tick_params(labelsize=7)
+        if j % cols == 0:
+            ax.set_ylabel("τ [N·m]", fontsize=8)
+        if j >= n - cols:
+            ax.set_xlabel("t [s]", fontsize=8)
+    handles, labels = fig.axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncol=2, fontsize=8, frameon=False)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    return fig
+
+
+def residual_histograms(residual: np.ndarray, joint_names: Sequence[str],
+                        sigma: np.ndarray | None = None, title: str = "") -> Any:
+    """Histogram (density) of the residual per joint; with ``sigma``, the normal density
+    ``N(0, σ_j²)`` over it."""
+    n = len(joint_names)
+    rows, cols = _grid(n, 4)
+    fig = _figure(WIDTH, 1.9 * rows + 0.5)
+    for j, name in enumerate(joint_names):
+        ax = fig.add_subplot(rows, cols, j + 1)
+        r = residual[:, j]
+        ax.hist(r, bins=min(60, max(10, int(np.sqrt(r.size)))), density=True,
+                color="tab:blue", alpha=0.6, label="residual")
+        if sigma is not None and sigma[j] > 0:
+            lim = max(float(np.max(np.abs(r))), 4 * float(sigma[j]))
+            x = np.linspace(-lim, lim, 200)
+            ax.plot(x, np.exp(-0.5 * (x / sigma[j]) ** 2) / (sigma[j] * np.sqrt(2 * np.pi)),
+                    color="k", lw=1, label="N(0, σ²)")
+        ax.set_title(name, fontsize=8)
+        ax.tick_params(labelsize=7)
+        if j >= n - cols:
+            ax.set_xlabel("τ − τ̂ [N·m]", fontsize=8)
+    handles, labels = fig.axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncol=2, fontsize=8, frameon=False)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    return fig
+
+
+def residual_spectra(residual: np.ndarray, rate: float, joint_names: Sequence[str],
+                     sigma: np.ndarray | None = None, title: str = "") -> Any:
+    """Welch PSD of the residual per joint (one curve each) with the white-noise level of
+    ``sigma`` as a dotted line in the same colour; the legend sits below the axes."""
+    import scipy.signal  # heavy: loaded with the first spectrum
+
+    fig = _figure(WIDTH, 4.2)
+    ax = fig.add_subplot()
+    nper = int(min(residual.shape[0], max(64, 2 ** int(np.log2(max(residual.shape[0] // 8,
+                                                                     1))))))
+    f, psd = scipy.signal.welch(residual, fs=rate, nperseg=nper, axis=0)
+    for j, name in enumerate(joint_names):
+        line, = ax.loglog(f[1:], psd[1:, j], lw=1, label=name)
+        if sigma is not None and sigma[j] > 0:
+            ax.axhline(sigma[j] ** 2 / (rate / 2), color=line.get_color(), ls=":", lw=0.9)
+    if sigma is not None:
+        ax.plot([], [], color="k", ls=":", lw=0.9, label="white noise of σ (per joint)")
+    ax.set_xlabel("frequency [Hz]")
+    ax.set_ylabel("residual PSD [(N·m)²/Hz]")
+    ax.grid(True, which="major", lw=0.3)
+    fig.legend(loc="outside lower center", ncol=min(len(joint_names) + 1, 5), fontsize=7,
+               frameon=False)
+    if title:
+        ax.set_title(title, fontsize=10)
+    return fig
+
+
+def grouped_bars(labels: Sequence[str], series: Sequence[tuple[str, np.ndarray]],
+                 reference: tuple[str, np.ndarray] | None = None, ylabel: str = "",
+                 log: bool = False, title: str = "") -> Any:
+    """Bars per label for each series (side by side), with ``reference`` drawn as a black line
+    across each label's group; legend below the axes, outside them."""
+    n, k = len(labels), len(series)
+    fig = _figure(min(WIDTH, 3.0 + 0.9 * n), 4.0)
+    ax = fig.add_subplot()
+    x = np.arange(n)
+    width = 0.8 / max(k, 1)
+    for i, (name, values) in enumerate(series):
+        ax.bar(x + width * (i - (k - 1) / 2), values, width, label=name)
+    if reference is not None:
+        name, values = reference
+        for j in range(n):
+            ax.hlines(values[j], x[j] - 0.45, x[j] + 0.45, colors="k", lw=1.6,
+                      label=name if j == 0 else None)
+    ax.set_xticks(x, labels, rotation=30 if n > 4 else 0, ha="right" if n > 4 else "center",
+                  fontsize=8)
+    ax.set_ylabel(ylabel)
+    if log:
+        ax.set_yscale("log")
+    if title:
+        ax.set_title(title, fontsize=10)
+    fig.legend(loc="outside lower center", ncol=min(k + 1, 4), fontsize=8, frameon=False)
+    return fig
