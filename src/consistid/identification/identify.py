@@ -44,6 +44,7 @@ from .compression import CompressedProblem, floor_sigma, joint_sigma
 from ..data.checks import check_for_identification
 from ..data.dataset import Dataset, as_dataset
 from ..errors import OptionError, PoorExcitationError, PoorExcitationWarning, check_option
+from ..friction.fit import identify_nonlinear, is_nonlinear
 from ..robot.model import RobotModel, require_model
 from .regressor import DEFAULT_FRICTION, FrictionArg, RegressorSpec, parameter_names, prior_vector
 from .result import IdentificationResult
@@ -144,7 +145,10 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
         collection (:mod:`consistid.identification.distributed`). Same answer as the stacked data.
     method : ``"ols"`` (least squares on base parameters), ``"wls"`` (weighted by per-joint noise
         variance), ``"sdp"`` (physically consistent, see :mod:`consistid.identification.sdp`).
-    friction : per-joint friction/offset columns, see :meth:`RegressorSpec.make`.
+    friction : per-joint friction/offset columns, see :meth:`RegressorSpec.make`; or nonlinear
+        laws, ``"stribeck" | "sigmoid" | "tanh"`` for every joint, ``("stribeck", "viscous",
+        "offset")``, or ``{joint: law}`` (:mod:`consistid.friction.fit`, variable projection:
+        returns a :class:`~consistid.friction.fit.NonlinearFrictionResult`; in-memory data only).
     armature : rotor-inertia columns (``True`` for all joints, or a list of joints).
     constraints : consistency level(s) of the bodies (:func:`consistid.identification.sdp.identify_sdp`).
         ``"auto"`` (default): ``"pseudo-inertia"`` for the SDP, none for OLS/WLS, which also
@@ -195,6 +199,12 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
         dataset = as_dataset(dataset)
         dataset.check_joints(model.nv, model.joint_names)
         check_for_identification(dataset, model.joint_names)  # magnitudes, motion, glitches
+    if is_nonlinear(friction):  # Stribeck / sigmoid / tanh laws: consistid.friction.fit
+        if not isinstance(dataset, Dataset):
+            raise OptionError("nonlinear friction laws need the data in memory (a Dataset or a "
+                              "list of them), not a stream")
+        return identify_nonlinear(model, dataset, method, friction, armature, constraints, prior,
+                                  covariance, **options)
     spec = RegressorSpec.make(model, friction, armature)
     base = compute_base_parameters(model, spec)
     problem = compress_data(model, dataset, spec)

@@ -1,0 +1,17 @@
+"""Joint friction beyond Coulomb and viscous: nonlinear laws identified with the rigid body,
+break-away (static) friction, and ramp experiments.
+
+:mod:`~consistid.friction.models` the laws (Stribeck, Gaz sigmoid, smooth tanh Coulomb);
+:mod:`~consistid.friction.fit` their identification by variable projection, reached through
+``consistid.identify(model, data, friction="stribeck" | {joint: law} | ...)``;
+:mod:`~consistid.friction.selection` which law held-out data prefer per joint;
+:mod:`~consistid.friction.breakaway` the break-away torque per joint from logs or from a simulated
+ramp experiment; :mod:`~consistid.friction.ramp` ramp experiments as a schedule and CSV that a
+robot can run.
+"""
+
+from .fit import NonlinearFrictionResult, identify_nonlinear, is_nonlinear, parse_friction
+from .models import MODELS, FrictionModel, GazSigmoid, Stribeck, TanhCoulomb, get_model
+
+__all__ = ["MODELS", "FrictionModel", "GazSigmoid", "NonlinearFrictionResult", "Stribeck",
+           "TanhCoulomb", "get_model", "identify_nonlinear", "is_nonlinear", "parse_friction"]
