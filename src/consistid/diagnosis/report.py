@@ -1,5 +1,6 @@
-"""The diagnosis report: a text summary, plots (matplotlib, Agg backend) and an HTML page with the
-plots embedded as PNG.
+"""The diagnosis report: a text summary, plots (matplotlib figures, no pyplot) and one
+self-contained HTML page (:mod:`consistid.report.html`: real tables, the plots embedded as PNG
+and no wider than the page, the noise floor drawn on the bars and legends outside the axes).
 
 Plots
 -----
@@ -16,15 +17,14 @@ Plots
 
 from __future__ import annotations
 
-import base64
-import html
-import io
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..identification.summary import table
+from ..report import plots
+from ..report.html import Page, esc
 
 if TYPE_CHECKING:
     from .diagnose import Diagnosis
@@ -107,6 +107,7 @@ def diagnosis_text(diag: "Diagnosis") -> str:
 
 # --------------------------------------------------------------------------------- plots
 def _figures(diag: "Diagnosis") -> dict[str, object]:
+    """The report's three plots (module docstring), each no wider than the page."""
     from matplotlib.figure import Figure     # no pyplot, no backend switch: no global state
 
     w, names = diag.where, diag.joint_names
@@ -114,7 +115,7 @@ def _figures(diag: "Diagnosis") -> dict[str, object]:
     cols = min(nv, 4)
     rows = int(np.ceil(nv / cols))
     figs = {}
-    fig = Figure(figsize=(3.2 * cols, 2.6 * rows), layout="constrained")
+    fig = Figure(figsize=(min(2.5 * cols, 10.0), 2.2 * rows), layout="constrained")
     for j in range(nv):
         ax = fig.add_subplot(rows, cols, j + 1)
         ax.plot(w.velocity[:, j], w.residual_sample[:, j], ".", ms=1.5, alpha=0.5)
@@ -124,76 +125,149 @@ def _figures(diag: "Diagnosis") -> dict[str, object]:
         ax.set_ylabel("τ − τ_nom [N·m]", fontsize=8)
         ax.tick_params(labelsize=7)
     figs["residual_vs_velocity"] = fig
-    fig = Figure(figsize=(7, 4), layout="constrained")
+    fig = Figure(figsize=(9, 4.4), layout="constrained")
     ax = fig.add_subplot()
+    nyq = w.freqs[-1]
     for j in range(nv):
         line, = ax.loglog(w.freqs[1:], w.psd[1:, j], lw=1, label=names[j])
-        nyq = w.freqs[-1]
-        ax.axhline(diag.noise_floor[j] ** 2 / nyq, color=line.get_color(), ls=":", lw=0.8)
+        ax.axhline(diag.noise_floor[j] ** 2 / nyq, color=line.get_color(), ls=":", lw=0.9)
+    ax.plot([], [], color="k", ls=":", lw=0.9, label="noise floor (per joint, same colour)")
     ax.axvline(w.signal_band, color="k", ls="--", lw=0.8, label="nominal torque band")
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel("residual PSD [(N·m)²/Hz]")
-    ax.legend(fontsize=7, ncol=2)
+    fig.legend(loc="outside lower center", ncol=min(nv + 2, 5), fontsize=7, frameon=False)
     figs["residual_spectrum"] = fig
-    fig = Figure(figsize=(7, 3.5), layout="constrained")
-    ax = fig.add_subplot()
-    x = np.arange(nv)
-    for k, (values, label) in enumerate(((diag.rms_nominal, "nominal"),
-                                         (diag.rms_final, "with diagnosed effects"),
-                                         (diag.library_floor, "every candidate (library floor)"),
-                                         (diag.noise_floor, "noise floor"))):
-        ax.bar(x + 0.2 * (k - 1.5), values, 0.2, label=label)
-    ax.set_xticks(x, names, rotation=30, fontsize=8)
-    ax.set_ylabel("held-out RMS [N·m]")
-    ax.set_yscale("log")
-    ax.legend(fontsize=8)
-    figs["joint_bars"] = fig
+    figs["joint_bars"] = plots.grouped_bars(
+        names, [("nominal", diag.rms_nominal), ("with diagnosed effects", diag.rms_final),
+                ("every candidate (library floor)", diag.library_floor)],
+        reference=("noise floor", diag.noise_floor), ylabel="held-out RMS [N·m]", log=True)
     return figs
 
 
-def _png(fig) -> bytes:
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
-    return buf.getvalue()
+FIGURE_CAPTIONS = {
+    "residual_vs_velocity": "Nominal residual against joint velocity: a step at q̇ = 0 is "
+                            "Coulomb friction, a slope viscous friction, a shift an offset.",
+    "residual_spectrum": "Residual power spectral density per joint; dotted: each joint's noise "
+                         "floor; dashed: the band of the nominal torque.",
+    "joint_bars": "Held-out RMS per joint: the nominal model, with the diagnosed effects, with "
+                  "every candidate at once (library floor); black line: the noise floor.",
+}
+
+
+def _effect_rows(diag: "Diagnosis") -> list[list[object]]:
+    rows = []
+    for k, e in enumerate(diag.effects, 1):
+        confidence = getattr(e, "confidence", "")
+        margin = getattr(e, "margin", None)
+        rows.append([k, e.name, ", ".join(e.joints) or "-", _pct(e.total_shrink),
+                     f"{confidence} (margin {margin:.2f})" if margin is not None and confidence
+                     else "-",
+                     e.n_parameters, e.delta_bic, (e.p_value, ".2g"),
+                     ", ".join(e.alternatives) or "-"])
+    return rows
+
+
+def _verdict(diag: "Diagnosis") -> tuple[str, str]:
+    remainder = getattr(diag, "remainder", None)
+    if remainder is not None:
+        return ("ok" if not remainder.flagged else "warn"), f"Verdict: {remainder.verdict}."
+    if diag.at_noise_floor:
+        return "ok", "Verdict: the remaining gap is at the noise floor."
+    if diag.at_library_floor:
+        return "warn", ("Verdict: the selected effects explain all that the candidate library "
+                        "can; the rest lies outside the library, or the noise floor is "
+                        "underestimated (low-pass filtered torques: pass sigma).")
+    return "warn", ("Verdict: a gap that the candidates could still reduce remains (below the "
+                    "selection's relevance or significance thresholds).")
+
+
+def diagnosis_page(diag: "Diagnosis", figures: bool = True) -> Page:
+    """The report as a :class:`~consistid.report.html.Page`: verdict, ranked effects with their
+    confidence, per-joint RMS against the floors, each effect's parameters ± σ, the
+    unexplained remainder, where the nominal residual lies, and the plots."""
+    names = diag.joint_names
+    w = diag.where
+    page = Page(f"Sim-to-real diagnosis: {diag.model_name}",
+                "nominal model vs measured torques")
+    level, text = _verdict(diag)
+    page.raw(f'<div class="verdict {level}"><p>{esc(text)}</p></div>')
+    page.key_values([("held-out data", diag.held_out_source),
+                     ("noise floor", diag.noise_source)])
+    page.heading("Effects found", anchor="effects")
+    if diag.effects:
+        page.paragraph("Ranked by how much the held-out residual grows when the effect is "
+                       "removed from the selected ones.")
+        page.table(["#", "effect", "joints", "held-out shrink", "confidence", "params", "ΔBIC",
+                    "p", "indistinguishable from"], _effect_rows(diag))
+    else:
+        page.paragraph("No effect selected: no candidate reduces the held-out residual enough "
+                       "to generalise.")
+    page.heading("Held-out RMS per joint", anchor="joints")
+    page.table(["joint", "nominal RMS [N·m]", "final RMS [N·m]", "library floor [N·m]",
+                "noise floor [N·m]", "final / noise"],
+               [[n, a, b, lf, s, r] for n, a, b, lf, s, r in
+                zip(names, diag.rms_nominal, diag.rms_final, diag.library_floor,
+                    diag.noise_floor, diag.gap_to_noise)])
+    if figures:
+        figs = _figures(diag)
+        page.figure("joint_bars", figs.pop("joint_bars"), FIGURE_CAPTIONS["joint_bars"])
+    for k, e in enumerate(diag.effects, 1):
+        page.heading(f"[{k}] {e.name}", level=3)
+        page.paragraph(e.signature)
+        shown = [j for j in range(len(names)) if names[j] in e.joints] or \
+            list(range(len(names)))
+        page.table(["joint", "held-out RMS before [N·m]", "after [N·m]", "shrink"],
+                   [[names[j], e.rms_before[j], e.rms_after[j], _pct(e.shrink[j])]
+                    for j in shown])
+        page.bullets(str(p) for p in e.parameters)
+    remainder = getattr(diag, "remainder", None)
+    if remainder is not None:
+        page.heading("Unexplained remainder", anchor="remainder")
+        page.paragraph(remainder.verdict)
+        regimes = sorted({r for j in remainder.joints for r in j.regimes})
+        page.table(["joint", "left [N·m]", "noise floor [N·m]", "ratio", "unexplained [N·m]",
+                    "p", "flagged", *[f"{r} [N·m]" for r in regimes], "pointers"],
+                   [[j.joint, j.rms, j.floor, j.ratio, j.excess, (j.p_value, ".2g"), j.flagged,
+                     *[j.regimes.get(r, float("nan")) for r in regimes],
+                     "; ".join(j.pointers) or "-"] for j in remainder.joints],
+                   row_classes=["bad" if j.flagged else "" for j in remainder.joints])
+    page.heading("Where the nominal residual lies", anchor="where")
+    page.table(["joint", "RMS [N·m]", "share", "relative", "drift [N·m/s]"],
+               [[n, w.rms[j], _pct(w.share[j]), _pct(w.relative[j]),
+                 f"{w.drift[j]:.3g} ± {w.drift_std[j]:.2g}"] for j, n in enumerate(names)])
+    page.table(["regime", *names],
+               [[reg, *[f"{w.regime_rms[i, j]:.3g} ({_pct(w.regime_fraction[i, j])})"
+                        if w.regime_fraction[i, j] > 0 else "-" for j in range(len(names))]]
+                for i, reg in enumerate(w.regimes)],
+               caption="Residual RMS per regime [N·m] (fraction of samples)")
+    bands = [f"{a:g}–{b:.3g} Hz" for a, b in zip(w.band_edges[:-1], w.band_edges[1:])]
+    page.table(["band", *names], [[b, *w.band_rms[i]] for i, b in enumerate(bands)],
+               caption=f"Residual RMS per frequency band [N·m] (nominal torque band < "
+                       f"{w.signal_band:.3g} Hz)", floatfmt=".3g")
+    if figures:
+        for name, fig in figs.items():
+            page.figure(name, fig, FIGURE_CAPTIONS[name])
+    if diag.steps:
+        last = diag.steps[-1]
+        if not last.accepted:
+            page.paragraph(f"Selection stopped: {last.reason} (next candidate {last.chosen}).")
+    if diag.notes:
+        page.heading("Notes", anchor="notes")
+        page.bullets(diag.notes)
+    return page
 
 
 def diagnosis_html(diag: "Diagnosis") -> str:
     """The report as one self-contained HTML page (plots embedded as base64 PNG)."""
-    return _html(diag, diagnosis_text(diag), _pngs(diag))
-
-
-def _pngs(diag: "Diagnosis") -> dict[str, bytes]:
-    """Each plot of :func:`_figures` rendered once as PNG bytes."""
-    return {name: _png(fig) for name, fig in _figures(diag).items()}
-
-
-def _html(diag: "Diagnosis", text: str, pngs: dict[str, bytes]) -> str:
-    """The HTML page of :func:`diagnosis_html` from the already built text and PNG plots."""
-    imgs = "\n".join(
-        f'<h3>{html.escape(k.replace("_", " "))}</h3><img alt="{k}" '
-        f'src="data:image/png;base64,{base64.b64encode(png).decode()}"/>'
-        for k, png in pngs.items())
-    return ("<!DOCTYPE html><html><head><meta charset='utf-8'>"
-            f"<title>consistid diagnosis: {html.escape(diag.model_name)}</title>"
-            "<style>body{font-family:sans-serif;max-width:1100px;margin:auto}"
-            "pre{font-size:12px;background:#f6f6f6;padding:8px;overflow-x:auto}</style>"
-            f"</head><body><h1>Sim-to-real diagnosis: {html.escape(diag.model_name)}</h1>"
-            f"<pre>{html.escape(text)}</pre>{imgs}</body></html>\n")
+    return diagnosis_page(diag).render()
 
 
 def write_report(diag: "Diagnosis", path: str | Path) -> Path:
     """Write ``path``: ``.html`` (self-contained), ``.txt``, or a directory holding
     ``report.html``, ``report.txt`` and the plots as PNG files. Returns ``path``."""
     path = Path(path)
-    if path.suffix == ".html":
-        path.write_text(diagnosis_html(diag), encoding="utf-8")
-    elif path.suffix == ".txt":
+    if path.suffix == ".txt":
         path.write_text(diagnosis_text(diag), encoding="utf-8")
-    else:
-        path.mkdir(parents=True, exist_ok=True)
-        text, pngs = diagnosis_text(diag), _pngs(diag)
-        (path / "report.txt").write_text(text, encoding="utf-8")
-        (path / "report.html").write_text(_html(diag, text, pngs), encoding="utf-8")
-        for name, png in pngs.items():
-            (path / f"{name}.png").write_bytes(png)
+        return path
+    diagnosis_page(diag).write(path, diagnosis_text(diag))
     return path
