@@ -158,7 +158,7 @@ def test_chain_copes_with_jitter_duplicates_disorder_and_gaps(excitation, caplog
     t, q, tau = (np.insert(a, dup, a[dup], axis=0) for a in (t, q, tau))
     swap = np.array([2000, 2001])                                   # two rows out of order
     t[swap], q[swap], tau[swap] = t[swap[::-1]], q[swap[::-1]], tau[swap[::-1]]
-    with caplog.at_level(logging.INFO, logger="consistid.data.signals"):
+    with caplog.at_level(logging.INFO, logger="consistid.data.chain"):
         pre = signals.preprocess(t, q, tau, bandwidth=0.5, rate=RATE)
     names = [s.name for s in pre.steps]
     for name in ("sort", "duplicates", "gaps", "resample"):
@@ -170,7 +170,7 @@ def test_chain_copes_with_jitter_duplicates_disorder_and_gaps(excitation, caplog
     _, dq, ddq = traj.evaluate(d.t)
     assert np.max(np.abs(d.dq - dq)) < 1e-3 * np.max(np.abs(dq))
     assert np.max(np.abs(d.ddq - ddq)) < 1e-2 * np.max(np.abs(ddq))
-    assert "duplicates: 20 samples" in str(pre)
+    assert "duplicates: 20 duplicated time stamp(s)" in str(pre)
 
 
 def test_from_recording_is_the_default_chain(excitation):

@@ -23,6 +23,7 @@ from typing import Sequence
 import numpy as np
 
 from ..errors import DatasetError, JointCountError, JointNameError, MissingColumnsError
+from .chain import ChainResult, PreprocessOptions, run_chain
 
 FIELDS = ("q", "dq", "ddq", "tau")
 
@@ -233,16 +234,28 @@ class Dataset:
             raise DatasetError(f"unknown dataset format {path.suffix!r}; use .npz or .csv")
 
     @classmethod
-    def from_recording(cls, t: np.ndarray, q: np.ndarray, tau: np.ndarray,
-                       **options) -> "Dataset":
-        """A dataset from a robot log: time stamps fixed, outliers removed, zero-phase filtered,
-        ``dq`` and ``ddq`` estimated (the default chain of :func:`consistid.data.signals.preprocess`,
-        which takes the ``options`` and also returns the record of the steps applied; here
-        the steps are logged at INFO level on the ``consistid.data.signals`` logger).
-        """
-        from .signals import preprocess  # signals imports this module
+    def from_recording(cls, t: np.ndarray, q: np.ndarray, tau: np.ndarray, *,
+                       joint_names: Sequence[str] | None = None, **options) -> "Dataset":
+        """A dataset from a robot log: time stamps fixed, outliers removed, jittered stamps
+        resampled at the rate the log supports, zero-phase filtered, ``dq`` and ``ddq``
+        estimated (the default chain of :mod:`consistid.data.chain`; ``options`` are the fields
+        of :class:`~consistid.data.chain.PreprocessOptions`, e.g. ``timestamp="end"`` for
+        torques a logger averaged over each interval and stamped at its end, ``time_unit="ms"``).
 
-        return preprocess(t, q, tau, **options).dataset
+        The steps applied are logged at INFO level on the ``consistid.data.chain`` logger;
+        :func:`consistid.data.signals.preprocess` returns them with the dataset, and
+        :func:`consistid.data.recordings.from_arrays` in a loader's record.
+        """
+        return cls.from_chain(run_chain(t, q, tau, PreprocessOptions.from_kwargs(options)),
+                              joint_names)
+
+    @classmethod
+    def from_chain(cls, result: ChainResult, joint_names: Sequence[str] | None = None
+                   ) -> "Dataset":
+        """The dataset of the signal chain's arrays (:func:`consistid.data.chain.run_chain`)."""
+        return cls(t=result.t, q=result.q, dq=result.dq, ddq=result.ddq, tau=result.tau,
+                   segment=result.segment,
+                   joint_names=tuple(joint_names) if joint_names is not None else None)
 
     @classmethod
     def load(cls, path: str | Path, joint_names: Sequence[str] | None = None) -> "Dataset":

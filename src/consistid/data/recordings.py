@@ -42,10 +42,22 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from .dataset import Dataset
 from ..errors import DatasetError, JointNameError, MissingColumnsError, check_option
 from ..robot.model import RobotModel
-from .signals import duplicate_groups, group_mean, long_steps, preprocess
+from .chain import PreprocessOptions, run_chain
+from .dataset import Dataset
+from .formats import Log, format_of, read_frame, read_log
+from .resample import resample
+from .timestamps import (
+    DUPLICATES,
+    check_stamps,
+    check_timestamp,
+    convert_units,
+    interval_centres,
+    long_steps,
+    median_step,
+    merge_duplicates,
+)
 
 #: Known ``.npz`` layouts: dataset field → array name. ``"flobaroid"`` is the layout of the
 #: FloBaRoID project's measurement files (e.g. the KUKA LWR4+ recordings).
@@ -60,7 +72,6 @@ JOINT_NAMES_KEY = "joint_names"
 UNIX_TIME_MIN = 1.0e9
 #: A time step longer than this many median steps is reported as a gap.
 GAP_FACTOR = 5.0
-DUPLICATES = ("average", "first", "error")
 REQUIRED = ("t", "q", "tau")
 
 
@@ -107,32 +118,6 @@ def _describe_origin(t0: float) -> str:
     return f"time origin {t0:.6g} s subtracted, time starts at 0 s"
 
 
-def _merge_duplicates(t: np.ndarray, arrays: dict[str, np.ndarray], policy: str,
-                      steps: list[str]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    same = np.flatnonzero(np.diff(t) == 0)
-    if same.size == 0:
-        steps.append("no duplicated time stamps")
-        return t, arrays
-    if policy == "error":
-        k = int(same[0]) + 1
-        raise DatasetError(f"t[{k}] = {t[k]!r} repeats t[{k - 1}] ({same.size} duplicated "
-                           "stamp(s)); pass duplicates='average' or 'first' to merge them")
-    group = duplicate_groups(t)
-    n_groups = int(group[-1]) + 1
-    first = np.flatnonzero(np.concatenate([[True], np.diff(group) != 0]))
-    identical = all(np.array_equal(a[same], a[same + 1]) for a in arrays.values())
-    if policy == "first":
-        merged = {k: a[first] for k, a in arrays.items()}
-        how = "kept the first sample of each"
-    else:
-        merged = {k: group_mean(a, group) for k, a in arrays.items()}
-        how = "replaced each group by its mean"
-    kind = "identical repeats" if identical else "samples that differ"
-    steps.append(f"{same.size} duplicated time stamp(s) ({kind}): {how}; "
-                 f"{t.size} → {n_groups} samples")
-    return t[first], merged
-
-
 def _match_joints(names: Sequence[str] | None, nv: int, model: RobotModel | None,
                   source: str, steps: list[str]
                   ) -> tuple[np.ndarray | None, tuple[str, ...] | None]:
@@ -177,8 +162,9 @@ def _match_joints(names: Sequence[str] | None, nv: int, model: RobotModel | None
 def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | None = None,
                 ddq: np.ndarray | None = None, *, joint_names: Sequence[str] | None = None,
                 model: RobotModel | None = None, trim_start: float = 0.0,
-                trim_end: float = 0.0, duplicates: str = "average", source: str = "arrays",
-                **signal_options: object) -> Recording:
+                trim_end: float = 0.0, duplicates: str | None = "average",
+                time_unit: str | None = None, timestamp: str | Mapping[str, str] = "centre",
+                source: str = "arrays", **signal_options: object) -> Recording:
     """A :class:`Recording` from logged arrays (steps 2–5 of the module docstring).
 
     Parameters
@@ -186,26 +172,34 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
     t : (N,) time stamps in s (any origin, e.g. Unix time); non-decreasing.
     q, tau : (N, n) joint positions (rad or m) and measured joint torques (N·m or N).
     dq, ddq : (N, n) logged velocities and accelerations, used as recorded; both ``None``
-        to estimate them with :func:`consistid.data.signals.preprocess` (``signal_options`` are
-        passed on, e.g. ``cutoff``, ``derivative``).
+        to estimate them with the signal chain (:mod:`consistid.data.chain`; ``signal_options``
+        are its :class:`~consistid.data.chain.PreprocessOptions`, e.g. ``cutoff``,
+        ``derivative``, ``rate``).
     joint_names : names of the log's columns, matched to ``model``'s joints.
     model : the robot; its joint order is the dataset's.
     trim_start, trim_end : seconds dropped at the start and at the end (the trimming rule).
-    duplicates : ``"average"``, ``"first"`` or ``"error"`` for samples sharing a time stamp.
+    duplicates : ``"average"``, ``"first"``, ``"error"`` or ``"spread"`` for samples sharing a
+        time stamp; ``None``: average, but refuse collapsed stamps
+        (:func:`consistid.data.timestamps.merge_duplicates`).
+    time_unit : the stamps' unit: ``None`` (seconds; implausible stamps — a "1 Hz" log that is
+        really milliseconds — raise :class:`DatasetError` naming the likely unit), ``"auto"``
+        (convert to the one plausible unit and record it), ``"s"``, ``"ms"``, ``"us"``,
+        ``"ns"``.
+    timestamp : how the logger stamps the torques it averaged over each sample interval:
+        ``"centre"`` (default; no shift), ``"start"`` or ``"end"`` (moved half a step to the
+        interval centre and interpolated at the positions' stamps), or a mapping per field.
     source : label used in messages and in :attr:`Recording.source`.
 
     Raises
     ------
-    DatasetError for backwards time, refused duplicates, a trim that leaves no sample, or bad
-    shapes/values; JointNameError when the joint names do not match the model;
-    MissingColumnsError when only one of ``dq``/``ddq`` is given.
+    DatasetError for backwards time, implausible units, refused duplicates, a trim that leaves
+    no sample, or bad shapes/values; JointNameError when the joint names do not match the
+    model; MissingColumnsError when only one of ``dq``/``ddq`` is given.
     """
-    check_option("duplicates", duplicates, DUPLICATES)
+    check_option("duplicates", duplicates, (None, *DUPLICATES))
+    shifts = check_timestamp(timestamp)
     steps: list[str] = []
-    t = np.asarray(t, dtype=float)
-    if t.ndim != 1 or t.size == 0:
-        raise DatasetError(f"{source}: time stamps must be a non-empty 1-D array, got shape "
-                           f"{t.shape}")
+    t = check_stamps(t, source)
     arrays = {"q": q, "tau": tau, "dq": dq, "ddq": ddq}
     if (dq is None) != (ddq is None):
         given = "dq" if ddq is None else "ddq"
@@ -224,11 +218,16 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
                            f"(time goes back {back.size} time(s)); sort the log first")
     t0 = float(t[0])
     t = t - t0
+    t, note, scale = convert_units(t, time_unit, source)
+    t0 *= scale
     steps.append(_describe_origin(t0))
-    t, arrays = _merge_duplicates(t, arrays, duplicates, steps)
+    if note:
+        steps.append(note)
+    t, arrays, dup = merge_duplicates(t, arrays, duplicates, 0.0, source)
+    steps.append(dup)
     if t.size > 1:
         dt = np.diff(t)
-        med = float(np.median(dt))
+        med = median_step(t)
         spread = (f"sampling {1.0 / med:.1f} Hz median; steps {dt.min() * 1e3:.2f}–"
                   f"{dt.max() * 1e3:.2f} ms")
         uniform = dt.max() - dt.min() <= 1e-6 * med
@@ -246,18 +245,25 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
         raise DatasetError(f"{source}: trim_start and trim_end must be finite seconds ≥ 0, got "
                            f"{trim_start}, {trim_end}")
     if "dq" in arrays:
+        if signal_options:
+            raise DatasetError(f"{source}: signal-chain options {sorted(signal_options)} apply "
+                               "only to logs without velocities/accelerations (these are used as "
+                               "logged)")
+        t, arrays = _shift_logged(t, arrays, shifts, steps)
         steps.append("velocities and accelerations used as logged (taken as already filtered; "
                      "not filtered again); samples kept at their own time stamps (least squares "
                      "uses samples, not a time grid)")
         dataset = Dataset(t=t, q=arrays["q"], dq=arrays["dq"], ddq=arrays["ddq"],
                           tau=arrays["tau"], joint_names=names)
     else:
-        pre = preprocess(t, arrays["q"], arrays["tau"], joint_names=names, **signal_options)
-        steps.append(f"no logged velocities/accelerations: signals.preprocess "
-                     f"({pre.dataset.n_samples} samples at {pre.rate:.6g} Hz, cut-off "
+        options = PreprocessOptions.from_kwargs({"timestamp": timestamp,
+                                                 "duplicates": duplicates, **signal_options})
+        pre = run_chain(t, arrays["q"], arrays["tau"], options)
+        steps.append(f"no logged velocities/accelerations: the signal chain "
+                     f"({pre.t.size} samples at {pre.rate:.6g} Hz, cut-off "
                      f"{pre.cutoff:.4g} Hz):")
         steps.extend(f"  {s}" for s in pre.steps)
-        dataset = pre.dataset
+        dataset = Dataset.from_chain(pre, names)
     end = t[-1]
     keep = (dataset.t >= trim_start) & (dataset.t <= end - trim_end)
     if not keep.any():
@@ -272,6 +278,78 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
     else:
         steps.append("not trimmed")
     return Recording(dataset, tuple(steps), source, t0)
+
+
+def _shift_logged(t: np.ndarray, arrays: dict[str, np.ndarray], shifts: Mapping[str, str],
+                  steps: list[str]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Logged signals stamped at their interval's start or end, moved to the interval centres
+    and interpolated (:func:`consistid.data.resample.resample`) at the stamps of the others;
+    the edge samples outside are dropped."""
+    moved = {f: c for f, c in shifts.items() if c != "centre" and f in arrays}
+    if not moved:
+        return t, arrays
+    centres = {f: interval_centres(t, c) for f, c in moved.items()}
+    lo = max([t[0], *(c[0] for c in centres.values())])
+    hi = min([t[-1], *(c[-1] for c in centres.values())])
+    keep = (t >= lo - 1e-12) & (t <= hi + 1e-12)
+    out = {}
+    for f, a in arrays.items():
+        out[f] = resample(centres[f], a, np.clip(t[keep], centres[f][0], centres[f][-1])) \
+            if f in centres else a[keep]
+    what = ", ".join(f"{f} stamped at the interval {c}" for f, c in moved.items())
+    steps.append(f"{what}: moved to the interval centres (half a step) and interpolated at the "
+                 f"other signals' stamps by cubic spline; {int((~keep).sum())} edge sample(s) "
+                 "dropped")
+    return t[keep], out
+
+
+def from_log(log: Log, *, model: RobotModel | None = None, trim_start: float = 0.0,
+             trim_end: float = 0.0, duplicates: str | None = "average",
+             time_unit: str | None = None, timestamp: str | Mapping[str, str] = "centre",
+             derivatives: str = "auto", **signal_options: object) -> Recording:
+    """A :class:`Recording` from a log read by :mod:`consistid.data.formats`: the reader's notes
+    first, then :func:`from_arrays`. ``time_unit`` defaults to the unit the file gives (a
+    ``time_ms`` column, ROS stamps). ``derivatives``: ``"auto"`` (use logged ``dq`` and ``ddq``
+    when both are there, else estimate both from ``q``; a logged ``dq`` alone is then set aside
+    and said), ``"logged"`` (refuse a log without them) or ``"estimate"``."""
+    check_option("derivatives", derivatives, ("auto", "logged", "estimate"))
+    fields = dict(log.fields)
+    notes = list(log.notes)
+    have = [f for f in ("dq", "ddq") if f in fields]
+    if derivatives == "logged" and len(have) < 2:
+        raise MissingColumnsError(f"{log.source}: derivatives='logged' but the log lacks "
+                                  f"{[f for f in ('dq', 'ddq') if f not in fields]}")
+    if derivatives == "estimate" or len(have) < 2:
+        if have:
+            notes.append(f"logged {' and '.join(have)} set aside: "
+                         + ("derivatives='estimate'" if derivatives == "estimate" else
+                            "without both dq and ddq, both are estimated from q"))
+        fields.pop("dq", None), fields.pop("ddq", None)
+    if time_unit is None and log.time_unit not in (None, "s"):
+        time_unit = log.time_unit
+        notes.append(f"time unit {time_unit!r} from the file")
+    names = log.joint_names
+    if model is not None and names is not None:
+        extra = [n for n in names if n not in model.joint_names]
+        missing = [n for n in model.joint_names if n not in names]
+        if extra and not missing:
+            keep = [names.index(n) for n in model.joint_names]
+            fields = {f: a[:, keep] for f, a in fields.items()}
+            notes.append(f"dropped the joints {extra} that {model.name} does not have")
+            names = tuple(model.joint_names)
+    rec = from_arrays(log.t, fields["q"], fields["tau"], fields.get("dq"), fields.get("ddq"),
+                      joint_names=names, model=model, trim_start=trim_start, trim_end=trim_end,
+                      duplicates=duplicates, time_unit=time_unit, timestamp=timestamp,
+                      source=log.source, **signal_options)
+    return Recording(rec.dataset, (*notes, *rec.steps), rec.source, rec.time_origin)
+
+
+def from_frame(frame: object, *, joints: Sequence[str] | None = None,
+               columns: Mapping[str, object] | None = None, source: str = "DataFrame",
+               **options: object) -> Recording:
+    """A :class:`Recording` from a pandas ``DataFrame`` (columns named as in a CSV,
+    :mod:`consistid.data.formats.columns`); ``options`` as for :func:`from_log`."""
+    return from_log(read_frame(frame, joints=joints, columns=columns, source=source), **options)
 
 
 def _resolve_layout(files: Sequence[str], keys: str | Mapping[str, str], source: str
@@ -300,32 +378,67 @@ def _resolve_layout(files: Sequence[str], keys: str | Mapping[str, str], source:
 
 
 def load_recording(path: str | Path, keys: str | Mapping[str, str] = "auto", *,
+                   joints: Sequence[str] | None = None,
+                   columns: Mapping[str, object] | None = None, topic: str | None = None,
+                   stamp: str = "header", delimiter: str | None = None,
                    joint_names: Sequence[str] | None = None, model: RobotModel | None = None,
-                   trim_start: float = 0.0, trim_end: float = 0.0, duplicates: str = "average",
+                   trim_start: float = 0.0, trim_end: float = 0.0,
+                   duplicates: str | None = "average", time_unit: str | None = None,
+                   timestamp: str | Mapping[str, str] = "centre", derivatives: str = "auto",
                    **signal_options: object) -> Recording:
-    """Read a ``.npz`` log into a :class:`Recording` (module docstring: what is done, in order).
+    """Read a log file into a :class:`Recording` (module docstring: what is done, in order).
+
+    The format is chosen by the suffix: ``.npz`` (below), ``.csv``/``.tsv``/``.txt``,
+    ``.parquet``, ``.bag``/``.mcap``/``.db3`` or a ROS 2 bag folder, ``.mat``
+    (:mod:`consistid.data.formats`; their columns are matched by name,
+    :mod:`consistid.data.formats.columns`).
 
     Parameters
     ----------
-    path : the ``.npz`` file.
-    keys : ``"auto"`` (recognise a :data:`NPZ_LAYOUTS` layout), a layout name, or a mapping
-        ``{"t": ..., "q": ..., "dq": ..., "ddq": ..., "tau": ...[, "joint_names": ...]}`` from
-        dataset fields to array names (``dq``/``ddq`` may be left out to estimate them).
-    joint_names : names of the log's joint columns; default the file's ``joint_names`` array if
-        any (a mismatch between the two raises :class:`~consistid.errors.JointNameError`).
-    model, trim_start, trim_end, duplicates, signal_options : see :func:`from_arrays`.
+    path : the file (or ROS 2 bag folder).
+    keys : ``.npz`` only: ``"auto"`` (recognise a :data:`NPZ_LAYOUTS` layout), a layout name,
+        or a mapping ``{"t": ..., "q": ..., "dq": ..., "ddq": ..., "tau": ...[, "joint_names":
+        ...]}`` from dataset fields to array names (``dq``/``ddq`` may be left out to estimate
+        them).
+    joints : joints to read, in this order; other joints' columns (a gripper) are dropped and
+        listed in the record. Default: the model's joints when a model is given, else all.
+    columns : tables only: an explicit column mapping, e.g. ``{"t": "stamp", "q": "pos_{joint}",
+        "tau": "eff_{joint}"}``.
+    topic, stamp : ROS bags only: the ``JointState`` topic (default the only one) and
+        ``"header"`` or ``"receive"`` stamps.
+    delimiter : text only; default sniffed.
+    joint_names : ``.npz`` only: names of the log's joint columns; default the file's
+        ``joint_names`` array if any (a mismatch between the two raises
+        :class:`~consistid.errors.JointNameError`).
+    model, trim_start, trim_end, duplicates, time_unit, timestamp, signal_options : see
+        :func:`from_arrays`.
+    derivatives : see :func:`from_log` (not for ``.npz``, whose ``keys`` say it).
 
     Examples
     --------
     >>> rec = load_recording("measurements_2.npz", model=model, trim_start=2.0)  # doctest: +SKIP
+    >>> rec = load_recording("run.mcap", model=model, timestamp="end")          # doctest: +SKIP
     >>> print(rec)                       # the steps applied            # doctest: +SKIP
     """
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise DatasetError(f"recording {str(path)!r} does not exist")
-    if path.suffix != ".npz":
-        raise DatasetError(f"{path.name}: load_recording reads .npz logs; for CSV use "
-                           "Dataset.load or from_arrays")
+    kind = format_of(path)
+    common = dict(model=model, trim_start=trim_start, trim_end=trim_end, duplicates=duplicates,
+                  time_unit=time_unit, timestamp=timestamp, **signal_options)
+    if kind != "npz":
+        if keys != "auto" or joint_names is not None:
+            raise DatasetError(f"{path.name}: keys= and joint_names= apply to .npz logs; for "
+                               "other formats use columns= and joints=")
+        if joints is None and model is not None:
+            joints = model.joint_names
+        log = read_log(path, joints=joints, columns=columns, topic=topic, delimiter=delimiter,
+                       stamp=stamp)
+        rec = from_log(log, derivatives=derivatives, **common)
+        return Recording(rec.dataset, rec.steps, str(path), rec.time_origin)
+    if columns is not None or topic is not None or delimiter is not None or joints is not None:
+        raise DatasetError(f"{path.name}: columns=, topic=, delimiter= and joints= apply to "
+                           "CSV/Parquet/bag/.mat logs; for .npz use keys= and joint_names=")
     with np.load(path, allow_pickle=False) as f:
         files = list(f.files)
         layout = _resolve_layout(files, keys, path.name)
@@ -343,7 +456,5 @@ def load_recording(path: str | Path, keys: str | Mapping[str, str] = "auto", *,
     rec = from_arrays(arrays["t"], arrays["q"], arrays["tau"], arrays.get("dq"),
                       arrays.get("ddq"),
                       joint_names=joint_names if joint_names is not None else file_names,
-                      model=model,
-                      trim_start=trim_start, trim_end=trim_end, duplicates=duplicates,
-                      source=path.name, **signal_options)
+                      source=path.name, **common)
     return Recording(rec.dataset, (first, *rec.steps), str(path), rec.time_origin)

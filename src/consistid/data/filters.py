@@ -1,0 +1,284 @@
+r"""Signal-processing blocks of the signal chain, each usable alone on uniformly sampled arrays.
+
+Identification needs ``q̇`` and ``q̈``, which robots rarely log; they are estimated off line from
+the measured positions with non-causal filters (Gautier 1997, "Dynamic identification of robots
+with power model", ICRA, doi:10.1109/ROBOT.1997.614364; Swevers, Ganseman, Tükel, De Schutter,
+Van Brussel 1997, "Optimal robot excitation and identification", IEEE T-RA 13(5),
+doi:10.1109/70.631234).
+
+:func:`lowpass`
+    zero-phase Butterworth (``scipy.signal.sosfiltfilt``): the forward-backward filter's power
+    (squared magnitude) is ``|H(f)|² = 1/(1 + (f/f_c)^{2n})²``, −6 dB in magnitude at ``f_c``;
+    no phase lag.
+:func:`central_difference`
+    ``q̇_k = (q_{k+1} − q_{k−1}) / 2h``, ``q̈_k = (q_{k+1} − 2q_k + q_{k−1}) / h²``.
+:func:`savgol_derivatives`
+    Savitzky–Golay local polynomial fits (Savitzky & Golay 1964, Anal. Chem. 36(8),
+    doi:10.1021/ac60214a047); the window whose −3 dB point is nearest the cut-off, found from
+    the filter's frequency response starting at Schafer's rule
+    ``f_c ≈ (p + 1) / (3.2 w − 4.6) · f_s`` (Schafer 2011, IEEE Signal Proc. Mag. 28(4),
+    doi:10.1109/MSP.2011.941097), which alone puts it at 0.8–0.9 × the cut-off.
+:func:`fourier_derivatives`
+    for periodic excitations: average the whole periods, keep the harmonics below the cut-off,
+    differentiate by multiplying harmonic ``k`` by ``(i k ω_f)`` (Swevers et al. 1997).
+:func:`hampel`
+    outlier rejection against a running median (Hampel 1974, JASA 69(346),
+    doi:10.1080/01621459.1974.10482962).
+:func:`low_speed_mask`
+    drop samples where some joint moves slower than a threshold: around velocity reversals the
+    Coulomb term switches sign and is badly described (De Luca's lecture notes, the seeds), which
+    matters when friction is not modelled.
+:func:`estimate_bandwidth`, :func:`default_cutoff`
+    the excitation bandwidth from the position spectrum and the cut-off ``f_c = 10 ×
+    bandwidth`` (Gautier's rule of thumb; with the few-Hz excitations of the seeds it gives their
+    30 Hz at 1 kHz), at most 0.4 × the sampling rate.
+
+The chain that strings them together is :mod:`consistid.data.chain`.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+import scipy.signal
+
+from ..errors import DatasetError, OptionError
+
+#: Cut-off = this × the excitation bandwidth (Gautier's rule of thumb).
+CUTOFF_FACTOR = 10.0
+#: The cut-off never exceeds this fraction of the sampling rate (0.8 × Nyquist).
+MAX_CUTOFF_FRACTION = 0.4
+#: Odd-reflection padding of :func:`lowpass`, in periods of the cut-off.
+PAD_PERIODS = 6.0
+
+
+def as_2d(name: str, x: np.ndarray) -> np.ndarray:
+    a = np.asarray(x, dtype=float)
+    if a.ndim == 1:
+        a = a[:, None]
+    if a.ndim != 2:
+        raise DatasetError(f"{name} must be (N,) or (N, nv), got shape {a.shape}")
+    return a
+
+
+def lowpass(x: np.ndarray, cutoff: float, rate: float, order: int = 4) -> np.ndarray:
+    """Zero-phase Butterworth low-pass along axis 0 (``scipy.signal.sosfiltfilt``).
+
+    ``order`` is that of the one-way filter; run forward and backward, the magnitude is squared
+    (``|H|² = 1/(1 + (f/f_c)^{2n})²``, −6 dB at ``f_c``) and the phase is zero. The ends are
+    padded by odd reflection over ``6 / f_c`` seconds (scipy's default, 15 samples, leaves the
+    initial-state transient in the data: 20× larger edge errors in ``q̈``).
+    """
+    if not 0 < cutoff < 0.5 * rate:
+        raise OptionError(f"cutoff = {cutoff} Hz must lie in (0, {0.5 * rate:g}) Hz, below the "
+                          f"Nyquist frequency of {rate:g} Hz sampling")
+    sos = scipy.signal.butter(order, cutoff, fs=rate, output="sos")
+    x = np.asarray(x, dtype=float)
+    pad = min(int(np.ceil(PAD_PERIODS * rate / cutoff)), x.shape[0] - 1)
+    return scipy.signal.sosfiltfilt(sos, x, axis=0, padlen=pad)
+
+
+def central_difference(x: np.ndarray, rate: float) -> tuple[np.ndarray, np.ndarray]:
+    """First and second derivatives of uniformly sampled ``x`` by central differences.
+
+    Interior: ``(x_{k+1} − x_{k−1})/2h`` and ``(x_{k+1} − 2x_k + x_{k−1})/h²`` (errors
+    ``h² x'''/6`` and ``h² x''''/12``); second-order one-sided formulas at the two ends.
+    """
+    x = np.asarray(x, dtype=float)
+    if x.shape[0] < 4:
+        raise DatasetError(f"central differences need at least 4 samples, got {x.shape[0]}")
+    h = 1.0 / rate
+    dx = np.gradient(x, h, axis=0, edge_order=2)
+    ddx = np.empty_like(x)
+    ddx[1:-1] = (x[2:] - 2.0 * x[1:-1] + x[:-2]) / h ** 2
+    ddx[0] = (2 * x[0] - 5 * x[1] + 4 * x[2] - x[3]) / h ** 2
+    ddx[-1] = (2 * x[-1] - 5 * x[-2] + 4 * x[-3] - x[-4]) / h ** 2
+    return dx, ddx
+
+
+def savgol_cutoff(window: int, rate: float, polyorder: int = 3) -> float:
+    """The −3 dB frequency (Hz) of the Savitzky–Golay smoother of ``window`` samples.
+
+    Its weights are the centre value of the least-squares polynomial fit, ``e_0ᵀ V⁺`` with
+    ``V`` the Vandermonde matrix of the window's sample offsets scaled to ``[−1, 1]`` (exact in
+    floating point for any window length); the cut-off is the first frequency where the
+    magnitude response falls to ``1/√2``, interpolated linearly on a grid of 2048 steps up to
+    3 × Schafer's estimate, then up to Nyquist (Nyquist if it never falls that low).
+    """
+    x = np.linspace(-1.0, 1.0, window)
+    weights = np.linalg.pinv(np.vander(x, polyorder + 1, increasing=True))[0]
+    estimate = (polyorder + 1) * rate / max(3.2 * window - 4.6, 1e-9)
+    for top in (min(3.0 * estimate, 0.5 * rate), 0.5 * rate):
+        f = np.linspace(0.0, top, 2049)
+        mag = np.abs(scipy.signal.freqz(weights, worN=f, fs=rate)[1])
+        below = np.flatnonzero(mag < 1.0 / np.sqrt(2.0))
+        if below.size:
+            i = below[0]
+            return float(f[i - 1] + (mag[i - 1] - 1.0 / np.sqrt(2.0)) / (mag[i - 1] - mag[i])
+                         * (f[i] - f[i - 1]))
+    return 0.5 * rate
+
+
+def savgol_window(cutoff: float, rate: float, polyorder: int = 3) -> int:
+    """The odd window length whose Savitzky–Golay smoother has its −3 dB point
+    (:func:`savgol_cutoff`) closest to ``cutoff``.
+
+    Schafer's rule ``w = ((p + 1) f_s / f_c + 4.6) / 3.2`` (Schafer 2011) alone puts the −3 dB
+    point at 0.8–0.9 × ``cutoff`` (0.6–0.8 × below 25 samples); the window is rescaled by that
+    ratio (the cut-off is nearly ∝ 1/w) and then moved by 2 while that brings it closer.
+    """
+    if not 0 < cutoff < 0.5 * rate:
+        raise OptionError(f"cutoff = {cutoff} Hz must lie in (0, {0.5 * rate:g}) Hz")
+    smallest = polyorder + 2 if polyorder % 2 else polyorder + 1      # odd, > polyorder
+
+    def odd(n: float) -> int:
+        k = max(int(round(n)), smallest)
+        return k + 1 if k % 2 == 0 else k
+
+    w = odd(((polyorder + 1) * rate / cutoff + 4.6) / 3.2)
+    w = odd(w * savgol_cutoff(w, rate, polyorder) / cutoff)
+    error = {}
+
+    def miss(n: int) -> float:
+        if n not in error:
+            error[n] = abs(savgol_cutoff(n, rate, polyorder) - cutoff)
+        return error[n]
+
+    for step in (2, -2):
+        while w + step >= smallest and miss(w + step) < miss(w):
+            w += step
+    return w
+
+
+def savgol_derivatives(x: np.ndarray, rate: float, window: int, polyorder: int = 3
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Smoothed value, first and second derivative by Savitzky–Golay fits along axis 0."""
+    x = np.asarray(x, dtype=float)
+    if window > x.shape[0]:
+        raise DatasetError(f"Savitzky–Golay window {window} is longer than the {x.shape[0]} "
+                           "samples")
+    total = scipy.signal.savgol_coeffs(window, polyorder).sum()
+    if not abs(total - 1.0) < 1e-6:        # scipy's weights break for long windows, high orders
+        raise OptionError(f"scipy's Savitzky–Golay weights for {window} samples at order "
+                          f"{polyorder} are numerically broken (they sum to {total:.3g}, not 1; "
+                          "order 5 breaks beyond ~700 samples): use a lower polyorder, a higher "
+                          "cut-off, or derivative='central'")
+    kw = dict(window_length=window, polyorder=polyorder, axis=0, mode="interp")
+    return (scipy.signal.savgol_filter(x, **kw),
+            scipy.signal.savgol_filter(x, deriv=1, delta=1.0 / rate, **kw),
+            scipy.signal.savgol_filter(x, deriv=2, delta=1.0 / rate, **kw))
+
+
+def samples_per_period(period: float, rate: float) -> int:
+    """``period × rate`` as an integer; raises :class:`DatasetError` unless it is one."""
+    p = period * rate
+    if abs(p - round(p)) > 1e-6 * max(p, 1.0) or round(p) < 4:
+        raise DatasetError(f"period × rate = {period} s × {rate} Hz = {p:.9g} samples: "
+                           "frequency-domain processing needs a whole number (≥ 4) of samples "
+                           "per period")
+    return int(round(p))
+
+
+def period_average(x: np.ndarray, period: float, rate: float) -> tuple[np.ndarray, int]:
+    """The mean over the whole periods of ``x`` (from its first sample), ``(P, ...)``, and the
+    number of periods averaged. Trailing samples of an incomplete period are left out."""
+    p = samples_per_period(period, rate)
+    n = x.shape[0] // p
+    if n < 1:
+        raise DatasetError(f"the log has {x.shape[0]} samples, less than one period ({p})")
+    return x[:n * p].reshape(n, p, *x.shape[1:]).mean(axis=0), n
+
+
+def fourier_derivatives(x: np.ndarray, rate: float, period: float, harmonics: int
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    r"""Band-limited value, first and second derivative of one period of a periodic signal.
+
+    ``x`` is one period (e.g. from :func:`period_average`), ``P`` samples. With its DFT
+    ``X_k``, harmonics ``k > harmonics`` are zeroed and
+
+    .. math:: \dot x = \mathcal F^{-1}[(i k \omega_f) X_k], \quad
+              \ddot x = \mathcal F^{-1}[-(k \omega_f)^2 X_k], \quad \omega_f = 2\pi/T
+
+    (the Nyquist bin, if kept, is dropped from the derivatives: its sign is ambiguous).
+    """
+    x = np.asarray(x, dtype=float)
+    p = x.shape[0]
+    if harmonics < 1:
+        raise OptionError(f"harmonics = {harmonics}; keep at least the fundamental")
+    spec = np.fft.rfft(x, axis=0)
+    k = np.arange(spec.shape[0])
+    keep = k <= harmonics
+    shape = (-1,) + (1,) * (x.ndim - 1)
+    spec = spec * keep.reshape(shape)
+    iw = (1j * 2 * np.pi / period * k).reshape(shape)
+    if p % 2 == 0 and keep[-1]:
+        dspec = spec.copy()
+        dspec[-1] = 0
+    else:
+        dspec = spec
+    return (np.fft.irfft(spec, n=p, axis=0), np.fft.irfft(iw * dspec, n=p, axis=0),
+            np.fft.irfft(iw ** 2 * dspec, n=p, axis=0))
+
+
+def hampel(x: np.ndarray, window: int = 11, n_sigma: float = 6.0
+           ) -> tuple[np.ndarray, np.ndarray]:
+    r"""Replace outliers by the running median; returns ``(cleaned, outlier mask)``.
+
+    Sample ``k`` of a channel is an outlier when ``|x_k − m_k| > n_σ · s_k``, with ``m_k`` the
+    median of the ``window`` samples centred on ``k`` and ``s_k = max(1.4826 · median_j |x_j −
+    m_k|, s_min)`` over the same samples (the local MAD); ``s_min`` is the smallest non-zero
+    step between consecutive samples of the channel, so that on a flat stretch of an encoder
+    signal one count is not an outlier. A smooth signal is never flagged (at an extremum the
+    ratio is about 1).
+    """
+    x = as_2d("x", x)
+    if window < 3 or window % 2 == 0:
+        raise OptionError(f"hampel window = {window}; it must be odd and ≥ 3")
+    if x.shape[0] < window:
+        raise DatasetError(f"hampel needs at least window = {window} samples, got {x.shape[0]}")
+    half = window // 2
+    padded = np.pad(x, ((half, half), (0, 0)), mode="reflect")
+    win = np.lib.stride_tricks.sliding_window_view(padded, window, axis=0)  # (N, nv, window)
+    med = np.median(win, axis=2)
+    scale = 1.4826 * np.median(np.abs(win - med[:, :, None]), axis=2)
+    steps = np.abs(np.diff(x, axis=0))
+    floor = np.array([np.min(s[s > 0]) if np.any(s > 0) else 0.0 for s in steps.T])
+    mask = np.abs(x - med) > n_sigma * np.maximum(scale, floor)
+    return np.where(mask, med, x), mask
+
+
+def low_speed_mask(dq: np.ndarray, threshold: float | Sequence[float]) -> np.ndarray:
+    """``True`` for the samples to keep: every joint's ``|q̇|`` at least ``threshold`` (rad/s,
+    scalar or per joint)."""
+    dq = as_2d("dq", dq)
+    thr = np.broadcast_to(np.asarray(threshold, dtype=float), (dq.shape[1],))
+    return np.all(np.abs(dq) >= thr, axis=1)
+
+
+def estimate_bandwidth(q: np.ndarray, rate: float, fraction: float = 0.9999) -> float:
+    """The excitation bandwidth (Hz): the frequency below which ``fraction`` of the power of
+    every joint's detrended, Hann-windowed position lies (the largest over joints).
+
+    Positions are used, not velocities: their noise is tiny compared with the motion.
+    """
+    q = as_2d("q", q)
+    if q.shape[0] < 16:
+        raise DatasetError(f"{q.shape[0]} samples are too few to estimate a bandwidth")
+    x = scipy.signal.detrend(q, axis=0) * np.hanning(q.shape[0])[:, None]
+    power = np.abs(np.fft.rfft(x, axis=0)) ** 2
+    freqs = np.fft.rfftfreq(q.shape[0], 1.0 / rate)
+    total = power.sum(axis=0)
+    moving = total > 0
+    if not moving.any():
+        raise DatasetError("the positions do not move: no excitation bandwidth")
+    cum = np.cumsum(power[:, moving], axis=0) / total[moving]
+    idx = np.argmax(cum >= fraction, axis=0)
+    return float(max(freqs[idx].max(), freqs[1]))
+
+
+def default_cutoff(bandwidth: float, rate: float) -> float:
+    """``min(10 × bandwidth, 0.4 × rate)`` (Hz)."""
+    if not bandwidth > 0:
+        raise OptionError(f"bandwidth = {bandwidth} Hz must be positive")
+    return float(min(CUTOFF_FACTOR * bandwidth, MAX_CUTOFF_FRACTION * rate))

@@ -1,0 +1,330 @@
+r"""Named columns to a log: which column is time, which are each joint's position, velocity,
+acceleration and torque — the one column mapping of every tabular format (CSV, Parquet,
+DataFrame, flat MATLAB variables).
+
+Recognised names (case-insensitive; a unit in brackets, ``"q1 [rad]"``, is ignored):
+
+time
+    ``t``, ``time``, ``times``, ``timestamp``, ``stamp``, ``%time`` (``rostopic echo -p``),
+    ``header.stamp``; a unit suffix ``_s``, ``_ms``, ``_us``, ``_ns`` or ``[ms]`` gives the unit
+    (``time_ms``, ``timestamp_ns``), recorded in the loader's record.
+fields (:data:`FIELD_ALIASES`)
+    ``q``/``pos``/``position``; ``dq``/``qd``/``vel``/``velocity``; ``ddq``/``qdd``/``acc``/
+    ``acceleration``; ``tau``/``effort``/``torque``/``trq`` (plurals too).
+one column per joint and field, any of
+    ``q1`` or ``q_1`` (1-based joint index), ``q_<joint>``, ``q.<joint>``, ``q[<joint>]``,
+    ``<joint>.q``, ``<joint>_q``, ``<joint>/position`` — and bare joint names (``panda_joint1``),
+    read as positions.
+
+``columns=`` overrides the recognition: ``{"t": "stamp", "q": "pos_{joint}", "tau":
+"eff_{joint}"}`` (``{joint}`` is filled with each joint name, ``{i}`` with the 1-based index) or
+explicit lists ``{"q": ["a1", "a2"], ...}``. ``joints=`` selects and orders the joints; the other
+joints' columns (a gripper) are dropped and listed in the record.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from ...errors import DatasetError, MissingColumnsError
+
+FIELDS = ("q", "dq", "ddq", "tau")
+#: Column-name spellings of each dataset field.
+FIELD_ALIASES: dict[str, tuple[str, ...]] = {
+    "q": ("q", "pos", "position", "positions", "angle", "angles"),
+    "dq": ("dq", "qd", "qdot", "vel", "velocity", "velocities"),
+    "ddq": ("ddq", "qdd", "qddot", "acc", "accel", "acceleration", "accelerations"),
+    "tau": ("tau", "effort", "efforts", "torque", "torques", "trq", "force", "forces"),
+}
+TIME_NAMES = ("t", "time", "times", "timestamp", "timestamps", "stamp", "%time",
+              "header.stamp", "field.header.stamp", "time_stamp")
+_UNITS = r"(?:s|ms|us|µs|ns)"
+_UNIT_SUFFIX = re.compile(rf"^(?P<base>.*?)[_\s]*(?:\[(?P<b>{_UNITS})\]|\((?P<p>{_UNITS})\)"
+                          r"|_(?P<u>s|sec|ms|us|ns))$")
+_BRACKET_UNIT = re.compile(r"\s+[\[(][^\])]*[\])]\s*$")
+_SEP = r"[_.\-/: ]"
+
+
+@dataclass(frozen=True)
+class Log:
+    """A log as read from a file, before the signal chain: stamps and named per-joint arrays.
+
+    Attributes
+    ----------
+    t : (N,) stamps as stored (seconds unless ``time_unit`` says otherwise).
+    fields : field name (``q``, ``dq``, ``ddq``, ``tau``) → (N, n) array, columns in
+        ``joint_names`` order.
+    joint_names : the joints, or ``None`` when the columns are numbered only.
+    source : the file name (or ``"DataFrame"``).
+    notes : what was read from where, for the loader's record.
+    time_unit : the stamps' unit when the source says it (a column suffix, ROS stamps), else
+        ``None``.
+    """
+
+    t: np.ndarray
+    fields: Mapping[str, np.ndarray]
+    joint_names: tuple[str, ...] | None
+    source: str
+    notes: tuple[str, ...] = ()
+    time_unit: str | None = None
+    rows: np.ndarray | None = field(default=None)
+
+    def where(self, k: int) -> str:
+        """The source position of sample ``k`` (a file line or a row)."""
+        if self.rows is not None and 0 <= k < self.rows.size:
+            return f"line {int(self.rows[k])}"
+        return f"row {k}"
+
+
+def _clean(name: str) -> str:
+    return str(name).strip().strip('"').strip("'").lower()
+
+
+def time_unit_of(name: str) -> tuple[bool, str | None]:
+    """Whether column ``name`` is a time column, and the unit its name gives."""
+    n = _clean(name)
+    if n in TIME_NAMES:
+        return True, None
+    m = _UNIT_SUFFIX.match(n)
+    if m and m.group("base").strip() in TIME_NAMES:
+        unit = m.group("b") or m.group("p") or m.group("u")
+        unit = {"sec": "s", "µs": "us"}.get(unit, unit)
+        return True, unit
+    return False, None
+
+
+def _field_of(word: str) -> str | None:
+    for f, aliases in FIELD_ALIASES.items():
+        if word in aliases:
+            return f
+    return None
+
+
+def parse_column(name: str) -> tuple[str, str | int] | None:
+    """``(field, joint)`` of a per-joint column name (joint: a name, or a 0-based index for
+    ``q1``-style names), or ``None`` when the name is not one (module docstring)."""
+    n = _BRACKET_UNIT.sub("", _clean(name))
+    raw = _BRACKET_UNIT.sub("", str(name).strip().strip('"').strip("'"))
+    m = re.fullmatch(r"([a-z]+)_?(\d+)", n)
+    if m and _field_of(m.group(1)):
+        return _field_of(m.group(1)), int(m.group(2)) - 1
+    m = re.fullmatch(r"([a-z]+)\[(.+)\]", n)
+    if m and _field_of(m.group(1)):
+        return _field_of(m.group(1)), raw[len(m.group(1)) + 1:-1]
+    m = re.fullmatch(rf"([a-z]+){_SEP}(.+)", n)
+    if m and _field_of(m.group(1)):
+        return _field_of(m.group(1)), raw[len(m.group(1)) + 1:]
+    m = re.fullmatch(rf"(.+){_SEP}([a-z]+)", n)
+    if m and _field_of(m.group(2)):
+        return _field_of(m.group(2)), raw[:len(m.group(1))]
+    return None
+
+
+def _template(spec: str | Sequence[str], joints: Sequence[str] | None, field_name: str,
+              source: str) -> list[str]:
+    if isinstance(spec, str):
+        if "{joint}" in spec and joints is None:
+            raise MissingColumnsError(f"{source}: columns[{field_name!r}] = {spec!r} needs joint "
+                                      "names: pass joints=[...] or a model")
+        if "{joint}" not in spec and "{i}" not in spec:
+            raise MissingColumnsError(f"{source}: columns[{field_name!r}] = {spec!r} must contain "
+                                      "{joint} or {i}, or be a list of column names")
+        n = len(joints) if joints is not None else None
+        if n is None:
+            raise MissingColumnsError(f"{source}: columns[{field_name!r}] = {spec!r} needs the "
+                                      "joint count: pass joints=[...] or a model")
+        return [spec.format(joint=joints[i] if joints else i + 1, i=i + 1) for i in range(n)]
+    return [str(c) for c in spec]
+
+
+@dataclass(frozen=True)
+class ColumnMap:
+    """Which column holds what: ``time`` the time column, ``fields[f][j]`` the column of field
+    ``f`` for joint ``j`` of ``joint_names``; ``dropped`` the per-joint columns of joints not
+    selected, ``ignored`` the columns nothing reads."""
+
+    time: str
+    fields: dict[str, list[str]]
+    joint_names: tuple[str, ...] | None
+    time_unit: str | None
+    dropped: tuple[str, ...]
+    ignored: tuple[str, ...]
+
+    def describe(self, source: str) -> str:
+        parts = [f"t←{self.time!r}" + (f" ({self.time_unit})" if self.time_unit else "")]
+        for f, cols in self.fields.items():
+            parts.append(f"{f}←{cols[0]!r}…{cols[-1]!r}" if len(cols) > 1 else f"{f}←{cols[0]!r}")
+        text = f"read {source}: " + ", ".join(parts)
+        if self.joint_names:
+            text += f"; joints {list(self.joint_names)}"
+        if self.dropped:
+            text += f"; dropped the columns of unselected joints {list(self.dropped)}"
+        if self.ignored:
+            text += f"; ignored columns {list(self.ignored)}"
+        return text
+
+
+def map_columns(names: Sequence[str], source: str, *, joints: Sequence[str] | None = None,
+                columns: Mapping[str, str | Sequence[str]] | None = None) -> ColumnMap:
+    """The :class:`ColumnMap` of a table with column ``names`` (module docstring).
+
+    Raises :class:`MissingColumnsError` naming the file, the field or joint that has no column
+    and the columns the file has.
+    """
+    names = [str(n) for n in names]
+    have = f"; the columns are {names}"
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise MissingColumnsError(f"{source}: column name(s) {dup} appear more than once")
+    joints = None if joints is None else [str(j) for j in joints]
+    if columns:
+        unknown = sorted(set(columns) - {"t", *FIELDS})
+        if unknown:
+            raise MissingColumnsError(f"{source}: columns= keys {unknown} are not t, q, dq, ddq, "
+                                      "tau")
+        explicit = {f: _template(v, joints, f, source) for f, v in columns.items() if f != "t"}
+        for f, cols in explicit.items():
+            missing = [c for c in cols if c not in names]
+            if missing:
+                raise MissingColumnsError(f"{source}: columns[{f!r}] names {missing}, which the "
+                                          f"file lacks{have}")
+        lengths = {len(c) for c in explicit.values()}
+        if len(lengths) > 1:
+            raise MissingColumnsError(f"{source}: columns= gives different joint counts "
+                                      f"{ {f: len(c) for f, c in explicit.items()} }")
+    else:
+        explicit = {}
+    # time
+    if columns and "t" in columns:
+        time = str(columns["t"])
+        if time not in names:
+            raise MissingColumnsError(f"{source}: columns['t'] = {time!r} is not a column{have}")
+        unit = time_unit_of(time)[1]
+    else:
+        found = [(n, time_unit_of(n)[1]) for n in names if time_unit_of(n)[0]]
+        if not found:
+            raise MissingColumnsError(f"{source}: no time column (t, time, timestamp, stamp, "
+                                      f"time_ms …){have}; pass columns={{'t': 'name'}}")
+        time, unit = found[0]
+    # per-joint columns
+    parsed: dict[str, dict[str | int, str]] = {f: {} for f in FIELDS}
+    used = {time} | {c for cols in explicit.values() for c in cols}
+    by_name = {j.lower(): j for j in joints} if joints else {}
+    for n in names:
+        if n in used:
+            continue
+        p = parse_column(n)
+        if p is None:
+            bare = n.strip()
+            if (joints and bare in joints) or (not joints and re.search(r"joint|^j\d+$", bare,
+                                                                          re.I)):
+                p = ("q", bare)
+            else:
+                continue
+        f, j = p
+        if isinstance(j, str) and j.lower() in by_name:
+            j = by_name[j.lower()]
+        if j in parsed[f]:
+            raise MissingColumnsError(f"{source}: columns {parsed[f][j]!r} and {n!r} are both "
+                                      f"{f} of joint {j!r}; pass columns= to choose")
+        parsed[f][j] = n
+    fields: dict[str, list[str]] = {}
+    dropped: list[str] = []
+    if explicit:
+        fields = dict(explicit)
+        names_out = tuple(joints) if joints else None
+        for f in FIELDS:
+            if f not in fields and parsed[f] and joints:
+                if all(j in parsed[f] for j in joints):
+                    fields[f] = [parsed[f][j] for j in joints]
+    else:
+        if not parsed["q"]:
+            raise MissingColumnsError(f"{source}: no joint position columns (q1.., q_<joint>, "
+                                      f"<joint>.q, position_<joint>, or joint-name headers){have}"
+                                      "; pass columns={'q': [...]} ")
+        keys = list(parsed["q"])
+        kinds = {type(k) for k in keys}
+        if len(kinds) > 1:
+            raise MissingColumnsError(f"{source}: position columns mix numbered and named joints "
+                                      f"{[parsed['q'][k] for k in keys]}; pass columns=")
+        if kinds == {int}:
+            keys = sorted(keys)
+            if keys != list(range(len(keys))):
+                raise MissingColumnsError(f"{source}: numbered position columns are not q1..qn: "
+                                          f"{[parsed['q'][k] for k in keys]}")
+            if joints is not None and len(joints) != len(keys):
+                raise MissingColumnsError(f"{source}: {len(keys)} numbered joint columns but "
+                                          f"joints= names {len(joints)}: {joints}")
+            selected: list = keys
+            names_out = tuple(joints) if joints is not None else None
+        else:
+            if joints is not None:
+                missing = [j for j in joints if j not in parsed["q"]]
+                if missing:
+                    raise MissingColumnsError(f"{source}: no position column for joint(s) "
+                                              f"{missing}{have}")
+                selected = list(joints)
+            else:
+                selected = keys
+            names_out = tuple(str(j) for j in selected)
+        for f in FIELDS:
+            if not parsed[f]:
+                continue
+            missing = [j for j in selected if j not in parsed[f]]
+            if missing and f in ("q", "tau"):
+                label = [(k + 1 if isinstance(k, int) else k) for k in missing]
+                raise MissingColumnsError(f"{source}: {f} columns lack joint(s) {label} (the "
+                                          f"{f} columns are {list(parsed[f].values())}){have}")
+            if not missing:
+                fields[f] = [parsed[f][j] for j in selected]
+            dropped += [c for j, c in parsed[f].items() if j not in selected]
+    if "tau" not in fields:
+        raise MissingColumnsError(f"{source}: no torque columns (tau.., effort_<joint>, "
+                                  f"<joint>.torque …): identification needs measured torques{have}")
+    if "q" not in fields:
+        raise MissingColumnsError(f"{source}: no position columns{have}")
+    read = {time} | {c for cols in fields.values() for c in cols} | set(dropped)
+    ignored = tuple(n for n in names if n not in read)
+    return ColumnMap(time, fields, names_out, unit, tuple(dropped), ignored)
+
+
+def log_from_columns(get, cmap: ColumnMap, source: str, n_rows: int,
+                     rows: np.ndarray | None = None, extra_notes: Sequence[str] = ()) -> Log:
+    """A :class:`Log` from a column getter ``get(name) -> (N,) array`` and a column map;
+    non-numeric or non-finite values raise :class:`DatasetError` naming the file, the column and
+    the row (or line)."""
+
+    def column(name: str) -> np.ndarray:
+        a = np.asarray(get(name))
+        if a.dtype.kind == "M":
+            return a
+        try:
+            a = a.astype(float)
+        except (TypeError, ValueError):
+            for k, v in enumerate(a):
+                try:
+                    float(v)
+                except (TypeError, ValueError):
+                    where = f"line {int(rows[k])}" if rows is not None else f"row {k}"
+                    raise DatasetError(f"{source}, {where}, column {name!r}: {v!r} is not a "
+                                       "number") from None
+            raise
+        bad = np.flatnonzero(~np.isfinite(a))
+        if bad.size:
+            k = int(bad[0])
+            where = f"line {int(rows[k])}" if rows is not None else f"row {k}"
+            what = "an empty cell or NaN" if np.isnan(a[k]) else "infinite"
+            raise DatasetError(f"{source}, {where}, column {name!r}: {what} ({bad.size} "
+                               f"non-finite value(s) in that column); repair or drop those rows")
+        return a
+
+    t = column(cmap.time)
+    fields = {f: np.column_stack([column(c) for c in cols]) for f, cols in cmap.fields.items()}
+    if t.size != n_rows or t.size == 0:
+        raise DatasetError(f"{source}: no data rows")
+    notes = (cmap.describe(source), *extra_notes)
+    return Log(t, fields, cmap.joint_names, source, notes, cmap.time_unit, rows)

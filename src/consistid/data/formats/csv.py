@@ -1,0 +1,144 @@
+r"""CSV (and other delimited text) logs: one header line naming the columns, one row per sample.
+
+The delimiter is sniffed from the first lines (``,``, ``;``, tab, ``|`` or spaces; Python's
+``csv.Sniffer``), and said in the record; with ``;`` a decimal comma (``1,25``) is read as
+``1.25``. Lines starting with ``#`` are comments (before the header too). The columns are
+matched by name (:mod:`consistid.data.formats.columns`). Numbers are parsed by ``numpy.loadtxt``;
+a broken file is re-read line by line to name the line and column of the first bad value
+(:class:`~consistid.errors.DatasetError`).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from ...errors import DatasetError, MissingColumnsError
+from .columns import Log, log_from_columns, map_columns
+
+DELIMITERS = ",;\t| "
+#: Characters read to sniff the delimiter.
+SNIFF_CHARS = 16384
+
+
+def _header(lines: list[str], source: str) -> tuple[int, str]:
+    for k, line in enumerate(lines):
+        if line.strip() and not line.lstrip().startswith("#"):
+            return k, line
+    raise DatasetError(f"{source} is empty (no header line, no data)")
+
+
+def sniff_delimiter(sample: str, source: str) -> str:
+    """The delimiter of the text ``sample`` (header and a few rows)."""
+    lines = [ln for ln in sample.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
+    text = "\n".join(lines[:20])
+    try:
+        return csv.Sniffer().sniff(text, delimiters=DELIMITERS).delimiter
+    except csv.Error:
+        for d in DELIMITERS:
+            if lines and d in lines[0]:
+                return d
+        raise DatasetError(f"{source}: cannot tell the delimiter of the header {lines[:1]}; "
+                           "pass delimiter=") from None
+
+
+def _locate(path: Path, start: int, delimiter: str, names: list[str], decimal_comma: bool,
+            source: str) -> None:
+    """Re-read ``path`` line by line from line ``start`` (0-based) and raise a DatasetError
+    naming the first bad line/column."""
+    with open(path, newline="", encoding="utf-8-sig") as fh:
+        for lineno, line in enumerate(fh):
+            if lineno < start or not line.strip() or line.lstrip().startswith("#"):
+                continue
+            cells = next(csv.reader([line], delimiter=delimiter,
+                                    skipinitialspace=delimiter == " "))
+            if delimiter == " ":
+                cells = [c for c in cells if c != ""]
+            if len(cells) != len(names):
+                raise DatasetError(f"{source}, line {lineno + 1}: {len(cells)} fields, the header "
+                                   f"has {len(names)} ({line.strip()[:80]!r})")
+            for name, cell in zip(names, cells):
+                text = cell.strip().replace(",", ".") if decimal_comma else cell.strip()
+                try:
+                    float(text)
+                except ValueError:
+                    raise DatasetError(f"{source}, line {lineno + 1}, column {name!r}: "
+                                       f"{cell!r} is not a number") from None
+
+
+def read_csv(path: str | Path, *, joints: Sequence[str] | None = None,
+             columns: Mapping[str, str | Sequence[str]] | None = None,
+             delimiter: str | None = None) -> Log:
+    """Read a delimited text log into a :class:`~consistid.data.formats.columns.Log`.
+
+    Parameters
+    ----------
+    path : the file.
+    joints : joints to keep, in this order (other joints' columns are dropped and recorded).
+    columns : explicit column mapping (:mod:`consistid.data.formats.columns`).
+    delimiter : default sniffed.
+
+    Raises
+    ------
+    DatasetError : empty file, no data rows, a line with the wrong number of fields or a value
+        that is not a number (naming the line and the column), a non-finite stamp or value.
+    MissingColumnsError : no time, position or torque columns (listing the header).
+    """
+    path = Path(path)
+    source = path.name
+    if not path.is_file():
+        raise DatasetError(f"log file {str(path)!r} does not exist")
+    with open(path, newline="", encoding="utf-8-sig") as fh:
+        head = fh.read(SNIFF_CHARS)
+    if not head.strip():
+        raise DatasetError(f"{source} is empty")
+    lines = head.splitlines()
+    k, header_line = _header(lines, source)
+    how = "given" if delimiter is not None else "sniffed"
+    if delimiter is None:
+        delimiter = sniff_delimiter(head, source)
+    names = next(csv.reader([header_line], delimiter=delimiter,
+                            skipinitialspace=delimiter == " "))
+    names = [n.strip() for n in names if not (delimiter == " " and n == "")]
+    if all(_is_number(n) for n in names):
+        raise MissingColumnsError(f"{source}: the first line {header_line.strip()[:80]!r} is data,"
+                                  " not a header naming the columns; add a header line or pass "
+                                  "the arrays to consistid.data.recordings.from_arrays")
+    cmap = map_columns(names, source, joints=joints, columns=columns)
+    data_lines = [ln for ln in lines[k + 1:] if ln.strip() and not ln.lstrip().startswith("#")]
+    decimal_comma = delimiter == ";" and bool(data_lines) and "," in data_lines[0]
+    wanted = [cmap.time] + [c for cols in cmap.fields.values() for c in cols]
+    usecols = sorted({names.index(c) for c in wanted})
+    try:
+        with open(path, encoding="utf-8-sig") as fh:
+            text = fh.read()
+        if decimal_comma:
+            text = text.replace(",", ".")
+        table = np.loadtxt(io.StringIO(text), delimiter=None if delimiter == " " else delimiter,
+                           skiprows=k + 1, comments="#", ndmin=2, dtype=float, usecols=usecols)
+    except ValueError:
+        _locate(path, k + 1, delimiter, names, decimal_comma, source)
+        raise
+    if table.shape[0] == 0:
+        raise DatasetError(f"{source}: a header ({len(names)} columns) but no data rows")
+    all_lines = text.splitlines()
+    rows = np.array([n + 1 for n, ln in enumerate(all_lines) if n > k and ln.strip()
+                     and not ln.lstrip().startswith("#")])
+    if rows.size != table.shape[0]:
+        rows = None
+    col = {names[c]: table[:, i] for i, c in enumerate(usecols)}
+    note = (f"delimiter {delimiter!r} ({how})" + (", decimal comma" if decimal_comma else "")
+            + f", {table.shape[0]} rows")
+    return log_from_columns(col.__getitem__, cmap, source, table.shape[0], rows, (note,))
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text.replace(",", "."))
+        return True
+    except ValueError:
+        return False

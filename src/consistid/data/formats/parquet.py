@@ -1,0 +1,52 @@
+r"""Parquet logs (Apache Arrow's columnar files), read with ``pyarrow`` (the ``[io]``
+extra): the columns are matched by name as in a CSV (:mod:`consistid.data.formats.columns`);
+a timestamp-typed time column is converted to seconds.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from ...errors import DatasetError, MissingDependencyError
+from .columns import Log, log_from_columns, map_columns
+
+
+def read_parquet(path: str | Path, *, joints: Sequence[str] | None = None,
+                 columns: Mapping[str, str | Sequence[str]] | None = None) -> Log:
+    """Read a Parquet log into a :class:`~consistid.data.formats.columns.Log` (``joints``,
+    ``columns`` as for CSV). Raises :class:`~consistid.errors.MissingDependencyError` without
+    pyarrow, :class:`~consistid.errors.DatasetError` for a file that is not Parquet."""
+    try:
+        import pyarrow.parquet as pq
+    except ImportError:
+        raise MissingDependencyError("reading Parquet needs pyarrow: pip install "
+                                     "'consistid[io]' (or pip install pyarrow)") from None
+    path = Path(path)
+    if not path.is_file():
+        raise DatasetError(f"log file {str(path)!r} does not exist")
+    try:
+        table = pq.read_table(path)
+    except Exception as exc:                      # pyarrow raises its own ArrowInvalid, OSError
+        raise DatasetError(f"{path.name} is not a readable Parquet file: {exc}") from None
+    names = [str(n) for n in table.column_names]
+    cmap = map_columns(names, path.name, joints=joints, columns=columns)
+
+    def get(name: str) -> np.ndarray:
+        col = table.column(name)
+        a = col.to_numpy(zero_copy_only=False)
+        if a.dtype.kind == "M":
+            return (a - a[0]).astype("timedelta64[ns]").astype(np.int64) * 1e-9
+        if a.dtype == object:                     # nulls come back as None
+            a = np.array([np.nan if v is None else v for v in a], dtype=object)
+        return a
+
+    log = log_from_columns(get, cmap, path.name, table.num_rows, None,
+                           (f"{table.num_rows} rows, {len(names)} columns",))
+    if str(table.schema.field(cmap.time).type).startswith("timestamp"):
+        return Log(log.t, log.fields, log.joint_names, log.source,
+                   log.notes + (f"{cmap.time!r} holds timestamps: converted to seconds from the "
+                                "first",), "s", log.rows)
+    return log
