@@ -166,6 +166,11 @@ class DataQualityWarning(UserWarning):
     field, sample and joint, and what to do."""
 
 
+class NothingFoundWarning(UserWarning):
+    """An estimate found nothing (e.g. a payload on data that carry none): the answer is zero
+    within its uncertainty, and what derives from it (a centre of mass) is undefined."""
+
+
 class InaccurateSolutionWarning(UserWarning):
     """The solver stopped at reduced accuracy (status ``optimal_inaccurate``)."""
 

@@ -42,8 +42,9 @@ from ..robot.shapes import Ellipsoid
 from ..identification.constraints import (BodyScaling, com_box, ellipsoid_lmi, mass_bounds,
                           pseudo_inertia_lmi)
 from ..data.dataset import Dataset
-from ..errors import (ModelError, OptionError, PoorExcitationError, PoorExcitationWarning,
-                     check_bounds, check_box, check_option)
+from ..errors import (IdentificationError, InfeasibleError, ModelError, NothingFoundWarning,
+                     OptionError, PoorExcitationError, PoorExcitationWarning, check_bounds,
+                     check_box, check_option)
 from ..robot.model import RobotModel, require_model
 from ..robot.inertia import (INERTIAL_NAMES, body_slice, from_mass_com_inertia, pseudo_inertia,
                              to_mass_com_inertia)
@@ -81,6 +82,9 @@ class Payload:
     n_samples : samples used (route 1), else ``None``.
     residual_rms : (nv,) per-joint RMS of the torque fit (route 1), else ``None``.
     notes : what the user should know (identifiability, minimum number of states …).
+    found : ``False`` when the mass is within :data:`NO_PAYLOAD_SIGMAS` standard deviations of
+        0: no payload detected (a :class:`~consistid.errors.NothingFoundWarning` and a note say
+        so; ``com``, ``inertia`` and ``com_std`` are then NaN, being undefined).
     """
 
     parameters: np.ndarray
@@ -98,6 +102,7 @@ class Payload:
     residual_rms: np.ndarray | None = None
     notes: tuple[str, ...] = ()
     details: dict[str, Any] = field(default_factory=dict)
+    found: bool = True
 
     @property
     def parameter_names(self) -> tuple[str, ...]:
@@ -109,15 +114,16 @@ class Payload:
 
     @property
     def com(self) -> np.ndarray:
-        """Centre of mass in ``frame`` (m); ``nan`` for a zero mass."""
-        if not self.mass > 0:
+        """Centre of mass in ``frame`` (m); ``nan`` for a zero mass or no payload found."""
+        if not (self.mass > 0 and self.found):
             return np.full(3, np.nan)
         return self.parameters[1:4] / self.mass
 
     @property
     def inertia(self) -> np.ndarray:
-        """3×3 rotational inertia about the CoM, axes of ``frame`` (kg·m²)."""
-        if not self.mass > 0:
+        """3×3 rotational inertia about the CoM, axes of ``frame`` (kg·m²); NaN when no payload
+        was found (:attr:`found`)."""
+        if not (self.mass > 0 and self.found):
             return np.full((3, 3), np.nan)
         return to_mass_com_inertia(self.parameters)[2]
 
@@ -135,14 +141,16 @@ class Payload:
         r"""(3,) standard deviations of the CoM by the delta method,
         ``∂c/∂m = −h/m²``, ``∂c/∂h = 1/m``."""
         m, h = self.mass, self.parameters[1:4]
-        if not m > 0:
+        if not (m > 0 and self.found):
             return np.full(3, np.nan)
         jac = np.zeros((3, 10))
         jac[:, 0] = -h / m ** 2
         jac[:, 1:4] = np.eye(3) / m
         with np.errstate(invalid="ignore"):
-            cov = jac @ self.covariance @ jac.T
-        return np.sqrt(np.clip(np.diag(cov), 0.0, None))
+            cov = jac @ np.nan_to_num(self.covariance, nan=0.0, posinf=np.inf) @ jac.T
+        var = np.diag(cov)
+        # an undetermined moment (inf variance) leaves the CoM undetermined: inf, not NaN
+        return np.where(np.isnan(var), np.inf, np.sqrt(np.clip(var, 0.0, None)))
 
     def summary(self) -> str:
         from ..identification.summary import table
@@ -165,6 +173,10 @@ class Payload:
 
     def __str__(self) -> str:
         return self.summary()
+
+
+#: A payload whose mass is not above this many standard deviations is reported as not found.
+NO_PAYLOAD_SIGMAS = 3.0
 
 
 # ------------------------------------------------------------------------------- frames
@@ -294,7 +306,11 @@ def _check_payload_options(frame: object, body: object, ellipsoid: object, com_b
     if com_bounds is not None:
         check_box("com_bounds", com_bounds)
     if mass_range is not None:
-        check_bounds("mass_range", mass_range)
+        lo, hi = check_bounds("mass_range", mass_range)
+        if lo is not None and hi is not None and lo > hi:
+            raise OptionError(f"mass_range = {tuple(mass_range)!r}: lower bound above the upper")
+        if hi is not None and hi < 0:
+            raise OptionError(f"mass_range = {tuple(mass_range)!r}: a payload mass is ≥ 0 kg")
 
 
 def _solve_payload(r: np.ndarray, z: np.ndarray, null: np.ndarray, what: str,
@@ -318,8 +334,42 @@ def _solve_payload(r: np.ndarray, z: np.ndarray, null: np.ndarray, what: str,
     if null.size:
         # ‖(scaled) null-space component‖²: does not change the fit, fixes what it leaves free.
         objective = objective + cp.sum_squares(null.T @ x / np.linalg.norm(null, axis=0))
-    report = solve(cp.Problem(cp.Minimize(objective), constraints), what, solver, options)
+    try:
+        report = solve(cp.Problem(cp.Minimize(objective), constraints), what, solver, options)
+    except InfeasibleError as exc:
+        raise _infeasible_options(exc, r, z, null, ellipsoid, box, mass_range, solver,
+                                  options) from exc
     return np.asarray(x.value, dtype=float), report
+
+
+def _infeasible_options(exc: InfeasibleError, r: np.ndarray, z: np.ndarray, null: np.ndarray,
+                        ellipsoid: Ellipsoid | None, box: tuple | None, mass_range: tuple | None,
+                        solver: str, options: dict[str, Any] | None) -> InfeasibleError:
+    """Which option made the payload problem infeasible: each given one is dropped in turn
+    (``mass_range``, ``com_bounds``, ``ellipsoid``); the first whose removal makes the problem
+    feasible is named, with the mass the other constraints then give."""
+    given = {"mass_range": mass_range, "com_bounds": box, "ellipsoid": ellipsoid}
+    for name in [k for k, v in given.items() if v is not None]:
+        kept = {k: (None if k == name else v) for k, v in given.items()}
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                theta, _ = _solve_payload(r, z, null, "payload (diagnosis)", kept["ellipsoid"],
+                                          kept["com_bounds"], kept["mass_range"], solver,
+                                          options)
+        except IdentificationError:
+            continue
+        shown = repr(tuple(given[name])) if name != "ellipsoid" else "the given ellipsoid"
+        com = (f"CoM {np.array2string(theta[1:4] / theta[0], precision=4)} m" if theta[0] > 0
+               else "no CoM")
+        return InfeasibleError(
+            f"{exc}: {name} = {shown} is what admits no payload: without it the other "
+            f"constraints give a mass of {theta[0]:.4g} kg ({com}). Widen or drop {name}")
+    if len([v for v in given.values() if v is not None]) > 0:
+        return InfeasibleError(f"{exc}: no single option explains it; the given "
+                               f"{[k for k, v in given.items() if v is not None]} together "
+                               "admit no payload consistent with J ⪰ 0")
+    return exc
 
 
 def _covariance(r: np.ndarray, identifiable_null: np.ndarray) -> np.ndarray:
@@ -356,10 +406,20 @@ def _payload_result(theta: np.ndarray, cov: np.ndarray, frame: str, body: str, m
                     ident: tuple, report: SolverReport, notes: list[str], **extra: Any
                     ) -> Payload:
     rank, cond, _, flags, names = ident
+    mass = float(theta[0])
+    mass_std = float(np.sqrt(max(cov[0, 0], 0.0))) if np.isfinite(cov[0, 0]) else np.inf
+    found = bool(mass > NO_PAYLOAD_SIGMAS * mass_std)
+    if not found:
+        text = (f"no payload found: the mass {mass:.3g} ± {mass_std:.2g} kg is within "
+                 f"{NO_PAYLOAD_SIGMAS:g} σ of 0, so the data carry no detectable payload on "
+                 f"{body!r}; its centre of mass and inertia are undefined (NaN). Check that the "
+                 "loaded data were recorded with the payload mounted, on that body")
+        notes = [text, *notes]
+        warnings.warn(text, NothingFoundWarning, stacklevel=3)
     return Payload(parameters=theta, covariance=cov, frame=frame, body=body, method=method,
                    identifiable=flags, unidentified=names, rank=rank, condition_number=cond,
                    min_eigenvalue=float(np.linalg.eigvalsh(pseudo_inertia(theta))[0]),
-                   solver=report, notes=tuple(notes), **extra)
+                   solver=report, notes=tuple(notes), found=found, **extra)
 
 
 # ------------------------------------------------------------------------------- route 1

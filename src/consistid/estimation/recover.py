@@ -269,6 +269,11 @@ class RecoveryResult(StandardParameterSet):
         return self.summary(max_rows=20)
 
 
+#: Largest base coefficient accepted (SI units): beyond it the coefficients cannot be a robot's,
+#: and the solver's arithmetic breaks down (a Clarabel panic at 1e300).
+MAX_COEFFICIENT = 1e10
+
+
 def _shorten(text: str, width: int) -> str:
     return text if len(text) <= width else text[: width - 1] + "…"
 
@@ -472,6 +477,23 @@ def _finish(problem: _Problem, mode: str, x: np.ndarray, reports: tuple[SolverRe
         details=details)
 
 
+def _far_from_prior(problem: _Problem, exc: IdentificationError) -> IdentificationError:
+    """The error for a solver failure on realisable coefficients: if some coefficient is far
+    (> 100×) from the prior's, name it — valid but extreme scaling, not a solver to swap."""
+    prior_beta = problem.base.project(problem.prior)
+    scale = np.maximum(np.abs(prior_beta), 1e-3 * max(np.max(np.abs(prior_beta)), 1e-12))
+    ratio = np.abs(problem.beta - prior_beta) / scale
+    k = int(np.argmax(ratio))
+    if ratio[k] <= 100:
+        return exc
+    return type(exc)(
+        f"{exc}. The coefficients look realisable but far from the prior: β[{k}] "
+        f"({problem.base.groupings[k]}) = {problem.beta[k]:.4g} against the prior's "
+        f"{prior_beta[k]:.4g} ({ratio[k]:.3g}× its scale), so the consistent set lies far "
+        "outside the scale the program is built on. Check the coefficients' units and "
+        "origin, or pass prior_parameters= of a robot of that size")
+
+
 def _exact(problem: _Problem, solver: str, options: dict[str, Any] | None) -> RecoveryResult:
     x, constraints, objective = problem.variables()
     B = problem.base.matrix
@@ -480,15 +502,27 @@ def _exact(problem: _Problem, solver: str, options: dict[str, Any] | None) -> Re
     try:
         report = solve(cp.Problem(cp.Minimize(objective), constraints),
                        problem.label("exact recovery"), solver, options)
-    except InfeasibleError as exc:
-        moves, _ = _diagnose_infeasibility(problem, solver, options)
+    except IdentificationError as exc:
+        # A solver that fails without proving infeasibility (status "solver_error", a crash) is
+        # often facing unrealisable coefficients too: the L1 diagnosis (always feasible) tells
+        # which, so the message blames the coefficients, not the solver, when they are the cause.
+        try:
+            moves, _ = _diagnose_infeasibility(problem, solver, options)
+        except IdentificationError:
+            if not isinstance(exc, InfeasibleError):
+                raise _far_from_prior(problem, exc) from exc
+            moves = ()
+        if not moves and not isinstance(exc, InfeasibleError):
+            raise _far_from_prior(problem, exc) from exc
         listed = "; ".join(str(m) for m in moves[:8])
         more = f" (and {len(moves) - 8} more)" if len(moves) > 8 else ""
+        proof = ("" if isinstance(exc, InfeasibleError) else
+                 "; the solver stopped without proving it, the L1 diagnosis below shows it")
         raise UnrealizableCoefficientsError(
             f"no physically consistent standard parameters reproduce these {problem.beta.size} "
-            f"base coefficients ({exc}). Smallest changes that make them realisable: "
-            f"{listed}{more}. Use mode='nearest' to get the closest consistent set.",
-            moves) from exc
+            f"base coefficients ({exc}{proof}). Smallest changes that make them realisable: "
+            f"{listed or 'not found'}{more}. Use mode='nearest' to get the closest consistent "
+            "set.", moves) from exc
     return _finish(problem, "exact", x.value, (report,), {})
 
 
@@ -613,11 +647,22 @@ def recover_standard(model: RobotModel, base_params: np.ndarray | Identification
                          f"({base.standard_names[-1]!r} last) but the model and spec give "
                          f"{len(names)} ({names[-1]!r} last)")
     if beta.shape != (base.n_base,) or not np.all(np.isfinite(beta)):
+        where = ""
+        if beta.shape == (base.n_base,):
+            k = int(np.flatnonzero(~np.isfinite(beta))[0])
+            where = f"; β[{k}] ({base.names[k]}) is {beta[k]}"
         raise ModelError(f"base coefficients must be {base.n_base} finite numbers (the base map "
-                         f"of {model.name!r} with {spec.describe()}), got shape {beta.shape}")
+                         f"of {model.name!r} with {spec.describe()}), got shape "
+                         f"{beta.shape}{where}")
+    if np.max(np.abs(beta)) > MAX_COEFFICIENT:
+        k = int(np.argmax(np.abs(beta)))
+        raise ModelError(f"base coefficient β[{k}] ({base.groupings[k]}) = {beta[k]:.3g} is beyond "
+                         f"±{MAX_COEFFICIENT:.0e}: no robot's mass or inertia in SI units (kg, "
+                         "kg·m, kg·m²); check the units and where the coefficients came from")
     pi0 = default_prior if prior_parameters is None else np.asarray(prior_parameters, float)
-    if pi0.shape != (len(names),):
-        raise ModelError(f"prior_parameters must have {len(names)} entries, got {pi0.shape}")
+    if pi0.shape != (len(names),) or not np.all(np.isfinite(pi0)):
+        raise ModelError(f"prior_parameters must be {len(names)} finite numbers, got shape "
+                         f"{pi0.shape}")
     margin, slack = check_number("margin", margin, 0), check_number("slack", slack, 0, strict=True)
     prior_check = is_physically_consistent(pi0[: model.n_inertial], "pseudo-inertia",
                                            model.body_names)
