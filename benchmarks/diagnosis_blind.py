@@ -10,6 +10,8 @@ effect. Scored:
   injected pair);
 * joints: the joints named for a per-joint effect are exactly the injected ones (arm-wide
   effects: ``inertia``, ``payload``, a channel delay on every joint, score "n/a");
+* remainder: the joints the diagnosis flags with an unexplained remainder (should be none
+  when every injected effect is found), and the reported noise floor over the true noise;
 * shrink: the diagnosis' held-out shrink on the affected joints (after the effects it ranks up
   to the last injected one) versus the shrink obtained by adding the injected effect(s) with
   their *true* parameters to the nominal model; residuals weighted by the noise floor; "ok"
@@ -189,6 +191,14 @@ def chain_effects(truths: list[Truth], rec, cutoff: float, t_out: np.ndarray) ->
                             for j in range(raw.shape[1])])
 
 
+def processed_noise(cutoff: float, n: int = 200_000) -> float:
+    """Standard deviation of the torque noise after the chain's low-pass at ``cutoff`` Hz (the
+    noise the processed torques hold), from a long white sequence of standard deviation
+    :data:`NOISE` through the same filter."""
+    white = np.random.default_rng(12345).standard_normal(n) * NOISE
+    return float(np.std(lowpass(white, cutoff, RATE)))
+
+
 def shrink_on(rms_before: np.ndarray, rms_after: np.ndarray, sigma: np.ndarray,
               joints: np.ndarray) -> float:
     b = np.linalg.norm(rms_before[joints] / sigma[joints])
@@ -258,7 +268,10 @@ def run_scenario(model: ci.RobotModel, library: EffectLibrary, seed: int, n_effe
             continue
         hit = [e for e in diag.effects if e.name == t.name]
         joints_ok.append(bool(hit) and hit[0].joints == (model.joint_names[t.joint],))
+    found_all = wanted <= set(found)
     return dict(seed=seed, truth=truths, failed=None, found=found, top=top,
+                remainder=diag.remainder.flagged, found_all=found_all,
+                floor_ratio=float(np.median(diag.noise_floor / processed_noise(cutoff_ho))),
                 alternatives=[e.alternatives for e in diag.effects],
                 joints=None if not joints_ok else all(joints_ok), pred=pred, true=true,
                 shrink_ok=abs(pred - true) <= 0.1 * abs(true), time=elapsed,
@@ -308,7 +321,7 @@ def main() -> None:
     model = ci.RobotModel.example(args.robot)
     library = EffectLibrary(model)
     header = (f"{'seed':>5}  {'injected':<44} {'named (ranked)':<34} {'top':>4} {'joints':>6} "
-              f"{'shrink pred/true':>17} {'ok':>3} {'t [s]':>6}")
+              f"{'shrink pred/true':>17} {'ok':>3} {'t [s]':>6}  remainder (floor/σ)")
     results: dict[int, list[dict]] = {1: [], 2: []}
     skipped: dict[int, list[int]] = {1: [], 2: []}
     start = time.perf_counter()
@@ -327,7 +340,9 @@ def main() -> None:
             joints = "n/a" if r["joints"] is None else ("yes" if r["joints"] else "NO")
             print(f"{seed:>5}  {injected:<44} {named:<34} {'yes' if r['top'] else 'NO':>4} "
                   f"{joints:>6} {100 * r['pred']:>7.1f}/{100 * r['true']:>5.1f} % "
-                  f"{'yes' if r['shrink_ok'] else 'NO':>3} {r['time']:>6.1f}", flush=True)
+                  f"{'yes' if r['shrink_ok'] else 'NO':>3} {r['time']:>6.1f}  "
+                  f"{','.join(j[-1] for j in r['remainder']) or '-'} "
+                  f"({r['floor_ratio']:.2f})", flush=True)
     print("\nsummary")
     for n_eff, rs in results.items():
         if not rs:
@@ -343,6 +358,14 @@ def main() -> None:
               f"(median relative error {100 * err:.1f} %)"
               + (f"; skipped {len(skipped[n_eff])} (unstable simulation, seeds "
                  f"{skipped[n_eff]})" if skipped[n_eff] else ""))
+    every = [r for rs in results.values() for r in rs]
+    complete = [r for r in every if r["found_all"]]
+    if complete:
+        flagged = sum(bool(r["remainder"]) for r in complete)
+        ratios = [r["floor_ratio"] for r in every]
+        print(f"  remainder flagged in {flagged} of {len(complete)} scenarios whose effects were "
+              f"all found ({100 * flagged / len(complete):.0f} %); reported floor / true noise "
+              f"(median over joints) {min(ratios):.2f}–{max(ratios):.2f}")
     print(f"  total time {time.perf_counter() - start:.0f} s "
           f"(diagnosis median {np.median([r['time'] for rs in results.values() for r in rs]):.1f}"
           " s per scenario)")

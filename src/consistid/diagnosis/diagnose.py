@@ -63,8 +63,9 @@ from .candidates import EFFECT_NAMES, SIGNATURES, Atom, EffectLibrary, GapData
 from .effects import REGISTRY, EffectParameter
 from ..data.dataset import Dataset, as_dataset
 from ..errors import ModelError, OptionError, check_number, check_option
-from .gap import (FILTERED_ROLLOFF, GapBreakdown, gap_breakdown,
-                  high_band_rolloff, noise_floor, residual_spectra)
+from .gap import GapBreakdown, gap_breakdown, residual_spectra
+from .noise import NoiseFloor, estimate_noise_floor, spectral_floor
+from .remainder import Remainder, analyse_remainder
 from ..robot.model import RobotModel, require_model
 from ..robot.inertia import is_physically_consistent
 from ..identification.regressor import joint_columns
@@ -72,6 +73,11 @@ from ..identification.statistics import autocorrelation_time, coloured_covarianc
 
 #: A held-out shrink below this fraction does not list a joint under an arm-wide effect.
 JOINT_SHRINK_FLOOR = 0.05
+#: A runner-up whose held-out gain is within this fraction of the chosen one's makes a finding
+#: of low confidence (both are shown).
+CLOSE_MARGIN = 0.2
+#: Held-out corrections with at least this cosine explain the same residual (rivals).
+RIVAL_COSINE = 0.5
 
 
 # --------------------------------------------------------------------------------- results
@@ -96,6 +102,10 @@ class EffectFinding:
     delta_bic : change of the training BIC when it entered (negative = better).
     p_value : held-out F-test p-value when it entered.
     signature : how this effect shows in the residual.
+    runner_up : the best other candidate that explains the same residual (held-out correction
+        with cosine ≥ 0.5 to this one's) when it entered, or ``""``.
+    margin : confidence against it: ``1 − gain_runner_up / gain`` of the held-out reductions
+        (1: no rival; near 0: the runner-up explains nearly as much, both are shown).
     """
 
     name: str
@@ -111,12 +121,25 @@ class EffectFinding:
     delta_bic: float
     p_value: float
     signature: str
+    runner_up: str = ""
+    margin: float = 1.0
+
+    @property
+    def confidence(self) -> str:
+        """``"high"`` (margin ≥ 0.5 over the runner-up and p < 1e-6), ``"low"`` (margin < 0.2:
+        the runner-up explains nearly as much) or ``"medium"``."""
+        if self.margin < CLOSE_MARGIN:
+            return "low"
+        return "high" if self.margin >= 0.5 and self.p_value < 1e-6 else "medium"
 
     def __str__(self) -> str:
         alt = f" (indistinguishable from {', '.join(self.alternatives)})" if self.alternatives \
             else ""
+        rival = (f"; runner-up {self.runner_up} explains {100 * (1 - self.margin):.0f} % as much"
+                 if self.runner_up and self.margin < 0.5 else "")
         return (f"{self.name} on {', '.join(self.joints) or 'no joint'}: held-out shrink "
-                f"{100 * self.total_shrink:.1f} %{alt}")
+                f"{100 * self.total_shrink:.1f} %, confidence {self.confidence} (margin "
+                f"{self.margin:.2f}, p = {self.p_value:.2g}){alt}{rival}")
 
 
 @dataclass(frozen=True)
@@ -188,13 +211,15 @@ class Diagnosis:
     rms_nominal, rms_final : (nv,) held-out RMS of the nominal model and of the nominal model
         plus every selected effect.
     library_floor : (nv,) held-out RMS with *every* candidate atom fitted at once: the most the
-        candidate library can explain (above the noise floor when an effect outside the library
-        remains, or when the torques were low-pass filtered so that the noise floor, estimated
-        from the high band, is too low).
+        candidate library can explain. Reported, never used as the noise floor (it holds
+        whatever an effect outside the library leaves).
     held_out_source : how the held-out data were obtained.
     steps : the greedy selection's steps (candidates compared, why it stopped).
     fit : the corrected model (:class:`GapModel`); ``fit.predict(dataset)``.
     notes : remarks (e.g. which inertia solver was used).
+    remainder : the unexplained remainder per joint, its verdict and where it lies
+        (:class:`~consistid.diagnosis.remainder.Remainder`).
+    noise : how the noise floor was obtained (:class:`~consistid.diagnosis.noise.NoiseFloor`).
     """
 
     model_name: str
@@ -210,6 +235,15 @@ class Diagnosis:
     steps: tuple[Step, ...]
     fit: GapModel
     notes: tuple[str, ...] = ()
+    remainder: Remainder | None = None
+    noise: NoiseFloor | None = None
+
+    @property
+    def verdict(self) -> str:
+        """``"explained"`` or ``"remainder on <joints>"`` (see :attr:`remainder`)."""
+        if self.remainder is None or not self.remainder.flagged:
+            return "explained"
+        return f"remainder on {', '.join(self.remainder.flagged)}"
 
     @property
     def gap_to_noise(self) -> np.ndarray:
@@ -340,13 +374,13 @@ def _resolve_nominal(model: RobotModel, nominal) -> tuple[np.ndarray, Callable |
     return pi0, None
 
 
-def _sigma(sigma, nv: int) -> np.ndarray:
+def _sigma(sigma, nv: int, name: str = "sigma") -> np.ndarray:
     try:
         s = np.broadcast_to(np.asarray(sigma, dtype=float), (nv,)).copy()
     except (TypeError, ValueError):
         s = np.array([np.nan])
     if not np.all(np.isfinite(s) & (s > 0)):
-        raise OptionError(f"sigma must be one number or {nv} numbers (one per joint), positive "
+        raise OptionError(f"{name} must be one number or {nv} numbers (one per joint), positive "
                           f"and finite (N·m), got {sigma!r}")
     return s
 
@@ -365,6 +399,8 @@ class _Problem:
     #: (nv,) integrated autocorrelation time of the residual per joint (samples per
     #: independent sample)
     tau_corr: np.ndarray | float = 1.0
+    #: time-stamp resolution (s): the median sample interval of the training data
+    resolution: float = 0.0
 
     def cols(self, chosen: Sequence[int]) -> np.ndarray:
         if not chosen:
@@ -386,9 +422,12 @@ def _rows_of(atom: Atom, nv: int) -> np.ndarray:
 
 def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: float, tie: float,
             max_steps: int, progress: Callable[[str], None] | None
-            ) -> tuple[list[int], list[tuple[str, ...]], list[Step], list[float], list[float]]:
-    """Greedy forward selection; returns chosen atom indices, their alternatives, the steps, and
-    the ΔBIC and p-value at entry of each chosen atom."""
+            ) -> tuple[list[int], list[tuple[str, ...]], list[Step], list[float], list[float],
+                       list[tuple[str, float]]]:
+    """Greedy forward selection; returns chosen atom indices, their alternatives, the steps, the
+    ΔBIC and p-value at entry of each chosen atom, and its rival: the best other candidate whose
+    held-out correction has cosine ≥ :data:`RIVAL_COSINE` with its own, as ``(label, margin)``,
+    ``margin = 1 − gain_rival / gain`` (``("", 1.0)`` without a rival)."""
     nv = prob.w.size
     n_tr_j, n_ho_j = prob.train.n / prob.tau_corr, prob.held.n / prob.tau_corr
     nominal_ho = prob.held.s * prob.w
@@ -396,6 +435,7 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
     alternatives: list[tuple[str, ...]] = []
     bics: list[float] = []
     pvals: list[float] = []
+    rivals: list[tuple[str, float]] = []
     steps: list[Step] = []
     cols, theta, rank = prob.fit(chosen)
     sse_tr = prob.w * prob.train.sse(cols, theta)
@@ -441,7 +481,7 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
             relevance = float(per_joint.max())
             if gain <= 0:
                 return "does not reduce the held-out residual", dbic, p
-            unphysical = REGISTRY[atom.effect].unphysical(atom, s[6])
+            unphysical = REGISTRY[atom.effect].unphysical(atom, s[6], prob.resolution)
             if unphysical is not None:
                 return unphysical, dbic, p
             if dbic >= 0:
@@ -498,9 +538,20 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
                                   if sc[0] != i))
         bics.append(float(dbic))
         pvals.append(p)
+        up = pick[5]
+        nu = float(up @ g_ho @ up)
+        rival = ("", 1.0)
+        for sc in scores:
+            if sc[0] == i or sc[0] in [g[0] for g in group] or sc[1] <= 0:
+                continue
+            ns = float(sc[5] @ g_ho @ sc[5])
+            if nu > 0 and ns > 0 and abs(sc[5] @ g_ho @ up) / np.sqrt(nu * ns) >= RIVAL_COSINE:
+                rival = (prob.atoms[sc[0]].label(joint_names), 1.0 - sc[1] / gain)
+                break
+        rivals.append(rival)
         # The fit of chosen + [i] was made when scoring it.
         (cols, theta, rank), sse_tr, sse_ho = pick[7], pick[3], pick[4]
-    return chosen, alternatives, steps, bics, pvals
+    return chosen, alternatives, steps, bics, pvals, rivals
 
 
 def _cand_table(prob: _Problem, scores: list, joint_names: list[str], top: int = 8
@@ -697,7 +748,7 @@ def _tuned_atoms(library: EffectLibrary, train: GapData, floor: np.ndarray
 def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=None,
              held_out: Dataset | Sequence[Dataset] | None = None,
              effects: Sequence[str] = EFFECT_NAMES, sigma: float | Sequence[float] | None = None,
-             *, alpha: float = 1e-3, min_gain: float = 0.01, tie: float = 0.05,
+             *, torque_resolution: float | Sequence[float] | None = None, alpha: float = 1e-3, min_gain: float = 0.01, tie: float = 0.05,
              max_steps: int = 20, split: float = 0.7, inertia_solver: str = "sdp",
              progress: Callable[[str], None] | None = None) -> Diagnosis:
     """Diagnose the gap between a nominal (simulator) model and measured torques.
@@ -712,8 +763,12 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     held_out : data to score on (ideally a different trajectory); default the last
         ``1 − split`` of each recording of ``dataset``.
     effects : candidate effect names (default all of :data:`~consistid.diagnosis.candidates.EFFECT_NAMES`).
-    sigma : torque noise standard deviation (N·m), scalar or per joint; default estimated from
-        the high-frequency part of the residual (:func:`consistid.diagnosis.gap.noise_floor`).
+    sigma : torque noise standard deviation (N·m), scalar or per joint; default estimated
+        without the candidates (:func:`consistid.diagnosis.noise.estimate_noise_floor`: from the
+        repetition of a periodic excitation, else from the residual spectrum above the motion
+        band); the report says which.
+    torque_resolution : the torque sensor's resolution (N·m per count), scalar or per joint: a
+        floor of ``Δ/√12`` (the larger of it and ``sigma`` when both are given).
     alpha : level of the held-out F-test.
     min_gain : smallest held-out reduction, as a fraction of the nominal residual's sum of
         squares of the atom's joint (arm-wide atoms: of the joint it reduces most), for the atom
@@ -755,15 +810,13 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
 
     train, held = gap_data(train_ds), gap_data(held_ds)
     everything = GapData.concatenate([train, held])
-    filtered = np.zeros(model.nv, dtype=bool)
     spectra = residual_spectra(everything.dataset, everything.residual, everything.tau_nom)
-    if sigma is None:
-        floor, noise_source = noise_floor(everything.dataset, everything.residual,
-                                          everything.tau_nom, spectra)
-        filtered = high_band_rolloff(everything.dataset, everything.residual,
-                                     everything.tau_nom, spectra) < FILTERED_ROLLOFF
-    else:
-        floor, noise_source = _sigma(sigma, model.nv), "given"
+    given = None if sigma is None else _sigma(sigma, model.nv)
+    resolution = (None if torque_resolution is None
+                  else _sigma(torque_resolution, model.nv, "torque_resolution"))
+    noise = estimate_noise_floor(everything.dataset, everything.tau, everything.residual,
+                                 everything.tau_nom, given, resolution, spectra)
+    floor, noise_source = noise.sigma.copy(), noise.description
     library = EffectLibrary(model, tuple(effects))
 
     atoms, phi_tr = _tuned_atoms(library, train, floor)
@@ -775,6 +828,7 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
         o += a.n_parameters
     prob = _Problem(library, atoms, slices, _Grams.build(phi_tr, train.residual),
                     _Grams.build(phi_ho, held.residual), 1.0 / floor ** 2)
+    prob.resolution = float(np.median(np.diff(train.dataset.t)))
     everything_cols, theta_all, _ = prob.fit(list(range(len(atoms))))
     library_floor = np.sqrt(prob.held.sse(everything_cols, theta_all) / held.n)
     # Rows are not independent when the residual is coloured (filtered noise): count effective
@@ -783,21 +837,12 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
         else train.residual
     prob.tau_corr = autocorrelation_time(train.dataset, saturated)
     names = model.joint_names
-    # Low-pass filtered torques hide the noise level: there the floor is what no candidate
-    # explains on held-out data (an upper bound of the noise), also used as the weight.
-    substitute = filtered & (floor < 0.5 * library_floor)
-    if substitute.any():
-        floor = np.where(substitute, library_floor, floor)
-        prob.w = 1.0 / floor ** 2
-        noise_source += (f"; on {', '.join(names[j] for j in np.flatnonzero(substitute))} the "
-                         "torques look low-pass filtered (the spectrum keeps falling), so the "
-                         "floor there is the held-out RMS with every candidate fitted (an upper "
-                         "bound; pass sigma if known)")
-    chosen, alts, steps, bics, pvals = _select(prob, names, alpha, min_gain, tie, max_steps,
-                                               progress)
+    chosen, alts, steps, bics, pvals, rivals = _select(prob, names, alpha, min_gain, tie,
+                                                       max_steps, progress)
 
     notes: list[str] = []
-    chosen, alts, bics, pvals = _prune_nested(prob, chosen, alts, bics, pvals, names, notes)
+    chosen, alts, bics, pvals, rivals = _prune_nested(prob, chosen, alts, bics, pvals, rivals,
+                                                      names, notes)
     # Group the atoms by effect and rank the groups by how much the held-out residual grows
     # when the group is removed from all the selected atoms; add them one by one in that order.
     groups = list(dict.fromkeys(prob.atoms[i].effect for i in chosen))
@@ -820,6 +865,18 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
         trial = cumulative + [chosen[k] for k in members]
         trial_fit, stds, fit_notes = _refit(prob, trial, train, model, pi0, extra_fn,
                                             inertia_solver)
+        labels = ", ".join(prob.atoms[chosen[k]].label(names) for k in members)
+        verb = "was" if len(members) == 1 else "were"
+        # The final fit (exact delay, consistent inertia) may break a sign rule the linear
+        # selection kept: such a finding is rejected, never reported.
+        broken = [why for k, (atom, th) in enumerate(zip(trial_fit.atoms, trial_fit.theta))
+                  if k >= len(cumulative)
+                  for why in [REGISTRY[atom.effect].unphysical(atom, th, prob.resolution)]
+                  if why is not None]
+        if broken:
+            notes.append(f"{labels} {verb} selected but rejected after the final fit: "
+                         + "; ".join(broken))
+            continue
         after = np.sqrt(np.mean((held.residual - trial_fit.correction(held)) ** 2,
                                 axis=0))
         shrink = 1.0 - after / np.where(before > 0, before, 1.0)
@@ -827,8 +884,6 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
         if total <= 0:
             # Selected with the least-squares inertia, it no longer generalises once the final
             # fit (exact delay, consistent inertia) is made: say so and leave it out.
-            labels = ", ".join(prob.atoms[chosen[k]].label(names) for k in members)
-            verb = "was" if len(members) == 1 else "were"
             notes.append(f"{labels} {verb} selected but do{'es' if verb == 'was' else ''} not "
                          f"reduce the held-out residual in the final fit (shrink "
                          f"{100 * total:.1f} %): left out")
@@ -842,13 +897,15 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
         else:
             scope = "arm"
             joints = tuple(names[j] for j in np.flatnonzero(shrink >= JOINT_SHRINK_FLOOR))
+        rival = min((rivals[k] for k in members), key=lambda r: r[1])
         findings.append(EffectFinding(
             name=name, joints=joints, scope=scope, rms_before=before, rms_after=after,
             shrink=shrink, total_shrink=float(total), parameters=(),
             alternatives=tuple(sorted({x for k in members for x in alts[k]})),
             n_parameters=int(sum(a.n_parameters for a in atoms_here)),
             delta_bic=float(sum(bics[k] for k in members)),
-            p_value=float(max(pvals[k] for k in members)), signature=SIGNATURES[name]))
+            p_value=float(max(pvals[k] for k in members)), signature=SIGNATURES[name],
+            runner_up=rival[0], margin=float(rival[1])))
         before = after
     # Parameters from the final fit (all effects together).
     params_by_effect: dict[str, list[EffectParameter]] = {}
@@ -863,28 +920,33 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
         notes.append("inertia re-identified by least squares on base parameters "
                      "(inertia_solver='ls': not checked for physical consistency)")
     rms_final = before
-    if sigma is None and fit.atoms and not substitute.all():
+    spectral = np.array([m == "spectrum" for m in noise.method])
+    if fit.atoms and spectral.any():
         # The nominal residual's high band also holds the tails of steps and spikes that the
-        # effects explain (a Coulomb step has a 1/f² spectrum); estimate again without them.
+        # effects explain (a Coulomb step has a 1/f² spectrum); estimate the level again
+        # without them. Still the level above the motion band, never what the fit leaves.
         unexplained = everything.residual - fit.correction(everything)
-        again, _ = noise_floor(everything.dataset, unexplained, everything.tau_nom,
-                               spectra.with_residual(everything.dataset, unexplained))
-        floor = np.where(substitute, floor, again)
-        noise_source += " (re-estimated on the residual with the selected effects)"
+        again = spectral_floor(spectra.with_residual(everything.dataset, unexplained))[0]
+        floor = np.where(spectral, np.minimum(floor, again), floor)
+        noise_source += " (spectral level re-estimated without the selected effects' tails)"
     where = gap_breakdown(everything, floor, spectra=spectra)
-    low = np.flatnonzero(floor < 0.5 * library_floor)
-    if low.size:
-        notes.append(
-            f"on {', '.join(names[j] for j in low)} the noise floor is less than half of what "
-            "every candidate together leaves on the held-out data: an effect outside the "
-            "candidate library remains (or the noise is coloured: pass sigma)")
+    remainder = analyse_remainder(held, held.residual - fit.correction(held), floor,
+                                  autocorrelation_time(held.dataset,
+                                                       held.residual - fit.correction(held)),
+                                  where.band_edges)
+    if not noise.reliable.all():
+        notes.append("the noise floor cannot be seen on "
+                     + ", ".join(names[j] for j in np.flatnonzero(~noise.reliable))
+                     + " (torques filtered below the motion band and no repetition of the "
+                     "excitation): pass sigma for a trustworthy remainder verdict")
     return Diagnosis(model.name, tuple(names), tuple(findings), where, floor, noise_source,
                      rms_nominal, rms_final, library_floor, held_source, tuple(steps), fit,
-                     tuple(notes))
+                     tuple(notes), remainder, noise)
 
 
 def _prune_nested(prob: _Problem, chosen: list[int], alts: list, bics: list, pvals: list,
-                  names: list[str], notes: list[str]) -> tuple[list, list, list, list]:
+                  rivals: list, names: list[str], notes: list[str]
+                  ) -> tuple[list, list, list, list, list]:
     """Drop selected atoms whose columns lie in the span of the other selected atoms (e.g. a
     ``payload`` chosen as the simpler of two indistinguishable candidates, after which
     ``inertia`` entered too): they add nothing to the fit. Appends a note per dropped atom."""
@@ -900,7 +962,7 @@ def _prune_nested(prob: _Problem, chosen: list[int], alts: list, bics: list, pva
             notes.append(f"{prob.atoms[chosen[k]].label(names)} is contained in the other "
                          "selected effects (its columns lie in their span): merged into them")
     return ([chosen[k] for k in keep], [alts[k] for k in keep], [bics[k] for k in keep],
-            [pvals[k] for k in keep])
+            [pvals[k] for k in keep], [rivals[k] for k in keep])
 
 
 def _contained(prob: _Problem, chosen: list[int], names: list[str]) -> list[str]:

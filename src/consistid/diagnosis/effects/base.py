@@ -165,8 +165,10 @@ class Effect:
         return atom
 
     # ------------------------------------------------------------------ physics and words
-    def unphysical(self, atom: Atom, theta: np.ndarray) -> str | None:
-        """Why the fitted parameters ``theta`` break a physical sign rule, or ``None``."""
+    def unphysical(self, atom: Atom, theta: np.ndarray, resolution: float | None = None
+                   ) -> str | None:
+        """Why the fitted parameters ``theta`` break a physical sign rule, or ``None``;
+        ``resolution``: the data's time-stamp resolution (s), for effects measured in time."""
         for i in self.nonnegative:
             if theta[i] < 0:
                 return (f"its {atom.parameter_names[i]} is negative: not a physical "

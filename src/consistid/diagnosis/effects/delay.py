@@ -1,13 +1,23 @@
 r"""``delay``: the torque channel lags the position channel by ``d``:
 ``τ_meas(t) = τ(t − d)``, so ``r ≈ −d τ̇_nom`` (first order; :func:`consistid.diagnose` refines it
 exactly, ``τ_nom(t − d) − τ_nom(t)``), in quadrature with the torque and growing with frequency.
-Offered per joint and as one delay common to all channels."""
+Offered per joint and as one delay common to all channels.
+
+Physical rules: ``d ≥ 0`` (a torque cannot be measured before it acts), and ``d`` above the
+time-stamp resolution: a logger that averages torques over each sample interval ``Δt`` and
+stamps the average at the interval's end shifts them by ``Δt/2`` (the mean of a signal over an
+interval is its value at the centre, to second order), which is not a delay of the channel (the
+loader's ``timestamp=`` option corrects it). A delay is named only when it exceeds that half
+sample by :data:`HALF_SAMPLE_MARGIN` of it."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from .base import Atom, Effect, on_row
+
+#: A delay must exceed half a sample interval by this fraction of it to be named.
+HALF_SAMPLE_MARGIN = 0.1
 
 
 class Delay(Effect):
@@ -19,6 +29,17 @@ class Delay(Effect):
     suffix = "delay"
     wording = "delay"
     scope = "both"
+    nonnegative = (0,)
+
+    def unphysical(self, atom, theta, resolution=None):
+        why = super().unphysical(atom, theta, resolution)
+        limit = 0.5 * (1 + HALF_SAMPLE_MARGIN) * resolution if resolution else 0.0
+        if why is None and theta[0] < limit:
+            return (f"its delay {1e3 * theta[0]:.3g} ms is within the time-stamp resolution "
+                    f"(half a {1e3 * resolution:.3g} ms sample + {HALF_SAMPLE_MARGIN:.0%}): a "
+                    "logger averaging over each interval shifts torques by half a sample; not "
+                    "named a delay")
+        return why
 
     def atoms(self, library, tuning=None, residual=None) -> list[Atom]:
         return [Atom(self.name, None, ("delay",), ("s",)),

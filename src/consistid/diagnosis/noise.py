@@ -1,0 +1,239 @@
+r"""The torque noise floor, estimated without the candidate effects.
+
+The diagnosis compares what its effects leave with the noise of the torque channel. That floor
+must not come from the candidates: a floor taken as "what every candidate together leaves"
+contains the very residual an effect outside the library produces, and hides it. Three sources,
+in this order of preference (:func:`estimate_noise_floor` says which one each joint used):
+
+``given``
+    ``sigma=`` from the user (a data sheet, a log at rest), or a sensor resolution ``Δ``
+    (``torque_resolution=``: a quantiser adds ``Δ/√12``; Widrow 1956, doi:10.1109/TCT.1956.1086334),
+    whichever is larger per joint.
+``repetition``
+    A periodic excitation (the usual case: Fourier series, Swevers et al. 1997,
+    doi:10.1109/70.631234) repeats its motion, so every effect that is a function of the state
+    repeats too, and ``d(t) = τ(t + P) − τ(t)`` is the difference of two independent noise
+    samples: ``σ² = Var(d) / 2``, whatever the noise's colour or filtering (as long as ``P`` is
+    much longer than the noise's correlation time). The period ``P`` is found on the joint
+    positions (:func:`find_period`): the smallest whole number of samples after which ``q``
+    repeats to within :data:`REPEAT_TOLERANCE` of its variance. Needs two periods within one
+    recording; recordings without are estimated as below.
+``spectrum``
+    The residual's Welch spectrum above the motion band (Welch 1967,
+    doi:10.1109/TAU.1967.1161901): white noise has a flat level ``S₀``; torques a zero-phase
+    Butterworth low-pass filtered show it rolling off. The model
+    ``S(f) = S₀ (1 + (f/f_c)^{2n})^{-2}`` (the chain's ``sosfiltfilt``, forward and backward) is
+    fitted to the log-spectrum on ``[2 f_s, 0.9 f_N]`` (``f_s``: the band holding 99.9 % of the
+    nominal torque's power) with a robust (soft-L1) loss, and
+
+    .. math::  \hat\sigma^2 = S_0 \int_0^{f_N} (1 + (f/f_c)^{2n})^{-2}\, df .
+
+    It cannot see noise coloured or filtered *below* ``2 f_s``: when the fitted cut-off lies
+    there the estimate is flagged unreliable (pass ``sigma``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.integrate
+import scipy.optimize
+
+from ..data.dataset import Dataset
+from .gap import Spectra, residual_spectra
+
+#: ``q`` repeats after a lag when ``mean |q(t+L) − q(t)|² ≤ REPEAT_TOLERANCE · 2 Var(q)``.
+REPEAT_TOLERANCE = 1e-4
+#: Shortest period (s) searched, and the least overlap (s) a repetition estimate needs.
+MIN_PERIOD = 0.5
+MIN_OVERLAP = 2.0
+
+
+@dataclass(frozen=True)
+class NoiseFloor:
+    """The torque noise standard deviation per joint and how it was obtained.
+
+    Attributes
+    ----------
+    sigma : (nv,) N·m.
+    method : (nv,) per joint ``"given"``, ``"repetition"`` or ``"spectrum"``.
+    period : the excitation period found (s), or ``None``.
+    cutoff : (nv,) cut-off (Hz) of the low-pass the spectrum fit found (``inf``: unfiltered;
+        ``nan``: not fitted).
+    reliable : (nv,) False where the estimate cannot see the noise (filtered below the motion
+        band).
+    description : one line for reports.
+    """
+
+    sigma: np.ndarray
+    method: tuple[str, ...]
+    period: float | None
+    cutoff: np.ndarray
+    reliable: np.ndarray
+    description: str
+
+
+def _lag_mismatch(x: np.ndarray, max_lag: int) -> np.ndarray:
+    """``mean_t |x(t+L) − x(t)|²`` summed over columns, for ``L = 0 … max_lag`` (FFT)."""
+    n = x.shape[0]
+    x = x - x.mean(axis=0)
+    size = 1 << int(np.ceil(np.log2(2 * n)))
+    f = np.fft.rfft(x, size, axis=0)
+    cross = np.fft.irfft(f * np.conj(f), size, axis=0)[:max_lag + 1].sum(axis=1)
+    sq = np.sum(x ** 2, axis=1)
+    cum = np.concatenate([[0.0], np.cumsum(sq)])
+    lags = np.arange(max_lag + 1)
+    head = cum[n - lags] - cum[0]          # Σ_{t < n−L} x(t)²
+    tail = cum[n] - cum[lags]              # Σ_{t ≥ L} x(t)²
+    return (head + tail - 2 * cross) / (n - lags)
+
+
+def find_period(dataset: Dataset) -> tuple[float | None, int | None]:
+    """The excitation period (s, and in samples) after which every joint's position repeats
+    within :data:`REPEAT_TOLERANCE`, from the longest uniformly sampled recording; ``(None,
+    None)`` when no lag between :data:`MIN_PERIOD` and the recording's length minus
+    :data:`MIN_OVERLAP` repeats."""
+    best = None
+    for s in np.unique(dataset.segment):
+        idx = np.flatnonzero(dataset.segment == s)
+        t = dataset.t[idx]
+        if idx.size < 32:
+            continue
+        dt = np.diff(t)
+        h = float(np.median(dt))
+        if np.ptp(dt) > 1e-6 * h:
+            continue
+        if best is None or idx.size > best[1].size:
+            best = (h, idx)
+    if best is None:
+        return None, None
+    h, idx = best
+    q = dataset.q[idx]
+    lo, hi = int(np.ceil(MIN_PERIOD / h)), idx.size - int(np.ceil(MIN_OVERLAP / h))
+    if hi <= lo:
+        return None, None
+    mismatch = _lag_mismatch(q, hi)
+    scale = 2 * np.sum(np.var(q, axis=0))
+    if scale <= 0:
+        return None, None
+    rel = mismatch / scale
+    ok = np.flatnonzero(rel[lo:hi + 1] <= REPEAT_TOLERANCE)
+    if ok.size == 0:
+        return None, None
+    lag = lo + int(ok[0])
+    # the local minimum at the first lag that repeats
+    while lag + 1 <= hi and rel[lag + 1] < rel[lag]:
+        lag += 1
+    return lag * h, lag
+
+
+def repetition_floor(dataset: Dataset, tau: np.ndarray, lag: int
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """``σ_j² = Var(τ_j(t + P) − τ_j(t)) / 2`` pooled over the recordings that hold the lag
+    (``lag`` samples) with :data:`MIN_OVERLAP` to spare; returns ``(σ (nv,), pairs)`` (σ ``nan``
+    where no recording holds two periods)."""
+    acc, count = np.zeros(tau.shape[1]), 0
+    for s in np.unique(dataset.segment):
+        idx = np.flatnonzero(dataset.segment == s)
+        if idx.size <= lag:
+            continue
+        h = float(np.median(np.diff(dataset.t[idx])))
+        if (idx.size - lag) * h < MIN_OVERLAP:
+            continue
+        d = tau[idx[lag:]] - tau[idx[:-lag]]
+        acc += np.sum((d - d.mean(axis=0)) ** 2, axis=0)
+        count += d.shape[0] - 1
+    if count == 0:
+        return np.full(tau.shape[1], np.nan), np.zeros(0)
+    return np.sqrt(acc / count / 2), np.array([count])
+
+
+def _rolloff(f: np.ndarray, fc: float, n: float) -> np.ndarray:
+    return 1.0 / (1.0 + (f / fc) ** (2 * n)) ** 2
+
+
+def spectral_floor(spectra: Spectra) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per joint, the fit of the module notes: ``(σ, f_c, reliable)``."""
+    freqs, psd = spectra.freqs, spectra.residual
+    nv = psd.shape[1]
+    sigma, cut, reliable = np.zeros(nv), np.full(nv, np.nan), np.zeros(nv, dtype=bool)
+    if freqs.size < 8:
+        return sigma, cut, reliable
+    nyq = float(freqs[-1])
+    lo = max(2 * spectra.signal_band, 2 * freqs[1])
+    band = (freqs >= lo) & (freqs <= 0.9 * nyq)
+    if band.sum() < 6:
+        band = freqs >= 0.5 * nyq
+        lo = 0.5 * nyq
+    f = freqs[band]
+    kernel = np.ones(5) / 5.0
+    for j in range(nv):
+        p = np.maximum(psd[band, j], 1e-300)
+        p = np.exp(np.convolve(np.pad(np.log(p), 2, mode="edge"), kernel, mode="valid"))
+        y = np.log(p)
+        # start: flat at the median of the first fifth of the band, cut-off at the top
+        s0 = float(np.median(y[: max(3, y.size // 5)]))
+
+        def res(x: np.ndarray) -> np.ndarray:
+            return y - x[0] - np.log(_rolloff(f, np.exp(x[1]), x[2]))
+
+        x0 = np.array([s0, np.log(nyq), 4.0])
+        fit = scipy.optimize.least_squares(
+            res, x0, loss="soft_l1", f_scale=0.5,
+            bounds=([-np.inf, np.log(0.5 * lo), 0.5], [np.inf, np.log(100 * nyq), 10.0]))
+        level, fc, order = float(np.exp(fit.x[0])), float(np.exp(fit.x[1])), float(fit.x[2])
+        # The bias of a log-averaged periodogram: E log(χ²₂/2) = −γ (Euler's constant) per
+        # raw bin; Welch averages many segments first, so the bias is small; left as is.
+        integral = scipy.integrate.quad(lambda x: _rolloff(x, fc, order), 0, nyq, limit=200)[0]
+        sigma[j] = np.sqrt(level * integral)
+        cut[j] = fc if fc < 10 * nyq else np.inf
+        reliable[j] = fc >= lo
+    return np.maximum(sigma, 1e-12), cut, reliable
+
+
+def estimate_noise_floor(dataset: Dataset, tau: np.ndarray, residual: np.ndarray,
+                         tau_nom: np.ndarray, sigma: np.ndarray | None = None,
+                         torque_resolution: np.ndarray | None = None,
+                         spectra: Spectra | None = None) -> NoiseFloor:
+    """The noise floor of the module notes. ``tau``: the measured torque (for repetition);
+    ``residual``, ``tau_nom``: measured minus nominal torque and the nominal torque (for the
+    spectrum); ``sigma``, ``torque_resolution``: (nv,) given values (either may be ``None``)."""
+    nv = tau.shape[1]
+    if sigma is not None or torque_resolution is not None:
+        s = np.zeros(nv)
+        parts = []
+        if sigma is not None:
+            s = np.maximum(s, sigma)
+            parts.append("sigma")
+        if torque_resolution is not None:
+            s = np.maximum(s, np.asarray(torque_resolution) / np.sqrt(12))
+            parts.append("the torque resolution / √12")
+        return NoiseFloor(s, ("given",) * nv, None, np.full(nv, np.nan), np.ones(nv, bool),
+                          f"given ({' and '.join(parts)})")
+    sp = residual_spectra(dataset, residual, tau_nom) if spectra is None else spectra
+    spec_sigma, cut, reliable = spectral_floor(sp)
+    period, lag = find_period(dataset)
+    rep = repetition_floor(dataset, tau, lag)[0] if lag else np.full(nv, np.nan)
+    use_rep = np.isfinite(rep)
+    out = np.where(use_rep, rep, spec_sigma)
+    method = tuple("repetition" if u else "spectrum" for u in use_rep)
+    reliable = np.where(use_rep, True, reliable)
+    if use_rep.all():
+        text = (f"from period-to-period repetition of the measured torque (excitation period "
+                f"{period:.4g} s found on q): σ² = Var(τ(t+P) − τ(t))/2")
+    else:
+        filt = [f"{c:.3g} Hz" for c in cut[~use_rep] if np.isfinite(c)]
+        text = ("from the residual spectrum above the motion band "
+                f"(> {2 * sp.signal_band:.3g} Hz), a flat level "
+                + (f"rolling off as a low-pass at {', '.join(sorted(set(filt)))}" if filt
+                   else "(white)")
+                + ("" if period is None else
+                   f"; repetition (period {period:.4g} s) on "
+                   f"{int(use_rep.sum())} of {nv} joints"))
+        if period is None:
+            text += "; the excitation does not repeat within a recording"
+    if not reliable.all():
+        text += ("; UNRELIABLE on joints filtered below the motion band (pass sigma): "
+                 + ", ".join(str(j + 1) for j in np.flatnonzero(~reliable)))
+    return NoiseFloor(out, method, period, cut, reliable, text)

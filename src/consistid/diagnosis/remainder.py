@@ -1,0 +1,280 @@
+r"""The unexplained remainder: what the selected effects leave above the noise floor, per joint,
+and where it lies.
+
+For joint ``j`` the held-out residual after every selected effect, ``e_j = τ_j − τ̂_j``, has RMS
+``ρ_j``; the noise floor (:mod:`consistid.diagnosis.noise`, never fitted by the candidates) is
+``σ_j``. A remainder is flagged on joint ``j`` when both
+
+* ``ρ_j > REMAINDER_RATIO · σ_j`` — an unexplained component of RMS
+  ``√(ρ_j² − σ_j²) ≥ 0.75 σ_j``: a relevance margin that also covers the floor's own estimation
+  error (a factor of 0.7–1.5 is what an estimate from one log can promise), and
+* the excess matters: ``√(ρ_j² − σ_j²) ≥ REMAINDER_RELEVANCE · RMS(τ_j)`` (1 % of the joint's
+  measured torque, the same practical floor as the selection's ``min_gain``): modelling and
+  signal-processing errors far below the torque (a differentiation filter's phase, an
+  integrator's step) are not pointed at, and
+* the excess is significant: ``N_eff ρ_j² / σ_j² > χ²_{N_eff}(1 − α)`` with
+  ``N_eff = N / τ_j`` effectively independent samples (``τ_j`` the residual's integrated
+  autocorrelation time; Bayley & Hammersley 1946).
+
+*Where* it lies (computed for every joint, reported for flagged ones): the remainder's RMS
+
+* per **velocity regime**: near standstill (``|q̇_j|`` below 5 % of its 99th percentile),
+  around a **reversal** (within 0.1 s of a sign change of ``q̇_j``), moving;
+* per **position**: the spread of its mean over ten quantile bins of ``q_j`` (a torque that is a
+  function of the angle);
+* per **frequency band** (Welch spectrum, bands of :func:`consistid.diagnosis.gap.gap_breakdown`);
+* its largest correlation with **another joint's measured torque** (cross-talk between
+  channels);
+* **hysteresis**: the mean difference, at the same position bin, between moving ``+`` and
+  moving ``−`` (backlash or friction that depends on direction and angle);
+* **drift**: the slope of its window means over time within recordings.
+
+The largest of these, measured as the fraction of the remainder's mean square each accounts
+for, is named in the verdict. These are pointers for an engineer, not fitted effects.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.stats
+
+from .gapdata import GapData
+
+#: The remaining RMS must exceed the noise floor by this factor to flag a remainder.
+REMAINDER_RATIO = 1.25
+#: The unexplained RMS must reach this fraction of the joint's measured torque RMS.
+REMAINDER_RELEVANCE = 0.01
+#: Level of the χ² test of the excess.
+REMAINDER_ALPHA = 1e-3
+#: Near standstill: |q̇| below this fraction of its 99th percentile.
+STANDSTILL = 0.05
+#: Seconds around a velocity sign change counted as a reversal.
+REVERSAL_WINDOW = 0.1
+POSITION_BINS = 10
+
+
+@dataclass(frozen=True)
+class JointRemainder:
+    """What is left on one joint after the selected effects (held-out data).
+
+    Attributes
+    ----------
+    joint : joint name.
+    rms : held-out RMS after every selected effect (N·m).
+    floor : the noise floor (N·m).
+    excess : ``√max(rms² − floor², 0)``, the unexplained component's RMS (N·m).
+    ratio : ``rms / floor``.
+    p_value : of the χ² test of ``rms² > floor²`` with ``N_eff`` samples.
+    flagged : a remainder (see the module notes).
+    regimes : RMS of the remainder (residual after effects) near standstill, at reversals,
+        moving (N·m; ``nan`` where empty).
+    position_spread : RMS of the per-bin means over ``q_j`` (N·m): a function of the angle.
+    hysteresis : RMS over position bins of half the difference moving + minus moving − (N·m).
+    crosstalk : largest ``|corr|`` with another joint's measured torque, and that joint.
+    band_rms : (B,) remainder RMS per frequency band (N·m); ``band_edges`` (B + 1,) Hz.
+    drift : slope of the remainder over time within recordings (N·m/s).
+    pointers : the patterns that account for most of the remainder's mean square, largest
+        first, as text.
+    """
+
+    joint: str
+    rms: float
+    floor: float
+    excess: float
+    ratio: float
+    p_value: float
+    flagged: bool
+    regimes: dict[str, float]
+    position_spread: float
+    hysteresis: float
+    crosstalk: tuple[float, str]
+    band_rms: np.ndarray
+    band_edges: np.ndarray
+    drift: float
+    pointers: tuple[str, ...]
+
+    def __str__(self) -> str:
+        head = (f"{self.joint}: {self.rms:.3g} N·m left = {self.ratio:.2f} × the noise floor "
+                f"{self.floor:.3g}")
+        if not self.flagged:
+            return head + " — explained"
+        return (head + f" — REMAINDER {self.excess:.3g} N·m unexplained"
+                + (f"; {'; '.join(self.pointers)}" if self.pointers else ""))
+
+
+@dataclass(frozen=True)
+class Remainder:
+    """The unexplained remainder of a diagnosis: one :class:`JointRemainder` per joint and the
+    verdict (``"explained"`` or ``"remainder on <joints>"``)."""
+
+    joints: tuple[JointRemainder, ...]
+
+    @property
+    def flagged(self) -> tuple[str, ...]:
+        """Joints with a remainder."""
+        return tuple(j.joint for j in self.joints if j.flagged)
+
+    @property
+    def verdict(self) -> str:
+        if not self.flagged:
+            return "explained: what the selected effects leave is at the noise floor"
+        return (f"remainder on {', '.join(self.flagged)}: the selected effects leave more than "
+                "the noise there; an effect outside the candidate list (or a wrong floor: "
+                "pass sigma)")
+
+    def summary(self) -> str:
+        return "\n".join([f"Unexplained remainder: {self.verdict}."]
+                         + ["  " + str(j) for j in self.joints])
+
+    def __str__(self) -> str:
+        return self.summary()
+
+
+def _bins(x: np.ndarray, n: int) -> np.ndarray:
+    edges = np.quantile(x, np.linspace(0, 1, n + 1)[1:-1])
+    return np.searchsorted(edges, x)
+
+
+def _reversal_mask(data: GapData, j: int) -> np.ndarray:
+    ds = data.dataset
+    out = np.zeros(data.n, dtype=bool)
+    for s in np.unique(ds.segment):
+        idx = np.flatnonzero(ds.segment == s)
+        v = ds.dq[idx, j]
+        flips = np.flatnonzero(np.sign(v[1:]) * np.sign(v[:-1]) < 0)
+        if flips.size == 0:
+            continue
+        t = ds.t[idx]
+        tf = 0.5 * (t[flips] + t[flips + 1])
+        k = np.clip(np.searchsorted(tf, t), 1, tf.size - 1) if tf.size > 1 else \
+            np.zeros(t.size, dtype=int)
+        near = np.abs(t - tf[k]) if tf.size == 1 else \
+            np.minimum(np.abs(t - tf[k]), np.abs(t - tf[k - 1]))
+        out[idx] = near <= REVERSAL_WINDOW
+    return out
+
+
+def _drift(data: GapData, e: np.ndarray) -> float:
+    ds = data.dataset
+    xs, ys = [], []
+    for s in np.unique(ds.segment):
+        idx = np.flatnonzero(ds.segment == s)
+        if idx.size < 16:
+            continue
+        t = ds.t[idx] - ds.t[idx].mean()
+        xs.append(t)
+        ys.append(e[idx] - e[idx].mean())
+    if not xs:
+        return 0.0
+    x, y = np.concatenate(xs), np.concatenate(ys)
+    sxx = float(x @ x)
+    return float(x @ y / sxx) if sxx > 0 else 0.0
+
+
+def _bands(data: GapData, e: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    """RMS of ``e`` (N,) per frequency band (periodogram per recording, pooled)."""
+    ds = data.dataset
+    power = np.zeros(edges.size - 1)
+    total = 0
+    for s in np.unique(ds.segment):
+        idx = np.flatnonzero(ds.segment == s)
+        if idx.size < 16:
+            continue
+        h = float(np.median(np.diff(ds.t[idx])))
+        spec = np.abs(np.fft.rfft(e[idx])) ** 2
+        spec[1:] *= 2
+        if idx.size % 2 == 0:
+            spec[-1] /= 2
+        f = np.fft.rfftfreq(idx.size, h)
+        k = np.clip(np.searchsorted(edges, f, side="right") - 1, 0, edges.size - 2)
+        power += np.bincount(k, spec, minlength=edges.size - 1) / idx.size
+        total += idx.size
+    return np.sqrt(power / total) if total else np.zeros(edges.size - 1)
+
+
+def analyse_remainder(data: GapData, remainder: np.ndarray, floor: np.ndarray,
+                      tau_corr: np.ndarray, band_edges: np.ndarray,
+                      alpha: float = REMAINDER_ALPHA,
+                      relevance: float = REMAINDER_RELEVANCE) -> Remainder:
+    """The :class:`Remainder` of ``remainder`` (N, nv), the held-out residual after every
+    selected effect on ``data``, against ``floor`` (nv,); ``tau_corr`` (nv,) the residual's
+    autocorrelation time (samples), ``band_edges`` the frequency bands (Hz)."""
+    names = data.model.joint_names
+    ds = data.dataset
+    tau = data.tau
+    out = []
+    for j in range(data.nv):
+        e = remainder[:, j]
+        rms = float(np.sqrt(np.mean(e ** 2)))
+        sig = float(floor[j])
+        n_eff = max(data.n / max(float(tau_corr[j]), 1.0), 1.0)
+        p = float(scipy.stats.chi2.sf(n_eff * rms ** 2 / sig ** 2, n_eff))
+        excess = float(np.sqrt(max(rms ** 2 - sig ** 2, 0.0)))
+        scale = float(np.sqrt(np.mean(tau[:, j] ** 2)))
+        flagged = bool(rms > REMAINDER_RATIO * sig and p < alpha and excess >= relevance * scale)
+        v = ds.dq[:, j]
+        slow = np.abs(v) < STANDSTILL * np.percentile(np.abs(v), 99)
+        rev = _reversal_mask(data, j)
+
+        def rms_of(m: np.ndarray) -> float:
+            return float(np.sqrt(np.mean(e[m] ** 2))) if m.any() else float("nan")
+
+        regimes = {"standstill": rms_of(slow), "reversal": rms_of(rev & ~slow),
+                   "moving": rms_of(~slow & ~rev)}
+        b = _bins(ds.q[:, j], POSITION_BINS)
+        counts = np.bincount(b, minlength=POSITION_BINS)
+        means = np.bincount(b, e, minlength=POSITION_BINS) / np.maximum(counts, 1)
+        spread = float(np.sqrt(np.sum(counts * (means - e.mean()) ** 2) / data.n))
+        hyst = []
+        for k in range(POSITION_BINS):
+            m = b == k
+            up, down = m & (v > 0) & ~slow, m & (v < 0) & ~slow
+            if up.sum() >= 5 and down.sum() >= 5:
+                hyst.append(0.5 * (e[up].mean() - e[down].mean()))
+        hysteresis = float(np.sqrt(np.mean(np.square(hyst)))) if hyst else 0.0
+        best = (0.0, "")
+        for k in range(data.nv):
+            if k == j or np.std(tau[:, k]) == 0 or np.std(e) == 0:
+                continue
+            c = float(np.corrcoef(e, tau[:, k])[0, 1])
+            if abs(c) > abs(best[0]):
+                best = (c, names[k])
+        bands = _bands(data, e, band_edges)
+        drift = _drift(data, e)
+        pointers = []
+        if flagged:
+            ms = max(rms ** 2, 1e-300)
+            span = float(np.ptp(ds.t))
+            cand = [
+                (spread ** 2 / ms, f"varies with the position of {names[j]} "
+                                   f"(bin means spread {spread:.3g} N·m)"),
+                (hysteresis ** 2 / ms, f"hysteresis: at the same angle it differs moving + "
+                                       f"and moving − by ±{hysteresis:.3g} N·m "
+                                       "(backlash, direction-dependent friction)"),
+                (best[0] ** 2, f"correlates with {best[1]}'s torque (r = {best[0]:.2f}): "
+                               "cross-talk between torque channels?"),
+                ((drift * span / np.sqrt(12)) ** 2 / ms,
+                 f"drifts over time ({drift:.3g} N·m/s)"),
+            ]
+            for name, val in regimes.items():
+                frac = float(np.mean(slow if name == "standstill" else
+                                     rev & ~slow if name == "reversal" else ~slow & ~rev))
+                if np.isfinite(val) and frac > 0:
+                    cand.append((frac * val ** 2 / ms, f"{name} ({100 * frac:.0f} % of samples) "
+                                                       f"holds RMS {val:.3g} N·m"))
+            k_band = int(np.argmax(bands))
+            cand.append((bands[k_band] ** 2 / ms,
+                         f"mostly in {band_edges[k_band]:g}–{band_edges[k_band + 1]:.3g} Hz"))
+            regime_share = [c for c in cand if "holds RMS" in c[1]]
+            concentrated = [c for c in regime_share
+                            if c[0] > 0.5 and "moving (" not in c[1]]
+            ranked = sorted([c for c in cand if "holds RMS" not in c[1]] + concentrated,
+                            key=lambda c: -c[0])
+            pointers = [f"{text} [{100 * min(share, 1):.0f} %]" for share, text in ranked[:3]
+                        if share > 0.1]
+        out.append(JointRemainder(names[j], rms, sig, excess, rms / sig, p, flagged, regimes,
+                                  spread, hysteresis, best, bands, band_edges, drift,
+                                  tuple(pointers)))
+    return Remainder(tuple(out))
