@@ -10,8 +10,12 @@ ramp experiment; :mod:`~consistid.friction.ramp` ramp experiments as a schedule 
 robot can run.
 """
 
+from .breakaway import BreakawayEstimate, BreakawayEvent, estimate_breakaway, simulate_ramps
 from .fit import NonlinearFrictionResult, identify_nonlinear, is_nonlinear, parse_friction
 from .models import MODELS, FrictionModel, GazSigmoid, Stribeck, TanhCoulomb, get_model
+from .ramp import Ramp, RampPlan, ramp_plan
 
-__all__ = ["MODELS", "FrictionModel", "GazSigmoid", "NonlinearFrictionResult", "Stribeck",
-           "TanhCoulomb", "get_model", "identify_nonlinear", "is_nonlinear", "parse_friction"]
+__all__ = ["MODELS", "BreakawayEstimate", "BreakawayEvent", "FrictionModel", "GazSigmoid",
+           "NonlinearFrictionResult", "Ramp", "RampPlan", "Stribeck", "TanhCoulomb",
+           "estimate_breakaway", "get_model", "identify_nonlinear", "is_nonlinear",
+           "parse_friction", "ramp_plan", "simulate_ramps"]

@@ -1,0 +1,400 @@
+r"""Break-away (static) friction per joint: the torque at which a joint at rest starts to move.
+
+An *event* is the first sample ``k`` at which joint ``j``'s speed reaches the threshold
+``v_th`` after at least ``min_still`` seconds below it (the youBot report's criterion, seeds
+Section 3.6: "the point at which the applied torque is greater than the frictional force, the
+velocity of the body increases"). Its friction torque is what the model does not explain,
+
+.. math::  f_k = τ_{kj} - \mathrm{RNEA}_j(q_k, \dot q_k, \ddot q_k)
+
+— the gravity torque of the pose with the identified (or nominal) model, and, with
+``inertial=True`` (default), the inertial and Coriolis torque of the starting motion, which a
+threshold crossing always has (without it a ramp of slope ``ṙ`` reads high by about
+``√(2 M_jj v_th ṙ)``). The break-away torque of the joint is the median of ``s_k f_k`` over its
+events (``s_k`` the direction of motion), as in the report (Section 4.2, box plots of 25
+experiments), and its spread ``1.4826·MAD``; the medians per direction are kept too (a
+gravity-model error shifts both the same way, ``(f⁺ + f⁻)/2`` is free of it).
+
+Sources of events: any log (``estimate_breakaway(model, data)``: the first motion after each
+standstill), or, with ``data=None``, the torque ramps of a :class:`~consistid.friction.ramp.RampPlan`
+run on the MuJoCo robot (:func:`simulate_ramps`) carrying the given
+:class:`~consistid.simulate.Effects` — MuJoCo's ``frictionloss`` holds a joint up to its value,
+so a set value is a truth to check against.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from dataclasses import dataclass
+from html import escape
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+import pinocchio as pin
+import scipy.stats
+
+from ..data.dataset import Dataset
+from ..errors import DatasetError, IdentificationError, ModelError, OptionError, check_number
+from ..identification.result import StandardParameterSet
+from ..identification.summary import table
+from ..robot.model import RobotModel
+from ..simulate.effects import Effects, explicit_friction, has_explicit_friction
+from .ramp import RampPlan, ramp_plan
+
+#: Default detection threshold ``v_th`` (rad/s) and standstill before an event (s).
+THRESHOLD, MIN_STILL = 0.02, 0.1
+#: Bandwidth (rad/s) of the computed-torque hold of the other joints during simulated ramps.
+HOLD_BANDWIDTH = 30.0
+MISSING = ("raise", "warn")
+
+
+@dataclass(frozen=True)
+class BreakawayEvent:
+    """One first motion after standstill: joint index, time (s), direction ±1, friction torque
+    magnitude ``s·f`` (N·m) and the speed at the detecting sample (rad/s)."""
+
+    joint: int
+    time: float
+    direction: int
+    torque: float
+    speed: float
+
+
+@dataclass(frozen=True, eq=False)
+class BreakawayEstimate:
+    """Break-away torque per joint (module docstring).
+
+    Attributes
+    ----------
+    joint_names : (nv,) names.
+    torque : (nv,) median break-away torque (N·m); NaN only for joints not asked for
+        (``measured`` False) or, with ``missing="warn"``, without events (the warning names them).
+    spread : (nv,) ``1.4826·MAD`` of the events (N·m; 0 for a single event).
+    positive, negative : (nv,) medians of the events in each direction (NaN if none).
+    n_events : (nv,) number of events.
+    events : every event.
+    measured : (nv,) bool, joints analysed.
+    threshold, min_still : the detection settings.
+    inertial : whether the inertial torque of the starting motion was subtracted.
+    source : ``"log"`` or a description of the simulated ramp experiment.
+    duration : seconds of data read (the experiment's length for simulated ramps).
+    notes : what was not found, and why.
+    """
+
+    joint_names: tuple[str, ...]
+    torque: np.ndarray
+    spread: np.ndarray
+    positive: np.ndarray
+    negative: np.ndarray
+    n_events: np.ndarray
+    events: tuple[BreakawayEvent, ...]
+    measured: np.ndarray
+    threshold: float
+    min_still: float
+    inertial: bool
+    source: str
+    duration: float
+    notes: tuple[str, ...] = ()
+
+    def conf_int(self, alpha: float = 0.05) -> np.ndarray:
+        """Approximate ``1 − alpha`` intervals of the medians, (nv, 2): ``± z·1.2533·spread/√n``
+        (the large-sample standard error of a median of normal events)."""
+        z = scipy.stats.norm.ppf(1 - alpha / 2)
+        half = z * 1.2533 * self.spread / np.sqrt(np.maximum(self.n_events, 1))
+        return np.column_stack([self.torque - half, self.torque + half])
+
+    def summary(self) -> str:
+        rows = []
+        for j, name in enumerate(self.joint_names):
+            if not self.measured[j]:
+                rows.append([name, "not measured", "", "", "", ""])
+                continue
+            rows.append([name, self.torque[j], self.spread[j], self.positive[j],
+                         self.negative[j], int(self.n_events[j])])
+        head = (f"break-away friction from {self.source} ({self.duration:.1f} s): first motion "
+                f"after ≥ {self.min_still:g} s below {self.threshold:g} rad/s; torque minus "
+                f"{'inverse dynamics' if self.inertial else 'gravity'} of the model")
+        text = head + "\n" + table(["joint", "median [N·m]", "spread [N·m]", "median +",
+                                    "median −", "events"], rows)
+        if self.notes:
+            text += "\nNotes:\n" + "\n".join(f"  - {n}" for n in self.notes)
+        return text
+
+    def __str__(self) -> str:
+        return self.summary()
+
+    def _repr_html_(self) -> str:
+        return f"<pre>{escape(self.summary())}</pre>"
+
+    def report(self, path: str | Path) -> Path:
+        """Write the summary as an HTML page (a table per joint) to ``path``."""
+        path = Path(path)
+        path.write_text(f"<!doctype html><meta charset='utf-8'><title>break-away friction"
+                        f"</title>{self._repr_html_()}\n", encoding="utf-8")
+        return path
+
+
+@dataclass(frozen=True, eq=False)
+class RampRun:
+    """A simulated ramp experiment: the log (exact MuJoCo states, measured torques), the plan,
+    and each ramp's sample window ``(ramp, first, last, moved)``."""
+
+    dataset: Dataset
+    plan: RampPlan
+    windows: tuple[tuple[object, int, int, bool], ...]
+
+
+def _robot_model(model: RobotModel | StandardParameterSet) -> RobotModel:
+    if isinstance(model, StandardParameterSet):
+        return model.identified_model()
+    if isinstance(model, RobotModel):
+        return model
+    raise ModelError(f"model must be a RobotModel or an identification result, got "
+                     f"{type(model).__name__}")
+
+
+def simulate_ramps(model: RobotModel, plan: RampPlan, effects: Effects | None = None,
+                   parameters: np.ndarray | None = None, timestep: float = 1e-3,
+                   seed: int = 0) -> RampRun:
+    """Run ``plan`` on the MuJoCo robot (:class:`~consistid.simulate.mujoco_robot.MujocoRobot`)
+    carrying ``effects`` and true inertial ``parameters`` (default the model's).
+
+    Before each ramp every joint is held at the pose by computed torque on ``model`` (bandwidth
+    :data:`HOLD_BANDWIDTH`); during a ramp the other joints stay held and the ramped joint's
+    torque ramps from the torque that held it (``g(q₀)`` plus what holding needed), until it reaches ``plan.abort_speed``, leaves
+    ``plan.max_excursion`` or the ramp reaches ``max_torque``. Every physics step is logged:
+    MuJoCo's exact ``q, q̇, q̈`` and the commanded torque with ``effects.torque_noise``.
+    Raises :class:`ModelError` for elastic joints (the ramp acts on the link).
+    """
+    import mujoco
+
+    from ..simulate.mujoco_robot import MujocoRobot
+
+    robot = MujocoRobot(model, effects, parameters, timestep=timestep)
+    eff = robot.effects
+    if eff.elastic.any():
+        raise ModelError("ramp experiments act on rigid joints; switch elasticity off")
+    mj, data = robot.mj_model, mujoco.MjData(robot.mj_model)
+    link, nv = robot.link_dof, model.nv
+    pm = model.pin_model
+    pdata = pm.createData()
+    kp, kd = HOLD_BANDWIDTH ** 2, 2.0 * HOLD_BANDWIDTH
+    data.qpos[link] = plan.pose
+    data.qvel[:] = 0.0
+    explicit = has_explicit_friction(eff)
+    log_q, log_dq, log_ddq, log_u = [], [], [], []
+    windows = []
+    h = robot.timestep
+
+    def step(u: np.ndarray) -> None:
+        log_q.append(data.qpos[link].copy())
+        log_dq.append(data.qvel[link].copy())
+        applied = u - explicit_friction(eff, data.qvel[link]) if explicit else u
+        data.qfrc_applied[link] = applied
+        mujoco.mj_step(mj, data)
+        log_ddq.append(data.qacc[link].copy())
+        log_u.append(u.copy())
+
+    def hold() -> np.ndarray:
+        q, v = data.qpos[link].copy(), data.qvel[link].copy()
+        a = kp * (plan.pose - q) - kd * v
+        return pin.rnea(pm, pdata, model.configuration(q), v, a)
+
+    n_settle = int(round(plan.settle / h))
+    for ramp in plan.ramps:
+        u_start = plan.gravity[ramp.joint]
+        for _ in range(n_settle):
+            u = hold()
+            step(u)
+            u_start = u[ramp.joint]
+        first, moved = len(log_u), False
+        top = float(plan.max_torque[ramp.joint])
+        k = 0
+        while True:
+            # from the holding torque (a step to g(q0) would jolt the stuck joint)
+            commanded = u_start + ramp.direction * plan.rate * k * h
+            if abs(commanded - plan.gravity[ramp.joint]) > top:
+                break
+            u = hold()       # the ramped joint's own torque is replaced; its hold term stays
+            u[ramp.joint] = commanded     # in the others' (a jump there would jolt it too)
+            step(u)
+            k += 1
+            j = ramp.joint
+            if abs(data.qvel[link[j]]) >= plan.abort_speed or \
+                    abs(data.qpos[link[j]] - plan.pose[j]) > plan.max_excursion:
+                moved = True
+                break
+        windows.append((ramp, first, len(log_u) - 1, moved))
+    n = len(log_u)
+    if not (np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(log_dq[-1]))):
+        raise ModelError("the simulated ramp experiment diverged (non-finite state): a friction "
+                         "law too steep for the physics step; shorten timestep")
+    rng = np.random.default_rng(seed)
+    tau = np.asarray(log_u) + np.asarray(eff.torque_noise) * rng.standard_normal((n, nv))
+    t = np.arange(n) * h
+    dataset = Dataset(t=t, q=np.asarray(log_q), dq=np.asarray(log_dq), ddq=np.asarray(log_ddq),
+                      tau=tau, joint_names=tuple(model.joint_names))
+    return RampRun(dataset, plan, tuple(windows))
+
+
+def _events(dq: np.ndarray, t: np.ndarray, segment: np.ndarray, threshold: float,
+            min_still: float, start: int = 0) -> tuple[list[int], bool]:
+    """Indices of the first samples at or above ``threshold`` after ``≥ min_still`` s below it
+    (within one segment), and whether any standstill was found at all."""
+    moving = np.abs(dq) >= threshold
+    out, still_found = [], False
+    k, n = 0, dq.size
+    while k < n:
+        if moving[k]:
+            k += 1
+            continue
+        stop = k
+        while stop < n and not moving[stop] and segment[stop] == segment[k]:
+            stop += 1
+        long_enough = t[stop - 1] - t[k] >= min_still
+        still_found |= bool(long_enough)
+        if long_enough and stop < n and segment[stop] == segment[k]:
+            out.append(start + stop)
+        k = stop if stop > k else k + 1
+    return out, still_found
+
+
+def estimate_breakaway(model: RobotModel | StandardParameterSet, data: Dataset | None = None, *,
+                       effects: Effects | None = None, plan: RampPlan | None = None,
+                       parameters: np.ndarray | None = None,
+                       joints: Sequence[int | str] | None = None,
+                       threshold: float = THRESHOLD, min_still: float = MIN_STILL,
+                       inertial: bool = True, missing: str = "raise", seed: int = 0,
+                       **plan_options: object) -> BreakawayEstimate:
+    """Break-away torque per joint (module docstring).
+
+    Parameters
+    ----------
+    model : the robot whose inverse dynamics is subtracted: a :class:`RobotModel` (nominal) or an
+        identification result (its identified inertias).
+    data : a log with torques; ``None`` runs the ramp experiment on the MuJoCo robot
+        (:func:`simulate_ramps`) with ``effects``, ``parameters`` (true inertias, default the
+        model's) and ``plan`` (default :func:`~consistid.friction.ramp.ramp_plan` of the model
+        with ``plan_options``, e.g. ``rate``, ``repeats``, ``pose``, ``max_torque``).
+    joints : joints to analyse (names or indices); default all (those of the plan when given).
+    threshold : ``v_th`` (rad/s); must lie below the plan's ``abort_speed`` for simulated ramps.
+    min_still : seconds below ``v_th`` before an event counts.
+    inertial : subtract the full inverse dynamics (default) or the gravity torque of the pose
+        only (``RNEA(q, 0, 0)``, for logs whose accelerations are too noisy).
+    missing : ``"raise"`` (default) or ``"warn"`` for a joint without events.
+
+    Raises
+    ------
+    DatasetError : in a log, a joint that never stands still for ``min_still`` ("a joint that
+        never stops"), or stands still but never starts to move again.
+    IdentificationError : in the ramp experiment, a joint that moved in none of its ramps up to
+        ``max_torque`` (its break-away torque is larger: raise ``max_torque`` within the effort
+        limit).
+    """
+    robot = _robot_model(model)
+    threshold = check_number("threshold", threshold, 0, strict=True)
+    min_still = check_number("min_still", min_still, 0)
+    if missing not in MISSING:
+        raise OptionError(f"missing={missing!r} is not supported; allowed: {MISSING}")
+    nv, names = robot.nv, robot.joint_names
+    windows = None
+    if data is None:
+        start_time = time.perf_counter()
+        plan = plan or ramp_plan(robot, **plan_options)  # type: ignore[arg-type]
+        if threshold >= plan.abort_speed:
+            raise OptionError(f"threshold = {threshold:g} rad/s must lie below the plan's "
+                              f"abort_speed = {plan.abort_speed:g} rad/s (a ramp stops there)")
+        run = simulate_ramps(robot, plan, effects, parameters, seed=seed)
+        data = run.dataset
+        windows = run.windows
+        source = (f"{len(plan.ramps)} simulated torque ramps at {plan.rate:g} N·m/s "
+                  f"(MuJoCo, {time.perf_counter() - start_time:.1f} s wall)")
+        default_joints = sorted({r.joint for r in plan.ramps})
+    else:
+        if plan_options or plan is not None or effects is not None:
+            raise OptionError("effects, plan and ramp options apply to the simulated experiment "
+                              "(data=None), not to a given log")
+        if not isinstance(data, Dataset):
+            raise DatasetError(f"data must be a Dataset (or None to simulate ramps), got "
+                               f"{type(data).__name__}")
+        data.check_joints(nv, names)
+        source = "log"
+        default_joints = list(range(nv))
+    tau = data.require_torque()
+    chosen = default_joints if joints is None else [
+        names.index(j) if isinstance(j, str) and j in names else j for j in joints]
+    for j in chosen:
+        if isinstance(j, bool) or not isinstance(j, (int, np.integer)) or not 0 <= j < nv:
+            raise OptionError(f"joints: {j!r} is not a joint of {robot.name} ({names})")
+    dq, ddq = (data.dq, data.ddq) if inertial else (np.zeros_like(data.dq),) * 2
+    segment = data.segment if data.segment is not None else np.zeros(data.n_samples, int)
+    events: list[BreakawayEvent] = []
+    notes: list[str] = []
+    problems: list[tuple[type, str]] = []
+    for j in chosen:
+        if windows is not None:
+            idx, tried = [], 0
+            for ramp, first, last, moved in windows:
+                if ramp.joint != j:
+                    continue
+                tried += 1
+                found, _ = _events(data.dq[first:last + 1, j], data.t[first:last + 1],
+                                   segment[first:last + 1], threshold, 0.0, first)
+                idx += found[:1]
+            if not idx:
+                top = float(run.plan.max_torque[j])
+                problems.append((IdentificationError,
+                                 f"joint {names[j]!r} did not move in any of its {tried} ramps "
+                                 f"up to ±{top:.4g} N·m beyond g(q0): its break-away torque is "
+                                 "larger (raise max_torque within the effort limit) or the joint "
+                                 "is blocked"))
+                continue
+        else:
+            idx, still = _events(data.dq[:, j], data.t, segment, threshold, min_still)
+            if not still:
+                problems.append((DatasetError,
+                                 f"joint {names[j]!r} never stands still (|q̇| < {threshold:g} "
+                                 f"rad/s for ≥ {min_still:g} s) in the log: no break-away event; "
+                                 "record a ramp from rest (consistid.friction.ramp) or lower "
+                                 "min_still"))
+                continue
+            if not idx:
+                problems.append((DatasetError,
+                                 f"joint {names[j]!r} stands still in the log but never starts "
+                                 f"to move again (|q̇| ≥ {threshold:g} rad/s): no break-away "
+                                 "event"))
+                continue
+        idx_arr = np.asarray(idx)
+        model_tau = robot.rnea(data.q[idx_arr], dq[idx_arr], ddq[idx_arr])[:, j]
+        direction = np.sign(data.dq[idx_arr, j]).astype(int)
+        magnitude = direction * (tau[idx_arr, j] - model_tau)
+        events += [BreakawayEvent(j, float(data.t[k]), int(s), float(f), float(abs(data.dq[k, j])))
+                   for k, s, f in zip(idx_arr, direction, magnitude)]
+    for kind, message in problems:
+        if missing == "raise":
+            raise kind(message)
+        warnings.warn(message, UserWarning, stacklevel=2)
+        notes.append(message)
+    torque, spread, pos, neg = (np.full(nv, np.nan) for _ in range(4))
+    count = np.zeros(nv, dtype=int)
+    for j in chosen:
+        values = np.array([e.torque for e in events if e.joint == j])
+        if values.size == 0:
+            continue
+        dirs = np.array([e.direction for e in events if e.joint == j])
+        torque[j] = float(np.median(values))
+        spread[j] = float(1.4826 * np.median(np.abs(values - torque[j])))
+        pos[j] = float(np.median(values[dirs > 0])) if np.any(dirs > 0) else np.nan
+        neg[j] = float(np.median(values[dirs < 0])) if np.any(dirs < 0) else np.nan
+        count[j] = values.size
+        if np.any(values <= 0):
+            notes.append(f"{names[j]}: {int(np.sum(values <= 0))} event(s) with friction "
+                         "against the motion ≤ 0: the model's gravity (or a torque offset) "
+                         "is off by about the break-away torque")
+    measured = np.zeros(nv, dtype=bool)
+    measured[list(chosen)] = True
+    return BreakawayEstimate(tuple(names), torque, spread, pos, neg, count, tuple(events),
+                             measured, threshold, min_still, bool(inertial), source,
+                             float(data.t[-1] - data.t[0]), tuple(notes))
