@@ -1,12 +1,21 @@
 """The ``consistid`` command.
 
 ``consistid demo`` runs the main job on a bundled default: a simulated excitation run of the
-Panda arm (ground truth = URDF parameters perturbed by ±20 %), identified, with a report.
+Panda arm (ground truth = URDF parameters perturbed by ±20 %), identified, with a report written
+into a fresh folder (its path is printed). ``demo`` and ``simulate`` take any URDF
+(``--urdf PATH``). ``consistid identify CONFIG --output DIR`` writes the result as JSON, the
+parameter table as CSV, the identified URDF and MJCF and the HTML report.
+
+Progress bars (``tqdm``) appear on a terminal; ``-q`` silences them and the step messages.
+Error messages give option hints in TOML syntax (:mod:`consistid.cli.hints`), the syntax of the
+configuration files.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib.metadata
+import platform
 import sys
 import time
 from pathlib import Path
@@ -18,17 +27,61 @@ import consistid as ci
 from consistid.errors import ConfigError, ConsistidError, OutputPathError, check_option
 
 from .files import atomic_dir, atomic_path, check_output, check_output_dir
+from .hints import toml_hints
+
+#: Set by ``-q``: no progress bars, no step messages on stderr (errors are still printed).
+QUIET = False
 
 
 def _log(msg: str) -> None:
-    print(msg, file=sys.stderr, flush=True)
+    if not QUIET:
+        print(msg, file=sys.stderr, flush=True)
+
+
+def _progress() -> bool | None:
+    """``progress=`` for the library: off under ``-q``, else a bar when stderr is a terminal."""
+    return False if QUIET else None
+
+
+def _cli_model(args: argparse.Namespace) -> "ci.RobotModel":
+    """The robot of ``--urdf PATH`` (with ``--lock JOINT`` …) or of ``--robot NAME``."""
+    if args.urdf:
+        return ci.RobotModel.from_urdf(args.urdf, locked_joints=args.lock or ())
+    if args.lock:
+        raise ConfigError("--lock applies to --urdf; the example robots lock their grippers "
+                          "already")
+    return ci.RobotModel.example(args.robot)
+
+
+def _fresh_dir(requested: str | None, default: str) -> Path:
+    """A folder created now, never one that exists: ``requested`` (refused if it exists), or
+    ``default``, ``default-2``, ``default-3`` … in the current folder, the first that is free."""
+    if requested:
+        path = Path(requested).expanduser().resolve()
+        if path.exists():
+            raise OutputPathError(f"--output {str(path)!r} exists; the demo writes into a new "
+                                  "folder only: choose another name")
+        if not path.parent.is_dir():
+            raise OutputPathError(f"--output {str(path)!r}: folder {str(path.parent)!r} does "
+                                  "not exist")
+        path.mkdir()
+        return path
+    for k in range(1, 10_000):
+        path = Path.cwd() / (default if k == 1 else f"{default}-{k}")
+        try:
+            path.mkdir()
+            return path
+        except FileExistsError:
+            continue
+    raise OutputPathError(f"no free folder name {default}-N in {str(Path.cwd())!r}")
 
 
 def demo(args: argparse.Namespace) -> int:
     """Simulate, identify, report."""
     from consistid.robot.inertia import perturb
 
-    model = ci.RobotModel.example(args.robot)
+    model = _cli_model(args)
+    folder = _fresh_dir(args.output, f"consistid-demo-{model.name}")
     rng = np.random.default_rng(args.seed)
     truth = perturb(model.prior_parameters, 0.2, rng)
     _log(f"[1/4] simulating {args.duration:.0f} s of excitation on {model.name} "
@@ -59,18 +112,27 @@ def demo(args: argparse.Namespace) -> int:
     print("\n" + table(["method", "held-out RMS/σ", "bodies consistent",
                         "base params within 3σ of truth", "time [s]"], rows))
     print(f"OLS (nearest standard set): {results['ols'].consistency}")
+    sdp = results["sdp"].with_provenance(config={"command": "demo", **{
+        k: v for k, v in vars(args).items() if k != "func"}})
+    report = sdp.report(folder / "report.html", data=run.dataset, held_out=held.dataset)
+    sdp.save(folder / "result.json")
+    sdp.to_csv(folder / "parameters.csv")
+    print(f"\nreport: {report}")
     return 0
 
 
 def identify(args: argparse.Namespace) -> int:
     """Identify from the recordings of a TOML configuration (:mod:`consistid.cli.config`)."""
-    from consistid.cli.config import (config_identify, config_model, config_recordings,
-                                  estimates_tilt, load_config)
+    from consistid.cli.config import (config_identify, config_inputs, config_model,
+                                      config_recordings, estimates_tilt, load_config)
     from consistid.identification.scoring import score, scores_table
 
     config = load_config(args.config)
     model = config_model(config, allow_tilt=True)
     options = config_identify(config)
+    inputs = config_inputs(config, model)
+    folder = (check_output_dir(args.output, IDENTIFY_OUTPUTS, inputs=inputs, force=args.force,
+                               what="--output") if args.output else None)
     train, held = config_recordings(config, model)
     _log(str(train))
     if held is not None:
@@ -93,7 +155,37 @@ def identify(args: argparse.Namespace) -> int:
         scored.append(score(res, held.dataset, "held-out"))
     print("\nTorque fit: relative error per joint and total (%), RMS (N·m)")
     print(scores_table(scored))
+    if folder is not None:
+        res = res.with_provenance(inputs, config={"root": str(config.root), **config.tables})
+        _write_identification(res, folder, train.dataset,
+                              None if held is None else held.dataset)
     return 0
+
+
+#: What ``consistid identify --output DIR`` writes.
+IDENTIFY_OUTPUTS = ("result.json", "parameters.csv", "robot.urdf", "robot.xml", "report.html")
+
+
+def _write_identification(res: "ci.IdentificationResult", folder: Path, train: "ci.Dataset",
+                          held: "ci.Dataset | None") -> None:
+    """:data:`IDENTIFY_OUTPUTS` into ``folder``, all renamed into place at the end. A model
+    file that cannot be written (an inconsistent body, no source URDF) is named with the
+    reason, and the rest is written."""
+    skipped = []
+    with atomic_dir(folder) as tmp:
+        res.save(tmp / "result.json")
+        res.to_csv(tmp / "parameters.csv")
+        for name, write in (("robot.urdf", res.to_urdf), ("robot.xml", res.to_mjcf)):
+            try:
+                write(tmp / name)
+            except (ci.InconsistentParametersError, ci.ModelError) as exc:
+                skipped.append(f"{name} not written: {exc}")
+        res.report(tmp / "report.html", data=train, held_out=held)
+        written = sorted(p.name for p in tmp.iterdir())
+    for line in skipped:
+        _log(line)
+    _log(f"wrote {', '.join(written)} into {folder}")
+    print(f"\nreport: {folder / 'report.html'}")
 
 
 def excite(args: argparse.Namespace) -> int:
@@ -107,7 +199,7 @@ def excite(args: argparse.Namespace) -> int:
                           what="--output" if args.output else "[excite] output")
     _log(f"designing an excitation trajectory for {config.model.name} "
          f"({config.options.get('n_starts', 4)} starts)")
-    design = config.run(progress=lambda start: _log(f"      {start}"))
+    design = config.run(progress=_progress())
     print(design)
     with atomic_path(output) as tmp:
         design.save_csv(tmp, config.rate)
@@ -121,7 +213,7 @@ def simulate(args: argparse.Namespace) -> int:
     from consistid.cli.residual_demo import DEFAULT_EFFECTS, run
 
     plot = (check_output(args.plot, force=args.force, what="--plot") if args.plot else None)
-    demo_run = run(args.robot, args.effect or DEFAULT_EFFECTS, duration=args.duration,
+    demo_run = run(_cli_model(args), args.effect or DEFAULT_EFFECTS, duration=args.duration,
                    torque_noise=args.noise, seed=args.seed, progress=_log)
     print(demo_run)
     if plot is not None:
@@ -308,22 +400,31 @@ def build_parser() -> argparse.ArgumentParser:
         description="Physically consistent identification of robot dynamics, and sim-to-real gap "
                     "diagnosis. Each command takes a TOML configuration (see examples/), except "
                     "demo and simulate.")
+    parser.add_argument("--version", action="version", version=version_text())
+    _add_quiet(parser, top=True)
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("demo", help=COMMANDS["demo"][1])
-    p.add_argument("--robot", default="panda", help="example-robot-data arm (default panda)")
+    _add_robot(p)
     p.add_argument("--duration", type=float, default=30.0, help="seconds of excitation")
     p.add_argument("--rate", type=float, default=500.0, help="sampling rate in Hz")
     p.add_argument("--noise", type=float, default=0.1, help="torque noise σ in N·m")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--output", metavar="DIR",
+                   help="new folder for report.html, result.json and parameters.csv (default: "
+                        "consistid-demo-ROBOT[-N] in the current folder; never an existing one)")
     p = sub.add_parser("identify", help=COMMANDS["identify"][1])
     p.add_argument("config", help="TOML file with [model], [data] and [identify] tables")
     p.add_argument("--all", action="store_true", help="list every base parameter")
+    p.add_argument("--output", metavar="DIR",
+                   help=f"folder to write {', '.join(IDENTIFY_OUTPUTS)} into (created if "
+                        "missing; existing files need --force)")
+    _add_force(p)
     p = sub.add_parser("excite", help=COMMANDS["excite"][1])
     p.add_argument("config", help="TOML file with [model] and [excite] tables")
     p.add_argument("--output", help="CSV path (default: [excite] output)")
     _add_force(p)
     p = sub.add_parser("simulate", help=COMMANDS["simulate"][1])
-    p.add_argument("--robot", default="panda", help="example-robot-data arm (default panda)")
+    _add_robot(p)
     p.add_argument("--effect", action="append", metavar="NAME=VALUE",
                    help="an effect on every joint, repeatable (viscous, coulomb, armature, "
                         "elasticity, offset, gain, delay, payload=MASS …); default "
@@ -345,7 +446,38 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--output", help="report directory, .html or .txt (default: [diagnose] "
                                     "output; none: text to stdout only)")
     _add_force(p)
+    for p in sub.choices.values():
+        _add_quiet(p)
     return parser
+
+
+def _add_robot(parser: argparse.ArgumentParser) -> None:
+    """``--robot NAME`` (an example-robot-data arm) or ``--urdf PATH`` (any URDF) with
+    ``--lock JOINT`` (repeatable: joints merged into their parent, e.g. a gripper's)."""
+    parser.add_argument("--robot", default="panda",
+                        help="example-robot-data arm (default panda; ignored with --urdf)")
+    parser.add_argument("--urdf", metavar="PATH", help="any URDF instead of --robot")
+    parser.add_argument("--lock", action="append", metavar="JOINT",
+                        help="with --urdf: a joint to lock (repeatable)")
+
+
+def _add_quiet(parser: argparse.ArgumentParser, top: bool = False) -> None:
+    """``-q``: before or after the subcommand (the subcommand's default does not override)."""
+    parser.add_argument("-q", "--quiet", action="store_true",
+                        default=False if top else argparse.SUPPRESS,
+                        help="no progress bars or step messages (results and errors only)")
+
+
+def version_text() -> str:
+    """``consistid X (pinocchio …, cvxpy …, clarabel …, mujoco …, numpy …, python …)``."""
+    parts = []
+    for name, dist in (("pinocchio", "pin"), ("cvxpy", "cvxpy"), ("clarabel", "clarabel"),
+                       ("mujoco", "mujoco"), ("numpy", "numpy")):
+        try:
+            parts.append(f"{name} {importlib.metadata.version(dist)}")
+        except importlib.metadata.PackageNotFoundError:
+            parts.append(f"{name} not installed")
+    return f"consistid {ci.__version__} ({', '.join(parts)}, python {platform.python_version()})"
 
 
 def _add_force(parser: argparse.ArgumentParser) -> None:
@@ -355,12 +487,14 @@ def _add_force(parser: argparse.ArgumentParser) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    global QUIET
     args = build_parser().parse_args(argv)
-
+    QUIET = bool(args.quiet)
     try:
         return COMMANDS[args.command][0](args)
     except ConsistidError as exc:
-        _log(f"consistid {args.command}: error: {exc}")
+        print(f"consistid {args.command}: error: {toml_hints(str(exc))}", file=sys.stderr,
+              flush=True)
         return 2
 
 

@@ -1,0 +1,100 @@
+"""Error hints in the syntax of the place the user writes: TOML for the ``consistid`` command.
+
+The library's messages name options as Python keyword arguments (``mode='nearest'``,
+``friction=('coulomb', 'viscous')``, ``armature=True``); a CLI user writes them in a TOML
+configuration, as ``mode = "nearest"``, ``friction = ["coulomb", "viscous"]``,
+``armature = true``. :func:`toml_hints` rewrites every ``name=<Python literal>`` of a message
+into ``name = <TOML value>`` and the quoted choices of an ``allowed:`` list into TOML strings.
+``None`` has no TOML spelling (a key is left out instead) and stays as it is, as does anything
+that is not a Python literal (``x=f(y)``).
+"""
+
+from __future__ import annotations
+
+import ast
+import json
+import math
+import re
+from typing import Any
+
+_ASSIGN = re.compile(r"(?<![\w.=!<>])([A-Za-z_][A-Za-z0-9_]*)=(?!=)")
+_SIMPLE = re.compile(r"""'(?:[^'\\]|\\.)*'|"(?:[^"\\]|\\.)*"|[-+]?(?:\d+\.?\d*(?:[eE][-+]?\d+)?"""
+                     r"""|\.\d+(?:[eE][-+]?\d+)?|inf)|True|False|None""")
+_CLOSE = {"(": ")", "[": "]", "{": "}"}
+
+
+def _literal_at(text: str, start: int) -> tuple[Any, int] | None:
+    """The Python literal that starts at ``text[start]`` and where it ends, or ``None``."""
+    if start >= len(text):
+        return None
+    if text[start] in _CLOSE:
+        depth, quote = 0, ""
+        for k in range(start, len(text)):
+            c = text[k]
+            if quote:
+                if c == quote and text[k - 1] != "\\":
+                    quote = ""
+            elif c in "'\"":
+                quote = c
+            elif c in _CLOSE:
+                depth += 1
+            elif c in _CLOSE.values():
+                depth -= 1
+                if depth == 0:
+                    try:
+                        return ast.literal_eval(text[start:k + 1]), k + 1
+                    except (ValueError, SyntaxError):
+                        return None
+        return None
+    m = _SIMPLE.match(text, start)
+    if m is None:
+        return None
+    end = m.end()
+    if end < len(text) and (text[end].isalnum() or text[end] == "_"):
+        return None                                    # part of a longer word: x=Nonesuch
+    token = m.group(0)
+    return (float(token) if token.lstrip("+-") == "inf" else ast.literal_eval(token)), end
+
+
+def toml_value(value: Any) -> str | None:
+    """``value`` in TOML syntax, or ``None`` when TOML cannot spell it."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        if math.isinf(value):
+            return "inf" if value > 0 else "-inf"
+        return "nan" if math.isnan(value) else repr(value)
+    if isinstance(value, str):
+        return json.dumps(value, ensure_ascii=False)
+    if isinstance(value, (list, tuple)):
+        items = [toml_value(v) for v in value]
+        return None if any(i is None for i in items) else "[" + ", ".join(items) + "]"
+    if isinstance(value, dict) and all(isinstance(k, str) for k in value):
+        items = [(k, toml_value(v)) for k, v in value.items()]
+        if any(v is None for _, v in items):
+            return None
+        return "{" + ", ".join(f"{k} = {v}" for k, v in items) + "}"
+    return None
+
+
+def toml_hints(message: str) -> str:
+    """``message`` with its Python-syntax option hints written as TOML (module docstring)."""
+    out, i = [], 0
+    for m in _ASSIGN.finditer(message):
+        if m.start() < i:
+            continue
+        found = _literal_at(message, m.end())
+        if found is None:
+            continue
+        value, end = found
+        spelled = toml_value(value)
+        if spelled is None:
+            continue
+        out += [message[i:m.start()], f"{m.group(1)} = {spelled}"]
+        i = end
+    out.append(message[i:])
+    text = "".join(out)
+    return re.sub(r"(allowed: )((?:'[^']*'(?:, )?)+)",
+                  lambda mm: mm.group(1) + re.sub(r"'([^']*)'", r'"\1"', mm.group(2)), text)
