@@ -37,6 +37,7 @@ import scipy.sparse
 from ..identification.base import BaseParameters, compute_base_parameters
 from ..data.dataset import Dataset
 from ..errors import InfeasibleExcitationError, OptionError, check_number, check_option
+from ..progress import Progress
 from ..threads import single_blas_thread
 from ..robot.model import RobotModel, require_model
 from ..identification.regressor import FrictionArg, RegressorSpec, prior_vector, regressor
@@ -489,7 +490,7 @@ def design_excitation(model: RobotModel, harmonics: int = 5, period: float = 10.
                       noise_std: float | Sequence[float] | None = None,
                       n_starts: int = 4, max_iter: int = 100, method: str = "SLSQP",
                       n_grid: int = 150, n_check: int = 2000, safety: float = 0.01,
-                      progress: Callable[[StartResult], None] | None = None
+                      progress: bool | None | Callable[[StartResult], None] = None
                       ) -> ExcitationDesign:
     r"""Design an optimal excitation trajectory (multi-start local optimisation).
 
@@ -515,7 +516,9 @@ def design_excitation(model: RobotModel, harmonics: int = 5, period: float = 10.
     n_starts, max_iter, method : starts, iterations per start, ``"SLSQP"`` or ``"trust-constr"``.
     n_grid : samples per period inside the optimiser; ``n_check`` for the dense verification.
     safety : relative margin every constraint keeps on the grid (absorbs inter-sample overshoot).
-    progress : called with each :class:`StartResult` as it finishes (also logged at INFO).
+    progress : ``None`` (default: a progress bar over the starts when stderr is a terminal),
+        ``True``/``False`` (always/never a bar; :mod:`consistid.progress`), or a callable called
+        with each :class:`StartResult` as it finishes. Each start is also logged at INFO.
 
     Returns
     -------
@@ -559,6 +562,8 @@ def design_excitation(model: RobotModel, harmonics: int = 5, period: float = 10.
     rng = np.random.default_rng(seed)
     starts: list[StartResult] = []
     qualities: list[ExcitationQuality] = []
+    callback = progress if callable(progress) and not isinstance(progress, bool) else None
+    bar = Progress(False if callback else progress, n_starts, "excitation design", "start")
     for k in range(n_starts):
         t0 = time.perf_counter()
         evals0, grads0 = problem.n_evaluations, problem.n_gradients
@@ -575,8 +580,10 @@ def design_excitation(model: RobotModel, harmonics: int = 5, period: float = 10.
                              time.perf_counter() - t0, x.reshape(problem.shape))
         starts.append(result)
         logger.info("excitation %s", result)
-        if progress is not None:
-            progress(result)
+        bar.step(f"cond {quality.cond:.4g}, {'feasible' if result.feasible else 'infeasible'}")
+        if callback is not None:
+            callback(result)
+    bar.close()
     feasible = [s for s in starts if s.feasible]
     if not feasible:
         detail = "; ".join(f"start {s.index}: min margin {s.min_margin * 100:.2f} %"
