@@ -236,7 +236,8 @@ def record(model: RobotModel, trajectory: DesiredMotion, effects: Effects | None
            rate: float = 1000.0, physics_rate: float = 1000.0, settle: float = 1.0,
            controller: TrackingController | None = None, seed: int = 0,
            integrator: str = "Euler", max_tracking_error: float = MAX_TRACKING_ERROR,
-           progress: Callable[[float], None] | None = None) -> SimulatedRecording:
+           progress: Callable[[float], None] | None = None,
+           step_hook: Callable | None = None) -> SimulatedRecording:
     """Run the MuJoCo robot through ``trajectory`` and log ``(t, q, tau)`` like a real robot.
 
     Parameters
@@ -263,6 +264,9 @@ def record(model: RobotModel, trajectory: DesiredMotion, effects: Effects | None
         ``max |true_q − desired_q|`` over the log exceeds this (rad / m; default
         :data:`MAX_TRACKING_ERROR`); ``inf`` never warns.
     progress : called with the fraction of physics steps done.
+    step_hook : called as ``step_hook(mj_model, mj_data)`` before every physics step
+        (:meth:`~consistid.simulate.mujoco_robot.MujocoRobot.run`), e.g. the per-step torques of
+        :mod:`consistid.simulate.disturbances`.
 
     Returns
     -------
@@ -302,7 +306,8 @@ def record(model: RobotModel, trajectory: DesiredMotion, effects: Effects | None
     steps = n_settle + (n_log - 1) * every + 1
     t_fine = (np.arange(steps) - n_settle) / physics_rate        # t = 0 at the first log
     desired = _desired(trajectory, t_fine)
-    trace = robot.run(controller.gains, model, t_fine, desired, every, n_settle, progress)
+    trace = robot.run(controller.gains, model, t_fine, desired, every, n_settle, progress,
+                      step_hook)
     rng = np.random.default_rng(seed)
     desired_q = desired[0][n_settle::every]
     tracking = np.max(np.abs(trace.q - desired_q), axis=0)

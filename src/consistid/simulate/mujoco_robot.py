@@ -442,7 +442,9 @@ class MujocoRobot:
 
     def run(self, gains: tuple[float, float], nominal: RobotModel, t: np.ndarray,
             desired: tuple[np.ndarray, np.ndarray, np.ndarray], log_every: int,
-            log_from: int = 0, progress: Callable[[float], None] | None = None) -> Trace:
+            log_from: int = 0, progress: Callable[[float], None] | None = None,
+            step_hook: Callable[[mujoco.MjModel, mujoco.MjData], None] | None = None
+            ) -> Trace:
         """Track ``desired = (q_d, dq_d, ddq_d)``, one row per physics step at the times ``t``
         (spaced by the time step), with the computed-torque law of
         :class:`consistid.simulate.TrackingController` on the ``nominal`` model,
@@ -452,7 +454,12 @@ class MujocoRobot:
         the links of elastic joints deflected by the springs' load. Every ``log_every``-th step
         from ``log_from`` is logged; the acceleration is MuJoCo's at the logged state
         (``mj_forward`` with the step's torques). ``progress`` (if given) is called with the
-        fraction done every 1000 steps. Raises :class:`ModelError` if the simulation diverges,
+        fraction done every 1000 steps. ``step_hook(mj_model, mj_data)`` (if given) is called
+        before every physics step, after the controller's torque is applied: it may add to
+        ``qfrc_applied`` or change the model's per-dof ``frictionloss``/``damping`` (effects
+        beyond :class:`~consistid.simulate.effects.Effects`, e.g.
+        :mod:`consistid.simulate.disturbances`). Raises :class:`ModelError` if the simulation
+        diverges,
         or before it starts if a tanh friction is too stiff for the step anywhere along ``q_d``
         or the elastic joints cannot hold the start state.
         """
@@ -486,6 +493,8 @@ class MujocoRobot:
             if use_explicit:
                 applied[drive] -= explicit_friction(eff, data.qvel[drive])
             data.qfrc_applied[:] = applied
+            if step_hook is not None:
+                step_hook(mj, data)
             tau_fine[k] = np.where(elastic, self.spring_torque(data), u) if any_elastic else u
             if row < n and k == logged[row]:
                 # mj_step opened (see _INTEGRATE): log the qacc it integrates
