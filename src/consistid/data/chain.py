@@ -69,7 +69,7 @@ from .filters import (
     savgol_derivatives,
     savgol_window,
 )
-from .resample import check_rate, is_uniform, nominal_rate, resample, supported_rate, uniform_grid
+from .resample import check_rate, nominal_rate, resample, supported_rate, uniform_grid
 from .timestamps import (
     DUPLICATES,
     TIME_UNITS,
@@ -227,6 +227,11 @@ class ChainResult:
 
 
 # ------------------------------------------------------------------------------- helpers
+def _jittered(ts: np.ndarray, rate: float, jitter: float) -> bool:
+    """Whether some step of ``ts`` is more than ``jitter`` (relative) off ``1 / rate``."""
+    return ts.size > 1 and float(np.max(np.abs(np.diff(ts) * rate - 1.0))) > jitter
+
+
 def _split(t: np.ndarray, limit: float) -> list[slice]:
     cuts = np.flatnonzero(np.diff(t) > limit) + 1
     edges = [0, *cuts.tolist(), t.size]
@@ -299,7 +304,7 @@ def _cutoff(t: np.ndarray, q: np.ndarray, stretches: list[slice], rate: float,
     if o.bandwidth is None:
         longest = max(stretches, key=lambda s: s.stop - s.start)
         ts, qs = t[longest], q[longest]
-        if not is_uniform(ts):
+        if _jittered(ts, rate, o.jitter):
             grid = uniform_grid(ts[0], ts[-1], rate)
             qs = resample(ts, qs, grid, "linear")
         bandwidth = estimate_bandwidth(qs, rate)
@@ -352,8 +357,7 @@ def _regrid(ts: np.ndarray, xs: np.ndarray, nv: int, rate: float, rate_given: bo
                if conv != "centre" and f in cols}
     lo = max([ts[0], *(c[0] for c in centres.values())])
     hi = min([ts[-1], *(c[-1] for c in centres.values())])
-    dt = np.diff(ts)
-    needs_grid = float(np.max(np.abs(dt * rate - 1.0))) > o.jitter
+    needs_grid = _jittered(ts, rate, o.jitter)
     if needs_grid:
         at = uniform_grid(lo, hi, rate)
     else:
@@ -401,7 +405,7 @@ def run_chain(t: np.ndarray, q: np.ndarray, tau: np.ndarray,
     else:
         rate, how = supported_rate([t[s] for s in _split(t, GAP_FACTOR * h)])
         rate_given = False
-        if not is_uniform(t):
+        if _jittered(t, rate, o.jitter):
             steps.append(Step("rate", f"{how}: steps {np.diff(t).min() * 1e3:.4g}–"
                                       f"{np.diff(t).max() * 1e3:.4g} ms, median {h * 1e3:.4g} ms"))
     if o.outliers is not None:
@@ -495,7 +499,8 @@ def run_chain(t: np.ndarray, q: np.ndarray, tau: np.ndarray,
                 qf, dqf, ddqf = savgol_derivatives(qs, rate, window, o.polyorder)
                 tauf = (savgol_derivatives(taus, rate, window, o.polyorder)[0]
                         if o.filter_torque else taus)
-            keep = (ts >= ts[0] + trim - 1e-12) & (ts <= ts[-1] - trim + 1e-12)
+            tol = 1e-3 / rate                   # float stamps (Unix seconds) are not exact
+            keep = (ts >= ts[0] + trim - tol) & (ts <= ts[-1] - trim + tol)
             if not keep.any():
                 too_short += 1
                 continue

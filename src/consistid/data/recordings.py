@@ -341,7 +341,10 @@ def from_log(log: Log, *, model: RobotModel | None = None, trim_start: float = 0
                       joint_names=names, model=model, trim_start=trim_start, trim_end=trim_end,
                       duplicates=duplicates, time_unit=time_unit, timestamp=timestamp,
                       source=log.source, **signal_options)
-    return Recording(rec.dataset, (*notes, *rec.steps), rec.source, rec.time_origin)
+    steps = list(rec.steps)
+    if log.origin:
+        steps[0] = _describe_origin(log.origin + rec.time_origin)
+    return Recording(rec.dataset, (*notes, *steps), rec.source, log.origin + rec.time_origin)
 
 
 def from_frame(frame: object, *, joints: Sequence[str] | None = None,

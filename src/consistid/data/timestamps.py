@@ -6,7 +6,7 @@ touched, and each function says what it did, so that a loader's record can quote
 :func:`convert_units`
     stamps in milliseconds, microseconds or nanoseconds taken as seconds give a "1 Hz" log of
     eight hours. A log is *plausible* in seconds when its median step lies in
-    :data:`PLAUSIBLE_STEP` (a sampling rate of 2 Hz … 1 MHz, which covers every robot
+    :data:`PLAUSIBLE_STEP` (a sampling rate of 2 Hz … 100 kHz, which covers every robot
     controller); otherwise the units under which it would be plausible are named in a
     :class:`~consistid.errors.DatasetError`. Stamps are converted only when the unit is given
     (``time_unit="ms"``), or with ``time_unit="auto"``, which converts to the one plausible unit
@@ -36,8 +36,8 @@ from ..errors import DatasetError, OptionError, check_option
 
 #: Seconds per unit for ``time_unit=``.
 TIME_UNITS: dict[str, float] = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
-#: A median step (s) in this range is a plausible robot log (2 Hz … 1 MHz).
-PLAUSIBLE_STEP = (1e-6, 0.5)
+#: A median step (s) in this range is a plausible robot log (2 Hz … 100 kHz).
+PLAUSIBLE_STEP = (1e-5, 0.5)
 #: More than this fraction of samples sharing their stamp with the previous one: collapsed stamps.
 COLLAPSED_FRACTION = 0.1
 DUPLICATES = ("average", "first", "error", "spread")
@@ -107,10 +107,10 @@ def convert_units(t: np.ndarray, time_unit: str | None, source: str = "t"
     if time_unit == "auto" and len(units) == 1:
         scale = TIME_UNITS[units[0]]
         return t * scale, (f"time stamps read as {units[0]} (time_unit='auto'): their median step "
-                           f"{step:.6g} would be {rate:.4g} Hz in seconds, {1 / (step * scale):.6g}"
+                           f"{step:.6g} would be {rate:.4g} Hz in seconds, {1 / (step * scale):.4g}"
                            f" Hz in {units[0]}"), scale
     if units:
-        hint = " or ".join(f"time_unit={u!r} ({1 / (step * TIME_UNITS[u]):.6g} Hz)" for u in units)
+        hint = " or ".join(f"time_unit={u!r} ({1 / (step * TIME_UNITS[u]):.4g} Hz)" for u in units)
     else:
         hint = "time_unit= with the log's unit"
     raise DatasetError(f"{source}: the median time step {step:.6g} is {rate:.4g} Hz in seconds, "

@@ -63,6 +63,9 @@ class Log:
     notes : what was read from where, for the loader's record.
     time_unit : the stamps' unit when the source says it (a column suffix, ROS stamps), else
         ``None``.
+    rows : the file line of each sample (text files), for messages.
+    origin : seconds already subtracted from ``t`` (ROS stamps are read as integer nanoseconds
+        and made relative before they become floats, which keeps their resolution).
     """
 
     t: np.ndarray
@@ -72,6 +75,7 @@ class Log:
     notes: tuple[str, ...] = ()
     time_unit: str | None = None
     rows: np.ndarray | None = field(default=None)
+    origin: float = 0.0
 
     def where(self, k: int) -> str:
         """The source position of sample ``k`` (a file line or a row)."""

@@ -113,11 +113,13 @@ def read_csv(path: str | Path, *, joints: Sequence[str] | None = None,
     decimal_comma = delimiter == ";" and bool(data_lines) and "," in data_lines[0]
     wanted = [cmap.time] + [c for cols in cmap.fields.values() for c in cols]
     usecols = sorted({names.index(c) for c in wanted})
+    with open(path, encoding="utf-8-sig") as fh:
+        text = fh.read()
+    if decimal_comma:
+        text = text.replace(",", ".")
+    if not data_lines:
+        raise DatasetError(f"{source}: a header ({len(names)} columns) but no data rows")
     try:
-        with open(path, encoding="utf-8-sig") as fh:
-            text = fh.read()
-        if decimal_comma:
-            text = text.replace(",", ".")
         table = np.loadtxt(io.StringIO(text), delimiter=None if delimiter == " " else delimiter,
                            skiprows=k + 1, comments="#", ndmin=2, dtype=float, usecols=usecols)
     except ValueError:

@@ -139,8 +139,8 @@ def read_bag(path: str | Path, *, joints: Sequence[str] | None = None, topic: st
         notes.append(f"samples stamped with the {which}")
     # integer nanoseconds: subtract the origin before going to float (keeps ns resolution)
     t0 = int(stamps[0])
-    t = (stamps - t0).astype(float) * 1e-9 + t0 * 1e-9
+    t = (stamps - t0).astype(float) * 1e-9
     fields = {"q": np.vstack(pos), "tau": np.vstack(eff)}
     if all(v is not None for v in vel):
         fields["dq"] = np.vstack(vel)
-    return Log(t, fields, tuple(selected), source, tuple(notes), "s")
+    return Log(t, fields, tuple(selected), source, tuple(notes), "s", origin=t0 * 1e-9)
