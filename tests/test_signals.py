@@ -245,3 +245,154 @@ def test_rate_below_the_log_rate_is_refused(excitation):
         signals.preprocess(exact.t, exact.q, exact.q, bandwidth=0.5, rate=500.0)
     pre = signals.preprocess(exact.t, exact.q, exact.q, bandwidth=0.5, decimate=2)
     assert pre.rate == 500.0
+
+
+# ----------------------------------------------------------------------------- jittered logs
+def jittered_stamps(n, step, rng, long_fraction=0.02, longest=8.8):
+    """Steps around ``step`` (σ 10 %, ≥ 0.7 step) with occasional long ones up to ``longest``
+    steps: the 0.7–8.8 ms, median 1.0 ms kind of log of issue 13."""
+    dt = np.clip(rng.normal(step, 0.1 * step, n), 0.7 * step, None)
+    long = rng.random(n) < long_fraction
+    dt[long] = rng.uniform(2 * step, longest * step, long.sum())
+    dt[np.argmax(long)] = longest * step
+    return np.concatenate([[0.0], np.cumsum(dt)])
+
+
+@pytest.mark.parametrize("robot", ["kinova", "xarm7"])
+def test_a_jittered_1khz_log_with_long_steps_loads_with_the_default_call(robot):
+    """Issue 13: steps 0.7–8.8 ms around 1 ms used to raise 'would alias'; now the log loads,
+    at the rate it supports, as accurately as the same motion logged uniformly."""
+    model = ci.RobotModel.example(robot)
+    traj = FourierTrajectory.random(model, 5, 10.0, seed=3)
+    t = jittered_stamps(12000, 1e-3, np.random.default_rng(1))
+    dt = np.diff(t)
+    assert dt.min() == pytest.approx(7e-4) and dt.max() == pytest.approx(8.8e-3)
+    assert np.median(dt) == pytest.approx(1e-3, rel=0.02)
+    q, dq, ddq = traj.evaluate(t)
+    data = ci.Dataset.from_recording(t, q, np.cos(q))                   # the default call
+    pre = signals.preprocess(t, q, np.cos(q))
+    np.testing.assert_array_equal(pre.dataset.ddq, data.ddq)
+    text = str(pre)
+    assert "rate:" in text and "long steps:" in text and "resample:" in text
+    assert abs(pre.rate - 1000.0) < 20.0
+    assert len(np.unique(data.segment)) == 1              # long steps bridged, not split
+    _, dq_true, ddq_true = traj.evaluate(data.t)
+    uniform = signals.preprocess(np.arange(12000) / 1000.0, *traj.evaluate(
+        np.arange(12000) / 1000.0)[:1], np.cos(traj.evaluate(np.arange(12000) / 1000.0)[0]))
+    _, _, ddq_u = traj.evaluate(uniform.dataset.t)
+    err_u = np.max(np.abs(uniform.dataset.ddq - ddq_u))
+    err = np.max(np.abs(data.ddq - ddq_true))
+    assert err < 3 * err_u + 1e-4 * np.max(np.abs(ddq_true))
+    assert np.max(np.abs(data.dq - dq_true)) < 1e-3 * np.max(np.abs(dq_true))
+
+
+@settings(max_examples=12, deadline=None)
+@given(seed=st.integers(0, 2 ** 31 - 1), rate=st.sampled_from([100.0, 250.0, 1000.0, 4000.0]),
+       outage=st.booleans())
+def test_jittered_gapped_logs_at_any_rate_load_by_default(seed, rate, outage):
+    rng = np.random.default_rng(seed)
+    t = jittered_stamps(int(8 * rate), 1 / rate, rng, long_fraction=rng.uniform(0, 0.05))
+    if outage:
+        t[len(t) // 2:] += 0.5                                         # a real outage
+    f = rng.uniform(0.2, 1.0, 2)
+    q = np.sin(2 * np.pi * np.outer(t, f))
+    pre = signals.preprocess(t, q, np.cos(q))
+    d = pre.dataset
+    assert 0.9 * rate < pre.rate < 1.1 * rate
+    assert len(np.unique(d.segment)) >= (2 if outage else 1)   # long steps may split it too
+    dq = 2 * np.pi * f * np.cos(2 * np.pi * np.outer(d.t, f))
+    assert np.max(np.abs(d.dq - dq)) < 2e-3 * np.max(np.abs(dq))
+
+
+def test_a_given_rate_below_a_segments_own_is_refused_with_decimate_as_the_way():
+    t = jittered_stamps(4000, 1e-3, np.random.default_rng(0))
+    q = np.sin(np.outer(t, [1.0, 2.0]))
+    with pytest.raises(OptionError, match="would alias.*decimate="):
+        signals.preprocess(t, q, q, rate=800.0)
+    assert signals.preprocess(t, q, q, rate=950.0).rate == 950.0
+
+
+# ----------------------------------------------------------------------------- stamps
+def test_interval_averaged_torques_are_moved_to_the_interval_centre():
+    """A logger that averages τ over [t_{k-1}, t_k] and stamps it t_k lags it half a step; with
+    timestamp="end" the chain undoes it (closed-form interval averages of a sinusoid)."""
+    rate, f = 200.0, 3.0
+    t = np.arange(4000) / rate
+    w, h = 2 * np.pi * f, 1 / rate
+    q = np.column_stack([np.sin(0.5 * w * t), np.cos(0.3 * w * t)])
+    exact = np.column_stack([np.sin(w * t), np.cos(w * t)])
+    averaged = np.column_stack([(np.cos(w * (t - h)) - np.cos(w * t)) / (w * h),
+                                (np.sin(w * t) - np.sin(w * (t - h))) / (w * h)])
+    kw = dict(cutoff=20.0, outliers=None)
+    plain = signals.preprocess(t, q, averaged, **kw)
+    fixed = signals.preprocess(t, q, averaged, timestamp="end", **kw)
+    ref = signals.preprocess(t, q, exact, **kw)
+    common = np.isin(ref.dataset.t, fixed.dataset.t)
+    lag = np.max(np.abs(plain.dataset.tau - ref.dataset.tau))
+    err = np.max(np.abs(fixed.dataset.tau - ref.dataset.tau[common]))
+    assert lag > 0.04                                    # half a step at 3 Hz: 2π·3·2.5 ms
+    # what is left is the interval average's own second-order term, h²ẍ/24 (closed form)
+    assert err < 1.1 * (w * h) ** 2 / 24 < 0.01 * lag
+    assert "timestamp" in [s.name for s in fixed.steps]
+    ahead = np.column_stack([(np.cos(w * t) - np.cos(w * (t + h))) / (w * h),
+                             (np.sin(w * (t + h)) - np.sin(w * t)) / (w * h)])   # [t, t + h]
+    start = signals.preprocess(t, q, ahead, timestamp="start", **kw)
+    common = np.isin(ref.dataset.t, start.dataset.t)
+    assert np.max(np.abs(start.dataset.tau - ref.dataset.tau[common])) < 1.1 * (w * h) ** 2 / 24
+    with pytest.raises(OptionError, match="timestamp"):
+        signals.preprocess(t, q, averaged, timestamp="middle")
+
+
+def test_collapsed_stamps_are_named_and_spread_only_when_asked():
+    """A 1 kHz log stamped by a 10 ms clock: 9 of 10 samples repeat a stamp."""
+    t_true = np.arange(3000) / 1000.0
+    t = np.floor(t_true * 100 + 1e-9) / 100
+    q = np.sin(np.outer(t_true, [1.0, 3.0]))
+    with pytest.raises(DatasetError, match="collapsed time stamps: 2700 of 3000.*'spread'"):
+        signals.preprocess(t, q, q)
+    pre = signals.preprocess(t, q, q, duplicates="spread")
+    assert pre.rate == pytest.approx(1000.0)
+    assert "spread evenly" in str(pre)
+    merged = signals.preprocess(t, q, q, duplicates="average")
+    assert merged.rate == pytest.approx(100.0) and "collapsed" in str(merged)
+
+
+def test_time_units_are_checked_and_converted_only_when_asked():
+    t = np.arange(3000) * 1.0                          # milliseconds, at 1 kHz
+    q = np.sin(np.outer(t / 1000.0, [1.0, 3.0]))
+    with pytest.raises(DatasetError, match=r"1 Hz in seconds.*time_unit='ms' \(1000 Hz\)"):
+        ci.Dataset.from_recording(t, q, q)
+    a = signals.preprocess(t, q, q, time_unit="ms")
+    b = signals.preprocess(t, q, q, time_unit="auto")
+    c = signals.preprocess(t / 1000.0, q, q)
+    np.testing.assert_allclose(a.dataset.dq, c.dataset.dq, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(b.dataset.t, c.dataset.t, rtol=1e-12)
+    assert "time_unit='auto'" in str(b) and "time_unit='ms'" in str(a)
+    ns = signals.preprocess(np.arange(3000) * 1_000_000.0, q, q, time_unit="auto")
+    assert ns.rate == pytest.approx(1000.0) and "read as ns" in str(ns)
+
+
+def test_unknown_chain_options_are_named():
+    t = np.arange(100) / 100.0
+    with pytest.raises(OptionError, match=r"unknown signal-chain option\(s\) \['cutof'\]"):
+        ci.Dataset.from_recording(t, t, t, cutof=3.0)
+
+
+# ----------------------------------------------------------------------------- the resampler
+def test_the_resampler_against_closed_forms():
+    from consistid.data import resample as rs
+
+    rng = np.random.default_rng(2)
+    t = np.sort(rng.uniform(0, 2, 400))
+    x = np.column_stack([np.sin(3 * t), t ** 2])
+    grid, xg = rs.to_uniform(t, x, 500.0)
+    assert grid[0] == t[0] and grid[-1] <= t[-1] and np.allclose(np.diff(grid), 2e-3)
+    np.testing.assert_allclose(xg[:, 0], np.sin(3 * grid), atol=1e-5)
+    np.testing.assert_allclose(xg[:, 1], grid ** 2, atol=1e-9)      # a cubic spline is exact
+    lin = rs.resample(t, x, grid, "linear")
+    assert np.max(np.abs(lin[:, 0] - np.sin(3 * grid))) > 10 * np.max(np.abs(xg[:, 0] -
+                                                                            np.sin(3 * grid)))
+    with pytest.raises(DatasetError, match="no extrapolation"):
+        rs.resample(t, x, [t[-1] + 0.1])
+    back = rs.on_uniform_grid(t, x, lambda xx, r: xx)
+    np.testing.assert_allclose(back[:, 1], t ** 2, atol=1e-4)

@@ -132,13 +132,20 @@ def is_uniform(t: np.ndarray, tol: float = 1e-6) -> bool:
 
 
 def on_uniform_grid(t: np.ndarray, x: np.ndarray, func, method: str = "linear") -> np.ndarray:
-    """``func(x_grid, rate)`` computed on the uniform grid at the median step and interpolated
-    back to the stamps ``t`` (``func`` must keep the grid's length along axis 0); on uniform
-    stamps ``func(x, rate)`` directly. For filters and derivatives of a segment with jitter."""
-    rate = nominal_rate(t)
+    """``func(x_grid, rate)`` computed on a uniform grid and interpolated back to the stamps
+    ``t`` (``func`` must keep the grid's length along axis 0); on uniform stamps ``func(x,
+    rate)`` directly. For filters and derivatives of a segment with jitter.
+
+    The grid spans ``[t[0], t[-1]]`` exactly, with as many points as the nominal rate gives
+    (its rate is within one sample per span of :func:`nominal_rate`), so that no stamp needs
+    extrapolation.
+    """
+    t = np.asarray(t, dtype=float)
     if is_uniform(t):
         return func(np.asarray(x, dtype=float), 1.0 / float(np.median(np.diff(t))))
-    grid, xg = to_uniform(t, x, rate, method)
-    yg = np.asarray(func(xg, rate))
-    inside = np.minimum(t, grid[-1])
-    return resample(grid, yg, inside, method)
+    span = float(t[-1] - t[0])
+    n = max(int(round(span * nominal_rate(t))) + 1, 2)
+    grid = np.linspace(t[0], t[-1], n)
+    rate = (n - 1) / span
+    yg = np.asarray(func(resample(t, x, grid, method), rate))
+    return resample(grid, yg, t, method)
