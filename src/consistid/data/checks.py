@@ -32,6 +32,8 @@ from .dataset import FIELDS, Dataset
 
 #: Largest magnitude accepted in ``q, dq, ddq, tau`` (SI units) before identification.
 MAX_ABS = 1e8
+#: A torque channel whose RMS is at most this (N·m) is dead (:func:`check_torque`).
+MIN_TORQUE_RMS = 1e-9
 #: Robust z-score above which a lone sample is called a glitch (see the module docstring).
 GLITCH_FACTOR = 1e3
 
@@ -78,16 +80,21 @@ def check_motion(dataset: Dataset) -> None:
 
 
 def check_torque(dataset: Dataset, joint_names: Sequence[str] | None = None) -> None:
-    """:class:`DatasetError` naming a torque channel that is zero in every sample."""
+    """:class:`DatasetError` naming a torque channel that is zero in every sample, or whose RMS
+    is below :data:`MIN_TORQUE_RMS` (no sensor resolves that: zero in disguise, or wrong
+    units; its noise weight ``1/σ`` would overflow)."""
     tau = dataset.require_torque()
-    dead = np.flatnonzero(~np.any(tau, axis=0))
+    rms = np.sqrt(np.mean(np.square(tau / MAX_ABS), axis=0)) * MAX_ABS   # no underflow
+    dead = np.flatnonzero(rms <= MIN_TORQUE_RMS)
     if dead.size:
         names = [_joint(dataset, j, joint_names) for j in dead]
+        what = ("is 0" if not np.any(tau[:, dead[0]])
+                else f"has RMS {rms[dead[0]]:.3g} N·m, below {MIN_TORQUE_RMS:g},")
         raise DatasetError(
-            f"dataset.tau[:, {names[0]!r}] is 0 in all {dataset.n_samples} samples (dead "
+            f"dataset.tau[:, {names[0]!r}] {what} in all {dataset.n_samples} samples (dead "
             f"torque channel(s): {names}); no joint of a moving or loaded arm carries no "
             "torque, and its noise weight would be infinite. Check the log's torque columns "
-            "(keys=) or drop that joint")
+            "(keys=) and units, or drop that joint")
 
 
 def check_glitches(dataset: Dataset, fields: Sequence[str] = ("tau",),

@@ -106,5 +106,8 @@ def load_excitation_config(path: str | Path) -> ExcitationConfig:
         options["boundary"] = BoundaryConditions(
             **config.check_table("excite.boundary", ex["boundary"], BOUNDARY_KEYS))
     options["limits"] = limits
-    return ExcitationConfig(model, options, config.resolve(ex.get("output", "excitation.csv")),
-                            float(ex.get("rate", 500.0)))
+    output = config.expect("excite", "output", ex.get("output", "excitation.csv"), "string")
+    rate = config.expect("excite", "rate", ex.get("rate", 500.0), "number")
+    if not (0 < rate < float("inf")):
+        raise ConfigError(f"{config.path.name}: [excite] rate must be > 0 (Hz), got rate = {rate}")
+    return ExcitationConfig(model, options, config.resolve(output), float(rate))

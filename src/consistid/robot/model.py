@@ -168,6 +168,7 @@ class RobotModel:
         try:
             full = pin.buildModelFromUrdf(str(path))
         except Exception as exc:  # Pinocchio raises plain RuntimeError / ValueError
+            check_urdf(path, list(locked_joints))   # a named cause, when there is one
             raise ModelError(f"Pinocchio could not read URDF {str(path)!r}: {exc}") from exc
         locked = list(locked_joints)
         config = dict(locked_configuration or {})
