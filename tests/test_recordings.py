@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from consistid.errors import DatasetError, JointNameError, MissingColumnsError, OptionError
 from consistid.data.recordings import Recording, from_arrays, load_recording
+from consistid.errors import DatasetError, JointNameError, MissingColumnsError, OptionError
 
 T0 = 1460034856.877162  # a Unix stamp (2016-04-07)
 
@@ -134,3 +134,67 @@ def test_raw_log_goes_through_the_signal_chain_and_is_trimmed_after_it():
     inner = slice(50, -50)
     np.testing.assert_allclose(rec.dataset.dq[inner, 0], 2 * np.pi * f * np.cos(w_ds[inner]),
                                atol=2e-3)
+
+
+# ----------------------------------------------------------------------------- new in loaders
+def test_interval_stamped_torques_with_logged_derivatives_are_shifted():
+    a = log(n=400, dt=0.002)
+    a["t"] = T0 + np.arange(400) * 0.002
+    s = a["t"] - T0
+    a["tau"] = np.column_stack([np.sin(5 * s), np.cos(5 * s)])
+    h = 0.002
+    averaged = np.column_stack([(np.cos(5 * (s - h)) - np.cos(5 * s)) / (5 * h),
+                                (np.sin(5 * s) - np.sin(5 * (s - h))) / (5 * h)])
+    rec = from_arrays(**{**a, "tau": averaged}, timestamp="end")
+    kept = rec.dataset.t
+    np.testing.assert_allclose(rec.dataset.tau, np.column_stack([np.sin(5 * kept),
+                                                                 np.cos(5 * kept)]),
+                               atol=1.1 * (5 * h) ** 2 / 24 + 1e-9)
+    assert rec.dataset.n_samples == 399 and any("interval end" in x for x in rec.steps)
+    with pytest.raises(DatasetError, match=r"signal-chain options \['cutoff'\]"):
+        from_arrays(**a, cutoff=5.0)
+
+
+def test_time_units_in_the_loader():
+    a = log(n=200, dt=0.002)
+    a["t"] = np.arange(200) * 2.0                           # milliseconds
+    with pytest.raises(DatasetError, match=r"arrays: the median time step 2 is 0.5 Hz"):
+        from_arrays(**a)
+    rec = from_arrays(**a, time_unit="ms")
+    assert rec.dataset.duration == pytest.approx(0.398)
+    assert any("converted from ms" in s for s in rec.steps)
+
+
+def test_the_cli_reads_csv_and_bags(tmp_path, planar_2r):
+    """[data] with a CSV to train on and a ROS 2 bag held out; the .npz path keeps working
+    (tests/test_config.py)."""
+    pytest.importorskip("rosbags")
+    from consistid.cli.config import config_recordings, load_config
+    from consistid.errors import ConfigError
+
+    from .conftest import PLANAR_2R, PLANAR_2R_VALUES
+    from .test_formats import frame_of, write_bag, write_csv
+
+    n = 1500
+    ns = 1_700_000_000_000_000_000 + np.arange(n, dtype=np.int64) * 2_000_000
+    s = (ns - ns[0]) * 1e-9
+    q = np.column_stack([np.sin(s), np.cos(0.5 * s), 0 * s])
+    lg = dict(ns=ns, t=ns[0] * 1e-9 + s, q=q, dq=q, tau=q + 1, names=("joint1", "joint2", "grip"))
+    (tmp_path / "data").mkdir()
+    write_csv(tmp_path / "data" / "train.csv", frame_of(lg))
+    write_bag(tmp_path / "data" / "held", lg)
+    (tmp_path / "arm.urdf").write_text(PLANAR_2R.format(**PLANAR_2R_VALUES))
+    (tmp_path / "run.toml").write_text(
+        '[model]\nurdf = "arm.urdf"\n'
+        '[data]\ndir = "data"\ntrain = ["train.csv"]\nheld_out = ["held"]\ntimestamp = "centre"\n'
+        '[data.signals]\ncutoff = 8.0\n')
+    cfg = load_config(tmp_path / "run.toml")
+    train, held = config_recordings(cfg, planar_2r)
+    assert train.dataset.joint_names == ("joint1", "joint2") and held is not None
+    assert any("8 Hz (given)" in x for x in train.steps)
+    np.testing.assert_allclose(train.dataset.q, held.dataset.q, atol=1e-6)
+    (tmp_path / "bad.toml").write_text(
+        '[model]\nurdf = "arm.urdf"\n[data]\ntrain = ["data/train.csv"]\n'
+        '[data.signals]\ncutof = 8.0\n')
+    with pytest.raises(ConfigError, match=r"unknown key\(s\) \['cutof'\] in \[data.signals\]"):
+        config_recordings(load_config(tmp_path / "bad.toml"), planar_2r)

@@ -21,6 +21,17 @@ code. Example (``examples/kuka_lwr4/identify.toml``)::
     duplicates = "average"
     train = ["measurements_2.npz", "measurements_3.npz"]
     held_out = ["measurements_1.npz"]
+    # any log format (consistid.data.formats): train = ["run1.csv", "run2.parquet",
+    # "bag_folder", "run.mcap", "run.bag", "run.mat"], with, where they apply:
+    # joints = ["joint1", ...]   (default the model's; other joints' columns, e.g. a gripper,
+    #                             are dropped and listed)
+    # columns = {t = "stamp", q = "pos_{joint}", tau = "eff_{joint}"}   (tables: CSV, Parquet)
+    # topic = "/joint_states"    stamp = "header" | "receive"          (ROS bags, MCAP)
+    # delimiter = ";"            (CSV; default sniffed)
+    # time_unit = "ms"           (or "auto"; default seconds, implausible stamps refused)
+    # timestamp = "end"          (torques averaged over each interval, stamped at its end)
+    # derivatives = "auto"       (or "logged", "estimate")
+    # [data.signals]             the signal chain for logs without dq/ddq: cutoff = 20.0, ...
 
     [identify]                            # keyword arguments of consistid.identify
     method = "sdp"
@@ -61,7 +72,13 @@ else:  # pragma: no cover - exercised on Python 3.10 only
 TABLES = ("model", "data", "identify", "diagnose", "recover", "payload", "excite")
 MODEL_KEYS = ("urdf", "example", "strip_dynamics", "locked_joints", "gravity", "tilt", "name")
 DATA_KEYS = ("dir", "keys", "joint_names", "trim_start", "trim_end", "duplicates", "train",
-             "held_out")
+             "held_out", "joints", "columns", "topic", "stamp", "delimiter", "time_unit",
+             "timestamp", "derivatives", "signals")
+#: Keys of ``[data.signals]``: the signal chain's options (:class:`consistid.data.chain.
+#: PreprocessOptions`) for logs without logged velocities and accelerations.
+SIGNAL_KEYS = ("derivative", "cutoff", "bandwidth", "order", "period", "rate", "outliers",
+               "outlier_window", "trim", "min_speed", "decimate", "gap", "jitter",
+               "filter_torque", "polyorder")
 
 
 @dataclass(frozen=True)
@@ -260,12 +277,20 @@ def config_recordings(config: RunConfig, model: RobotModel | None = None
                       ("joint_names", "array of strings"), ("trim_start", "number"),
                       ("trim_end", "number"), ("duplicates", "string"),
                       ("train", "string or array of strings"),
-                      ("held_out", "string or array of strings")):
+                      ("held_out", "string or array of strings"),
+                      ("joints", "array of strings"), ("columns", "string or table"),
+                      ("topic", "string"), ("stamp", "string"), ("delimiter", "string"),
+                      ("time_unit", "string"), ("timestamp", "string or table"),
+                      ("derivatives", "string")):
         if key in t:
             config.expect("data", key, t[key], kind)
     if not t.get("train"):
         raise ConfigError(f"{config.path.name}: [data] needs train = [\"file.npz\", ...]")
-    options = {k: t[k] for k in ("joint_names", "trim_start", "trim_end", "duplicates") if k in t}
+    options = {k: t[k] for k in ("joint_names", "trim_start", "trim_end", "duplicates",
+                                 "joints", "columns", "topic", "stamp", "delimiter",
+                                 "time_unit", "timestamp", "derivatives") if k in t}
+    if "signals" in t:
+        options.update(config.check_table("data.signals", t["signals"], SIGNAL_KEYS))
     keys = t.get("keys", "auto")
 
     def read(files: Any, what: str) -> Recording:
