@@ -73,6 +73,8 @@ from .models import LINEAR, MODELS, FrictionModel, get_model
 
 #: Linear per-joint terms that come with a nonlinear selection given as a name or a mapping.
 DEFAULT_LINEAR: tuple[str, ...] = ("viscous", "offset")
+#: Keyword options of :func:`identify_nonlinear` that ``identify`` passes for every method.
+NONLINEAR_OPTIONS: tuple[str, ...] = ("start", "max_nfev", "min_speed")
 #: Evaluations allowed to :func:`scipy.optimize.least_squares` per search (two searches run).
 MAX_EVALUATIONS = 200
 
@@ -84,8 +86,9 @@ def is_nonlinear(friction: object) -> bool:
     try:
         if isinstance(friction, str):
             return friction in MODELS
-        if isinstance(friction, Mapping):
-            return any(isinstance(v, str) and v in MODELS for v in friction.values())
+        if isinstance(friction, Mapping):     # {joint: law}, "coulomb" for all included
+            return any(isinstance(v, str) and (v in MODELS or v == LINEAR)
+                       for v in friction.values())
         if isinstance(friction, (Sequence, np.ndarray)):
             return any(isinstance(v, str) and v in MODELS for v in friction)
     except TypeError:
@@ -291,9 +294,10 @@ class _Problem:
     def set_sigma(self, sigma: np.ndarray) -> None:
         self.sigma = np.asarray(sigma, dtype=float)
         n, nv, b = self.x.shape
-        a = (self.x / self.sigma[None, :, None]).reshape(n * nv, b)
-        q, self.r = np.linalg.qr(a)
-        self.z = q.T @ (self.tau / self.sigma).ravel()
+        a = np.concatenate([self.x / self.sigma[None, :, None],
+                            (self.tau / self.sigma)[:, :, None]], axis=2).reshape(n * nv, b + 1)
+        r_aug = np.linalg.qr(a, mode="r")                 # R of [X | τ]: no Q formed
+        self.r, self.z = r_aug[:b, :b], r_aug[:b, b]
         d = np.abs(np.diag(self.r))
         if d.size and d.min() < RANK_RTOL * max(d.max(), 1e-300):
             raise PoorExcitationError(
@@ -717,6 +721,6 @@ def _sdp(model: RobotModel, y: np.ndarray, tau: np.ndarray, spec: RegressorSpec,
     for j in problem.joints:
         lead = leading[j]
         k = lead.shape[0]
-        amps.append(scipy.linalg.solve_triangular(lead[:, :k], lead[:, -1]
-                                                  - lead[:, k:k + p] @ theta))
+        amps.append(np.linalg.lstsq(lead[:, :k], lead[:, -1] - lead[:, k:k + p] @ theta,
+                                    rcond=1e-12)[0])
     return theta, (np.concatenate(amps) if amps else np.zeros(0)), res

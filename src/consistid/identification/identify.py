@@ -44,7 +44,7 @@ from .compression import CompressedProblem, floor_sigma, joint_sigma
 from ..data.checks import check_for_identification
 from ..data.dataset import Dataset, as_dataset
 from ..errors import OptionError, PoorExcitationError, PoorExcitationWarning, check_option
-from ..friction.fit import identify_nonlinear, is_nonlinear
+from ..friction.fit import NONLINEAR_OPTIONS, identify_nonlinear, is_nonlinear
 from ..robot.model import RobotModel, require_model
 from .regressor import DEFAULT_FRICTION, FrictionArg, RegressorSpec, parameter_names, prior_vector
 from .result import IdentificationResult
@@ -186,9 +186,10 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
         raise OptionError("covariance='coloured' needs the unweighted rows: not with loss='huber'")
     prior = None if prior == "none" else prior
     if method in ("ols", "wls"):
-        extra = sorted(options) + [k for k, v, none in (("constraints", constraints, ("none",)),
-                                                        ("prior", prior, (None,)))
-                                   if v != "auto" and v not in none]
+        own = NONLINEAR_OPTIONS if is_nonlinear(friction) else ()   # the search's options
+        extra = sorted(set(options) - set(own)) + [
+            k for k, v, none in (("constraints", constraints, ("none",)),
+                                 ("prior", prior, (None,))) if v != "auto" and v not in none]
         if extra:
             raise OptionError(f"option(s) {extra} apply to method='sdp' only, not {method!r} "
                               "(OLS/WLS are unconstrained and have no prior)")
