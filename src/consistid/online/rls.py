@@ -44,9 +44,12 @@ estimate and covariance just before the flag are kept (:attr:`RecursiveEstimator
 and the current estimate.
 
 Noise. ``noise_std`` (per joint, N·m) weights the joints and scales ``S``; without it ``σ_j`` is
-estimated from the a-posteriori residuals (an exponential average over
-:data:`NOISE_MEMORY` samples, frozen while a change is being absorbed), and the detector is armed
-only after ``warmup`` samples.
+estimated from the a-posteriori residuals: fixed at :data:`NOISE_START` during the ``warmup``
+(default :data:`NOISE_MEMORY` samples; the first residuals are fitted away, and an estimate fed
+back from them collapses the weights), set to the mean squared residual of the warm-up's second
+half at its end (``P`` rescaled accordingly), then an exponential average over
+:data:`NOISE_MEMORY` samples, frozen while a change is being absorbed. The detector is armed
+only after the warm-up.
 """
 
 from __future__ import annotations
@@ -80,8 +83,10 @@ PAYLOAD_PRIOR_MASS, PAYLOAD_PRIOR_RADIUS = 10.0, 0.3
 RESET_FACTOR = 1e-4
 #: Samples of the exponential average that estimates σ when ``noise_std`` is not given.
 NOISE_MEMORY = 2000
-#: Initial σ (N·m) while it is being estimated.
+#: σ (N·m) assumed during the warm-up when it is estimated.
 NOISE_START = 1.0
+#: Smallest estimated σ (N·m): noise-free data would otherwise get infinite weights.
+NOISE_FLOOR = 1e-6
 
 
 @dataclass(frozen=True, eq=False)
@@ -146,8 +151,8 @@ class RecursiveEstimator:
     detector : ``"chi2"`` (:class:`~consistid.online.change.WindowedChiSquare`, default),
         ``"cusum"``, ``None``, or a detector object.
     on_change : ``"payload"`` (default), ``"reset"`` or ``None`` (module docstring).
-    warmup : samples before the detector is armed; default 0 with ``noise_std``, else
-        ``2·NOISE_MEMORY``.
+    warmup : samples before the detector is armed (and, without ``noise_std``, over which σ is
+        first estimated); default 0 with ``noise_std``, else :data:`NOISE_MEMORY`.
     initial : (b,) initial base estimate; default the URDF's (``B π₀``, zero friction).
     initial_std : (b,) or a number: its standard deviations; default ``PRIOR_TORQUE/rms(W_i)``.
     base : the base map (default :func:`compute_base_parameters` of the spec).
@@ -218,7 +223,8 @@ class RecursiveEstimator:
             self.noise_given = True
         self._sigma_matrix = np.diag(self._sigma2)
         self.warmup = (check_number("warmup", warmup, 0, integer=True) if warmup is not None
-                       else 0 if self.noise_given else 2 * NOISE_MEMORY)
+                       else 0 if self.noise_given else NOISE_MEMORY)
+        self._noise_sum = np.zeros(nv)
         if isinstance(detector, str) or detector is None:
             check_option("detector", detector, DETECTORS)
             self.detector = (None if detector is None else WindowedChiSquare()
@@ -423,13 +429,30 @@ class RecursiveEstimator:
                                       "non-finite; it was not applied (check the sample's scale)")
         self._beta, self._p = new_beta, new_p
         if not self.noise_given and self._absorbing == 0:
-            r = tau - w @ new_beta
-            self._sigma2 += (r * r - self._sigma2) / min(self.n_updates + 1, NOISE_MEMORY)
-            self._sigma_matrix = np.diag(self._sigma2)
+            self._learn_noise(tau - w @ new_beta)
         if self._absorbing:
             self._absorbing -= 1
         self.n_updates += 1
         return self._beta
+
+    def _learn_noise(self, r: np.ndarray) -> None:
+        """σ from a-posteriori residuals ``r`` (module docstring): fixed at
+        :data:`NOISE_START` during the warm-up (early residuals are fitted away and would pull
+        σ, hence the weights, to zero), the mean of ``r²`` over the warm-up's second half at its
+        end (``P`` rescaled by the change of the mean variance), then an exponential average."""
+        n, warm = self.n_updates, max(self.warmup, 2)
+        if n < warm:
+            if n >= warm // 2:
+                self._noise_sum += r * r
+            if n == warm - 1:
+                sigma2 = np.maximum(self._noise_sum / (warm - warm // 2), NOISE_FLOOR ** 2)
+                self._p = self._p * (float(np.mean(sigma2)) / NOISE_START ** 2)
+                self._sigma2 = sigma2
+                self._sigma_matrix = np.diag(sigma2)
+            return
+        self._sigma2 = np.maximum(self._sigma2 + (r * r - self._sigma2) / NOISE_MEMORY,
+                                  NOISE_FLOOR ** 2)
+        self._sigma_matrix = np.diag(self._sigma2)
 
     def _absorb(self, w: np.ndarray, tau: np.ndarray, t: float | None) -> np.ndarray:
         """Adapt to a flagged change (``on_change``), then take the flagging sample."""

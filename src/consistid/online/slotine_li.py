@@ -31,7 +31,8 @@ each is exactly linear in its parameter, so the same law adapts it.
 
 Projection. The adaptation can leave the physically consistent set (a body with a negative
 mass or an impossible inertia: ``M̂`` indefinite). After each step, every body's
-prior-normalised pseudo-inertia ``Ĵ = L⁻¹ J(π̂) L⁻ᵀ`` (``J(π₀) = LLᵀ``) has its eigenvalues
+normalised pseudo-inertia ``Ĵ = L⁻¹ J(π̂) L⁻ᵀ`` (``J_ref = LLᵀ``, the reference body: by default
+the URDF's) has its eigenvalues
 clipped at ``ε`` and Coulomb, viscous and armature entries are clipped at 0. Clipping is the
 Frobenius projection onto ``{Ĵ ⪰ ε 1}``. With the *natural* gain ``Γ = γ G⁻¹``, ``G`` block
 diagonal with ``‖δπ_i‖²_G = ‖δĴ_i‖²_F`` (the log-det divergence's Hessian at the prior,
@@ -56,7 +57,7 @@ from ..identification.constraints import BodyScaling
 from ..identification.priors import logdet_metric
 from ..identification.regressor import (FrictionArg, RegressorSpec, joint_columns,
                                         parameter_names, prior_vector)
-from ..robot.inertia import from_pseudo_inertia, pseudo_inertia
+from ..robot.inertia import from_pseudo_inertia, pseudo_inertia, pseudo_inertia_map
 from ..robot.model import RobotModel, require_model
 
 #: Natural gain of a per-joint column (friction, offset, armature), relative to ``γ``:
@@ -92,7 +93,8 @@ def slotine_li_regressor(model: RobotModel, q: np.ndarray, dq: np.ndarray, dq_r:
 def natural_metric(model: RobotModel, spec: RegressorSpec,
                    prior: np.ndarray | None = None) -> np.ndarray:
     """``G`` (p × p): ``δπᵀ G δπ = Σ_i ‖L_i⁻¹ δJ_i L_i⁻ᵀ‖²_F + Σ_j δπ_j²/JOINT_GAIN²`` (module
-    docstring); ``prior`` defaults to the URDF's."""
+    docstring), ``L_i L_iᵀ = J_i(prior)``; ``prior`` (the reference bodies, then the per-joint
+    entries) defaults to the URDF's."""
     prior = prior_vector(model, spec) if prior is None else np.asarray(prior, dtype=float)
     g = np.zeros((prior.size, prior.size))
     for i in range(model.n_bodies):
@@ -121,7 +123,7 @@ class SlotineLiController:
     ----------
     model : the robot (kinematics, gravity, and the prior ``π₀`` that normalises the bodies).
     lam : ``Λ`` (1/s), a number or ``(nv,)``, > 0.
-    k : ``K`` (N·m·s/rad), a number or ``(nv,)``, > 0.
+    k : ``K`` (N·m·s/rad), a number, ``(nv,)`` or a symmetric positive definite ``(nv, nv)``.
     gamma : a number ``γ > 0`` (the natural gain ``Γ = γ G⁻¹``, :func:`natural_metric`), or a
         ``(p, p)`` symmetric positive definite matrix ``Γ``, or ``(p,)`` positive diagonal.
     initial : (p,) the initial estimate ``π̂(0)`` (10 per body, then the per-joint terms);
@@ -131,6 +133,13 @@ class SlotineLiController:
         consistent set; for comparison).
     margin : ``ε`` of the clip (prior-normalised).
     project_every : project after every this many adaptation steps.
+    reference : (10·nbodies,) the bodies that normalise ``Ĵ`` (the natural gain and the clip);
+        default the URDF's. Each must be realisable (``J ≻ 0``). A body expected to change a
+        lot (a link that grasps payloads heavier than itself) adapts faster with a larger
+        reference body (:func:`consistid.online.adaptive_run.adaptive_run` adds its
+        ``payload_capacity``).
+    composite : ``μ ∈ [0, 2)``, the normalised step of the prediction-error term
+        (:meth:`observe`; 0: the pure Slotine–Li law).
 
     Raises
     ------
@@ -142,14 +151,19 @@ class SlotineLiController:
                  k: float | Sequence[float] = 10.0, gamma: float | np.ndarray = 1.0, *,
                  initial: np.ndarray | None = None, friction: FrictionArg = None,
                  armature: bool | Sequence[int | str] = False, projection: str | None = "clip",
-                 margin: float = 1e-6, project_every: int = 1) -> None:
+                 margin: float = 1e-6, project_every: int = 1,
+                 composite: float = 0.0, reference: np.ndarray | None = None) -> None:
         self.model = require_model(model)
         nv = model.nv
         self.spec = RegressorSpec.make(model, friction, armature)
         self.parameter_names = tuple(parameter_names(model, self.spec))
         p = len(self.parameter_names)
         self.lam = self._gain("lam", lam, nv)
-        self.k = self._gain("k", k, nv)
+        self.k = self._k_matrix(k, nv)
+        self.composite = check_number("composite", composite, 0)
+        if self.composite >= 2:
+            raise OptionError(f"composite = {composite!r}: the normalised prediction-error step "
+                              "must lie in [0, 2) to be stable")
         if projection not in ("clip", None):
             raise OptionError(f"projection={projection!r} is not supported; allowed: 'clip', "
                               "None")
@@ -157,9 +171,21 @@ class SlotineLiController:
         self.margin = check_number("margin", margin, 0)
         self.project_every = check_number("project_every", project_every, 1, integer=True)
         prior = prior_vector(model, self.spec)
+        if reference is not None:
+            ref = np.asarray(reference, dtype=float)
+            if ref.shape != (model.n_inertial,) or not np.all(np.isfinite(ref)):
+                raise OptionError(f"reference must be {model.n_inertial} finite numbers (10 per "
+                                  f"body), got shape {ref.shape}")
+            prior = np.concatenate([ref, prior[model.n_inertial:]])
+        self.reference = prior[:model.n_inertial].copy()
         self._scalings = tuple(BodyScaling.from_reference(prior[10 * i:10 * i + 10])
                                for i in range(model.n_bodies))
         self._l = tuple(np.linalg.inv(sc.l_inv) for sc in self._scalings)
+        # vec(Ĵ_i) = (L_i⁻¹ ⊗ L_i⁻¹) P π_i, one (16, 10) map per body (row-major = column-major
+        # for the symmetric Ĵ)
+        pmap = pseudo_inertia_map()
+        self._normalised_map = np.stack([np.kron(sc.l_inv, sc.l_inv) @ pmap
+                                         for sc in self._scalings])
         self.gamma = self._gamma(gamma, p, prior)
         self.natural = np.ndim(gamma) == 0
         pi = prior.copy() if initial is None else np.array(initial, dtype=float)
@@ -181,6 +207,18 @@ class SlotineLiController:
         #: clipped something
         self.projected_minimum: list[float] = []
         self.clips: list[tuple[int, ProjectionStep]] = []
+
+    @classmethod
+    def _k_matrix(cls, k: float | Sequence[float] | np.ndarray, nv: int) -> np.ndarray:
+        a = np.asarray(k, dtype=float)
+        if a.ndim < 2:
+            return np.diag(cls._gain("k", k, nv))
+        if a.shape != (nv, nv) or not np.all(np.isfinite(a)) or not np.allclose(a, a.T):
+            raise OptionError(f"k as a matrix must be symmetric ({nv}, {nv}), got {a.shape}")
+        low = float(np.linalg.eigvalsh(a)[0])
+        if not low > 0:
+            raise OptionError(f"k is not positive definite (smallest eigenvalue {low:.3g})")
+        return a
 
     @staticmethod
     def _gain(name: str, value: float | Sequence[float], nv: int) -> np.ndarray:
@@ -222,7 +260,7 @@ class SlotineLiController:
         s = dq - dq_r
         y = slotine_li_regressor(self.model, q, dq, dq_r, ddq_r, self.spec, self._data)
         self._y, self._s = y, s
-        return y @ self.parameters - self.k * s
+        return y @ self.parameters - self.k @ s
 
     def adapt(self, dt: float) -> None:
         """One explicit Euler step ``π̂ ← π̂ − dt Γ Yᵀ s`` of the adaptation law (``Y``, ``s`` of
@@ -237,6 +275,34 @@ class SlotineLiController:
             if step.clipped_bodies or step.clipped_joint_columns:
                 self.clips.append((self.steps, step))
 
+    def observe(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray, tau: np.ndarray) -> float:
+        """Composite adaptation (``composite = μ > 0``): one normalised gradient step on the
+        torque prediction error of a measured sample ``(q, q̇, q̈, τ)``,
+
+        .. math:: \hat\pi \leftarrow \hat\pi - \mu\,
+                  \frac{\Gamma W^\top (W\hat\pi - \tau)}{1 + \|W \Gamma W^\top\|_2},
+
+        ``W`` the ordinary regressor (with the per-joint columns). Slotine & Li, "Composite
+        adaptive control of robot manipulators", Automatica 25(4), 1989,
+        doi:10.1016/0005-1098(89)90094-0, combine the tracking error with the prediction error;
+        the normalised (NLMS) step, ``0 < μ < 2``, never increases ``‖π̃‖_Γ⁻¹`` on exact data
+        (Goodwin & Sin, *Adaptive Filtering, Prediction and Control*, 1984, §3.3), so it keeps
+        the Lyapunov function's parameter part non-increasing. Returns the prediction error's
+        norm (N·m) before the step; does nothing (returns it) with ``composite = 0``.
+        """
+        q, dq, ddq, tau = (np.asarray(a, dtype=float) for a in (q, dq, ddq, tau))
+        m = self.model.pin_model
+        qc = q if m.nq == m.nv else self.model.configuration(q)
+        w = pin.computeJointTorqueRegressor(m, self._data, qc, dq, ddq)
+        if self.spec.n_joint_columns:
+            w = np.hstack([w, joint_columns(q[None], dq[None], ddq[None], self.spec)[0]])
+        error = w @ self.parameters - tau
+        if self.composite > 0:
+            gw = self.gamma @ w.T
+            scale = 1.0 + float(np.linalg.norm(w @ gw, 2))
+            self.parameters = self.parameters - (self.composite / scale) * (gw @ error)
+        return float(np.linalg.norm(error))
+
     def step(self, q: np.ndarray, dq: np.ndarray, q_d: np.ndarray, dq_d: np.ndarray,
              ddq_d: np.ndarray, dt: float) -> np.ndarray:
         """:meth:`torque` then :meth:`adapt`: the torque to apply over the next ``dt``."""
@@ -246,23 +312,24 @@ class SlotineLiController:
 
     def project(self, parameters: np.ndarray) -> tuple[np.ndarray, ProjectionStep]:
         """The clip of the module docstring: each body's ``Ĵ`` eigenvalues at ``≥ margin``,
-        Coulomb, viscous and armature entries at ``≥ 0``."""
+        Coulomb, viscous and armature entries at ``≥ 0``. All bodies' ``Ĵ`` are checked in one
+        batched eigenvalue call; only the bodies below ``margin`` are decomposed and clipped."""
         pi = np.array(parameters, dtype=float)
-        clipped, lows = [], np.empty(self.model.n_bodies)
-        for i, (sc, l_mat) in enumerate(zip(self._scalings, self._l)):
-            sl = slice(10 * i, 10 * i + 10)
-            j_hat = sc.l_inv @ pseudo_inertia(pi[sl]) @ sc.l_inv.T
-            lam, vec = np.linalg.eigh(0.5 * (j_hat + j_hat.T))
-            if lam[0] < self.margin:
-                clipped.append(i)
-                j_hat = (vec * np.maximum(lam, self.margin)) @ vec.T
-                pi[sl] = from_pseudo_inertia(l_mat @ j_hat @ l_mat.T)
-                lam = np.maximum(lam, self.margin)
-            lows[i] = lam[0]
+        nb = self.model.n_bodies
+        j_hat = self._normalised_map @ pi[:10 * nb].reshape(nb, 10, 1)        # (nb, 16, 1)
+        j_hat = j_hat.reshape(nb, 4, 4)
+        lows = np.linalg.eigvalsh(j_hat)[:, 0]
+        clipped = np.flatnonzero(lows < self.margin)
+        for i in clipped:
+            lam, vec = np.linalg.eigh(j_hat[i])
+            clipped_j = (vec * np.maximum(lam, self.margin)) @ vec.T
+            l_mat = self._l[i]
+            pi[10 * i:10 * i + 10] = from_pseudo_inertia(l_mat @ clipped_j @ l_mat.T)
+            lows[i] = max(lam[0], self.margin)
         keep = self.model.n_inertial + self.spec.nonnegative_columns
         negative = int(np.sum(pi[keep] < 0))
         pi[keep] = np.maximum(pi[keep], 0.0)
-        return pi, ProjectionStep(tuple(clipped), negative, lows)
+        return pi, ProjectionStep(tuple(int(i) for i in clipped), negative, lows)
 
     def __repr__(self) -> str:
         return (f"SlotineLiController({self.model.name!r}, {len(self.parameter_names)} "
