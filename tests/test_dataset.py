@@ -115,3 +115,66 @@ def test_split_by_time_and_by_segment():
     assert np.array_equal(held.q, b.q) and np.array_equal(train.q, a.q)
     with pytest.raises(DatasetError):
         both.split(1.5)
+
+
+def test_a_loggers_csv_is_pointed_to_load_recording(tmp_path):
+    path = tmp_path / "log.csv"
+    path.write_text("time;joint1;joint2;joint1_effort;joint2_effort\n0;0;0;0;0\n")
+    with pytest.raises(MissingColumnsError, match="use consistid.load_recording"):
+        ci.Dataset.load(path)
+    path.write_text("time,joint1,joint1_effort\n0,0,0\n0.1,0,0\n")
+    with pytest.raises(MissingColumnsError, match="use consistid.load_recording"):
+        ci.Dataset.load(path)
+
+
+def test_the_data_package_has_no_import_cycle_and_no_function_level_imports():
+    """Imports between modules of consistid.data point one way (an import cycle fails here);
+    inside functions only optional heavy dependencies are imported."""
+    import ast
+    from pathlib import Path
+
+    import consistid.data
+
+    root = Path(consistid.data.__file__).parent
+    modules = {p: ".".join(p.relative_to(root).with_suffix("").parts) for p in root.rglob("*.py")}
+    graph = {}
+    for path, name in modules.items():
+        tree = ast.parse(path.read_text())
+        package = name.split(".")[:-1] if not name.endswith("__init__") else name.split(".")[:-1]
+        deps = set()
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and node.level:
+                base = package[:len(package) - (node.level - 1)] if node.level > 1 else package
+                if node.level - 1 > len(package):
+                    continue                                  # above consistid.data
+                target = ".".join([*base, node.module] if node.module else base)
+                for alias in node.names:
+                    full = f"{target}.{alias.name}" if target else alias.name
+                    for cand in (full, target):
+                        if cand in modules.values() or f"{cand}.__init__" in modules.values():
+                            deps.add(cand if cand in modules.values() else f"{cand}.__init__")
+                            break
+        graph[name] = deps - {name}
+        for fn in ast.walk(tree):
+            if isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                for node in ast.walk(fn):
+                    if isinstance(node, (ast.Import, ast.ImportFrom)):
+                        mod = node.module if isinstance(node, ast.ImportFrom) else \
+                            node.names[0].name
+                        assert (mod or "").split(".")[0] in ("pyarrow", "rosbags", "pandas"), (
+                            f"{name}.{fn.name} imports {mod} inside the function")
+    state: dict = {}
+
+    def visit(node, trail):
+        if state.get(node) == "done":
+            return
+        assert state.get(node) != "open", f"import cycle: {' → '.join([*trail, node])}"
+        state[node] = "open"
+        for dep in graph.get(node, ()):
+            visit(dep, [*trail, node])
+        state[node] = "done"
+
+    for name in graph:
+        visit(name, [])
+    assert "chain" in graph["dataset"] and "dataset" not in graph["chain"]
+    assert "dataset" in graph["signals"]

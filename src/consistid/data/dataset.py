@@ -12,6 +12,9 @@ NPZ
 CSV
     a header line and one row per sample; columns ``t``, ``q1..qn``, ``dq1..dqn``, ``ddq1..ddqn``,
     ``tau1..taun`` (1-based joint index), optionally ``segment``. Column order is free.
+
+These are the dataset's own files. A robot's log (CSV with joint names, Parquet, ROS bags, MCAP,
+``.mat``) is read by :func:`consistid.data.recordings.load_recording`.
 """
 
 from __future__ import annotations
@@ -278,15 +281,22 @@ class Dataset:
         if path.suffix == ".csv":
             with open(path) as fh:
                 header = fh.readline().strip().split(",")
+            if len(header) < 2:
+                raise MissingColumnsError(f"{path.name}: the header {header} is not a "
+                                          "comma-separated Dataset CSV (t, q1.., dq1.., ddq1.., "
+                                          "tau1..); for a robot's log use consistid.load_recording")
             data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
             col = {name.strip(): data[:, i] for i, name in enumerate(header)}
             nv = sum(1 for name in col if name.startswith("q") and name[1:].isdigit())
+            raw_log = ("; for a robot's log (joint names in the header, no dq/ddq, any "
+                       "delimiter) use consistid.load_recording")
             if nv == 0:
-                raise MissingColumnsError(f"{path.name} has no q1..qn columns; header is {header}")
+                raise MissingColumnsError(f"{path.name} has no q1..qn columns; header is {header}"
+                                          + raw_log)
             needed = ["t"] + [f"{f}{j + 1}" for f in ("q", "dq", "ddq") for j in range(nv)]
             missing = [c for c in needed if c not in col]
             if missing:
-                raise MissingColumnsError(f"{path.name} lacks columns {missing}")
+                raise MissingColumnsError(f"{path.name} lacks columns {missing}" + raw_log)
             stack = {f: np.column_stack([col[f"{f}{j + 1}"] for j in range(nv)])
                      for f in ("q", "dq", "ddq")}
             tau_cols = [f"tau{j + 1}" for j in range(nv)]
