@@ -113,7 +113,8 @@ def test_cli_payload_checks_its_table(project, capsys):
     base = GOOD.replace("[identify]", "[payload]\nloaded = [\"data/run2.npz\"]\n[identify]")
     assert cli.main(["payload", str(write(project, base.replace(
         "[identify]", 'route = "base_change"\n[identify]')))]) == 2
-    assert "route='base_change' is not supported; allowed: 'torque', 'base-change'" in (
+    # the hint is in the syntax the user writes: TOML (consistid.cli.hints)
+    assert 'route = "base_change" is not supported; allowed: "torque", "base-change"' in (
         capsys.readouterr().err)
     assert cli.main(["payload", str(write(project, base.replace(
         'loaded = ["data/run2.npz"]', 'frame = "link2"')))]) == 2

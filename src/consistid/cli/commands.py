@@ -27,7 +27,7 @@ import consistid as ci
 from consistid.errors import ConfigError, ConsistidError, OutputPathError, check_option
 
 from .files import atomic_dir, atomic_path, check_output, check_output_dir
-from .hints import toml_hints
+from .hints import toml_hints, toml_value
 
 #: Set by ``-q``: no progress bars, no step messages on stderr (errors are still printed).
 QUIET = False
@@ -145,7 +145,7 @@ def identify(args: argparse.Namespace) -> int:
         print(f"{mounting}\n")
         model = mounting.model
     _log(f"identifying {model.name} on {train.dataset.n_samples} samples "
-         f"({', '.join(f'{k}={v!r}' for k, v in options.items()) or 'defaults'})")
+         f"({', '.join(_toml_pair(k, v) for k, v in options.items()) or 'defaults'})")
     t0 = time.perf_counter()
     res = ci.identify(model, train.dataset, **options)
     _log(f"      done in {time.perf_counter() - t0:.2f} s")
@@ -160,6 +160,11 @@ def identify(args: argparse.Namespace) -> int:
         _write_identification(res, folder, train.dataset,
                               None if held is None else held.dataset)
     return 0
+
+
+def _toml_pair(key: str, value: object) -> str:
+    """``key = value`` as the configuration spells it (``repr`` for what TOML cannot)."""
+    return f"{key} = {toml_value(value) or repr(value)}"
 
 
 #: What ``consistid identify --output DIR`` writes.

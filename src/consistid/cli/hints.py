@@ -5,8 +5,8 @@ The library's messages name options as Python keyword arguments (``mode='nearest
 configuration, as ``mode = "nearest"``, ``friction = ["coulomb", "viscous"]``,
 ``armature = true``. :func:`toml_hints` rewrites every ``name=<Python literal>`` of a message
 into ``name = <TOML value>`` and the quoted choices of an ``allowed:`` list into TOML strings.
-``None`` has no TOML spelling (a key is left out instead) and stays as it is, as does anything
-that is not a Python literal (``x=f(y)``).
+``None`` has no TOML spelling (a key is left out instead): ``name=None`` stays as it is, and in an
+``allowed:`` list it reads "(the key left out)". What is not a Python literal (``x=f(y)``) stays.
 """
 
 from __future__ import annotations
@@ -96,5 +96,11 @@ def toml_hints(message: str) -> str:
         i = end
     out.append(message[i:])
     text = "".join(out)
-    return re.sub(r"(allowed: )((?:'[^']*'(?:, )?)+)",
-                  lambda mm: mm.group(1) + re.sub(r"'([^']*)'", r'"\1"', mm.group(2)), text)
+    return re.sub(r"(allowed: )((?:(?:'[^']*'|None)(?:, )?)+)", _allowed, text)
+
+
+def _allowed(m: re.Match) -> str:
+    """An ``allowed:`` list with TOML strings; ``None`` (no TOML spelling) as leaving the key
+    out."""
+    items = re.sub(r"'([^']*)'", r'"\1"', m.group(2))
+    return m.group(1) + re.sub(r"\bNone\b", "(the key left out)", items)

@@ -1,0 +1,177 @@
+"""The ``consistid`` command's outputs: identify --output, demo's fresh folder, any URDF,
+--version, -q, and error hints in TOML syntax."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import re
+import sys
+import tomllib
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+import consistid as ci
+from consistid.cli import main
+from consistid.cli.config import config_identify, config_recordings, load_config
+from consistid.cli.hints import toml_hints
+from consistid.identification.base import random_states
+
+from .test_export import ARM_3R
+from .test_report_html import check_html
+
+CONFIG = """root = ".."
+[model]
+urdf = "data/arm3r.urdf"
+[data]
+dir = "data"
+joint_names = ["j1", "j2", "j3"]
+train = ["run1.npz"]
+held_out = ["run2.npz"]
+[identify]
+method = "sdp"
+friction = ["coulomb", "viscous"]
+"""
+FC, FV = np.array([0.7, 1.1, 0.3]), np.array([0.4, 0.9, 0.15])
+
+
+@pytest.fixture()
+def project(tmp_path):
+    """A 3R arm whose URDF has ROS transmissions, two logs (FloBaRoID layout), a config."""
+    data = tmp_path / "data"
+    data.mkdir()
+    (data / "arm3r.urdf").write_text(ARM_3R)
+    model = ci.RobotModel.from_urdf(data / "arm3r.urdf")
+    rng = np.random.default_rng(0)
+    for k in (1, 2):
+        q, dq, ddq = random_states(model, 400, rng)
+        tau = (model.rnea(q, dq, ddq) + FC * np.sign(dq) + FV * dq
+               + 0.01 * rng.standard_normal(q.shape))
+        np.savez(data / f"run{k}.npz", times=0.005 * np.arange(400), positions=q,
+                 velocities=dq, accelerations=ddq, torques=tau)
+    (tmp_path / "conf").mkdir()
+    config = tmp_path / "conf" / "run.toml"
+    config.write_text(CONFIG)
+    return config
+
+
+def test_version(capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(["--version"])
+    assert exit_.value.code == 0
+    out = capsys.readouterr().out
+    assert out.startswith(f"consistid {ci.__version__} (") and "pinocchio" in out
+
+
+def test_identify_output_writes_every_file(project, tmp_path, capsys):
+    import mujoco
+    import pinocchio as pin
+
+    out = tmp_path / "out"
+    assert main(["-q", "identify", str(project), "--output", str(out)]) == 0
+    assert {p.name for p in out.iterdir()} == {"result.json", "parameters.csv", "robot.urdf",
+                                               "robot.xml", "report.html"}
+    assert f"report: {out / 'report.html'}" in capsys.readouterr().out
+    # the JSON is the identification the API gives on the same configuration
+    config = load_config(project)
+    res = ci.IdentificationResult.load(out / "result.json")
+    train, held = config_recordings(config, res.model)
+    api = ci.identify(res.model, train.dataset, **config_identify(config))
+    assert np.allclose(res.parameters, api.parameters, rtol=1e-9, atol=1e-12)
+    assert np.max(np.abs(res.predict(held.dataset) - api.predict(held.dataset))) < 1e-9
+    # provenance: the inputs' SHA-256 and the configuration
+    records = {r["path"]: r["sha256"] for r in res.provenance["inputs"]}
+    for name in ("data/run1.npz", "data/run2.npz", "data/arm3r.urdf", "conf/run.toml"):
+        path = (tmp_path / name).resolve()
+        assert records[str(path)] == hashlib.sha256(path.read_bytes()).hexdigest()
+    assert res.provenance["config"]["identify"] == {"method": "sdp",
+                                                    "friction": ["coulomb", "viscous"]}
+    # the URDF carries the identified friction in the joints (not the transmissions)
+    named = dict(zip(res.parameter_names, res.parameters))
+    fc = [named[f"{j}.fc"] for j in res.model.joint_names]
+    back = pin.buildModelFromUrdf(str(out / "robot.urdf"))
+    assert np.allclose(back.friction, fc, rtol=1e-12)
+    assert np.allclose(fc, FC, rtol=0.05)
+    mujoco.MjModel.from_xml_path(str(out / "robot.xml"))
+    check_html((out / "report.html").read_text(), n_images=6)
+
+
+def test_identify_output_is_checked_first_and_needs_force(project, tmp_path, capsys):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "report.html").write_text("mine")
+    assert main(["identify", str(project), "--output", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "report.html" in err and "--force" in err
+    assert (out / "report.html").read_text() == "mine"
+    assert not (out / "result.json").exists()              # refused before any work
+    assert main(["-q", "identify", str(project), "--output", str(out), "--force"]) == 0
+    assert (out / "report.html").read_text().startswith("<!DOCTYPE html>")
+
+
+def test_quiet_silences_the_step_messages(project, capsys):
+    assert main(["identify", str(project)]) == 0
+    assert "identifying" in capsys.readouterr().err
+    assert main(["identify", str(project), "-q"]) == 0          # after the subcommand too
+    captured = capsys.readouterr()
+    assert captured.err == "" and "base parameter" in captured.out
+
+
+def test_errors_give_toml_hints(project, capsys):
+    project.write_text(CONFIG.replace('method = "sdp"', 'method = "sdp"\nprior = "flat"'))
+    assert main(["identify", str(project)]) == 2
+    err = capsys.readouterr().err
+    assert 'prior = "flat"' in err and "prior='flat'" not in err
+
+
+def test_demo_writes_into_a_fresh_folder_from_any_urdf(project, tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "consistid-demo-arm3r").mkdir()                # taken: the demo picks -2
+    urdf = project.parent.parent / "data" / "arm3r.urdf"
+    args = ["-q", "demo", "--urdf", str(urdf), "--duration", "4", "--rate", "200"]
+    assert main(args) == 0
+    report = tmp_path / "consistid-demo-arm3r-2" / "report.html"
+    assert f"report: {report}" in capsys.readouterr().out
+    check_html(report.read_text(), n_images=6)
+    assert main([*args, "--output", str(report.parent)]) == 2  # never an existing folder
+    assert "exists" in capsys.readouterr().err
+
+
+def test_simulate_takes_any_urdf(project, capsys):
+    urdf = project.parent.parent / "data" / "arm3r.urdf"
+    assert main(["-q", "simulate", "--urdf", str(urdf), "--duration", "2"]) == 0
+    assert "j3" in capsys.readouterr().out
+    assert main(["-q", "simulate", "--robot", "ur5", "--lock", "elbow_joint"]) == 2
+
+
+# ------------------------------------------------------------------ hints, as TOML reads them
+@pytest.mark.parametrize("message, expected", [
+    ("mode='nearest' is not supported; allowed: 'exact', 'nearest'",
+     'mode = "nearest" is not supported; allowed: "exact", "nearest"'),
+    ("use merged='lump'", 'use merged = "lump"'),
+    ("friction=('coulomb', 'viscous'), armature=True", 'friction = ["coulomb", "viscous"], '
+                                                       "armature = true"),
+    ("prior=None has none", "prior=None has none"),              # TOML has no null
+    ("a == b, f(x=g(y)), sigma=0.5", "a == b, f(x=g(y)), sigma = 0.5"),
+])
+def test_toml_hints(message, expected):
+    assert toml_hints(message) == expected
+
+
+_names = st.from_regex(r"[a-z][a-z_]{0,8}", fullmatch=True)
+_scalars = st.one_of(st.booleans(), st.integers(-10**6, 10**6),
+                     st.floats(allow_nan=False, allow_infinity=False, width=32),
+                     st.text(st.characters(blacklist_categories=("Cs", "Cc")), max_size=10))
+_values = st.one_of(_scalars, st.lists(st.text(alphabet="abcxyz_", max_size=6), max_size=3)
+                    .map(tuple))
+
+
+@settings(max_examples=200, deadline=None)
+@given(_names, _values)
+def test_every_hint_is_valid_toml(name, value):
+    """Whatever Python literal a message shows, the rewritten hint parses as TOML to it."""
+    hint = toml_hints(f"{name}={value!r}")
+    parsed = tomllib.loads(hint)[name]
+    assert parsed == (list(value) if isinstance(value, tuple) else value)
