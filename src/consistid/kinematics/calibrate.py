@@ -33,7 +33,8 @@ from ..errors import (IdentificationError, OptionError, PoorExcitationError, che
 from ..excitation.limits import end_effector_frame
 from ..identification.result import SolverReport
 from ..robot.model import RobotModel, require_model
-from .identifiability import null_directions, normalised, sequential_selection
+from .identifiability import (null_directions, normalised, sequential_selection,
+                              structural_selection)
 from .measurements import (Measurements, as_measurements, joint_coordinates, kabsch,
                            mahalanobis, noise_covariance, residual_jacobian, residuals,
                            trilaterate, whitening)
@@ -95,11 +96,13 @@ class _Problem:
               max_nfev: int) -> tuple[np.ndarray, scipy.optimize.OptimizeResult]:
         def full(z: np.ndarray) -> np.ndarray:
             v = values.copy()
-            v[free] = z
+            v[free] += z
             return v
 
+        # the unknowns are the increments from ``values``: scipy's trust region starts with the
+        # radius ‖x₀‖ (scaled), which a nearly-zero start (corrections of 1e-9) would make tiny
         sol = scipy.optimize.least_squares(
-            lambda z: self.weighted(full(z), free, False)[0], values[free],
+            lambda z: self.weighted(full(z), free, False)[0], np.zeros(free.size),
             jac=lambda z: self.weighted(full(z), free, True)[1], method="trf", loss=loss,
             f_scale=f_scale, x_scale="jac", max_nfev=max_nfev, xtol=1e-12, ftol=1e-12,
             gtol=1e-10)
@@ -233,8 +236,8 @@ def calibrate_kinematics(model: RobotModel, q: object, measurements: object,
     gprob = _Problem(chart, generic, gmeas, np.broadcast_to(whitening(cov0[:1]),
                                                             (len(generic), m, m)),
                      base0, anchor0)
-    jg = gprob.weighted(zero, sel)[1]
-    kept = sequential_selection(jg, order)
+    kept = structural_selection(gprob.weighted(zero, sel)[1],
+                                gprob.weighted(chart.generic_values, sel)[1], order)
     r = int(kept.sum())
     if n * m < r:
         raise PoorExcitationError(
@@ -246,7 +249,7 @@ def calibrate_kinematics(model: RobotModel, q: object, measurements: object,
     # --- do these configurations identify what the kind can?
     white = whitening(cov0)
     prob = _Problem(chart, qa, meas, white, base0, anchor0)
-    _check_data_rank(prob, zero, sel, kept, order, names, n, meas.kind)
+    _check_data_rank(prob, chart.generic_values, sel, kept, order, names, n, meas.kind)
     free = sel[kept]
 
     # --- before: the URDF's kinematics, measurement frame / anchor fitted
@@ -301,6 +304,19 @@ def calibrate_kinematics(model: RobotModel, q: object, measurements: object,
     final = _Problem(chart, qa[active], meas.subset(active), whitening(cov[active]), base0,
                      anchor0)
     res_w, jac_w = final.weighted(values, sel, True)
+    # a kept parameter the data cannot see *at the solution* (the robot sits on a special
+    # geometry, e.g. the measured point exactly on the last axis): hold it there too
+    kept_idx = np.flatnonzero(kept)
+    here = sequential_selection(jac_w[:, kept_idx], np.argsort(np.argsort(order)[kept_idx]),
+                                tol=1e-7)
+    vanished = tuple(names[i] for i in kept_idx[~here])
+    if vanished:
+        kept = kept.copy()
+        kept[kept_idx[~here]] = False
+        values[sel[~kept]] = 0.0
+        r = int(kept.sum())
+        values, sol = final.solve(values, sel[kept], loss, f_scale, max_nfev)
+        res_w, jac_w = final.weighted(values, sel, True)
     jk = jac_w[:, kept]
     a, norms = normalised(jk)
     sv = np.linalg.svd(a, compute_uv=False)
@@ -332,14 +348,16 @@ def calibrate_kinematics(model: RobotModel, q: object, measurements: object,
         anchor=anchor_final, residuals_before=res_before, residuals_after=res_after,
         mahalanobis=dist, rejected=tuple(sorted(rejected)), noise_covariance=cov,
         sigma_source=sigma_source, chi2_reduced=chi2_red, condition_number=cond,
-        n_measurements=n, solver=solver, chart=chart, full_values=values)
+        n_measurements=n, solver=solver, chart=chart, full_values=values,
+        held_at_solution=vanished)
 
 
 def _generic_measurements(chart: KinematicParameters, q: np.ndarray, kind: str,
                           base0: pin.SE3, anchor0: np.ndarray | None) -> Measurements:
-    """The URDF's own (noise-free) measurements at ``q``: the point at which structural
-    identifiability is judged (the residual is 0, so the Jacobian is the model's)."""
-    pos, rot, _ = chart.frame_kinematics(np.zeros(chart.size), q, False)
+    """Noise-free measurements of the generic point
+    (:attr:`~consistid.kinematics.parameters.KinematicParameters.generic_values`) at ``q``, where
+    structural identifiability is judged (the residual is 0, so the Jacobian is the model's)."""
+    pos, rot, _ = chart.frame_kinematics(chart.generic_values, q, False)
     if kind == "distance":
         return Measurements(kind, distances=np.linalg.norm(pos - anchor0, axis=1))
     p = pos @ base0.rotation.T + base0.translation

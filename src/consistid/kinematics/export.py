@@ -54,7 +54,8 @@ class _UrdfText:
         pattern = re.compile(r"<joint\b[^>]*?\bname\s*=\s*([\"'])" + re.escape(name)
                              + r"\1[^>]*>", re.S)
         for m in pattern.finditer(self.text):
-            if not self._outside(m.start()):
+            # a <transmission> names joints too (<joint name="…"> without a type)
+            if not self._outside(m.start()) or not re.search(r"\btype\s*=", m.group(0)):
                 continue
             if m.group(0).endswith("/>"):
                 raise ModelError(f"{self.source}: joint {name!r} is an empty element")

@@ -72,9 +72,12 @@ class Unidentifiable:
 
 
 def normalised(jac: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Columns scaled to unit norm (zero columns kept at zero) and the norms."""
+    """Columns scaled to unit norm and the norms; a column below ``RANK_TOL × `` the largest
+    norm is rounding noise of an exact zero (e.g. a joint's zero offset seen from a point on
+    its axis) and counts as zero (norm 0, column 0), not as a direction."""
     norms = np.linalg.norm(jac, axis=0)
-    return jac / np.where(norms > 0, norms, 1.0), norms
+    norms = np.where(norms > RANK_TOL * (norms.max() if norms.size else 0.0), norms, 0.0)
+    return jac / np.where(norms > 0, norms, 1.0) * (norms > 0), norms
 
 
 def sequential_selection(jac: np.ndarray, order: np.ndarray | None = None,
@@ -125,3 +128,28 @@ def null_directions(jac: np.ndarray, kept: np.ndarray, names: list[str] | tuple[
         terms = tuple((names[i], float(nd[i])) for i in [d, *kept_idx[big[kept_idx]]])
         out.append(Unidentifiable(names[d], terms))
     return tuple(out), mat, worst
+
+
+#: relative residual a column must leave at the generic point to be added (first-order weak
+#: directions, ~1e-3 for a measured point a millimetre off an axis, are added; second-order ones,
+#: ~1e-6, would have σ a million times the noise and are held)
+GENERIC_TOL = 1e-4
+
+
+def structural_selection(nominal: np.ndarray, generic: np.ndarray, order: np.ndarray,
+                         tol: float = RANK_TOL) -> np.ndarray:
+    """The kept columns: first those the URDF's own Jacobian ``nominal`` keeps (in ``order``),
+    then, among the rest, those the Jacobian at a nearby generic point ``generic`` adds.
+
+    The URDF can be special (a measured point on the last joint's axis, parallel axes): a
+    combination exact there may not be exact for the real robot a few mm and tenths of a degree
+    away, and holding it would leave a bias. Such parameters are kept when their column leaves
+    a relative residual above :data:`GENERIC_TOL` there (they are identified, though weakly
+    where the geometry is nearly special: their σ says how weakly); the ones the URDF already
+    identifies keep their priority.
+    """
+    kept = sequential_selection(nominal, order, tol)
+    order = np.asarray(order)
+    more = sequential_selection(generic, np.concatenate([order[kept[order]],
+                                                         order[~kept[order]]]), GENERIC_TOL)
+    return kept | more

@@ -32,7 +32,7 @@ from ..errors import DatasetError, OptionError, PoorExcitationError, check_numbe
 from ..excitation.limits import (CartesianBox, ConstraintSet, ExcitationLimits, FloorPlane,
                                  KeepOutSphere, end_effector_frame)
 from ..robot.model import RobotModel, require_model
-from .identifiability import normalised, sequential_selection
+from .identifiability import normalised, structural_selection
 from .measurements import (COMPONENTS, Measurements, joint_coordinates, noise_covariance,
                            residual_jacobian, whitening)
 from .parameters import KINDS, KinematicParameters, random_configurations
@@ -97,11 +97,13 @@ def _feasible(model: RobotModel, q: np.ndarray, limits: ExcitationLimits) -> np.
 
 
 def candidate_jacobians(chart: KinematicParameters, q: np.ndarray, sel: np.ndarray,
-                        cov: np.ndarray, anchor: np.ndarray | None) -> np.ndarray:
-    """Whitened residual Jacobians (M, m, len(sel)) at the URDF's values (measurement frame at
-    the identity, the residual zero)."""
-    zero = np.zeros(chart.size)
-    pos, rot, tw = chart.frame_kinematics(zero, q)
+                        cov: np.ndarray, anchor: np.ndarray | None,
+                        values: np.ndarray | None = None) -> np.ndarray:
+    """Whitened residual Jacobians (M, m, len(sel)) at the generic point near the URDF
+    (:attr:`~consistid.kinematics.parameters.KinematicParameters.generic_values`; measurement
+    frame at the identity, the residual zero)."""
+    values = chart.generic_values if values is None else values
+    pos, rot, tw = chart.frame_kinematics(values, q)
     if chart.kind == "distance":
         meas = Measurements("distance", distances=np.linalg.norm(pos - anchor, axis=1))
     else:
@@ -243,7 +245,9 @@ def select_poses(model: RobotModel, k: int, frame: str | None = None, kind: str 
         raise DatasetError("sigma for select_poses is one covariance for every pose")
     jac_all = candidate_jacobians(chart, cand, sel, cov, anchor_a)
     order = chart.priority(sel)
-    kept = sequential_selection(jac_all.reshape(-1, sel.size), order)
+    nominal = candidate_jacobians(chart, cand[:200], sel, cov, anchor_a, np.zeros(chart.size))
+    kept = structural_selection(nominal.reshape(-1, sel.size),
+                                jac_all[:200].reshape(-1, sel.size), order)
     jac = jac_all[:, :, kept]
     r = int(kept.sum())
     if k * m < r:

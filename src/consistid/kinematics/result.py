@@ -69,6 +69,8 @@ class CalibrationResult:
     chi2_reduced : weighted RSS / (n − r): ≈ 1 when σ describes the residuals.
     condition_number : of the whitened, column-normalised Jacobian of the identified ones.
     solver : :class:`~consistid.identification.result.SolverReport`.
+    held_at_solution : parameters a generic robot shows but these data, at this solution, do
+        not (special geometry, e.g. a measured point exactly on the last joint's axis); held too.
     """
 
     model: RobotModel
@@ -98,6 +100,7 @@ class CalibrationResult:
     solver: SolverReport
     chart: "KinematicParameters" = field(repr=False)
     full_values: np.ndarray = field(repr=False)
+    held_at_solution: tuple[str, ...] = ()
 
     # ----------------------------------------------------------------------------- values
     @property
@@ -190,6 +193,10 @@ class CalibrationResult:
                  f"noise σ {self.sigma_source}; χ²/dof = {self.chi2_reduced:.3g} (≈ 1 when σ "
                  "describes the residuals)",
                  f"cond(J) = {self.condition_number:.4g} (whitened, columns normalised)"]
+        if self.held_at_solution:
+            notes.append(f"held because the data do not see them at the solution (special "
+                         f"geometry, e.g. the measured point on a joint axis): "
+                         f"{', '.join(self.held_at_solution)}")
         if self.rejected:
             worst = ", ".join(f"{i} (d = {self.mahalanobis[i]:.1f}σ)" for i in self.rejected[:10])
             notes.append(f"{len(self.rejected)} outlier(s) rejected and not fitted: {worst}"
