@@ -14,8 +14,10 @@ from .breakaway import BreakawayEstimate, BreakawayEvent, estimate_breakaway, si
 from .fit import NonlinearFrictionResult, identify_nonlinear, is_nonlinear, parse_friction
 from .models import MODELS, FrictionModel, GazSigmoid, Stribeck, TanhCoulomb, get_model
 from .ramp import Ramp, RampPlan, ramp_plan
+from .selection import FrictionComparison, compare_friction_models
 
-__all__ = ["MODELS", "BreakawayEstimate", "BreakawayEvent", "FrictionModel", "GazSigmoid",
+__all__ = ["MODELS", "BreakawayEstimate", "BreakawayEvent", "FrictionComparison",
+           "FrictionModel", "GazSigmoid", "compare_friction_models",
            "NonlinearFrictionResult", "Ramp", "RampPlan", "Stribeck", "TanhCoulomb",
            "estimate_breakaway", "get_model", "identify_nonlinear", "is_nonlinear",
            "parse_friction", "ramp_plan", "simulate_ramps"]

@@ -59,7 +59,7 @@ import scipy.stats
 
 from ..data.dataset import Dataset
 from ..errors import (InaccurateSolutionWarning, OptionError, PoorExcitationError,
-                      check_number, check_option)
+                      PoorExcitationWarning, check_number, check_option)
 from ..identification.base import RANK_RTOL, BaseParameters, compute_base_parameters
 from ..identification.compression import SIGMA_FLOOR, CompressedProblem, accumulate
 from ..identification.regressor import (FRICTION_TERMS, RegressorSpec, parameter_names,
@@ -573,6 +573,13 @@ def identify_nonlinear(model: RobotModel, dataset: Dataset, method: str, frictio
         if _ == 0:
             problem.set_sigma(sigma_of(residual))
     search_time = time.perf_counter() - t_start
+    at_bounds = _at_bounds(problem, u, shape_names)
+    if at_bounds:
+        warnings.warn(f"nonlinear friction: {', '.join(at_bounds)} ended at the search's bounds "
+                      "(models.FrictionModel.bounds): the data do not determine them and that "
+                      "joint's law degenerates (e.g. a Stribeck hump too wide or too narrow to "
+                      "see); their σ is not meaningful — prefer another law for that joint",
+                      PoorExcitationWarning, stacklevel=3)
 
     # --- covariance of (β, c, u): Gauss–Newton on whitened rows, optionally coloured
     grams = problem.full_jacobian_grams(u, c)
@@ -616,7 +623,8 @@ def identify_nonlinear(model: RobotModel, dataset: Dataset, method: str, frictio
                                    f"{nm}={law}" for nm, law in zip(model.joint_names,
                                                                     selection.laws)),
                                "variable_projection_time": search_time,
-                               "rows_used": n_kept.astype(int), "min_speed": min_speed}
+                               "rows_used": n_kept.astype(int), "min_speed": min_speed,
+                               "shapes_at_bounds": ", ".join(at_bounds) or "none"}
     if method == "sdp":
         theta, amps, sdp_res = _sdp(model, y * keep[:, :, None], tau * keep, spec, base, problem,
                                     u, constraints, prior, options)
@@ -652,6 +660,18 @@ def _nearest_standard(base: BaseParameters, beta: np.ndarray, prior: np.ndarray)
     """The standard vector closest to ``prior`` with ``B π = β`` (as OLS results report)."""
     mat = base.matrix
     return prior + np.linalg.lstsq(mat, beta - mat @ prior, rcond=None)[0]
+
+
+def _at_bounds(problem: _Problem, u: np.ndarray, names: Sequence[str]) -> list[str]:
+    """Names of the shape parameters within 0.01 (search coordinates: 1 % for the positive
+    ones) of a search bound."""
+    out, k = [], 0
+    for j in problem.joints:
+        lo, hi = MODELS[problem.laws[j]].internal_bounds()
+        near = (np.abs(u[k:k + lo.size] - lo) < 1e-2) | (np.abs(u[k:k + lo.size] - hi) < 1e-2)
+        out += [names[k + i] for i in np.flatnonzero(near)]
+        k += lo.size
+    return out
 
 
 def _extended_base(base: BaseParameters, amplitude_names: Sequence[str]) -> BaseParameters:

@@ -1,0 +1,145 @@
+r"""Which friction law the held-out data prefer, joint by joint.
+
+Each law (the linear ``f_c sign q̇`` — ``"coulomb"`` — and the nonlinear ones of
+:mod:`consistid.friction.models`) is fitted on the training data with the rigid body
+(:func:`consistid.friction.fit.identify_nonlinear`, the same law on every joint, viscous and
+offset columns with all of them) and scored on held-out data:
+
+.. math::  \mathrm{RMS}_{j}(\text{law}) = \sqrt{\tfrac{1}{|K_j|}\textstyle\sum_{k ∈ K_j}
+           (τ_{kj} - \hat τ_{kj})^2}
+
+over all held-out samples with ``|q̇_j| ≥ min_speed`` (the rows the fits use), and over the
+low-speed band ``min_speed ≤ |q̇_j| < low_speed``, where the laws differ most. A joint
+*prefers* the law with the smallest held-out RMS; :attr:`FrictionComparison.gain` says by how
+much it beats the linear law (a preference worth a fraction of a percent is a tie in practice,
+and the table shows it). Held-out scoring, not training fit, is what penalises the extra shape
+parameters (a law that fits noise does worse on new data).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from html import escape
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from ..data.dataset import Dataset
+from ..errors import OptionError, check_number
+from ..identification.summary import table
+from ..robot.model import RobotModel
+from .fit import NonlinearFrictionResult, identify_nonlinear
+from .models import LINEAR, MODELS
+
+#: Laws compared by default, the linear one first.
+LAWS: tuple[str, ...] = (LINEAR, "stribeck", "sigmoid", "tanh")
+
+
+@dataclass(frozen=True, eq=False)
+class FrictionComparison:
+    """Held-out scores of friction laws per joint (module docstring).
+
+    Attributes
+    ----------
+    joint_names : (nv,) names.
+    laws : the laws compared, in order.
+    rms : (n_laws, nv) held-out RMS over ``|q̇_j| ≥ min_speed`` (N·m).
+    low_rms : (n_laws, nv) held-out RMS in ``min_speed ≤ |q̇_j| < low_speed`` (NaN without
+        such samples).
+    n_low : (nv,) held-out samples in the low-speed band.
+    train_rms : (n_laws, nv) training RMS.
+    results : the fits, by law.
+    method, low_speed, min_speed : the settings.
+    """
+
+    joint_names: tuple[str, ...]
+    laws: tuple[str, ...]
+    rms: np.ndarray
+    low_rms: np.ndarray
+    n_low: np.ndarray
+    train_rms: np.ndarray
+    method: str
+    low_speed: float
+    min_speed: float
+    results: dict[str, NonlinearFrictionResult] = field(default_factory=dict)
+
+    @property
+    def preferred(self) -> tuple[str, ...]:
+        """Per joint, the law with the smallest held-out RMS."""
+        return tuple(self.laws[int(i)] for i in np.argmin(self.rms, axis=0))
+
+    @property
+    def preferred_low_speed(self) -> tuple[str, ...]:
+        """Per joint, the law with the smallest held-out RMS at low speed."""
+        filled = np.where(np.isfinite(self.low_rms), self.low_rms, np.inf)
+        return tuple(self.laws[int(i)] for i in np.argmin(filled, axis=0))
+
+    @property
+    def gain(self) -> np.ndarray:
+        """(nv,) held-out RMS of the linear law over that of the preferred one (≥ 1; 1 where
+        the linear law is preferred or not compared: NaN)."""
+        if LINEAR not in self.laws:
+            return np.full(len(self.joint_names), np.nan)
+        return self.rms[self.laws.index(LINEAR)] / np.min(self.rms, axis=0)
+
+    def summary(self) -> str:
+        head = [f"rms {law}" for law in self.laws] + [f"low {law}" for law in self.laws]
+        rows = [[name, *self.rms[:, j], *self.low_rms[:, j], int(self.n_low[j]),
+                 self.preferred[j], f"{self.gain[j]:.3f}", self.preferred_low_speed[j]]
+                for j, name in enumerate(self.joint_names)]
+        text = (f"friction laws on held-out data (method={self.method}; RMS in N·m over "
+                f"|q̇| ≥ {self.min_speed:g} rad/s; 'low': {self.min_speed:g} ≤ |q̇| < "
+                f"{self.low_speed:g} rad/s)\n")
+        return text + table(["joint", *head, "n low", "preferred", "linear/best",
+                             "preferred (low)"], rows, floatfmt=".4g")
+
+    def __str__(self) -> str:
+        return self.summary()
+
+    def _repr_html_(self) -> str:
+        return f"<pre>{escape(self.summary())}</pre>"
+
+    def report(self, path: str | Path) -> Path:
+        """Write the summary as an HTML page to ``path``."""
+        path = Path(path)
+        path.write_text("<!doctype html><meta charset='utf-8'><title>friction laws</title>"
+                        f"{self._repr_html_()}\n", encoding="utf-8")
+        return path
+
+
+def compare_friction_models(model: RobotModel, train: Dataset, held_out: Dataset,
+                            laws: Sequence[str] = LAWS, method: str = "ols",
+                            low_speed: float = 0.1, min_speed: float = 0.0,
+                            covariance: str = "iid", **options: Any) -> FrictionComparison:
+    """Fit each law on ``train``, score on ``held_out`` (module docstring).
+
+    ``method``, ``covariance`` and ``options`` (e.g. ``armature=True``, ``max_nfev``) go to
+    :func:`consistid.friction.fit.identify_nonlinear`; ``min_speed`` leaves standstill rows out
+    of the fits and the scores alike.
+    """
+    laws = tuple(laws)
+    unknown = [law for law in laws if law != LINEAR and law not in MODELS]
+    if unknown or not laws:
+        raise OptionError(f"laws {unknown or '(none)'} are not known; choose among "
+                          f"{[LINEAR, *MODELS]}")
+    low_speed = check_number("low_speed", low_speed, 0, strict=True)
+    min_speed = check_number("min_speed", min_speed, 0)
+    held_out.check_joints(model.nv, model.joint_names)
+    tau = held_out.require_torque()
+    speed = np.abs(held_out.dq)
+    used = speed >= min_speed
+    low = used & (speed < low_speed)
+    results, rms, low_rms, train_rms = {}, [], [], []
+    for law in laws:
+        res = identify_nonlinear(model, train, method, {j: law for j in range(model.nv)},
+                                 covariance=covariance, min_speed=min_speed, **options)
+        e2 = (tau - res.predict(held_out)) ** 2
+        results[law] = res
+        rms.append(np.sqrt(np.sum(e2 * used, axis=0) / np.maximum(used.sum(axis=0), 1)))
+        with np.errstate(invalid="ignore"):
+            low_rms.append(np.sqrt(np.sum(e2 * low, axis=0) / low.sum(axis=0)))
+        train_rms.append(res.train_rms)
+    return FrictionComparison(tuple(model.joint_names), laws, np.array(rms), np.array(low_rms),
+                              low.sum(axis=0), np.array(train_rms), method, low_speed,
+                              min_speed, results)
