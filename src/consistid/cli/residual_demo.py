@@ -24,6 +24,7 @@ import numpy as np
 from ..data.dataset import Dataset
 from ..errors import OptionError
 from ..excitation import FourierTrajectory
+from ..robot.mjcf import joint_axes
 from ..robot.model import RobotModel
 from ..identification.summary import table
 from ..simulate.effects import (EFFECT_FIELDS, EFFECT_NAMES, Effects, MountedPayload, effect_torque,
@@ -44,8 +45,6 @@ def parse_effects(specs: Sequence[str], model: RobotModel) -> Effects:
     origin (where a tool flange usually is); other names are those of
     :data:`consistid.simulate.effects.EFFECT_FIELDS`.
     """
-    from ..simulate.mujoco_robot import joint_axes
-
     effects = Effects()
     for spec in specs:
         name, sep, value = spec.partition("=")

@@ -53,6 +53,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import ModelError, check_option
+from ..robot.mjcf import joint_axes
 from ..robot.model import RobotModel
 from .effects import (Effects, MountedPayload, explicit_friction, explicit_friction_slope,
                       has_explicit_friction)
@@ -88,31 +89,6 @@ _INTEGRATE: dict[int, Callable[[mujoco.MjModel, mujoco.MjData], None]] = {
 
 def _num(values) -> str:
     return " ".join(f"{float(x):.17g}" for x in np.ravel(values))
-
-
-def joint_axes(model: RobotModel) -> tuple[list[str], np.ndarray]:
-    """MuJoCo joint type (``"hinge"``/``"slide"``) and unit axis in the joint frame, per joint.
-
-    Read from the joint's motion subspace (the joint's column of the ``LOCAL`` Jacobian at the
-    neutral configuration): ``[0; a]`` for a revolute joint, ``[a; 0]`` for a prismatic one.
-    """
-    pm = model.pin_model
-    data = pm.createData()
-    pin.computeJointJacobians(pm, data, pin.neutral(pm))
-    kinds, axes = [], np.zeros((model.nv, 3))
-    for j in range(1, pm.njoints):
-        s = pin.getJointJacobian(pm, data, j, pin.LOCAL)[:, pm.joints[j].idx_v]
-        lin, ang = s[:3], s[3:]
-        if np.linalg.norm(lin) < 1e-12 and abs(np.linalg.norm(ang) - 1) < 1e-9:
-            kinds.append("hinge")
-            axes[j - 1] = ang
-        elif np.linalg.norm(ang) < 1e-12 and abs(np.linalg.norm(lin) - 1) < 1e-9:
-            kinds.append("slide")
-            axes[j - 1] = lin
-        else:
-            raise ModelError(f"joint {pm.names[j]!r} ({pm.joints[j].shortname()}) is neither a "
-                             "revolute nor a prismatic joint about a fixed axis")
-    return kinds, axes
 
 
 def _inertial(inertia: pin.Inertia, name: str) -> str:
