@@ -6,6 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.io
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from consistid.data.formats import read_log
 from consistid.data.formats.columns import map_columns, parse_column
@@ -259,3 +261,43 @@ def test_a_bag_without_efforts_is_named(tmp_path, log):
             w.write(c, k, ts.serialize_cdr(msg, js.__msgtype__))
     with pytest.raises(MissingColumnsError, match="has no effort"):
         load_recording(tmp_path / "pos_only")
+
+
+# ----------------------------------------------------------------------------- fuzz
+STYLES = {"prefix": ("q_{j}", "tau_{j}"), "suffix": ("{j}.q", "{j}.torque"),
+          "bracket": ("position[{j}]", "effort[{j}]"), "ros": ("{j}/position", "{j}/effort"),
+          "bare": ("{j}", "{j}_effort")}
+
+
+@settings(max_examples=25, deadline=None)
+@given(names=st.lists(st.from_regex(r"[a-z][a-z0-9]{0,6}_joint[0-9]", fullmatch=True),
+                      min_size=1, max_size=5, unique=True),
+       style=st.sampled_from(sorted(STYLES)), sep=st.sampled_from([",", ";", "\t"]),
+       seed=st.integers(0, 2 ** 16), extra=st.booleans())
+def test_csv_headers_in_any_style_read_back_exactly(tmp_path_factory, names, style, sep, seed,
+                                                    extra):
+    """Whatever the header style and delimiter, the columns come back in joints= order, the
+    extra joint dropped and said."""
+    rng = np.random.default_rng(seed)
+    n = 30
+    t = np.cumsum(rng.uniform(0.9e-3, 1.1e-3, n))
+    q, tau = rng.normal(size=(n, len(names))), rng.normal(size=(n, len(names)))
+    qs, ts = STYLES[style]
+    cols = {"time": t}
+    all_names = [*names, "gripper_joint9"] if extra else names
+    qx = np.column_stack([q, rng.normal(size=n)]) if extra else q
+    tx = np.column_stack([tau, rng.normal(size=n)]) if extra else tau
+    order = rng.permutation(len(all_names))
+    for k in order:
+        cols[qs.format(j=all_names[k])] = qx[:, k]
+    for k in order[::-1]:
+        cols[ts.format(j=all_names[k])] = tx[:, k]
+    path = tmp_path_factory.mktemp("fuzz") / "log.csv"
+    write_csv(path, pd.DataFrame(cols), sep=sep)
+    got = read_log(path, joints=names)
+    assert got.joint_names == tuple(names)
+    np.testing.assert_array_equal(got.fields["q"], q)
+    np.testing.assert_array_equal(got.fields["tau"], tau)
+    np.testing.assert_array_equal(got.t, t)
+    if extra:
+        assert "gripper_joint9" in " ".join(got.notes)

@@ -108,24 +108,36 @@ def _field_of(word: str) -> str | None:
     return None
 
 
-def parse_column(name: str) -> tuple[str, str | int] | None:
-    """``(field, joint)`` of a per-joint column name (joint: a name, or a 0-based index for
-    ``q1``-style names), or ``None`` when the name is not one (module docstring)."""
+def parse_candidates(name: str) -> list[tuple[str, str | int]]:
+    """Every ``(field, joint)`` reading of a per-joint column name (module docstring), most
+    likely first; the joint is a name, or a 0-based index for ``q1``-style names. A name such
+    as ``q_joint0_effort`` has two readings (``q`` of ``joint0_effort``, ``tau`` of
+    ``q_joint0``): the joints the caller knows decide."""
     n = _BRACKET_UNIT.sub("", _clean(name))
     raw = _BRACKET_UNIT.sub("", str(name).strip().strip('"').strip("'"))
+    out: list[tuple[str, str | int]] = []
     m = re.fullmatch(r"([a-z]+)_?(\d+)", n)
     if m and _field_of(m.group(1)):
-        return _field_of(m.group(1)), int(m.group(2)) - 1
+        out.append((_field_of(m.group(1)), int(m.group(2)) - 1))
     m = re.fullmatch(r"([a-z]+)\[(.+)\]", n)
     if m and _field_of(m.group(1)):
-        return _field_of(m.group(1)), raw[len(m.group(1)) + 1:-1]
+        out.append((_field_of(m.group(1)), raw[len(m.group(1)) + 1:-1]))
+    m = re.fullmatch(rf"(.+){_SEP}([a-z]+)", n)
+    suffix = (_field_of(m.group(2)), raw[:len(m.group(1))]) if m and _field_of(m.group(2)) \
+        else None
     m = re.fullmatch(rf"([a-z]+){_SEP}(.+)", n)
     if m and _field_of(m.group(1)):
-        return _field_of(m.group(1)), raw[len(m.group(1)) + 1:]
-    m = re.fullmatch(rf"(.+){_SEP}([a-z]+)", n)
-    if m and _field_of(m.group(2)):
-        return _field_of(m.group(2)), raw[:len(m.group(1))]
-    return None
+        out.append((_field_of(m.group(1)), raw[len(m.group(1)) + 1:]))
+    if suffix:
+        out.append(suffix)
+    return out
+
+
+def parse_column(name: str) -> tuple[str, str | int] | None:
+    """The most likely ``(field, joint)`` of a per-joint column name (:func:`parse_candidates`),
+    or ``None`` when the name is not one."""
+    found = parse_candidates(name)
+    return found[0] if found else None
 
 
 def _template(spec: str | Sequence[str], joints: Sequence[str] | None, field_name: str,
@@ -221,14 +233,18 @@ def map_columns(names: Sequence[str], source: str, *, joints: Sequence[str] | No
     for n in names:
         if n in used:
             continue
-        p = parse_column(n)
-        if p is None:
-            bare = n.strip()
-            if (joints and bare in joints) or (not joints and re.search(r"joint|^j\d+$", bare,
-                                                                          re.I)):
-                p = ("q", bare)
-            else:
-                continue
+        bare = n.strip()
+        found = parse_candidates(n)
+        if joints and bare in joints:
+            p = ("q", bare)                           # a joint's own name: its position
+        elif joints and any(isinstance(j, str) and j.lower() in by_name for _, j in found):
+            p = next((f, j) for f, j in found if isinstance(j, str) and j.lower() in by_name)
+        elif found:
+            p = found[0]
+        elif not joints and re.search(r"joint|^j\d+$", bare, re.I):
+            p = ("q", bare)
+        else:
+            continue
         f, j = p
         if isinstance(j, str) and j.lower() in by_name:
             j = by_name[j.lower()]
