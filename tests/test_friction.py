@@ -277,3 +277,21 @@ def test_ramp_plan_csv_and_limits(panda, tmp_path):
         ramp_plan(panda, max_torque=100.0)
     with pytest.raises(OptionError, match="outside"):
         ramp_plan(panda, pose=np.full(7, 5.0))
+
+
+@pytest.mark.parametrize("method", ["ols", "sdp"])
+def test_linear_laws_through_the_projection_reproduce_identify(panda, method):
+    """With every joint 'coulomb' the variable-projection path (no shape parameters, the SDP on
+    its own compressed problem) gives identify's linear answer."""
+    run = ci.simulate.excitation_run(panda, duration=6.0, rate=200.0, torque_noise=0.05,
+                                     friction=("coulomb", "viscous", "offset"), seed=5,
+                                     parameters=np.concatenate([panda.prior_parameters,
+                                                                np.full(7, 0.3),
+                                                                np.full(7, 0.1),
+                                                                np.full(7, -0.05)]))
+    ref = ci.identify(panda, run.dataset, method=method, covariance="iid")
+    mine = identify_nonlinear(panda, run.dataset, method, {j: "coulomb" for j in range(7)},
+                              covariance="iid")
+    np.testing.assert_allclose(mine.base_parameters, ref.base_parameters, rtol=1e-5,
+                               atol=1e-6 * np.max(np.abs(ref.base_parameters)))
+    np.testing.assert_allclose(mine.predict(run.dataset), ref.predict(run.dataset), atol=1e-6)
