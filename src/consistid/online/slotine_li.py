@@ -60,6 +60,8 @@ from ..identification.regressor import (FrictionArg, RegressorSpec, joint_column
 from ..robot.inertia import from_pseudo_inertia, pseudo_inertia, pseudo_inertia_map
 from ..robot.model import RobotModel, require_model
 
+#: Relative tolerance below ``margin`` before a body is clipped (round-off of a clipped body).
+CLIP_RTOL = 1e-6
 #: Natural gain of a per-joint column (friction, offset, armature), relative to ``γ``:
 #: ``Γ_jj = γ·JOINT_GAIN²``.
 JOINT_GAIN = 1.0
@@ -276,7 +278,7 @@ class SlotineLiController:
                 self.clips.append((self.steps, step))
 
     def observe(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray, tau: np.ndarray) -> float:
-        """Composite adaptation (``composite = μ > 0``): one normalised gradient step on the
+        r"""Composite adaptation (``composite = μ > 0``): one normalised gradient step on the
         torque prediction error of a measured sample ``(q, q̇, q̈, τ)``,
 
         .. math:: \hat\pi \leftarrow \hat\pi - \mu\,
@@ -319,7 +321,8 @@ class SlotineLiController:
         j_hat = self._normalised_map @ pi[:10 * nb].reshape(nb, 10, 1)        # (nb, 16, 1)
         j_hat = j_hat.reshape(nb, 4, 4)
         lows = np.linalg.eigvalsh(j_hat)[:, 0]
-        clipped = np.flatnonzero(lows < self.margin)
+        # a body clipped before sits at ``margin`` up to round-off: not clipped again
+        clipped = np.flatnonzero(lows < self.margin * (1.0 - CLIP_RTOL))
         for i in clipped:
             lam, vec = np.linalg.eigh(j_hat[i])
             clipped_j = (vec * np.maximum(lam, self.margin)) @ vec.T
