@@ -26,6 +26,7 @@ import numpy as np
 import consistid as ci
 from consistid.errors import ConfigError, ConsistidError, OutputPathError, check_option
 
+from . import online_demo
 from .files import atomic_dir, atomic_path, check_output, check_output_dir
 from .hints import toml_hints, toml_value
 
@@ -396,6 +397,8 @@ COMMANDS: dict[str, tuple[Callable[[argparse.Namespace], int], str]] = {
     "recover": (recover, "consistent standard parameters from base coefficients (TOML config)"),
     "payload": (payload, "estimate a payload from unloaded and loaded logs (TOML config)"),
     "diagnose": (diagnose, "sim-to-real gap diagnosis of a model against logs (TOML config)"),
+    "online": (online_demo.run, "recursive estimation with a payload change, and Slotine–Li "
+                                "adaptive control on the MuJoCo robot (demo)"),
 }
 
 
@@ -451,6 +454,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--output", help="report directory, .html or .txt (default: [diagnose] "
                                     "output; none: text to stdout only)")
     _add_force(p)
+    online_demo.add_arguments(sub.add_parser("online", help=COMMANDS["online"][1]))
     for p in sub.choices.values():
         _add_quiet(p)
     return parser
