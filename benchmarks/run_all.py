@@ -14,9 +14,10 @@ Protocol (in the spirit of BIRDy, Leboutet et al. 2021, doi:10.1109/TRO.2020.304
   URDF. With friction: Coulomb 0.5–2 N·m and viscous 0.2–1 N·m·s/rad per joint, drawn per run.
 * **Scenarios**: ``well`` (an excitation designed once per robot with
   :func:`consistid.design_excitation`, 5 harmonics over 10 s, criterion cond, 2 starts; new truth
-  and noise per run; ``--smoke`` uses a random Fourier trajectory instead), ``poor`` (2 s, 20 % amplitude), ``noisy`` (σ × 10), ``outliers`` (1 % of
-  samples +20 σ spikes), ``coloured`` (AR(1), φ = 0.9, τ = 19 samples), ``friction`` (Coulomb and
-  viscous friction in the truth, fitted), ``mujoco`` (the MuJoCo robot, exact states and its
+  and noise per run; ``--smoke`` uses a random Fourier trajectory instead), ``poor`` (2 s,
+  20 % amplitude), ``noisy`` (σ × 10), ``outliers`` (1 % of samples ±20 σ spikes),
+  ``coloured`` (AR(1), φ = 0.9, τ = 19 samples), ``friction`` (Coulomb and viscous friction in
+  the truth, fitted), ``mujoco`` (the MuJoCo robot, exact states and its
   torques plus white noise). Held out: another random trajectory of the same robot.
 * **Methods**: OLS, WLS, Huber/IRLS (benchmark-only: least squares re-weighted by Huber's ψ with
   a MAD scale on the compressed problem, 5 passes), SDP at each consistency level (mass-inertia,

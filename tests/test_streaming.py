@@ -203,3 +203,29 @@ def test_memory_is_one_part_not_the_stream(planar_2r):
         tracemalloc.stop()
     assert res.n_samples == 15 * template.n_samples
     assert peak < 4 * part_bytes + 1e6, (peak, part_bytes)
+
+
+def test_payload_from_files_equals_the_stacked_recordings(tmp_path, ur5_model):
+    """estimate_payload (route 1) reads a stream like identify: the same payload as the
+    concatenated recordings, and it is the true one."""
+    from consistid.robot.inertia import from_mass_com_inertia
+
+    model = ur5_model
+    payload = from_mass_com_inertia(1.2, (0.0, 0.02, 0.05), np.diag([2e-3, 2e-3, 1e-3]))
+    loaded_truth = model.prior_parameters.copy()
+    loaded_truth[-10:] += payload
+    data = [ci.simulate.excitation_run(model, loaded_truth, duration=3.0, rate=100.0, seed=s,
+                                       torque_noise=0.02).dataset for s in range(3)]
+    paths = []
+    for k, d in enumerate(data):
+        paths.append(tmp_path / f"loaded{k}.npz")
+        d.save(paths[-1])
+    robot = model.prior_parameters
+    streamed = ci.estimate_payload(model, paths, robot, friction=None)
+    stacked = ci.estimate_payload(model, ci.Dataset.concatenate(data), robot, friction=None)
+    assert streamed.n_samples == stacked.n_samples == sum(d.n_samples for d in data)
+    np.testing.assert_allclose(streamed.mass, stacked.mass, rtol=1e-6)
+    np.testing.assert_allclose(streamed.com, stacked.com, atol=1e-7)
+    assert abs(streamed.mass - 1.2) < 0.05
+    with pytest.raises(OptionError, match="stream"):
+        ci.estimate_payload(model, 3.0, robot, friction=None)

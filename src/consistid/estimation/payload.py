@@ -36,7 +36,7 @@ import cvxpy as cp
 import numpy as np
 
 from ..identification.base import BaseParameters, random_states
-from ..identification.compression import CompressedProblem, compress, joint_sigma
+from ..identification.compression import CompressedProblem, joint_sigma
 from ..identification.solver import DEFAULT_SOLVER, solve
 from ..robot.shapes import Ellipsoid
 from ..identification.constraints import (BodyScaling, com_box, ellipsoid_lmi, mass_bounds,
@@ -51,6 +51,7 @@ from ..robot.inertia import (INERTIAL_NAMES, body_slice, from_mass_com_inertia, 
 from ..identification.regressor import FrictionArg, matching_settings, regressor, resolve_spec
 from ..identification.result import IdentificationResult
 from ..identification.solver import SolverReport
+from ..identification.streaming import DataStream, as_stream, compress_data, is_stream
 
 #: A payload direction is unidentified when its singular value of the column-normalised payload
 #: regressor is below this fraction of the largest (looser than identify's numerical rank
@@ -423,7 +424,7 @@ def _payload_result(theta: np.ndarray, cov: np.ndarray, frame: str, body: str, m
 
 
 # ------------------------------------------------------------------------------- route 1
-def estimate_payload(model: RobotModel, loaded: Dataset | IdentificationResult,
+def estimate_payload(model: RobotModel, loaded: Dataset | DataStream | IdentificationResult,
                      robot: IdentificationResult | np.ndarray, *, frame: str | None = None,
                      body: str | None = None, friction: FrictionArg | str = "auto",
                      armature: bool | Sequence[int | str] | str = "auto",
@@ -447,7 +448,8 @@ def estimate_payload(model: RobotModel, loaded: Dataset | IdentificationResult,
     Parameters
     ----------
     model : the robot.
-    loaded : loaded recording (route 1) or loaded identification (route 2).
+    loaded : loaded recording (route 1), or a stream of them (files, a generator: read one at
+        a time, :mod:`consistid.identification.streaming`), or loaded identification (route 2).
     robot : the identified unloaded robot: an :class:`IdentificationResult`, or (route 1) its
         standard parameter vector (10 per body, then the columns of ``friction``/``armature``).
     frame : the frame the payload parameters are expressed in (a Pinocchio frame fixed to the
@@ -482,11 +484,14 @@ def estimate_payload(model: RobotModel, loaded: Dataset | IdentificationResult,
                                         ellipsoid=ellipsoid, com_bounds=com_bounds,
                                         mass_range=mass_range, solver=solver,
                                         solver_options=solver_options)
-    if not isinstance(loaded, Dataset):
-        raise OptionError(f"loaded must be a Dataset or an IdentificationResult, got "
-                          f"{type(loaded).__name__}")
-    loaded.check_joints(model.nv, model.joint_names)
-    loaded.require_torque()
+    if is_stream(loaded):  # files or a generator, read one at a time (joints checked per part)
+        loaded = as_stream(loaded)
+    elif not isinstance(loaded, Dataset):
+        raise OptionError(f"loaded must be a Dataset, a stream of them (files, a generator) or "
+                          f"an IdentificationResult, got {type(loaded).__name__}")
+    else:
+        loaded.check_joints(model.nv, model.joint_names)
+        loaded.require_torque()
     if isinstance(robot, IdentificationResult):
         spec = resolve_spec(model, friction, armature, given=robot.spec)
         theta = robot.parameters
@@ -503,11 +508,11 @@ def estimate_payload(model: RobotModel, loaded: Dataset | IdentificationResult,
                              f"{spec.describe()} needs ({expected},). "
                              f"{_matching_settings(model, theta.size - model.n_inertial)}")
     index, frame_name, transform = _resolve_frame(model, frame, body)
-    n = loaded.n_samples
+    problem = compress_data(model, loaded, spec).minus(theta)  # what the robot leaves: τ − Y θ
+    n = problem.n_samples
     if n * model.nv <= 10:
         raise PoorExcitationError(f"{n} samples × {model.nv} joints give {n * model.nv} "
                                   "equations for 10 payload parameters")
-    problem = compress(model, loaded, spec).minus(theta)     # what the robot leaves: τ − Y θ
     cols = np.r_[body_slice(index)]
     # Per-joint noise from the unconstrained fit, then the weighted problem (as identify's WLS).
     r1, z1, _ = problem.stacked(columns=cols)
