@@ -21,6 +21,8 @@ from consistid.errors import (DataQualityWarning, NothingFoundWarning, OptionErr
                               PoorExcitationWarning, SolverError)
 from consistid.estimation import recover as recover_module
 from consistid.identification.solver import solve
+from consistid.identification.regressor import regressor
+from consistid.robot import inertia
 from consistid.robot.shapes import Ellipsoid
 
 from .conftest import PLANAR_2R, PLANAR_2R_VALUES, random_states
@@ -533,11 +535,47 @@ def test_a_real_payload_is_found(arm, states, ols):
 
 
 def test_payload_loaded_must_be_data(arm, ols):
-    with pytest.raises(ci.OptionError, match="loaded must be a Dataset"):
+    with pytest.raises(ci.ConsistidError, match="not a Dataset|must be a Dataset"):
         ci.estimate_payload(arm, np.zeros((3, 2)), robot=ols)
 
 
-# ================================================================= 10. fuzz
+# ================================================================= 10. NaN in, NaN out
+def _nan_body(k):
+    body = np.array([2.0, 0.8, 0, 0, 0.01, 0, 0.365, 0, 0, 0.37])
+    return poke(body, k, np.nan)
+
+
+NAN_IN = [
+    ("regressor q", lambda m: regressor(m, np.full((3, 2), np.nan), np.zeros((3, 2)),
+                                        np.zeros((3, 2))), r"q\[0, 'joint1'\] = nan"),
+    ("regressor dq 1e300", lambda m: regressor(m, np.zeros((3, 2)), poke(np.zeros((3, 2)),
+                                                                          (2, 1), 1e300),
+                                               np.zeros((3, 2))), r"dq\[2, 'joint2'\] = 1e\+300"),
+    ("regressor ddq inf", lambda m: regressor(m, np.zeros((3, 2)), np.zeros((3, 2)),
+                                              poke(np.zeros((3, 2)), (1, 0), -np.inf)),
+     r"ddq\[1, 'joint1'\] = -inf"),
+    ("regressor shapes", lambda m: regressor(m, np.zeros((3, 2)), np.zeros((2, 2)),
+                                             np.zeros((3, 2))), "dq has shape"),
+    ("pseudo_inertia", lambda m: inertia.pseudo_inertia(_nan_body(3)), "mz = nan"),
+    ("check_body", lambda m: inertia.check_body(_nan_body(9)), "Izz = nan"),
+    ("is_physically_consistent", lambda m: inertia.is_physically_consistent(
+        np.r_[_nan_body(0), _nan_body(1)]), "m = nan"),
+    ("to_mass_com_inertia", lambda m: inertia.to_mass_com_inertia(_nan_body(5)), "Ixy = nan"),
+    ("from_mass_com_inertia", lambda m: inertia.from_mass_com_inertia(1.0, [0, np.nan, 0],
+                                                                       np.eye(3)), "must be finite"),
+    ("perturb", lambda m: inertia.perturb(_nan_body(2), 0.1, np.random.default_rng(0)),
+     "my = nan"),
+    ("inertias_from_vector", lambda m: inertia.inertias_from_vector(_nan_body(4)), "Ixx = nan|finite"),
+]
+
+
+@pytest.mark.parametrize("name,call,message", NAN_IN, ids=[n for n, _, _ in NAN_IN])
+def test_nan_in_is_an_error_not_nan_out(arm, name, call, message):
+    with pytest.raises(ci.ConsistidError, match=message):
+        call(arm)
+
+
+# ================================================================= 11. fuzz
 FLOATS = st.one_of(st.floats(-10, 10, allow_nan=False),
                    st.sampled_from([0.0, 1e-300, -1e9, 1e12, 1e300, np.nan, np.inf]))
 

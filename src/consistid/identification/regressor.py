@@ -53,8 +53,9 @@ from typing import Callable, Iterator, Mapping, Sequence
 import numpy as np
 import pinocchio as pin
 
+from ..data.checks import MAX_ABS
 from ..data.dataset import Dataset
-from ..errors import JointCountError, OptionError, check_option
+from ..errors import DatasetError, JointCountError, OptionError, check_option
 from ..robot.joint_terms import (DEFAULT_FRICTION, FRICTION_TERMS, JOINT_TERMS,
                                  NONNEGATIVE_TERMS, TERM_COLUMNS)
 from ..robot.model import RobotModel
@@ -250,6 +251,16 @@ def regressor(model: RobotModel, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray,
     q, dq, ddq = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (q, dq, ddq))
     if q.shape[1] != model.nv:
         raise JointCountError(f"q has {q.shape[1]} joints but {model.name} has {model.nv}")
+    for name, a in (("dq", dq), ("ddq", ddq)):
+        if a.shape != q.shape:
+            raise JointCountError(f"{name} has shape {a.shape} but q has {q.shape}")
+    for name, a in (("q", q), ("dq", dq), ("ddq", ddq)):
+        bad = np.argwhere(~(np.abs(a) <= MAX_ABS))     # NaN, ±inf, or beyond MAX_ABS
+        if bad.size:
+            k, j = (int(i) for i in bad[0])
+            raise DatasetError(f"{name}[{k}, {model.joint_names[j]!r}] = {a[k, j]:.3g}: not a "
+                               f"finite joint value within ±{MAX_ABS:.0e} (SI units); "
+                               f"{len(bad)} such value(s) in {name}")
     spec = spec or RegressorSpec.make(model, friction=None)
     n, p = q.shape[0], model.n_inertial + spec.n_joint_columns
     y = np.empty((n, model.nv, p)) if out is None else out

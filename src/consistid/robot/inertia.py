@@ -47,6 +47,10 @@ def _body(p: np.ndarray) -> np.ndarray:
     if p.shape != (10,):
         raise ParameterShapeError(
             f"a body's standard parameters have shape (10,), got {p.shape}")
+    if not np.all(np.isfinite(p)):
+        k = int(np.flatnonzero(~np.isfinite(p))[0])
+        raise InconsistentParametersError(
+            f"a body's standard parameters must be finite; {INERTIAL_NAMES[k]} = {p[k]}")
     return p
 
 
@@ -82,6 +86,9 @@ def from_mass_com_inertia(m: float, c: Sequence[float], inertia_com: np.ndarray)
         raise ParameterShapeError(
             f"c must have shape (3,) and inertia_com (3, 3), got {c.shape} and "
             f"{inertia_com.shape}")
+    if not (np.isfinite(float(m)) and np.all(np.isfinite(c)) and np.all(np.isfinite(inertia_com))):
+        raise InconsistentParametersError(f"mass, centre of mass and inertia must be finite, got "
+                                          f"m = {m}, c = {c.tolist()}, I_c = {inertia_com.tolist()}")
     cx = pin.skew(c)
     i = 0.5 * (inertia_com + inertia_com.T) - float(m) * cx @ cx
     return np.array([m, *(float(m) * c), i[0, 0], i[0, 1], i[1, 1], i[0, 2], i[1, 2], i[2, 2]])
@@ -122,7 +129,7 @@ def inertias_from_vector(parameters: np.ndarray) -> list[pin.Inertia]:
     if parameters.ndim != 1 or parameters.size % 10:
         raise ParameterShapeError(
             f"stacked standard parameters need 10 per body, got {parameters.shape}")
-    return [pin.Inertia.FromDynamicParameters(parameters[i:i + 10])
+    return [pin.Inertia.FromDynamicParameters(_body(parameters[i:i + 10]))
             for i in range(0, parameters.size, 10)]
 
 
