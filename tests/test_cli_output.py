@@ -175,3 +175,58 @@ def test_every_hint_is_valid_toml(name, value):
     hint = toml_hints(f"{name}={value!r}")
     parsed = tomllib.loads(hint)[name]
     assert parsed == (list(value) if isinstance(value, tuple) else value)
+
+
+# ------------------------------------------------------------------ progress
+def test_progress_argument(monkeypatch, capsys):
+    """None: a bar only on a terminal; True: a bar; False: nothing; a callable: lines."""
+    from consistid.progress import Progress
+
+    class Terminal:
+        def __init__(self, tty):
+            self.tty, self.text = tty, []
+
+        def isatty(self):
+            return self.tty
+
+        def write(self, s):
+            self.text.append(s)
+
+        def flush(self):
+            pass
+
+    for tty, progress, drawn in ((True, None, True), (False, None, False), (False, True, True),
+                                 (True, False, False)):
+        stream = Terminal(tty)
+        monkeypatch.setattr(sys, "stderr", stream)
+        with Progress(progress, 3, "work") as bar:
+            for k in range(3):
+                bar.step(f"item {k}")
+        assert ("work" in "".join(stream.text)) == drawn, (tty, progress)
+    lines = []
+    with Progress(lines.append, 2, "work") as bar:
+        bar.step("a")
+        bar.step("b")
+    assert lines == ["work 1/2: a", "work 2/2: b"]
+    with pytest.raises(ci.OptionError, match="progress"):
+        Progress("yes", 2, "work")
+
+
+def test_diagnose_and_design_take_progress(capsys):
+    model = ci.RobotModel.example("ur5")
+    lines: list[str] = []
+    rng = np.random.default_rng(3)
+    q, dq, ddq = random_states(model, 600, rng)
+    tau = model.rnea(q, dq, ddq) + 0.8 * np.sign(dq) + 0.02 * rng.standard_normal(q.shape)
+    data = ci.Dataset(t=0.01 * np.arange(600), q=q, dq=dq, ddq=ddq, tau=tau)
+    ci.diagnose(model, data, sigma=0.02, effects=("coulomb", "viscous"), progress=lines.append)
+    assert lines and all(line.startswith("step ") for line in lines)
+    ci.diagnose(model, data, sigma=0.02, effects=("coulomb",), progress=True)
+    assert "diagnosis: selecting effects" in capsys.readouterr().err
+    starts: list = []
+    ci.design_excitation(model, harmonics=2, period=4.0, n_starts=2, max_iter=3, n_grid=30,
+                         n_check=100, progress=starts.append)
+    assert [s.index for s in starts] == [0, 1]
+    ci.design_excitation(model, harmonics=2, period=4.0, n_starts=2, max_iter=3, n_grid=30,
+                         n_check=100, progress=False)
+    assert capsys.readouterr().err == ""

@@ -234,3 +234,12 @@ def test_nothing_wider_than_the_page_in_chromium(ur5_reports, diagnosis_report, 
         assert probe["n"] > 5, path
         assert probe["bad"] == [] and probe["broken"] == 0, (path.name, probe)
         assert probe["scroll"] <= probe["W"], (path.name, probe)
+
+
+def test_diagnosis_repr_html_and_progress(diagnosis_report):
+    diag, _ = diagnosis_report
+    fragment = diag._repr_html_()
+    assert fragment.startswith('<div class="cid-report">') and "<img" not in fragment
+    checker = Checker()
+    checker.feed(fragment)
+    assert checker.errors == [] and checker.stack == [] and checker.tables >= 4

@@ -63,6 +63,7 @@ from .candidates import EFFECT_NAMES, SIGNATURES, Atom, EffectLibrary, GapData
 from .effects import REGISTRY, EffectParameter
 from ..data.dataset import Dataset, as_dataset
 from ..errors import ModelError, OptionError, check_number, check_option
+from ..progress import Progress
 from .gap import GapBreakdown, gap_breakdown, residual_spectra
 from .noise import NoiseFloor, estimate_noise_floor, spectral_floor
 from .remainder import Remainder, analyse_remainder
@@ -268,6 +269,12 @@ class Diagnosis:
 
     def __str__(self) -> str:
         return self.summary()
+
+    def _repr_html_(self) -> str:
+        """Jupyter: the HTML report without plots (:func:`.report.diagnosis_page`)."""
+        from .report import diagnosis_page
+
+        return diagnosis_page(self, figures=False).fragment()
 
     def __repr__(self) -> str:
         found = ", ".join(f"{e.name}({', '.join(e.joints)})" for e in self.effects) or "none"
@@ -750,7 +757,7 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
              effects: Sequence[str] = EFFECT_NAMES, sigma: float | Sequence[float] | None = None,
              *, torque_resolution: float | Sequence[float] | None = None, alpha: float = 1e-3, min_gain: float = 0.01, tie: float = 0.05,
              max_steps: int = 20, split: float = 0.7, inertia_solver: str = "sdp",
-             progress: Callable[[str], None] | None = None) -> Diagnosis:
+             progress: bool | None | Callable[[str], None] = None) -> Diagnosis:
     """Diagnose the gap between a nominal (simulator) model and measured torques.
 
     Parameters
@@ -780,7 +787,9 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
         (:mod:`consistid.identification.sdp`: every body physically consistent, log-det prior around the
         nominal; Euclidean when a nominal body is not realisable) or ``"ls"`` (least squares on
         the base parameters). The selection itself always scores inertia by least squares.
-    progress : called with a line of text after each selection step.
+    progress : ``None`` (default: a progress bar over the selection steps when stderr is a
+        terminal), ``True``/``False`` (always/never; :mod:`consistid.progress`), or a callable
+        called with a line of text after each selection step.
 
     Returns
     -------
@@ -837,8 +846,16 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
         else train.residual
     prob.tau_corr = autocorrelation_time(train.dataset, saturated)
     names = model.joint_names
-    chosen, alts, steps, bics, pvals, rivals = _select(prob, names, alpha, min_gain, tie,
-                                                       max_steps, progress)
+    callback = progress if callable(progress) and not isinstance(progress, bool) else None
+    with Progress(False if callback else progress, None, "diagnosis: selecting effects",
+                  "step") as bar:
+        def tell(line: str) -> None:
+            bar.step(line)
+            if callback is not None:
+                callback(line)
+
+        chosen, alts, steps, bics, pvals, rivals = _select(prob, names, alpha, min_gain, tie,
+                                                           max_steps, tell)
 
     notes: list[str] = []
     chosen, alts, bics, pvals, rivals = _prune_nested(prob, chosen, alts, bics, pvals, rivals,
