@@ -61,6 +61,7 @@ import scipy.stats
 
 from .candidates import EFFECT_NAMES, SIGNATURES, Atom, EffectLibrary, GapData
 from .effects import REGISTRY, EffectParameter
+from ..data.checks import check_for_identification
 from ..data.dataset import Dataset, as_dataset
 from ..errors import ModelError, OptionError, check_number, check_option
 from ..progress import Progress
@@ -805,6 +806,7 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     require_model(model)
     dataset = as_dataset(dataset)
     dataset.check_joints(model.nv, model.joint_names)
+    check_for_identification(dataset, model.joint_names)  # before any numerics
     if held_out is None:
         train_ds, held_ds = dataset.split(split)
         held_source = f"last {1 - split:.0%} of each recording (time split)"

@@ -53,6 +53,7 @@ import pinocchio as pin
 import scipy.optimize
 
 from ..identification.compression import accumulate, joint_sigma
+from ..data.checks import check_for_identification
 from ..data.dataset import Dataset, as_dataset
 from ..errors import ModelError, PoorExcitationWarning
 from ..threads import single_blas_thread
@@ -246,6 +247,8 @@ def estimate_mounting(model: RobotModel, dataset: Dataset,
     """
     g0 = require_model(model).gravity
     dataset = as_dataset(dataset)
+    if isinstance(dataset, Dataset):  # magnitudes, motion, dead channels, glitches
+        check_for_identification(dataset, model.joint_names)
     if not np.any(g0):
         raise ModelError(f"{model.name} has zero gravity: there is no mounting tilt to estimate")
     spec = RegressorSpec.make(model, friction, armature)
