@@ -52,15 +52,17 @@ import numpy as np
 import pinocchio as pin
 import scipy.optimize
 
-from ..identification.compression import accumulate, joint_sigma
+from ..identification.compression import CompressedProblem, accumulate, joint_sigma
 from ..data.checks import check_for_identification
 from ..data.dataset import Dataset, as_dataset
-from ..errors import ModelError, PoorExcitationWarning
+from ..errors import DatasetError, ModelError, OptionError, PoorExcitationWarning
 from ..threads import single_blas_thread
 from ..robot.model import RobotModel, require_model
-from ..identification.regressor import (DEFAULT_FRICTION, FrictionArg, RegressorSpec, predict_torque,
-                        prior_vector, regressor, rigid_body_regressor)
-from ..identification.statistics import autocorrelation_time, coloured_covariance
+from ..identification.regressor import (DEFAULT_FRICTION, FrictionArg, RegressorSpec,
+                                        prior_vector, regressor, rigid_body_regressor)
+from ..identification.statistics import coloured_covariance
+from ..identification.streaming import (DataStream, as_stream, is_one_pass, is_stream, merge,
+                                        residual_statistics)
 
 #: Finite-difference step (rad) for the profile residual's Jacobian.
 JACOBIAN_STEP = 1e-4
@@ -170,6 +172,23 @@ def _compress(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
     return factors
 
 
+def _compress_data(model: RobotModel, data: Dataset | DataStream,
+                   spec: RegressorSpec) -> CompressedProblem:
+    """:func:`_compress` of a dataset, or of a stream part by part (factors merged by a QR of
+    the stacked factors, :func:`consistid.identification.streaming.merge`)."""
+    if isinstance(data, Dataset):
+        return CompressedProblem(_compress(model, data, spec), data.n_samples,
+                                 np.sum(data.require_torque() ** 2, axis=0))
+    out = None
+    for _, part in data.parts(model):
+        one = CompressedProblem(_compress(model, part, spec), part.n_samples,
+                                np.sum(part.tau ** 2, axis=0))
+        out = one if out is None else merge(out, one)
+    if out is None:
+        raise DatasetError("the data stream is empty: it yielded no Dataset or file")
+    return out
+
+
 def _design(factors: np.ndarray, n_in: int, p: int, gravity: np.ndarray
             ) -> tuple[np.ndarray, np.ndarray]:
     """The compressed ``(A(g), b)`` of ``‖Y(g) θ − τ‖²``: per joint ``(w, p)`` and ``(w,)``."""
@@ -219,7 +238,7 @@ def _profile(factors: np.ndarray, n_in: int, p: int, gravity: np.ndarray, space:
 
 
 @single_blas_thread
-def estimate_mounting(model: RobotModel, dataset: Dataset,
+def estimate_mounting(model: RobotModel, dataset: Dataset | DataStream,
                       friction: FrictionArg = DEFAULT_FRICTION,
                       armature: bool = False) -> MountingEstimate:
     """Estimate the tilt of the robot's base (the direction of gravity) from measured torques.
@@ -227,7 +246,10 @@ def estimate_mounting(model: RobotModel, dataset: Dataset,
     Parameters
     ----------
     model : the robot; its gravity ``g₀`` is the level mounting the tilt is measured from.
-    dataset : measured motion and torques (several recordings: :meth:`Dataset.concatenate`).
+    dataset : measured motion and torques (several recordings: :meth:`Dataset.concatenate`),
+        or a re-readable stream of them (a list of files, a
+        :class:`~consistid.identification.streaming.DataStream` on a function), read one at a
+        time, twice (the second reading for the residual's autocorrelation).
         Motions that load the joints against gravity in varied poses determine the tilt; the
         estimate is least squares over the level model's parameter combinations (module
         docstring), so use the regressor columns you identify with.
@@ -246,15 +268,24 @@ def estimate_mounting(model: RobotModel, dataset: Dataset,
     not determine the tilt (the profile residual is flat in some direction).
     """
     g0 = require_model(model).gravity
-    dataset = as_dataset(dataset)
+    if is_stream(dataset):
+        if is_one_pass(dataset):
+            raise OptionError("estimate_mounting reads the data twice (the residual's "
+                              "autocorrelation for its ±), and this stream (an iterator or "
+                              "generator) can be read once: pass a list of files or "
+                              "DataStream(function returning a fresh iterable)")
+        dataset = as_stream(dataset)
+    else:
+        dataset = as_dataset(dataset)
     if isinstance(dataset, Dataset):  # magnitudes, motion, dead channels, glitches
         check_for_identification(dataset, model.joint_names)
     if not np.any(g0):
         raise ModelError(f"{model.name} has zero gravity: there is no mounting tilt to estimate")
     spec = RegressorSpec.make(model, friction, armature)
-    factors = _compress(model, dataset, spec)
+    compressed = _compress_data(model, dataset, spec)
+    factors, n_samples = compressed.factors, compressed.n_samples
     n_in, p = model.n_inertial, model.n_inertial + spec.n_joint_columns
-    total = float(np.sum(dataset.tau ** 2))
+    total = float(np.sum(compressed.tau_sum_squares))
 
     space = _LevelSpace.of(factors, n_in, p, g0, prior_vector(model, spec))
 
@@ -290,13 +321,12 @@ def estimate_mounting(model: RobotModel, dataset: Dataset,
     theta, res = _profile(factors, n_in, p, gravity, space)
     rss_joint = np.sum(res ** 2, axis=1)
     tilted = model.with_gravity(gravity)
-    tau_corr = autocorrelation_time(dataset, predict_torque(tilted, dataset, spec, theta)
-                                    - dataset.tau)
+    tau_corr = residual_statistics(tilted, spec, theta, dataset).autocorrelation_time()
     # sandwich over the directions the data see: G⁻¹ (Σ_j τ_j v_j G_j) G⁻¹, v_j each joint's
     # residual variance (statistics.coloured_covariance)
     seen = vec[:, ~flat]
     bread = (seen / eig[~flat]) @ seen.T
-    variances = joint_sigma(rss_joint, dataset.n_samples, space.rank + 2, tau_corr) ** 2
+    variances = joint_sigma(rss_joint, n_samples, space.rank + 2, tau_corr) ** 2
     cov = coloured_covariance(bread, grams, np.ones(model.nv), tau_corr, variances)
     unseen = np.abs(vec[:, flat]).max(axis=1, initial=0.0) > 1e-6
     cov[unseen, :] = cov[:, unseen] = np.inf
