@@ -301,3 +301,20 @@ def test_csv_headers_in_any_style_read_back_exactly(tmp_path_factory, names, sty
     np.testing.assert_array_equal(got.t, t)
     if extra:
         assert "gripper_joint9" in " ".join(got.notes)
+
+
+def test_missing_values_in_parquet_frames_and_bags_are_named(tmp_path, log):
+    pytest.importorskip("pyarrow")
+    frame = frame_of(log)
+    frame.loc[7, "joint2_effort"] = np.nan
+    with pytest.raises(DatasetError, match=r"DataFrame, row 7, column 'joint2_effort': an empty"):
+        from_frame(frame)
+    frame.to_parquet(tmp_path / "nan.parquet")
+    with pytest.raises(DatasetError, match=r"nan.parquet, row 7, column 'joint2_effort'"):
+        load_recording(tmp_path / "nan.parquet")
+    pytest.importorskip("rosbags")
+    q = log["q"].copy()
+    q[12, 1] = np.nan
+    write_bag(tmp_path / "nanbag", {**log, "q": q})
+    with pytest.raises(DatasetError, match=r"message 12 .*position of joint 'joint2' is nan"):
+        load_recording(tmp_path / "nanbag")

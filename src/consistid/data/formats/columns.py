@@ -77,12 +77,6 @@ class Log:
     rows: np.ndarray | None = field(default=None)
     origin: float = 0.0
 
-    def where(self, k: int) -> str:
-        """The source position of sample ``k`` (a file line or a row)."""
-        if self.rows is not None and 0 <= k < self.rows.size:
-            return f"line {int(self.rows[k])}"
-        return f"row {k}"
-
 
 def _clean(name: str) -> str:
     return str(name).strip().strip('"').strip("'").lower()

@@ -143,4 +143,11 @@ def read_bag(path: str | Path, *, joints: Sequence[str] | None = None, topic: st
     fields = {"q": np.vstack(pos), "tau": np.vstack(eff)}
     if all(v is not None for v in vel):
         fields["dq"] = np.vstack(vel)
+    for f, ros in (("q", "position"), ("tau", "effort"), ("dq", "velocity")):
+        bad = np.argwhere(~np.isfinite(fields[f])) if f in fields else np.zeros((0, 2))
+        if bad.size:
+            k, j = (int(i) for i in bad[0])
+            raise DatasetError(f"{source}, {topic} message {k} (of the kept ones): {ros} of "
+                               f"joint {selected[j]!r} is {fields[f][k, j]} ({len(bad)} "
+                               f"non-finite {ros} value(s))")
     return Log(t, fields, tuple(selected), source, tuple(notes), "s", origin=t0 * 1e-9)
