@@ -318,3 +318,20 @@ def test_missing_values_in_parquet_frames_and_bags_are_named(tmp_path, log):
     write_bag(tmp_path / "nanbag", {**log, "q": q})
     with pytest.raises(DatasetError, match=r"message 12 .*position of joint 'joint2' is nan"):
         load_recording(tmp_path / "nanbag")
+
+
+def test_a_missing_optional_package_names_the_extra(tmp_path, monkeypatch, log):
+    import sys
+
+    from consistid.errors import MissingDependencyError
+
+    (tmp_path / "x.parquet").write_bytes(b"PAR1")
+    (tmp_path / "x.mcap").write_bytes(b"x")
+    monkeypatch.setitem(sys.modules, "pyarrow", None)
+    monkeypatch.setitem(sys.modules, "pyarrow.parquet", None)
+    monkeypatch.setitem(sys.modules, "rosbags.highlevel", None)
+    with pytest.raises(MissingDependencyError, match=r"pyarrow: pip install 'consistid\[io\]'"):
+        load_recording(tmp_path / "x.parquet")
+    with pytest.raises(MissingDependencyError, match=r"rosbags: pip install 'consistid\[io\]'"):
+        load_recording(tmp_path / "x.mcap")
+    assert issubclass(MissingDependencyError, ImportError)
