@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import hashlib
 import json
-import re
 import sys
 import tomllib
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -230,3 +230,27 @@ def test_diagnose_and_design_take_progress(capsys):
     ci.design_excitation(model, harmonics=2, period=4.0, n_starts=2, max_iter=3, n_grid=30,
                          n_check=100, progress=False)
     assert capsys.readouterr().err == ""
+
+
+@pytest.mark.slow
+def test_identify_on_the_kuka_example(kuka_dir, tmp_path, capsys):
+    """Issue 15's acceptance: the KUKA example writes the five files; the JSON reloads to an
+    equal result; Pinocchio reads the identified friction from the URDF (real logs, ~15 s)."""
+    import pinocchio as pin
+
+    config = Path(__file__).resolve().parents[1] / "examples" / "kuka_lwr4" / "identify.toml"
+    out = tmp_path / "kuka"
+    assert main(["-q", "identify", str(config), "--output", str(out)]) == 0
+    assert {p.name for p in out.iterdir()} >= {"result.json", "parameters.csv", "robot.urdf",
+                                               "report.html"}
+    res = ci.IdentificationResult.load(out / "result.json")
+    saved = json.loads((out / "result.json").read_text())
+    assert json.loads(res.save(tmp_path / "again.json").read_text()) == saved
+    assert res.model.source == kuka_dir / "kuka_lwr4.urdf"           # found by its SHA-256
+    assert res.solver.status == "optimal" and res.is_consistent
+    named = dict(zip(res.parameter_names, res.parameters))
+    fc = [named[f"{j}.fc"] for j in res.model.joint_names]
+    fv = [named[f"{j}.fv"] for j in res.model.joint_names]
+    back = pin.buildModelFromUrdf(str(out / "robot.urdf"))
+    assert np.array_equal(back.friction, fc) and np.array_equal(back.damping, fv)
+    check_html((out / "report.html").read_text(), n_images=6)

@@ -236,7 +236,8 @@ PAYLOAD_ROUTES = ("torque", "base-change")
 
 
 def recover(args: argparse.Namespace) -> int:
-    """Consistent standard parameters from base coefficients (:mod:`consistid.estimation.recover`): from a
+    """Consistent standard parameters from base coefficients
+    (:mod:`consistid.estimation.recover`): from a
     ``coefficients`` file (npz: ``beta`` [, ``covariance``]) or by OLS on the ``[data]`` logs."""
     from consistid.cli.config import config_inputs, config_model, config_recordings, load_config
     from consistid.identification.regressor import DEFAULT_FRICTION
@@ -292,7 +293,8 @@ def _coefficients(path, written: str) -> tuple[np.ndarray, np.ndarray | None]:
 
 def payload(args: argparse.Namespace) -> int:
     """Payload from unloaded ``[data]`` logs and ``[payload] loaded`` logs
-    (:mod:`consistid.estimation.payload`); the robot is identified as ``[identify]`` says (default OLS)."""
+    (:mod:`consistid.estimation.payload`); the robot is identified as ``[identify]`` says
+    (default OLS)."""
     import dataclasses
     from consistid.cli.config import (config_ellipsoid, config_identify, config_model,
                                   config_recordings, load_config)
