@@ -575,7 +575,81 @@ def test_nan_in_is_an_error_not_nan_out(arm, name, call, message):
         call(arm)
 
 
-# ================================================================= 11. fuzz
+# ================================================================= 11. other entry points
+def still_data(arm, states):
+    q = np.tile([0.3, -0.2], (N, 1))
+    return dataset(states, q=q, dq=0 * q, ddq=0 * q, tau=arm.rnea(q, 0 * q, 0 * q))
+
+
+@pytest.mark.parametrize("entry", ["estimate_mounting", "diagnose"])
+def test_mounting_and_diagnosis_check_the_data_first(arm, states, entry):
+    call = getattr(ci, entry)
+    with pytest.raises(ci.PoorExcitationError, match="no motion at all"):
+        call(arm, still_data(arm, states))
+    with pytest.raises(ci.DatasetError, match="dead torque channel"):
+        call(arm, dataset(states, tau=np.zeros((N, 2))))
+    with pytest.raises(ci.DatasetError, match=r"tau\[7, 'joint2'\] = 1e\+300"):
+        call(arm, dataset(states, tau=poke(states["tau"], (7, 1), 1e300)))
+
+
+@pytest.mark.parametrize("kwargs,message", [
+    (dict(n_samples=0), "n_samples must be an integer ≥ 1"),
+    (dict(n_samples=2.5), "n_samples must be an integer"),
+    (dict(rtol=-1.0), "rtol must be a finite number > 0"),
+    (dict(rtol=2.0), r"rtol is a relative rank tolerance in \(0, 1\)"),
+])
+def test_base_parameter_options(arm, kwargs, message):
+    with pytest.raises(ci.OptionError, match=message):
+        ci.compute_base_parameters(arm, **kwargs)
+
+
+@pytest.mark.parametrize("kwargs,message", [
+    (dict(harmonics=-1), "harmonics must be an integer ≥ 1"),
+    (dict(harmonics=0), "harmonics must be an integer ≥ 1"),
+    (dict(period=0.0), "period must be a finite number > 0"),
+    (dict(period=float("inf")), "period must be a finite number"),
+    (dict(amplitude=-0.5), "amplitude must be a finite number > 0"),
+])
+def test_random_fourier_trajectory_options(arm, kwargs, message):
+    with pytest.raises(ci.OptionError, match=message):
+        ci.FourierTrajectory.random(arm, **kwargs)
+
+
+FILES = [
+    ("ragged.csv", "t,q1,dq1,ddq1\n0,1,2\n", "header names 4 columns, the rows have 3"),
+    ("text.csv", "t,q1,dq1,ddq1\n0,1,x,3\n", "rows below the header are not all numbers"),
+    ("nocols.csv", "a,b\n1,2\n", "no q1..qn columns"),
+    ("lacks.csv", "t,q1,dq1\n0,1,2\n", r"lacks columns \['ddq1'\]"),
+    ("text.npz", "not a zip", "bad.npz is not a readable .npz archive|not a readable .npz"),
+    ("run.txt", "t\n0\n", "unknown dataset format '.txt'|format"),
+]
+
+
+@pytest.mark.parametrize("name,text,message", FILES, ids=[f[0] for f in FILES])
+def test_dataset_files_that_are_not_datasets(tmp_path, name, text, message):
+    path = tmp_path / name
+    path.write_text(text)
+    with pytest.raises(ci.DatasetError, match=message.replace("bad.npz", name)):
+        ci.Dataset.load(path)
+
+
+def test_npz_holding_one_array_or_garbage_for_load_recording(tmp_path):
+    np.save(tmp_path / "one.npy", np.zeros(3))
+    (tmp_path / "one.npy").rename(tmp_path / "one.npz")
+    with pytest.raises(ci.DatasetError, match="one.npz holds a single array"):
+        ci.Dataset.load(tmp_path / "one.npz")
+    (tmp_path / "junk.npz").write_bytes(b"PK\x03\x04 truncated")
+    with pytest.raises(ci.DatasetError, match="junk.npz is not a readable .npz"):
+        ci.load_recording(tmp_path / "junk.npz")
+
+
+@pytest.mark.parametrize("fraction", [0.0, 1.0, 1.5, float("nan"), -0.2])
+def test_split_fractions(data, fraction):
+    with pytest.raises(ci.DatasetError, match="split fraction must lie in"):
+        data.split(fraction)
+
+
+# ================================================================= 12. fuzz
 FLOATS = st.one_of(st.floats(-10, 10, allow_nan=False),
                    st.sampled_from([0.0, 1e-300, -1e9, 1e12, 1e300, np.nan, np.inf]))
 

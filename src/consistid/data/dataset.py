@@ -19,6 +19,7 @@ These are the dataset's own files. A robot's log (CSV with joint names, Parquet,
 
 from __future__ import annotations
 
+import zipfile
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Sequence
@@ -267,7 +268,7 @@ class Dataset:
         if not path.is_file():
             raise DatasetError(f"dataset file {str(path)!r} does not exist")
         if path.suffix == ".npz":
-            with np.load(path) as f:
+            with open_npz(path) as f:
                 missing = [k for k in ("t", "q", "dq", "ddq") if k not in f]
                 if missing:
                     raise MissingColumnsError(f"{path.name} lacks arrays {missing}; it has "
@@ -285,7 +286,14 @@ class Dataset:
                 raise MissingColumnsError(f"{path.name}: the header {header} is not a "
                                           "comma-separated Dataset CSV (t, q1.., dq1.., ddq1.., "
                                           "tau1..); for a robot's log use consistid.load_recording")
-            data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+            try:
+                data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+            except ValueError as exc:   # text or ragged rows
+                raise DatasetError(f"{path.name}: the rows below the header are not all "
+                                   f"numbers ({exc})") from None
+            if data.shape[1] != len(header):
+                raise MissingColumnsError(f"{path.name}: the header names {len(header)} "
+                                          f"columns, the rows have {data.shape[1]}")
             col = {name.strip(): data[:, i] for i, name in enumerate(header)}
             nv = sum(1 for name in col if name.startswith("q") and name[1:].isdigit())
             raw_log = ("; for a robot's log (joint names in the header, no dq/ddq, any "
@@ -308,6 +316,19 @@ class Dataset:
             return cls(t=col["t"], tau=tau, joint_names=joint_names,
                        segment=col.get("segment"), **stack)
         raise DatasetError(f"unknown dataset format {path.suffix!r}; use .npz or .csv")
+
+
+def open_npz(path: Path):
+    """``numpy.load`` of an ``.npz`` archive (no pickles), or :class:`DatasetError` naming the
+    file when it is not one (a text file, a single ``.npy`` array, a truncated zip)."""
+    try:
+        archive = np.load(path, allow_pickle=False)
+    except (ValueError, OSError, EOFError, zipfile.BadZipFile) as exc:
+        raise DatasetError(f"{path.name} is not a readable .npz archive ({exc})") from None
+    if not hasattr(archive, "files"):
+        raise DatasetError(f"{path.name} holds a single array, not an .npz archive of named "
+                           "arrays (t, q, dq, ddq, tau)")
+    return archive
 
 
 def as_dataset(data: "Dataset | Sequence[Dataset]", name: str = "dataset") -> Dataset:

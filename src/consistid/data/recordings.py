@@ -45,7 +45,7 @@ import numpy as np
 from ..errors import DatasetError, JointNameError, MissingColumnsError, check_option
 from ..robot.model import RobotModel
 from .chain import PreprocessOptions, run_chain
-from .dataset import Dataset
+from .dataset import Dataset, open_npz
 from .formats import Log, format_of, read_frame, read_log
 from .resample import resample
 from .timestamps import (
@@ -442,7 +442,7 @@ def load_recording(path: str | Path, keys: str | Mapping[str, str] = "auto", *,
     if columns is not None or topic is not None or delimiter is not None or joints is not None:
         raise DatasetError(f"{path.name}: columns=, topic=, delimiter= and joints= apply to "
                            "CSV/Parquet/bag/.mat logs; for .npz use keys= and joint_names=")
-    with np.load(path, allow_pickle=False) as f:
+    with open_npz(path) as f:
         files = list(f.files)
         layout = _resolve_layout(files, keys, path.name)
         used = {v for k, v in layout.items() if v in files}

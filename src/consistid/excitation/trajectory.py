@@ -43,7 +43,7 @@ import numpy as np
 import scipy.interpolate
 
 from ..data.dataset import Dataset
-from ..errors import ExcitationError, JointCountError
+from ..errors import ExcitationError, JointCountError, check_number
 from ..robot.model import RobotModel
 
 #: Default acceleration bound (rad/s²) when a model has none: URDFs carry no acceleration limits.
@@ -561,6 +561,9 @@ class FourierTrajectory:
         Unbounded joints are treated as having the range ±π, joints bounded on one side only as
         having one turn (2π) from that bound.
         """
+        harmonics = check_number("harmonics", harmonics, 1, integer=True)
+        period = check_number("period", period, 0, strict=True)
+        amplitude = check_number("amplitude", amplitude, 0, strict=True)
         rng = np.random.default_rng(seed)
         lim = model.limits
         lo, hi = position_range(lim.lower, lim.upper)

@@ -22,6 +22,7 @@ from typing import Sequence
 import numpy as np
 import scipy.linalg
 
+from ..errors import OptionError, check_number
 from ..robot.model import RobotModel
 from .regressor import RegressorSpec, parameter_names, regressor
 
@@ -152,6 +153,11 @@ def compute_base_parameters(model: RobotModel, spec: RegressorSpec | None = None
     seed : random states are drawn from ``numpy.random.default_rng(seed)``.
     rtol : rank tolerance relative to the largest diagonal entry of ``R``.
     """
+    if n_samples is not None:
+        check_number("n_samples", n_samples, 1, integer=True)
+    rtol = check_number("rtol", rtol, 0, strict=True)
+    if rtol >= 1:
+        raise OptionError(f"rtol is a relative rank tolerance in (0, 1), got {rtol!r}")
     spec = spec or RegressorSpec.make(model, friction=None)
     names = parameter_names(model, spec)
     n = n_samples or max(200, 4 * len(names) // model.nv)
