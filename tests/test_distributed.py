@@ -124,3 +124,20 @@ def test_the_dask_tutorial_runs(tmp_path, monkeypatch):
         exec(compile(block, str(DOCS / "dask.md"), "exec"), namespace)
     assert namespace["gap"] < 1e-9 * np.max(np.abs(namespace["local"].base_parameters))
     assert 0.5 < np.mean(namespace["inside"]) <= 1.0
+
+
+def test_excitation_starts_go_to_the_cluster_through_joblib(client, planar_2r):
+    """design_excitation(n_jobs=…) under joblib's Dask backend: the starts run as tasks on the
+    cluster, and the design is the one made start after start here."""
+    import joblib
+
+    kw = dict(harmonics=2, period=4.0, seed=3, n_starts=2, friction=None, n_grid=60,
+              n_check=400, max_iter=30)
+    here = ci.design_excitation(planar_2r, **kw)
+    with distributed.get_task_stream(client) as tasks, joblib.parallel_config(backend="dask"):
+        remote = ci.design_excitation(planar_2r, n_jobs=2, **kw)
+    assert len(tasks.data) >= 1
+    assert [s.value for s in remote.starts] == [s.value for s in here.starts]
+    assert remote.best_start == here.best_start
+    np.testing.assert_array_equal(remote.starts[remote.best_start].coefficients,
+                                  here.starts[here.best_start].coefficients)

@@ -490,8 +490,8 @@ def design_excitation(model: RobotModel, harmonics: int = 5, period: float = 10.
                       noise_std: float | Sequence[float] | None = None,
                       n_starts: int = 4, max_iter: int = 100, method: str = "SLSQP",
                       n_grid: int = 150, n_check: int = 2000, safety: float = 0.01,
-                      progress: bool | None | Callable[[StartResult], None] = None
-                      ) -> ExcitationDesign:
+                      progress: bool | None | Callable[[StartResult], None] = None,
+                      n_jobs: int | None = None) -> ExcitationDesign:
     r"""Design an optimal excitation trajectory (multi-start local optimisation).
 
     Parameters
@@ -519,6 +519,11 @@ def design_excitation(model: RobotModel, harmonics: int = 5, period: float = 10.
     progress : ``None`` (default: a progress bar over the starts when stderr is a terminal),
         ``True``/``False`` (always/never a bar; :mod:`consistid.progress`), or a callable called
         with each :class:`StartResult` as it finishes. Each start is also logged at INFO.
+    n_jobs : run the starts through :class:`joblib.Parallel` with this many workers (``-1``: all
+        cores; inside ``joblib.parallel_config(backend="dask")`` they go to a Dask cluster).
+        ``None`` (default): one after the other in this process. The starting points are drawn
+        in order from ``seed`` either way, so the design is the same; in parallel a start's
+        ``evaluations`` and ``time`` leave out drawing its starting point.
 
     Returns
     -------
@@ -564,20 +569,19 @@ def design_excitation(model: RobotModel, harmonics: int = 5, period: float = 10.
     qualities: list[ExcitationQuality] = []
     callback = progress if callable(progress) and not isinstance(progress, bool) else None
     bar = Progress(False if callback else progress, n_starts, "excitation design", "start")
-    for k in range(n_starts):
-        t0 = time.perf_counter()
-        evals0, grads0 = problem.n_evaluations, problem.n_gradients
-        x0 = random_feasible(problem, rng)
-        initial = problem.value(x0)
-        x, nit, status = _optimise(problem, x0, method, max_iter)
-        quality = assess_excitation(model, param.trajectory(x.reshape(problem.shape)), limits,
-                                    friction, armature, n_check, base, noise_std, column_scale)
+    check = (limits, friction, armature, n_check, base, noise_std, column_scale)
+    if n_jobs is None:
+        runs = (_run_start(problem, k, lambda: random_feasible(problem, rng), method, max_iter,
+                           check) for k in range(n_starts))
+    else:
+        import joblib
+
+        x0s = [random_feasible(problem, rng) for _ in range(n_starts)]
+        runs = joblib.Parallel(n_jobs=n_jobs, return_as="generator")(
+            joblib.delayed(_run_start)(problem, k, x0, method, max_iter, check)
+            for k, x0 in enumerate(x0s))
+    for result, quality in runs:
         qualities.append(quality)
-        result = StartResult(k, initial, problem.value(x), quality.cond,
-                             quality.constraints.feasible,
-                             quality.constraints.min_relative_margin, nit,
-                             problem.n_evaluations - evals0, problem.n_gradients - grads0, status,
-                             time.perf_counter() - t0, x.reshape(problem.shape))
         starts.append(result)
         logger.info("excitation %s", result)
         bar.step(f"cond {quality.cond:.4g}, {'feasible' if result.feasible else 'infeasible'}")
@@ -596,6 +600,27 @@ def design_excitation(model: RobotModel, harmonics: int = 5, period: float = 10.
     return ExcitationDesign(traj, criterion, best.value, qualities[best.index], tuple(starts),
                             best.index, base, spec, limits, tuple(model.joint_names),
                             time.perf_counter() - start_time)
+
+
+def _run_start(problem: "_DesignProblem", k: int, x0: np.ndarray | Callable[[], np.ndarray],
+               method: str, max_iter: int, check: tuple
+               ) -> tuple[StartResult, ExcitationQuality]:
+    """One start of :func:`design_excitation` from ``x0`` (or from what the function ``x0``
+    draws, counted in the start's time and evaluations): local optimisation, then the dense
+    check (``check``: its limits, friction, armature, n_check, base, noise_std, column_scale)."""
+    t0 = time.perf_counter()
+    evals0, grads0 = problem.n_evaluations, problem.n_gradients
+    x0 = x0() if callable(x0) else x0
+    initial = problem.value(x0)
+    x, nit, status = _optimise(problem, x0, method, max_iter)
+    limits, friction, armature, n_check, base, noise_std, column_scale = check
+    quality = assess_excitation(problem.model, problem.param.trajectory(x.reshape(problem.shape)),
+                                limits, friction, armature, n_check, base, noise_std,
+                                column_scale)
+    return StartResult(k, initial, problem.value(x), quality.cond, quality.constraints.feasible,
+                       quality.constraints.min_relative_margin, nit,
+                       problem.n_evaluations - evals0, problem.n_gradients - grads0, status,
+                       time.perf_counter() - t0, x.reshape(problem.shape)), quality
 
 
 def random_excitation(model: RobotModel, harmonics: int = 5, period: float = 10.0,
