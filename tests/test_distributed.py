@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import re
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -18,9 +17,6 @@ pytest.importorskip("dask.bag")
 
 from consistid.identification.distributed import (DaskData, compress_on_dask,  # noqa: E402
                                                   on_dask)
-
-DOCS = Path(__file__).resolve().parents[1] / "docs" / "tutorials"
-
 
 def runs(model, n, duration=2.0, rate=200.0):
     return [ci.simulate.excitation_run(model, duration=duration, rate=rate, seed=s,
@@ -111,19 +107,6 @@ def test_bad_collections_are_named(client, planar_2r, ur5, tmp_path):
     with pytest.raises(JointCountError, match="ur5.npz"):
         ci.identify(planar_2r, on_dask([tmp_path / "ur5.npz"], client=client), method="ols")
     assert isinstance(on_dask(runs(planar_2r, 1)), DaskData)
-
-
-def test_the_dask_tutorial_runs(tmp_path, monkeypatch):
-    """Every ```python block of docs/tutorials/dask.md, in order, in one namespace."""
-    text = (DOCS / "dask.md").read_text()
-    blocks = re.findall(r"```python\n(.*?)```", text, flags=re.S)
-    assert len(blocks) >= 3
-    monkeypatch.chdir(tmp_path)
-    namespace: dict = {}
-    for block in blocks:
-        exec(compile(block, str(DOCS / "dask.md"), "exec"), namespace)
-    assert namespace["gap"] < 1e-9 * np.max(np.abs(namespace["local"].base_parameters))
-    assert 0.5 < np.mean(namespace["inside"]) <= 1.0
 
 
 def test_excitation_starts_go_to_the_cluster_through_joblib(client, planar_2r):

@@ -180,6 +180,10 @@ def test_bad_parts_are_named(tmp_path, planar_2r, ur5_model):
         ci.identify(planar_2r, iter([no_tau]), method="ols", covariance="iid")
     with pytest.raises(DatasetError, match="one Dataset"):
         DataStream(data[0])
+    wild = data[0].with_torque(data[0].tau.copy())
+    wild.tau[7, 1] = 1e12
+    with pytest.raises(DatasetError, match=r"data\[1\].*tau\[7"):
+        ci.identify(planar_2r, iter([data[0], wild]), method="ols")
     with pytest.raises(OptionError, match="loader"):
         DataStream([tmp_path], loader=3)
 

@@ -41,6 +41,7 @@ from typing import Any, Callable, Iterable, Iterator
 
 import numpy as np
 
+from ..data.checks import check_magnitudes
 from ..data.dataset import Dataset
 from ..errors import DatasetError, OptionError
 from ..robot.model import RobotModel
@@ -173,8 +174,9 @@ class DataStream:
 
     # -------------------------------------------------------------------------- reading
     def parts(self, model: RobotModel | None = None) -> Iterator[tuple[str, Dataset]]:
-        """``(label, dataset)`` of each part in turn, files loaded, joints checked against
-        ``model``. Raises :class:`DatasetError` naming the part that is not a dataset or file, and
+        """``(label, dataset)`` of each part in turn, files loaded, joints, torques and
+        magnitudes (:func:`consistid.data.checks.check_magnitudes`) checked against ``model``.
+        Raises :class:`DatasetError` naming the part that is not a dataset or file, and
         when a one-pass stream is read a second time."""
         if self._read and not self.rereadable:
             raise DatasetError("this stream (an iterator or generator) was already read once; "
@@ -198,6 +200,9 @@ class DataStream:
                 try:
                     data.check_joints(model.nv, model.joint_names)
                     data.require_torque()
+                    # per part: absurd values; motion and dead channels are the whole
+                    # stream's business (a part may be a pause)
+                    check_magnitudes(data, joint_names=model.joint_names)
                 except DatasetError as exc:
                     raise type(exc)(f"{label}: {exc}") from exc
             yield label, data
