@@ -5,20 +5,29 @@ A real log is rarely a clean ``(t, q, dq, ddq, tau)`` table. :func:`from_arrays`
 every step applied to it (``Recording.steps``), so that a user can see, and a report can quote,
 what was done:
 
-1. **Arrays** are read by name; the layout is given (``keys``) or recognised
-   (:data:`NPZ_LAYOUTS`). Arrays the layout does not name (e.g. ``target_*`` set-points) are
-   listed and never read.
+1. **Arrays** are read by name. ``.npz``: the layout is given (``keys``) or recognised
+   (:data:`NPZ_LAYOUTS`); arrays the layout does not name (e.g. ``target_*`` set-points) are
+   listed and never read. CSV, Parquet, DataFrames, ROS 1/2 bags and MCAP, ``.mat``: read by
+   :mod:`consistid.data.formats` (columns matched by name, :mod:`~consistid.data.formats.columns`;
+   ``JointState`` messages by joint name); the joints of ``joints=`` (default: the model's)
+   are kept and the others' columns (a gripper) dropped and listed.
 2. **Time** is shifted so that the first sample is at 0 s (Unix stamps are recognised and their
    origin recorded). Stamps must not go backwards (:class:`~consistid.errors.DatasetError`
-   naming the index). Samples sharing a stamp are merged (``duplicates="average"``: the mean of
-   the group, equal to dropping exact repeats), kept first (``"first"``) or refused
-   (``"error"``). Non-uniform sampling is kept as recorded and its spread reported: least
-   squares works on samples, not on a time grid; gaps longer than :data:`GAP_FACTOR` median steps
-   are reported.
-3. **Derivatives**: logged velocities and accelerations are used as recorded (the log is taken
-   to be filtered already; nothing is filtered again). A raw log without them goes through
-   :func:`consistid.data.signals.preprocess` (filtering, differentiation, resampling of jittered
-   stamps, edge trimming), whose steps are appended.
+   naming the index) nor be NaN. Their unit is checked: an implausible log in seconds (a
+   "1 Hz" robot whose stamps are milliseconds) is refused naming the likely unit, and converted
+   only with ``time_unit=`` (or a unit the file gives: a ``time_ms`` column, ROS stamps).
+   Samples sharing a stamp are merged (``duplicates="average"``: the mean of the group, equal to
+   dropping exact repeats), kept first (``"first"``), spread evenly (``"spread"``) or refused
+   (``"error"``); by default they are averaged unless the stamps are *collapsed* (more than
+   10 % of the samples share one: a clock coarser than the sampling), which is refused.
+   Non-uniform sampling is reported (rate, steps, gaps longer than :data:`GAP_FACTOR` median
+   steps). Torques that the logger averaged over each interval and stamped at its start or end
+   (``timestamp=``) are moved to the interval centres.
+3. **Derivatives**: logged velocities and accelerations are used as recorded at their own stamps
+   (the log is taken to be filtered already; nothing is filtered again). A raw log without them
+   goes through the signal chain (:mod:`consistid.data.chain`: outliers, resampling of jittered
+   stamps at the rate the log supports, zero-phase filtering, differentiation, edge trimming),
+   whose steps are appended.
 4. **Joint names**: the log's columns are matched to the model's joints by name and reordered
    to the model's order; a name missing on either side raises
    :class:`~consistid.errors.JointNameError` listing both sides. A log without names must have
@@ -162,7 +171,7 @@ def _match_joints(names: Sequence[str] | None, nv: int, model: RobotModel | None
 def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | None = None,
                 ddq: np.ndarray | None = None, *, joint_names: Sequence[str] | None = None,
                 model: RobotModel | None = None, trim_start: float = 0.0,
-                trim_end: float = 0.0, duplicates: str | None = "average",
+                trim_end: float = 0.0, duplicates: str | None = None,
                 time_unit: str | None = None, timestamp: str | Mapping[str, str] = "centre",
                 source: str = "arrays", **signal_options: object) -> Recording:
     """A :class:`Recording` from logged arrays (steps 2–5 of the module docstring).
@@ -179,8 +188,8 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
     model : the robot; its joint order is the dataset's.
     trim_start, trim_end : seconds dropped at the start and at the end (the trimming rule).
     duplicates : ``"average"``, ``"first"``, ``"error"`` or ``"spread"`` for samples sharing a
-        time stamp; ``None``: average, but refuse collapsed stamps
-        (:func:`consistid.data.timestamps.merge_duplicates`).
+        time stamp; ``None`` (default): average, but refuse collapsed stamps — more than 10 % of
+        the samples sharing a stamp (:func:`consistid.data.timestamps.merge_duplicates`).
     time_unit : the stamps' unit: ``None`` (seconds; implausible stamps — a "1 Hz" log that is
         really milliseconds — raise :class:`DatasetError` naming the likely unit), ``"auto"``
         (convert to the one plausible unit and record it), ``"s"``, ``"ms"``, ``"us"``,
@@ -304,7 +313,7 @@ def _shift_logged(t: np.ndarray, arrays: dict[str, np.ndarray], shifts: Mapping[
 
 
 def from_log(log: Log, *, model: RobotModel | None = None, trim_start: float = 0.0,
-             trim_end: float = 0.0, duplicates: str | None = "average",
+             trim_end: float = 0.0, duplicates: str | None = None,
              time_unit: str | None = None, timestamp: str | Mapping[str, str] = "centre",
              derivatives: str = "auto", **signal_options: object) -> Recording:
     """A :class:`Recording` from a log read by :mod:`consistid.data.formats`: the reader's notes
@@ -386,7 +395,7 @@ def load_recording(path: str | Path, keys: str | Mapping[str, str] = "auto", *,
                    stamp: str = "header", delimiter: str | None = None,
                    joint_names: Sequence[str] | None = None, model: RobotModel | None = None,
                    trim_start: float = 0.0, trim_end: float = 0.0,
-                   duplicates: str | None = "average", time_unit: str | None = None,
+                   duplicates: str | None = None, time_unit: str | None = None,
                    timestamp: str | Mapping[str, str] = "centre", derivatives: str = "auto",
                    **signal_options: object) -> Recording:
     """Read a log file into a :class:`Recording` (module docstring: what is done, in order).
