@@ -9,8 +9,8 @@ Sections (:func:`identification_page`):
 3. **Plots** (when data are given) — measured vs predicted torque per joint on the training and
    the held-out data, residual histograms against ``N(0, σ²)``, residual spectra against each
    joint's white-noise level (:mod:`consistid.report.plots`).
-4. **Base parameters** — estimate ± σ, relative σ, the prior's value, the 95 % interval and the
-   grouping each one stands for (what ``*`` means: the parameter absorbs others).
+4. **Base parameters** — estimate ± σ, relative σ, the prior's value and the grouping each one
+   stands for (what ``*`` means: the parameter absorbs others).
 5. **Bodies** — each body's mass, centre of mass, consistency and margin (smallest eigenvalue of
    the pseudo-inertia ``J``: ``J ≻ 0`` is density realisability, Wensing, Kim & Slotine 2017,
    doi:10.1109/LRA.2017.2729659), then the per-joint terms and every standard parameter.
@@ -95,22 +95,20 @@ def _fit_rows(res: "IdentificationResult", sets: Sequence[tuple[str, Dataset]]
 
 
 def base_rows(res: "IdentificationResult", max_rows: int | None = None) -> list[list[Any]]:
-    """One row per base parameter: name, estimate, σ, σ %, prior, 95 % interval, grouping."""
+    """One row per base parameter: name, estimate, σ, σ % (``inf`` where the estimate is 0),
+    the prior's value, the grouping it stands for."""
     prior = res.base.project(res.prior)
-    ci = res.conf_int(0.05)
     rows = []
     for i, (name, grouping) in enumerate(zip(res.base.names, res.base.groupings)):
         rel = res.relative_std[i]
-        rows.append([name, res.base_parameters[i], res.base_std[i],
-                     f"{rel:.1f}" if np.isfinite(rel) else "inf", prior[i],
-                     f"[{ci[i, 0]:.4g}, {ci[i, 1]:.4g}]", grouping])
+        rows.append([name, res.base_parameters[i], res.base_std[i], (float(rel), ".3g"),
+                     prior[i], grouping])
         if max_rows is not None and len(rows) >= max_rows:
             break
     return rows
 
 
-BASE_HEADER = ["base parameter", "estimate", "± σ", "σ %", "prior", "95 % interval",
-               "stands for"]
+BASE_HEADER = ["base parameter", "estimate", "± σ", "σ %", "prior", "stands for"]
 
 STAR_TEXT = ("Torques determine only linear combinations of the standard parameters: the base "
              "parameters (Gautier 1991). A name marked * regroups others: β = π_i + Σ_d k_d·π_d, "

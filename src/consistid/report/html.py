@@ -40,6 +40,7 @@ vertical-align:top;overflow-wrap:anywhere}
 .cid-report th{background:#f2f2f2}
 .cid-report td.num{text-align:right;font-family:ui-monospace,Menlo,Consolas,monospace;
 white-space:nowrap}
+.cid-report td.key{white-space:nowrap;overflow-wrap:normal}
 .cid-report tr.bad td{background:#fde8e8}.cid-report tr.good td{background:#fff}
 .cid-report caption{caption-side:top;text-align:left;font-size:.9em;color:#444;padding:2px 0}
 .cid-report .verdict{padding:8px 12px;border-left:4px solid #888;background:#f7f7f7}
@@ -85,9 +86,12 @@ def data_uri(png: bytes) -> str:
 
 
 def table_html(header: Sequence[str], rows: Iterable[Sequence[Any]], *, caption: str = "",
-               floatfmt: str = ".4g", row_classes: Sequence[str] | None = None) -> str:
+               floatfmt: str = ".4g", row_classes: Sequence[str] | None = None,
+               keys: Sequence[int] = (0,)) -> str:
     """A ``<table>``: a header row, then ``rows`` (numbers right-aligned, formatted with
-    ``floatfmt``; a cell may be ``(value, spec)`` to format one number its own way)."""
+    ``floatfmt``; a cell may be ``(value, spec)`` to format one number its own way). Text
+    cells of the ``keys`` columns (names: the first by default) do not wrap; other text wraps
+    anywhere, so the table never grows wider than the page for a long text."""
     out = ["<table>"]
     if caption:
         out.append(f"<caption>{esc(caption)}</caption>")
@@ -96,13 +100,13 @@ def table_html(header: Sequence[str], rows: Iterable[Sequence[Any]], *, caption:
     for k, row in enumerate(rows):
         cls = f' class="{esc(row_classes[k])}"' if row_classes and row_classes[k] else ""
         cells = []
-        for cell in row:
+        for c, cell in enumerate(row):
             spec = floatfmt
             if isinstance(cell, tuple) and len(cell) == 2 and isinstance(cell[1], str):
                 cell, spec = cell
             numeric = _is_number(cell)
-            cells.append(f'<td class="num">{esc(fmt(cell, spec))}</td>' if numeric
-                         else f"<td>{esc(fmt(cell, spec))}</td>")
+            css = ' class="num"' if numeric else ' class="key"' if c in keys else ""
+            cells.append(f"<td{css}>{esc(fmt(cell, spec))}</td>")
         out.append(f"<tr{cls}>" + "".join(cells) + "</tr>")
     out.append("</tbody></table>")
     return "".join(out)
@@ -146,14 +150,15 @@ class Page:
             self.parts.append("<ul>" + "".join(f"<li>{esc(i)}</li>" for i in items) + "</ul>")
 
     def table(self, header: Sequence[str], rows: Iterable[Sequence[Any]], *, caption: str = "",
-              floatfmt: str = ".4g", row_classes: Sequence[str] | None = None) -> None:
+              floatfmt: str = ".4g", row_classes: Sequence[str] | None = None,
+              keys: Sequence[int] = (0,)) -> None:
         """A ``<table>`` (:func:`table_html`)."""
         self.parts.append(table_html(header, rows, caption=caption, floatfmt=floatfmt,
-                                     row_classes=row_classes))
+                                     row_classes=row_classes, keys=keys))
 
     def key_values(self, pairs: Iterable[tuple[str, Any]], caption: str = "") -> None:
         """A two-column table of named figures."""
-        self.table(["", ""], [(k, v) for k, v in pairs], caption=caption)
+        self.table(["", ""], [(k, v) for k, v in pairs], caption=caption, keys=())
 
     def figure(self, name: str, fig: Any, caption: str = "", dpi: int = 100) -> None:
         """Embed a matplotlib figure as PNG (kept in :attr:`figures` under ``name`` so that a
