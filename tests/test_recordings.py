@@ -198,3 +198,14 @@ def test_the_cli_reads_csv_and_bags(tmp_path, planar_2r):
         '[data.signals]\ncutof = 8.0\n')
     with pytest.raises(ConfigError, match=r"unknown key\(s\) \['cutof'\] in \[data.signals\]"):
         config_recordings(load_config(tmp_path / "bad.toml"), planar_2r)
+
+
+def test_collapsed_stamps_are_refused_by_the_loader_unless_a_policy_is_given():
+    a = log(n=200, dt=0.001)
+    a["t"] = T0 + np.floor(np.arange(200) / 10) * 0.01          # a 10 ms clock, 1 kHz samples
+    with pytest.raises(DatasetError, match="collapsed time stamps: 180 of 200"):
+        from_arrays(**a)
+    spread = from_arrays(**a, duplicates="spread")
+    assert spread.dataset.n_samples == 200
+    np.testing.assert_allclose(np.diff(spread.dataset.t), 0.001, atol=1e-6)
+    assert from_arrays(**a, duplicates="average").dataset.n_samples == 20
