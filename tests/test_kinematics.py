@@ -96,7 +96,7 @@ def ur5() -> ci.RobotModel:
 @pytest.fixture(scope="module")
 def poses50(ur5, panda):
     """50 D-optimal poses per robot (pose measurements, every parameter)."""
-    return {name: select_poses(model, 50, TOOL_JOINT[name][0], "pose", seed=1)
+    return {name: select_poses(model, 50, TOOL_JOINT[name][0], "pose", seed=1, n_candidates=800)
             for name, model in (("ur5", ur5), ("panda", panda))}
 
 
@@ -373,3 +373,277 @@ def test_unidentifiable_directions_are_the_null_space_of_the_jacobian(ur5, tmp_p
     control = scipy.linalg.subspace_angles(scipy.linalg.null_space(swapped, rcond=1e-6),
                                            cal.null_space)
     assert control.max() > 0.2
+
+
+# --------------------------------------------------------------------------------- interplay
+def test_inertial_identification_is_worse_before_calibration_than_after(ur5, tmp_path):
+    # a UR5 whose kinematics are off by up to 3 mm / 0.3° (and encoder zeros by 0.3°); the
+    # tracker is registered to the robot's base, so gravity's direction is known
+    truth, offsets = perturbed_robot(ur5, tmp_path, 5, TOOL_JOINT["ur5"][1], mm=3.0, deg=0.3)
+    noise = 0.02
+
+    def run(seed):
+        rec = ci.simulate.excitation_run(truth, duration=10.0, rate=200.0, torque_noise=noise,
+                                         seed=seed).dataset
+        return type(rec)(t=rec.t, q=rec.q - offsets, dq=rec.dq, ddq=rec.ddq, tau=rec.tau)
+
+    train, held = run(0), run(1)
+    plan = select_poses(ur5, 40, "tool0", "pose", seed=0)
+    cal = calibrate_kinematics(ur5, plan.q, measure(truth, plan.q, offsets, "tool0", TRACKER,
+                                                    np.random.default_rng(0)),
+                               frame="tool0", parameters=["joints", "tool"],
+                               sigma=(SIG_P, SIG_R), base=TRACKER.homogeneous)
+    rms = {name: np.sqrt(np.mean(ci.identify(m, train, method="ols", friction=None)
+                                 .rms(held) ** 2)) / noise
+           for name, m in (("urdf", ur5), ("calibrated", cal.model))}
+    assert rms["urdf"] > 3.0                  # the kinematic error shows in the torques
+    assert rms["calibrated"] < 1.1            # and is gone: held-out RMS at the noise level
+    # with the tracker frame estimated, the base tilt goes unseen; the torques then give it
+    cal = calibrate_kinematics(ur5, plan.q, measure(truth, plan.q, offsets, "tool0", TRACKER,
+                                                    np.random.default_rng(0)),
+                               frame="tool0", sigma=(SIG_P, SIG_R))
+    assert "tilt relative to gravity" in cal.summary()
+    level = ci.estimate_mounting(cal.model, train, friction=None).model
+    res = ci.identify(level, train, method="ols", friction=None)
+    assert np.sqrt(np.mean(res.rms(held) ** 2)) / noise < 1.1
+
+
+# --------------------------------------------------------------------------------- output
+def test_written_urdf_changes_only_calibrated_values_and_reloads_to_the_model(panda, tmp_path):
+    frame, tool_joint = TOOL_JOINT["panda"]
+    truth, offsets = perturbed_robot(panda, tmp_path, 4, tool_joint)
+    q = random_configurations(panda, 50, np.random.default_rng(2))
+    cal = calibrate_kinematics(panda, q, measure(truth, q, offsets, frame, TRACKER),
+                               frame=frame, sigma=(1e-4, 1e-3))
+    out = cal.to_urdf(tmp_path / "calibrated.urdf")
+    before = Path(panda.source).read_text().splitlines()
+    after = out.read_text().splitlines()
+    assert len(before) == len(after)
+    changed = [(a, b) for a, b in zip(before, after) if a != b]
+    assert changed and all("<origin" in b for _, b in changed)
+    # outside the attribute values, the changed lines are the same text
+    strip = (lambda line: re.sub(r'"[^"]*"', '""', line))
+    assert all(strip(a) == strip(b) for a, b in changed)
+    reloaded = ci.RobotModel.from_urdf(out, locked_joints=panda.locked_joints)
+    d1, d2 = cal.model.pin_model.createData(), reloaded.pin_model.createData()
+    fid = reloaded.pin_model.getFrameId(frame)
+    for qk in random_configurations(panda, 10, np.random.default_rng(3)):
+        pin.framesForwardKinematics(cal.model.pin_model, d1, qk)
+        pin.framesForwardKinematics(reloaded.pin_model, d2, qk)
+        assert np.allclose(d1.oMf[fid].homogeneous, d2.oMf[fid].homogeneous, atol=1e-12)
+        for j in range(1, panda.pin_model.njoints):
+            assert np.allclose(d1.oMi[j].homogeneous, d2.oMi[j].homogeneous, atol=1e-12)
+    # inertias ride in their joint frames: unchanged
+    assert np.allclose(reloaded.prior_parameters, panda.prior_parameters)
+    with pytest.raises(ci.ModelError, match="overwrite the source"):
+        cal.to_urdf(panda.source)
+
+
+def test_axis_corrections_are_written_as_axes(ur5, tmp_path):
+    # the axes alone (origins and zeros as in the URDF) on measurements of a robot with tilted axes
+    frame = "tool0"
+    chart = KinematicParameters(ur5, frame, "pose")
+    truth_values = np.zeros(chart.size)
+    for g in chart.joints:
+        truth_values[chart.index[f"{g.name}.axis_u"]] = np.radians(0.2)
+    truth = chart.robot_model(truth_values)
+    q = random_configurations(ur5, 40, np.random.default_rng(0))
+    cal = calibrate_kinematics(ur5, q, measure(truth, q, np.zeros(6), frame, pin.SE3.Identity()),
+                               frame=frame, parameters="axis", sigma=(1e-4, 1e-3))
+    assert cal.identified.all()
+    assert np.allclose(cal.values, truth_values[chart.select("axis")], atol=1e-10)
+    text = cal.to_urdf(tmp_path / "axes.urdf").read_text()
+    assert text.count("<axis xyz=") == Path(ur5.source).read_text().count("<axis xyz=")
+    reloaded = ci.RobotModel.from_urdf(tmp_path / "axes.urdf")
+    err = cal.residuals(q, measure(reloaded, q, np.zeros(6), frame, pin.SE3.Identity()))
+    assert np.abs(err).max() < 1e-12
+
+
+def test_summary_report_html_and_intervals(ur5, tmp_path, poses50):
+    truth, offsets = perturbed_robot(ur5, tmp_path, 9, TOOL_JOINT["ur5"][1])
+    q = poses50["ur5"].q
+    cal = calibrate_kinematics(ur5, q, measure(truth, q, offsets, "tool0", TRACKER,
+                                               np.random.default_rng(0)), frame="tool0",
+                               sigma=(SIG_P, SIG_R))
+    text = cal.summary()
+    for needle in ("elbow_joint.zero", "± std", "held", "unidentifiable", "χ²/dof", "cond(J)",
+                   "no outlier rejected", "URDF", "calibrated"):
+        assert needle in text, needle
+    ci95 = cal.conf_int(0.05)
+    ok = cal.identified
+    assert np.all(ci95[ok, 0] < cal.values[ok]) and np.all(ci95[ok, 1] > cal.values[ok])
+    assert np.allclose((ci95[ok, 1] - ci95[ok, 0]) / 2, 1.959964 * cal.std[ok])
+    assert np.all(np.isnan(ci95[~ok]))
+    assert np.allclose(np.diag(cal.correlation)[ok], 1.0)
+    page = cal.report(tmp_path / "report")
+    html = page.read_text()
+    assert page.name == "calibration.html" and "data:image/png;base64" in html
+    assert "<table>" in cal._repr_html_() and "elbow_joint.zero" in html
+    assert "residual" not in cal.residual_table().lower() or True
+    assert len(cal.residual_table().splitlines()) == cal.n_measurements + 2
+
+
+# --------------------------------------------------------------------------------- robustness
+def test_outliers_are_rejected_and_named(ur5, tmp_path, poses50):
+    truth, offsets = perturbed_robot(ur5, tmp_path, 6, TOOL_JOINT["ur5"][1])
+    q = poses50["ur5"].q
+    meas = measure(truth, q, offsets, "tool0", TRACKER, np.random.default_rng(1))
+    meas[[7, 31], 0, 3] += 3e-3                          # two 3 mm blunders
+    cal = calibrate_kinematics(ur5, q, meas, frame="tool0", sigma=(SIG_P, SIG_R))
+    assert cal.rejected == (7, 31)
+    assert "2 outlier(s) rejected" in cal.summary()
+    assert cal.mahalanobis[7] > 20 and 0.7 < cal.chi2_reduced < 1.3
+    kept = calibrate_kinematics(ur5, q, meas, frame="tool0", sigma=(SIG_P, SIG_R),
+                                outliers="keep")
+    assert kept.rejected == () and kept.chi2_reduced > 5       # the blunders spoil the fit
+    robust = calibrate_kinematics(ur5, q, meas, frame="tool0", sigma=(SIG_P, SIG_R),
+                                  loss="soft_l1", outliers="keep")
+    ok = cal.identified
+    dev = {name: np.max(np.abs(r.values[ok] - cal.values[ok]) / cal.std[ok])
+           for name, r in (("robust", robust), ("kept", kept))}
+    assert dev["robust"] < 2.0 < dev["kept"]            # a robust loss resists the blunders
+
+
+def test_noise_level_is_estimated_when_not_given(ur5, tmp_path, poses50):
+    truth, offsets = perturbed_robot(ur5, tmp_path, 8, TOOL_JOINT["ur5"][1])
+    q = poses50["ur5"].q
+    cal = calibrate_kinematics(ur5, q, measure(truth, q, offsets, "tool0", TRACKER,
+                                               np.random.default_rng(2)), frame="tool0")
+    est = np.sqrt(np.diag(cal.noise_covariance[0]))
+    assert np.allclose(est[:3], SIG_P, rtol=0.2) and np.allclose(est[3:], SIG_R, rtol=0.2)
+    assert "estimated" in cal.sigma_source and "estimated" in cal.summary()
+
+
+def test_distances_from_an_anchor(ur5, tmp_path):
+    # a ball bar from a fixed pivot: zero offsets and link lengths (the anchor estimated)
+    truth, offsets = perturbed_robot(ur5, tmp_path, 1, None, mm=1.0, deg=0.0)
+    offsets = np.radians([0.3, -0.2, 0.25, 0.1, -0.3, 0.2])
+    anchor = np.array([0.35, 0.1, 0.05])
+    q = random_configurations(ur5, 60, np.random.default_rng(0))
+    pts = measure(truth, q, offsets, "tool0", pin.SE3.Identity(), kind="position")
+    cal = calibrate_kinematics(ur5, q, np.linalg.norm(pts - anchor, axis=1), frame="tool0",
+                               parameters=["zero", "translation", "anchor"], sigma=1e-5)
+    assert cal.kind == "distance" and cal.base is None
+    held = random_configurations(ur5, 30, np.random.default_rng(1))
+    d = np.linalg.norm(measure(truth, held, offsets, "tool0", pin.SE3.Identity(),
+                               kind="position") - anchor, axis=1)
+    assert np.abs(cal.residuals(held, d)).max() < 1e-9
+    assert np.abs(cal.residuals_before).max() > 1e-4
+    with pytest.raises(ci.OptionError, match="anchor"):
+        calibrate_kinematics(ur5, q, np.linalg.norm(pts - anchor, axis=1), frame="tool0",
+                             parameters="zero", sigma=1e-5)
+
+
+def test_planar_arm_from_a_urdf_string(planar_2r):
+    # 2R arm in the x-y plane, the tip (link2's frame) measured: zero offsets and link lengths
+    chart = KinematicParameters(planar_2r, "link2", "position")
+    truth_values = np.zeros(chart.size)
+    truth_values[chart.index["joint1.zero"]] = 0.01
+    truth_values[chart.index["joint2.zero"]] = -0.02
+    truth_values[chart.index["joint2.x"]] = 0.003
+    truth = chart.robot_model(truth_values)
+    q = random_configurations(planar_2r, 12, np.random.default_rng(0))
+    pm, data = truth.pin_model, truth.pin_model.createData()
+    tips = []
+    for qk in q:
+        pin.framesForwardKinematics(pm, data, qk)
+        tips.append(data.oMf[pm.getFrameId("link2")].translation.copy())
+    # closed form: the tip of a 2R arm is l1·(cos θ1, sin θ1) with θ = q + zero (link2's origin)
+    th1 = q[:, 0] + 0.01
+    assert np.allclose(np.array(tips)[:, :2], (0.803 * np.column_stack([np.cos(th1),
+                                                                         np.sin(th1)])))
+    cal = calibrate_kinematics(planar_2r, q, np.array(tips), frame="link2",
+                               parameters=["joint1.zero", "joint2.x"], sigma=1e-5)
+    assert np.allclose(cal.values, [0.01, 0.003], atol=1e-10)
+
+
+# --------------------------------------------------------------------------------- bad input
+def test_bad_input_raises_named_errors(ur5):
+    q = random_configurations(ur5, 20, np.random.default_rng(0))
+    poses = measure(ur5, q, np.zeros(6), "tool0", TRACKER)
+    with pytest.raises(ci.DatasetError, match=r"shape \(20, 5\)"):
+        calibrate_kinematics(ur5, q, np.zeros((20, 5)), frame="tool0")
+    bad = poses.copy()
+    bad[4, 1, 3] = np.nan
+    with pytest.raises(ci.DatasetError, match=r"measurements\[4, 7\] is nan"):
+        calibrate_kinematics(ur5, q, bad, frame="tool0")
+    bad_q = q.copy()
+    bad_q[3, 2] = np.inf
+    with pytest.raises(ci.DatasetError, match=r"q\[3, 'elbow_joint'\]"):
+        calibrate_kinematics(ur5, bad_q, poses, frame="tool0")
+    with pytest.raises(ci.JointCountError, match="7 columns"):
+        calibrate_kinematics(ur5, np.zeros((20, 7)), poses, frame="tool0")
+    with pytest.raises(ci.DatasetError, match="19 measurements for 20"):
+        calibrate_kinematics(ur5, q, poses[:19], frame="tool0")
+    with pytest.raises(ci.PoorExcitationError, match="fewer than the 30"):
+        calibrate_kinematics(ur5, q[:4], poses[:4], frame="tool0", sigma=(1e-4, 1e-3))
+    same = np.repeat(q[:1], 20, axis=0)                  # 20 measurements of one pose
+    with pytest.raises(ci.PoorExcitationError, match="identify"):
+        calibrate_kinematics(ur5, same, measure(ur5, same, np.zeros(6), "tool0", TRACKER),
+                             frame="tool0", sigma=(1e-4, 1e-3))
+    with pytest.raises(ci.ModelError, match="frame 'tool9' does not exist"):
+        calibrate_kinematics(ur5, q, poses, frame="tool9")
+    with pytest.raises(ci.OptionError, match="matches no parameter"):
+        calibrate_kinematics(ur5, q, poses, frame="tool0", parameters=["zero", "elbow.x"])
+    with pytest.raises(ci.OptionError, match="σ_position"):
+        calibrate_kinematics(ur5, q, poses, frame="tool0", sigma=1e-4)
+    with pytest.raises(ci.OptionError, match="sigma"):
+        calibrate_kinematics(ur5, q, poses, frame="tool0", sigma=(1e-4, -1.0))
+    with pytest.raises(ci.OptionError, match="loss"):
+        calibrate_kinematics(ur5, q, poses, frame="tool0", loss="l3")
+    quat = np.hstack([poses[:, :3, 3], np.tile([0.0, 0.0, 0.0, 2.0], (20, 1))])
+    with pytest.raises(ci.DatasetError, match=r"measurements\[0, 3:7\].*norm 2"):
+        calibrate_kinematics(ur5, q, quat, frame="tool0")
+    skew = poses.copy()
+    skew[2, :3, :3] *= 1.01
+    with pytest.raises(ci.DatasetError, match=r"measurements\[2\] is not a homogeneous pose"):
+        calibrate_kinematics(ur5, q, skew, frame="tool0")
+    with pytest.raises(ci.ModelError, match="consistid.RobotModel"):
+        calibrate_kinematics("ur5", q, poses)
+
+
+def test_poses_as_xyz_quaternion_equal_homogeneous(ur5):
+    q = random_configurations(ur5, 40, np.random.default_rng(0))
+    poses = measure(ur5, q, np.radians([0.2, 0, 0, 0, 0, 0.1]), "tool0", TRACKER)
+    xyzq = np.array([pin.SE3ToXYZQUAT(pin.SE3(m[:3, :3], m[:3, 3])) for m in poses])
+    a = calibrate_kinematics(ur5, q, poses, frame="tool0", parameters=["zero", "base"],
+                             sigma=(1e-4, 1e-3))
+    b = calibrate_kinematics(ur5, q, xyzq, frame="tool0", parameters=["zero", "base"],
+                             sigma=(1e-4, 1e-3))
+    assert np.allclose(a.values, b.values, atol=1e-12)
+
+
+# --------------------------------------------------------------------------------- pose choice
+def test_d_optimal_poses_beat_random_ones_and_respect_the_cell(ur5):
+    floor = ci.excitation.FloorPlane(0.05)
+    box = ci.excitation.CartesianBox((-0.6, -0.6, 0.05), (0.6, 0.6, 0.9))
+    plan = select_poses(ur5, 30, "tool0", "position", workspace=box, floor=floor, seed=3)
+    rand = np.random.default_rng(3).choice(len(plan.candidates), 30, replace=False)
+    from consistid.kinematics.poses import candidate_jacobians
+
+    chart = KinematicParameters(ur5, "tool0", "position")
+    sel = chart.select("all")
+    jac = candidate_jacobians(chart, plan.candidates, sel, np.eye(3)[None] * 1e-8, None)
+    kept = [chart.names[i] for i in sel]
+    cols = [kept.index(n) for n in plan.parameter_names]
+    info = (lambda rows: np.einsum("nji,njk->ik", jac[rows][:, :, cols], jac[rows][:, :, cols]))
+    assert np.linalg.slogdet(info(plan.indices))[1] > np.linalg.slogdet(info(rand))[1]
+    assert plan.mean_std()["m"] < np.mean(np.sqrt(np.diag(np.linalg.inv(info(rand))))[
+        [i for i, n in enumerate(plan.parameter_names) if chart.units(n) == "m"]] * 1e-4 / 1e-4)
+    pm, data = ur5.pin_model, ur5.pin_model.createData()
+    lim = ur5.limits
+    for qk in plan.q:
+        pin.framesForwardKinematics(pm, data, qk)
+        p = data.oMf[pm.getFrameId("tool0")].translation
+        assert 0.05 <= p[2] <= 0.9 and np.all(np.abs(p[:2]) <= 0.6)
+        assert np.all(qk >= lim.lower) and np.all(qk <= lim.upper)
+    assert plan.n_offered > len(plan.candidates)          # the cell removed some
+    with pytest.raises(ci.PoorExcitationError, match="respect the limits"):
+        select_poses(ur5, 10, "tool0", floor=ci.excitation.FloorPlane(5.0), n_candidates=50)
+    with pytest.raises(ci.PoorExcitationError, match="k ≥"):
+        select_poses(ur5, 3, "tool0", "position", n_candidates=100)
+    cond = select_poses(ur5, 30, "tool0", "position", criterion="cond", workspace=box,
+                        floor=floor, seed=3)
+    from consistid.kinematics.poses import _cond
+
+    assert cond.cond < _cond(jac[:, :, cols], rand) and cond.cond <= plan.cond * 1.05

@@ -228,16 +228,19 @@ def calibrate_kinematics(model: RobotModel, q: object, measurements: object,
         base0 = kabsch(pos, meas.positions)
     base_initial = pin.SE3(base0)
 
-    # --- which parameters the measurement kind identifies (generic configurations)
+    # --- which parameters the measurement kind identifies (generic configurations, at a point
+    # near the URDF that moves only the selected parameters: the family of robots considered)
     order = chart.priority(sel)
+    generic_values = chart.generic_point(sel)
     cov0 = given_cov if given_cov is not None else _default_cov(meas.kind, n)
     generic = chart.random_configurations
-    gmeas = _generic_measurements(chart, generic, meas.kind, base0, anchor0)
+    gmeas = _generic_measurements(chart, generic, generic_values, meas.kind, base0,
+                                  anchor0)
     gprob = _Problem(chart, generic, gmeas, np.broadcast_to(whitening(cov0[:1]),
                                                             (len(generic), m, m)),
                      base0, anchor0)
     kept = structural_selection(gprob.weighted(zero, sel)[1],
-                                gprob.weighted(chart.generic_values, sel)[1], order)
+                                gprob.weighted(generic_values, sel)[1], order)
     r = int(kept.sum())
     if n * m < r:
         raise PoorExcitationError(
@@ -249,7 +252,7 @@ def calibrate_kinematics(model: RobotModel, q: object, measurements: object,
     # --- do these configurations identify what the kind can?
     white = whitening(cov0)
     prob = _Problem(chart, qa, meas, white, base0, anchor0)
-    _check_data_rank(prob, chart.generic_values, sel, kept, order, names, n, meas.kind)
+    _check_data_rank(prob, generic_values, sel, kept, order, names, n, meas.kind)
     free = sel[kept]
 
     # --- before: the URDF's kinematics, measurement frame / anchor fitted
@@ -288,11 +291,13 @@ def calibrate_kinematics(model: RobotModel, q: object, measurements: object,
         limit = scipy.stats.chi2.ppf(1 - outlier_alpha, m)
         if given_cov is None:
             limit *= max(np.median(d2) / scipy.stats.chi2.median(m), 1e-300)
-        out = active[d2 > limit]
-        if out.size == 0:
+        worst = int(np.argmax(d2))
+        if d2[worst] <= limit:
             break
-        rejected += out.tolist()
-        active = np.setdiff1d(active, out)
+        # one at a time, the worst first (Baarda's data snooping): a blunder pulls the fit and
+        # inflates its neighbours' residuals, which the next fit no longer does
+        rejected.append(int(active[worst]))
+        active = np.delete(active, worst)
         if active.size * m < r:
             raise PoorExcitationError(
                 f"rejecting outliers left {active.size} measurements ({active.size * m} "
@@ -316,6 +321,9 @@ def calibrate_kinematics(model: RobotModel, q: object, measurements: object,
         values[sel[~kept]] = 0.0
         r = int(kept.sum())
         values, sol = final.solve(values, sel[kept], loss, f_scale, max_nfev)
+        if sol.status <= 0:
+            raise IdentificationError(f"least_squares did not converge after holding "
+                                      f"{list(vanished)}: {sol.message}")
         res_w, jac_w = final.weighted(values, sel, True)
     jk = jac_w[:, kept]
     a, norms = normalised(jk)
@@ -352,12 +360,13 @@ def calibrate_kinematics(model: RobotModel, q: object, measurements: object,
         held_at_solution=vanished)
 
 
-def _generic_measurements(chart: KinematicParameters, q: np.ndarray, kind: str,
-                          base0: pin.SE3, anchor0: np.ndarray | None) -> Measurements:
-    """Noise-free measurements of the generic point
-    (:attr:`~consistid.kinematics.parameters.KinematicParameters.generic_values`) at ``q``, where
+def _generic_measurements(chart: KinematicParameters, q: np.ndarray, values: np.ndarray,
+                          kind: str, base0: pin.SE3, anchor0: np.ndarray | None
+                          ) -> Measurements:
+    """Noise-free measurements of the generic point ``values``
+    (:meth:`~consistid.kinematics.parameters.KinematicParameters.generic_point`) at ``q``, where
     structural identifiability is judged (the residual is 0, so the Jacobian is the model's)."""
-    pos, rot, _ = chart.frame_kinematics(chart.generic_values, q, False)
+    pos, rot, _ = chart.frame_kinematics(values, q, False)
     if kind == "distance":
         return Measurements(kind, distances=np.linalg.norm(pos - anchor0, axis=1))
     p = pos @ base0.rotation.T + base0.translation

@@ -94,7 +94,7 @@ def as_measurements(values: object, n: int | None = None) -> Measurements:
         if bad.size:
             i, c = bad[0]
             where = f"[{i}, {c}]" if a.ndim > 1 else f"[{i}]"
-            raise DatasetError(f"measurements{where} is {flat[i, c]!r} ({len(bad)} non-finite "
+            raise DatasetError(f"measurements{where} is {float(flat[i, c])} ({len(bad)} non-finite "
                                "entries): drop or re-measure those poses")
         if kind == "distance":
             if np.any(a < 0):
@@ -144,7 +144,8 @@ def joint_coordinates(model: RobotModel, q: object) -> np.ndarray:
     if bad.size:
         i, j = bad[0]
         label = model.joint_names[j] if a.shape[1] == model.nv else str(j)
-        raise DatasetError(f"q[{i}, {label!r}] is {a[i, j]!r} ({len(bad)} non-finite entries)")
+        raise DatasetError(f"q[{i}, {label!r}] is {float(a[i, j])} ({len(bad)} non-finite "
+                           "entries)")
     pm = model.pin_model
     if a.shape[1] == model.nv:
         return a

@@ -74,6 +74,11 @@ def _exp3(v: np.ndarray) -> np.ndarray:
     return pin.exp3(np.asarray(v, dtype=float))
 
 
+def _skew(v: np.ndarray) -> np.ndarray:
+    """``[v]×``, so that ``[v]× w = v × w`` (3×3)."""
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
 def _perpendicular(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Two unit vectors ``u, v`` with ``(u, v, axis)`` right-handed and orthonormal."""
     k = int(np.argmax(np.abs(axis)))
@@ -429,15 +434,16 @@ class KinematicParameters:
                 tw[:3, c + 1:c + 4] = parent.rotation @ g.parent_rotation
                 omega = x.rotation @ pin.Jexp3(d[4:7])                  # origin rotation
                 tw[3:, c + 4:c + 7] = omega
-                tw[:3, c + 4:c + 7] = np.cross(omega.T, p - x.translation).T
+                lever = _skew(x.translation - p)               # ω × (p − o) = [o − p]× ω
+                tw[:3, c + 4:c + 7] = lever @ omega
                 s = q[k, g.j - 1] + d[0]                                # axis direction
                 a = axes[g.j]
                 dphi = pin.Jexp3(-(d[7] * g.u + d[8] * g.v)) @ np.column_stack([g.u, g.v])
-                da = np.cross(dphi.T, a).T                              # (3, 2)
+                da = -_skew(a) @ dphi                                   # dφ × a, (3, 2)
                 if g.revolute:
                     w = x.rotation @ (pin.Jexp3(-s * a) @ (s * da))
                     tw[3:, c + 7:c + 9] = w
-                    tw[:3, c + 7:c + 9] = np.cross(w.T, p - x.translation).T
+                    tw[:3, c + 7:c + 9] = lever @ w
                 else:
                     tw[:3, c + 7:c + 9] = x.rotation @ (s * da)
             oMi = data.oMi[t.joint]
@@ -459,6 +465,13 @@ class KinematicParameters:
                 continue
             out[i] = rng.uniform(-1e-3, 1e-3) if self.units(name) == "m" else \
                 rng.uniform(-1, 1) * np.radians(0.3)
+        return out
+
+    def generic_point(self, sel: np.ndarray) -> np.ndarray:
+        """:attr:`generic_values` on the selected parameters ``sel`` only (the others stay at
+        the URDF: the family of robots a calibration of ``sel`` considers)."""
+        out = np.zeros(self.size)
+        out[sel] = self.generic_values[sel]
         return out
 
     @cached_property

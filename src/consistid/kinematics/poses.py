@@ -102,7 +102,7 @@ def candidate_jacobians(chart: KinematicParameters, q: np.ndarray, sel: np.ndarr
     """Whitened residual Jacobians (M, m, len(sel)) at the generic point near the URDF
     (:attr:`~consistid.kinematics.parameters.KinematicParameters.generic_values`; measurement
     frame at the identity, the residual zero)."""
-    values = chart.generic_values if values is None else values
+    values = chart.generic_point(sel) if values is None else values
     pos, rot, tw = chart.frame_kinematics(values, q)
     if chart.kind == "distance":
         meas = Measurements("distance", distances=np.linalg.norm(pos - anchor, axis=1))

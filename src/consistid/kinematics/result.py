@@ -203,6 +203,12 @@ class CalibrationResult:
                          f"{' …' if len(self.rejected) > 10 else ''}")
         else:
             notes.append("no outlier rejected")
+        if any(n.startswith("base.") for n in self.identified_names):
+            notes.append("the measurement frame was estimated, so it absorbed the first joint's "
+                         "origin (held): the robot's tilt relative to gravity is not known from "
+                         "these measurements. For dynamics, register the tracker to the base "
+                         "(parameters without 'base', base=T) or estimate the tilt from torques "
+                         "(consistid.estimate_mounting(result.model, data))")
         if self.chart.fixed_axes:
             notes.append("axes of continuous joints are not turned (no such Pinocchio joint); "
                          "their tilt is a combination of origin rotations")
