@@ -66,7 +66,7 @@ from ..data.dataset import Dataset, as_dataset
 from ..errors import ModelError, OptionError, check_number, check_option
 from ..progress import Progress
 from .gap import GapBreakdown, gap_breakdown, residual_spectra
-from .noise import NoiseFloor, estimate_noise_floor, spectral_floor
+from .noise import NoiseFloor, estimate_noise_floor, fine_spectra, spectral_floor
 from .remainder import Remainder, analyse_remainder
 from ..robot.model import RobotModel, require_model
 from ..robot.inertia import is_physically_consistent
@@ -242,10 +242,15 @@ class Diagnosis:
 
     @property
     def verdict(self) -> str:
-        """``"explained"`` or ``"remainder on <joints>"`` (see :attr:`remainder`)."""
-        if self.remainder is None or not self.remainder.flagged:
+        """``"explained"``, ``"remainder on <joints>"`` or ``"undetermined on <joints>"`` (the
+        noise floor could not be seen there; see :attr:`remainder`)."""
+        if self.remainder is None:
             return "explained"
-        return f"remainder on {', '.join(self.remainder.flagged)}"
+        if self.remainder.flagged:
+            return f"remainder on {', '.join(self.remainder.flagged)}"
+        if self.remainder.undetermined:
+            return f"undetermined on {', '.join(self.remainder.undetermined)}"
+        return "explained"
 
     @property
     def gap_to_noise(self) -> np.ndarray:
@@ -826,7 +831,7 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     resolution = (None if torque_resolution is None
                   else _sigma(torque_resolution, model.nv, "torque_resolution"))
     noise = estimate_noise_floor(everything.dataset, everything.tau, everything.residual,
-                                 everything.tau_nom, given, resolution, spectra)
+                                 everything.tau_nom, given, resolution)
     floor, noise_source = noise.sigma.copy(), noise.description
     library = EffectLibrary(model, tuple(effects))
 
@@ -945,14 +950,15 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
         # effects explain (a Coulomb step has a 1/f² spectrum); estimate the level again
         # without them. Still the level above the motion band, never what the fit leaves.
         unexplained = everything.residual - fit.correction(everything)
-        again = spectral_floor(spectra.with_residual(everything.dataset, unexplained))[0]
+        again = spectral_floor(fine_spectra(everything.dataset, unexplained,
+                                            everything.tau_nom))[0]
         floor = np.where(spectral, np.minimum(floor, again), floor)
         noise_source += " (spectral level re-estimated without the selected effects' tails)"
     where = gap_breakdown(everything, floor, spectra=spectra)
     remainder = analyse_remainder(held, held.residual - fit.correction(held), floor,
                                   autocorrelation_time(held.dataset,
                                                        held.residual - fit.correction(held)),
-                                  where.band_edges)
+                                  where.band_edges, reliable=noise.reliable)
     if not noise.reliable.all():
         notes.append("the noise floor cannot be seen on "
                      + ", ".join(names[j] for j in np.flatnonzero(~noise.reliable))

@@ -14,7 +14,9 @@ in this order of preference (:func:`estimate_noise_floor` says which one each jo
     doi:10.1109/70.631234) repeats its motion, so every effect that is a function of the state
     repeats too, and ``d(t) = τ(t + P) − τ(t)`` is the difference of two independent noise
     samples: ``σ² = Var(d) / 2``, whatever the noise's colour or filtering (as long as ``P`` is
-    much longer than the noise's correlation time). The period ``P`` is found on the joint
+    much longer than the noise's correlation time); with three periods, second differences
+    ``τ(t+2P) − 2τ(t+P) + τ(t)`` (variance ``6σ²``) also cancel a linear drift (friction warming
+    in over the log). The period ``P`` is found on the joint
     positions (:func:`find_period`): the smallest whole number of samples after which ``q``
     repeats to within :data:`REPEAT_TOLERANCE` of its variance. Needs two periods within one
     recording; recordings without are estimated as below.
@@ -39,12 +41,15 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.integrate
 import scipy.optimize
+import scipy.signal
 
 from ..data.dataset import Dataset
 from .gap import Spectra, residual_spectra
 
 #: ``q`` repeats after a lag when ``mean |q(t+L) − q(t)|² ≤ REPEAT_TOLERANCE · 2 Var(q)``.
 REPEAT_TOLERANCE = 1e-4
+#: Welch segment length (s) of the spectral estimate.
+FINE_SEGMENT = 4.0
 #: Shortest period (s) searched, and the least overlap (s) a repetition estimate needs.
 MIN_PERIOD = 0.5
 MIN_OVERLAP = 2.0
@@ -129,24 +134,75 @@ def find_period(dataset: Dataset) -> tuple[float | None, int | None]:
 
 
 def repetition_floor(dataset: Dataset, tau: np.ndarray, lag: int
-                     ) -> tuple[np.ndarray, np.ndarray]:
-    """``σ_j² = Var(τ_j(t + P) − τ_j(t)) / 2`` pooled over the recordings that hold the lag
-    (``lag`` samples) with :data:`MIN_OVERLAP` to spare; returns ``(σ (nv,), pairs)`` (σ ``nan``
-    where no recording holds two periods)."""
-    acc, count = np.zeros(tau.shape[1]), 0
+                     ) -> tuple[np.ndarray, int]:
+    """The noise from the repetition of the excitation every ``lag`` samples, pooled over the
+    recordings that hold it with :data:`MIN_OVERLAP` to spare.
+
+    With three periods or more in a recording, second differences
+    ``τ(t + 2P) − 2 τ(t + P) + τ(t)`` (variance ``6 σ²``) cancel a torque that drifts linearly
+    over the log (friction warming in); with two, first differences
+    ``τ(t + P) − τ(t)`` (variance ``2 σ²``), which such a drift inflates. Returns
+    ``(σ (nv,), order of the differences used)``; σ ``nan`` where no recording holds two
+    periods."""
+    nv = tau.shape[1]
+    sums = {1: [np.zeros(nv), 0], 2: [np.zeros(nv), 0]}
     for s in np.unique(dataset.segment):
         idx = np.flatnonzero(dataset.segment == s)
-        if idx.size <= lag:
-            continue
         h = float(np.median(np.diff(dataset.t[idx])))
-        if (idx.size - lag) * h < MIN_OVERLAP:
+        for order, weight in ((1, 2.0), (2, 6.0)):
+            span = order * lag
+            if idx.size <= span or (idx.size - span) * h < MIN_OVERLAP:
+                continue
+            x = tau[idx]
+            d = x[span:] - x[:-span] if order == 1 else \
+                x[2 * lag:] - 2 * x[lag:-lag] + x[:-2 * lag]
+            sums[order][0] += np.sum((d - d.mean(axis=0)) ** 2, axis=0) / weight
+            sums[order][1] += d.shape[0] - 1
+    for order in (2, 1):
+        acc, count = sums[order]
+        if count > 0:
+            return np.sqrt(acc / count), order
+    return np.full(nv, np.nan), 0
+
+
+def fine_spectra(dataset: Dataset, residual: np.ndarray, tau_nom: np.ndarray,
+                 seconds: float = FINE_SEGMENT) -> Spectra:
+    """Welch spectra of ``residual`` and ``tau_nom`` with segments of about ``seconds`` (finer
+    than the breakdown's, so that a low cut-off and the motion band are resolved), averaged over
+    the uniformly sampled recordings."""
+    acc_r = acc_n = freqs = None
+    weight = 0
+    rate = None
+    for s in np.unique(dataset.segment):
+        idx = np.flatnonzero(dataset.segment == s)
+        if idx.size < 64:
             continue
-        d = tau[idx[lag:]] - tau[idx[:-lag]]
-        acc += np.sum((d - d.mean(axis=0)) ** 2, axis=0)
-        count += d.shape[0] - 1
-    if count == 0:
-        return np.full(tau.shape[1], np.nan), np.zeros(0)
-    return np.sqrt(acc / count / 2), np.array([count])
+        dt = np.diff(dataset.t[idx])
+        h = float(np.median(dt))
+        if np.ptp(dt) > 1e-6 * h or (rate is not None and abs(1 / h - rate) > 1e-6 * rate):
+            continue
+        rate = 1.0 / h
+        nper = int(2 ** np.round(np.log2(max(seconds * rate, 64))))
+        nper = min(nper, idx.size // 2)
+        if nper < 32:
+            continue
+        f, pr = scipy.signal.welch(residual[idx], fs=rate, nperseg=nper, axis=0)
+        _, pn = scipy.signal.welch(tau_nom[idx], fs=rate, nperseg=nper, axis=0)
+        if freqs is not None and f.size != freqs.size:
+            pr = np.column_stack([np.interp(freqs, f, c) for c in pr.T])
+            pn = np.column_stack([np.interp(freqs, f, c) for c in pn.T])
+            f = freqs
+        acc_r = pr * idx.size if acc_r is None else acc_r + pr * idx.size
+        acc_n = pn * idx.size if acc_n is None else acc_n + pn * idx.size
+        freqs = f
+        weight += idx.size
+    if freqs is None:
+        return residual_spectra(dataset, residual, tau_nom)
+    p_res, p_nom = acc_r / weight, acc_n / weight
+    power = p_nom[1:].sum(axis=1)
+    band = float(freqs[1:][np.searchsorted(np.cumsum(power) / power.sum(), 0.999)]) \
+        if power.sum() > 0 else float(freqs[1])
+    return Spectra(freqs, p_res, p_nom, band)
 
 
 def _rolloff(f: np.ndarray, fc: float, n: float) -> np.ndarray:
@@ -194,8 +250,7 @@ def spectral_floor(spectra: Spectra) -> tuple[np.ndarray, np.ndarray, np.ndarray
 
 def estimate_noise_floor(dataset: Dataset, tau: np.ndarray, residual: np.ndarray,
                          tau_nom: np.ndarray, sigma: np.ndarray | None = None,
-                         torque_resolution: np.ndarray | None = None,
-                         spectra: Spectra | None = None) -> NoiseFloor:
+                         torque_resolution: np.ndarray | None = None) -> NoiseFloor:
     """The noise floor of the module notes. ``tau``: the measured torque (for repetition);
     ``residual``, ``tau_nom``: measured minus nominal torque and the nominal torque (for the
     spectrum); ``sigma``, ``torque_resolution``: (nv,) given values (either may be ``None``)."""
@@ -211,17 +266,19 @@ def estimate_noise_floor(dataset: Dataset, tau: np.ndarray, residual: np.ndarray
             parts.append("the torque resolution / √12")
         return NoiseFloor(s, ("given",) * nv, None, np.full(nv, np.nan), np.ones(nv, bool),
                           f"given ({' and '.join(parts)})")
-    sp = residual_spectra(dataset, residual, tau_nom) if spectra is None else spectra
+    sp = fine_spectra(dataset, residual, tau_nom)
     spec_sigma, cut, reliable = spectral_floor(sp)
     period, lag = find_period(dataset)
-    rep = repetition_floor(dataset, tau, lag)[0] if lag else np.full(nv, np.nan)
+    rep, order = repetition_floor(dataset, tau, lag) if lag else (np.full(nv, np.nan), 0)
     use_rep = np.isfinite(rep)
     out = np.where(use_rep, rep, spec_sigma)
     method = tuple("repetition" if u else "spectrum" for u in use_rep)
     reliable = np.where(use_rep, True, reliable)
     if use_rep.all():
         text = (f"from period-to-period repetition of the measured torque (excitation period "
-                f"{period:.4g} s found on q): σ² = Var(τ(t+P) − τ(t))/2")
+                f"{period:.4g} s found on q): "
+                + ("σ² = Var(τ(t+2P) − 2τ(t+P) + τ(t))/6 (a linear drift cancels)" if order == 2
+                   else "σ² = Var(τ(t+P) − τ(t))/2 (two periods: a drift would inflate it)"))
     else:
         filt = [f"{c:.3g} Hz" for c in cut[~use_rep] if np.isfinite(c)]
         text = ("from the residual spectrum above the motion band "
@@ -237,3 +294,4 @@ def estimate_noise_floor(dataset: Dataset, tau: np.ndarray, residual: np.ndarray
         text += ("; UNRELIABLE on joints filtered below the motion band (pass sigma): "
                  + ", ".join(str(j + 1) for j in np.flatnonzero(~reliable)))
     return NoiseFloor(out, method, period, cut, reliable, text)
+

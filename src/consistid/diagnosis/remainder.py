@@ -5,9 +5,10 @@ For joint ``j`` the held-out residual after every selected effect, ``e_j = τ_j 
 ``ρ_j``; the noise floor (:mod:`consistid.diagnosis.noise`, never fitted by the candidates) is
 ``σ_j``. A remainder is flagged on joint ``j`` when both
 
-* ``ρ_j > REMAINDER_RATIO · σ_j`` — an unexplained component of RMS
-  ``√(ρ_j² − σ_j²) ≥ 0.75 σ_j``: a relevance margin that also covers the floor's own estimation
-  error (a factor of 0.7–1.5 is what an estimate from one log can promise), and
+* ``ρ_j > REMAINDER_RATIO · σ_j`` (1.5) — an unexplained component of RMS
+  ``√(ρ_j² − σ_j²) ≥ 1.1 σ_j``: the margin covers the floor's own estimation error (an estimate
+  from one log promises 0.7–1.5 × the true noise, so pure noise may read up to 1/0.7 = 1.43 ×
+  the floor) and held-out recordings filtered at another cut-off than the training ones, and
 * the excess matters: ``√(ρ_j² − σ_j²) ≥ REMAINDER_RELEVANCE · RMS(τ_j)`` (1 % of the joint's
   measured torque, the same practical floor as the selection's ``min_gain``): modelling and
   signal-processing errors far below the torque (a differentiation filter's phase, an
@@ -43,7 +44,7 @@ import scipy.stats
 from .gapdata import GapData
 
 #: The remaining RMS must exceed the noise floor by this factor to flag a remainder.
-REMAINDER_RATIO = 1.25
+REMAINDER_RATIO = 1.5
 #: The unexplained RMS must reach this fraction of the joint's measured torque RMS.
 REMAINDER_RELEVANCE = 0.01
 #: Level of the χ² test of the excess.
@@ -68,6 +69,9 @@ class JointRemainder:
     ratio : ``rms / floor``.
     p_value : of the χ² test of ``rms² > floor²`` with ``N_eff`` samples.
     flagged : a remainder (see the module notes).
+    determined : False when the noise floor could not be seen on this joint (torques filtered
+        below the motion band, no repeated excitation): then nothing is flagged and the verdict
+        says "undetermined".
     regimes : RMS of the remainder (residual after effects) near standstill, at reversals,
         moving (N·m; ``nan`` where empty).
     position_spread : RMS of the per-bin means over ``q_j`` (N·m): a function of the angle.
@@ -94,10 +98,13 @@ class JointRemainder:
     band_edges: np.ndarray
     drift: float
     pointers: tuple[str, ...]
+    determined: bool = True
 
     def __str__(self) -> str:
         head = (f"{self.joint}: {self.rms:.3g} N·m left = {self.ratio:.2f} × the noise floor "
                 f"{self.floor:.3g}")
+        if not self.determined:
+            return head + " — UNDETERMINED (the noise floor cannot be seen: pass sigma)"
         if not self.flagged:
             return head + " — explained"
         return (head + f" — REMAINDER {self.excess:.3g} N·m unexplained"
@@ -117,7 +124,16 @@ class Remainder:
         return tuple(j.joint for j in self.joints if j.flagged)
 
     @property
+    def undetermined(self) -> tuple[str, ...]:
+        """Joints whose noise floor could not be seen (no verdict there)."""
+        return tuple(j.joint for j in self.joints if not j.determined)
+
+    @property
     def verdict(self) -> str:
+        if not self.flagged and self.undetermined:
+            return (f"undetermined on {', '.join(self.undetermined)}: the noise floor cannot be "
+                    "seen there (torques filtered below the motion band and an excitation that "
+                    "does not repeat); pass sigma, or record two periods or more")
         if not self.flagged:
             return "explained: what the selected effects leave is at the noise floor"
         return (f"remainder on {', '.join(self.flagged)}: the selected effects leave more than "
@@ -197,7 +213,8 @@ def _bands(data: GapData, e: np.ndarray, edges: np.ndarray) -> np.ndarray:
 def analyse_remainder(data: GapData, remainder: np.ndarray, floor: np.ndarray,
                       tau_corr: np.ndarray, band_edges: np.ndarray,
                       alpha: float = REMAINDER_ALPHA,
-                      relevance: float = REMAINDER_RELEVANCE) -> Remainder:
+                      relevance: float = REMAINDER_RELEVANCE,
+                      reliable: np.ndarray | None = None) -> Remainder:
     """The :class:`Remainder` of ``remainder`` (N, nv), the held-out residual after every
     selected effect on ``data``, against ``floor`` (nv,); ``tau_corr`` (nv,) the residual's
     autocorrelation time (samples), ``band_edges`` the frequency bands (Hz)."""
@@ -213,7 +230,9 @@ def analyse_remainder(data: GapData, remainder: np.ndarray, floor: np.ndarray,
         p = float(scipy.stats.chi2.sf(n_eff * rms ** 2 / sig ** 2, n_eff))
         excess = float(np.sqrt(max(rms ** 2 - sig ** 2, 0.0)))
         scale = float(np.sqrt(np.mean(tau[:, j] ** 2)))
-        flagged = bool(rms > REMAINDER_RATIO * sig and p < alpha and excess >= relevance * scale)
+        determined = True if reliable is None else bool(reliable[j])
+        flagged = bool(determined and rms > REMAINDER_RATIO * sig and p < alpha
+                       and excess >= relevance * scale)
         v = ds.dq[:, j]
         slow = np.abs(v) < STANDSTILL * np.percentile(np.abs(v), 99)
         rev = _reversal_mask(data, j)
@@ -276,5 +295,5 @@ def analyse_remainder(data: GapData, remainder: np.ndarray, floor: np.ndarray,
                         if share > 0.1]
         out.append(JointRemainder(names[j], rms, sig, excess, rms / sig, p, flagged, regimes,
                                   spread, hysteresis, best, bands, band_edges, drift,
-                                  tuple(pointers)))
+                                  tuple(pointers), determined))
     return Remainder(tuple(out))

@@ -46,24 +46,18 @@ def diagnosis_text(diag: "Diagnosis") -> str:
                      "reduction:")
         rows = []
         for k, e in enumerate(diag.effects, 1):
+            rival = (f"{e.runner_up} ({100 * (1 - e.margin):.0f} % as much)"
+                     if getattr(e, "runner_up", "") and e.margin < 0.5 else "-")
             rows.append((k, e.name, ", ".join(e.joints) or "-", _pct(e.total_shrink),
-                         e.n_parameters, f"{e.delta_bic:.4g}",
-                         ", ".join(e.alternatives) or "-"))
-        lines += [table(["#", "effect", "joints", "held-out shrink", "params", "ΔBIC",
-                         "indistinguishable from"], rows), ""]
+                         f"{getattr(e, 'confidence', '')} ({getattr(e, 'margin', 1.0):.2f}, "
+                         f"p={e.p_value:.2g})", e.n_parameters, f"{e.delta_bic:.4g}",
+                         ", ".join(e.alternatives) or "-", rival))
+        lines += [table(["#", "effect", "joints", "held-out shrink", "confidence (margin, p)",
+                         "params", "ΔBIC", "indistinguishable from", "runner-up"], rows), ""]
     else:
         lines += ["No effect selected: no candidate reduces the held-out residual enough to "
                   "generalise.", ""]
-    if diag.at_noise_floor:
-        verdict = "the remaining gap is at the noise floor"
-    elif diag.at_library_floor:
-        verdict = ("the selected effects explain all that the candidate library can; the rest "
-                   "lies outside the library, or the noise floor is underestimated (low-pass "
-                   "filtered torques: pass sigma)")
-    else:
-        verdict = ("a gap that the candidates could still reduce remains (below the selection's "
-                   "relevance or significance thresholds)")
-    lines.append(f"Verdict: {verdict}.")
+    lines.append(_verdict(diag)[1])
     lines += ["", table(["joint", "nominal RMS", "final RMS", "library floor", "noise floor",
                          "final / noise"],
                         [(n, a, b, lf, s, r) for n, a, b, lf, s, r in
@@ -78,6 +72,9 @@ def diagnosis_text(diag: "Diagnosis") -> str:
                             for j in shown]))
         lines += ["  " + str(p) for p in e.parameters]
         lines.append("")
+    remainder = getattr(diag, "remainder", None)
+    if remainder is not None:
+        lines += [remainder.summary(), ""]
     lines.append("Where the nominal residual lies (all data):")
     lines.append(table(["joint", "RMS", "share", "relative", "drift [N·m/s]"],
                        [(n, w.rms[j], _pct(w.share[j]), _pct(w.relative[j]),
