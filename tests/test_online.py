@@ -439,3 +439,12 @@ def test_public_names_and_cli(capsys):
     assert main(["online", "--duration", "22", "--periods", "3", "-q"]) == 0
     out = capsys.readouterr().out
     assert "change flagged" in out and "RMS tracking error" in out
+
+
+def test_periodic_projection_keeps_a_consistent_model_at_hand(planar_2r):
+    q, dq, ddq = random_states(planar_2r, 60, 11)
+    est = ci.RecursiveEstimator(planar_2r, noise_std=0.05, project_every=20, detector=None)
+    tau = est.predict(q, dq, ddq) + np.random.default_rng(0).normal(0.0, 0.05, (60, 2))
+    est.update_batch(q, dq, ddq, tau, record=False)
+    assert len(est.projection_seconds) == 3 and est.consistent.is_consistent
+    assert np.allclose(est.consistent.given, est.base_parameters)

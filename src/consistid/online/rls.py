@@ -158,6 +158,11 @@ class RecursiveEstimator:
     base : the base map (default :func:`compute_base_parameters` of the spec).
     payload_frame : frame of the payload for ``on_change="payload"`` and :meth:`payload`
         (default the last joint's).
+    project_every : project the estimate onto the consistent set after every this many
+        updates (:meth:`consistent_parameters`; the answer in :attr:`consistent`, each call's
+        time in :attr:`projection_seconds`); default ``None``: only on request. A projection
+        takes milliseconds (closed form) to tens of milliseconds (solver): in a 1 kHz loop, run
+        it in another thread or every few hundred samples.
 
     Attributes
     ----------
@@ -178,7 +183,8 @@ class RecursiveEstimator:
                  initial: np.ndarray | None = None,
                  initial_std: float | np.ndarray | None = None,
                  base: BaseParameters | None = None,
-                 payload_frame: str | None = None) -> None:
+                 payload_frame: str | None = None,
+                 project_every: int | None = None) -> None:
         self.model = require_model(model)
         self.spec = RegressorSpec.make(model, friction, armature)
         self.forgetting = check_number("forgetting", forgetting, 0, strict=True)
@@ -235,6 +241,12 @@ class RecursiveEstimator:
             raise OptionError(f"detector must be 'chi2', 'cusum', None or an object with step() "
                               f"and reset(), got {detector!r}")
         self.payload_frame = payload_frame
+        self.project_every = (None if project_every is None
+                              else check_number("project_every", project_every, 1, integer=True))
+        #: the last projection (:class:`~consistid.online.projection.ProjectedEstimate`), and
+        #: the wall time of every projection made (s)
+        self.consistent = None
+        self.projection_seconds: list[float] = []
         self._payload_cov = self._payload_covariance() if on_change == "payload" else None
         self._data = model.pin_model.createData()
         self._changes: list[Change] = []
@@ -380,8 +392,8 @@ class RecursiveEstimator:
 
     def update(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray, tau: np.ndarray,
                t: float | None = None) -> np.ndarray:
-        """Take one sample (vectors of length ``nv``); return the updated ``β̂`` (a view: copy it
-        to keep it).
+        """Take one sample (vectors of length ``nv``); return the updated ``β̂`` (the estimator's
+        own array, replaced, never modified, by later updates).
 
         A sample with a NaN or infinite entry, or of the wrong width, raises
         (:class:`~consistid.errors.DatasetError`, :class:`~consistid.errors.JointCountError`)
@@ -433,6 +445,8 @@ class RecursiveEstimator:
         if self._absorbing:
             self._absorbing -= 1
         self.n_updates += 1
+        if self.project_every is not None and self.n_updates % self.project_every == 0:
+            self.consistent_parameters()
         return self._beta
 
     def _learn_noise(self, r: np.ndarray) -> None:
@@ -549,7 +563,9 @@ class RecursiveEstimator:
             self._projector = projector
         elif getattr(self, "_projector", None) is None:
             self._projector = ConsistencyProjector(self.model, self.base, self.spec)
-        return self._projector.project(self._beta, self._p)
+        self.consistent = self._projector.project(self._beta, self._p)
+        self.projection_seconds.append(self.consistent.seconds)
+        return self.consistent
 
     def __repr__(self) -> str:
         return (f"RecursiveEstimator({self.model.name!r}, {self.base.n_base} base parameters, "
