@@ -295,3 +295,22 @@ def test_linear_laws_through_the_projection_reproduce_identify(panda, method):
     np.testing.assert_allclose(mine.base_parameters, ref.base_parameters, rtol=1e-5,
                                atol=1e-6 * np.max(np.abs(ref.base_parameters)))
     np.testing.assert_allclose(mine.predict(run.dataset), ref.predict(run.dataset), atol=1e-6)
+
+
+@pytest.mark.slow
+def test_diagnosis_names_the_stribeck_hump_and_not_on_plain_coulomb(panda):
+    """The diagnosis candidate (diagnosis/effects/stribeck.py): a Stribeck hump on joint 2 of the
+    MuJoCo robot is named beside its Coulomb friction; plain Coulomb friction gets no hump."""
+    traj = ci.FourierTrajectory.random(panda, harmonics=5, period=10.0, seed=1)
+    named = {}
+    for label, eff in (("hump", Effects(coulomb={"panda_joint2": 0.5}, torque_noise=0.02,
+                                        static_friction={"panda_joint2": 1.2},
+                                        stribeck_speed=0.05)),
+                       ("plain", Effects(coulomb={"panda_joint2": 0.8}, torque_noise=0.02))):
+        data = record(panda, traj, eff, duration=20.0, rate=500.0).true_dataset()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            named[label] = {(e.name, e.joints) for e in ci.diagnose(panda, data).effects}
+    assert ("stribeck", ("panda_joint2",)) in named["hump"]
+    assert ("coulomb", ("panda_joint2",)) in named["hump"]
+    assert not any(name == "stribeck" for name, _ in named["plain"])

@@ -1,0 +1,58 @@
+r"""``stribeck``: the Stribeck hump that a linear Coulomb friction leaves near ``q̇ = 0``,
+``r_j = Δf L[sign(q̇_j) e^{-(q̇_j/v_s)^2}]`` with ``Δf = f_s − f_c ≥ 0`` (static over Coulomb
+friction): in residual-versus-velocity, a step at ``q̇ = 0`` that decays back within ``±v_s``
+(the Stribeck curve of :mod:`consistid.friction.models` with ``δ = 2``, its Coulomb part being
+the ``coulomb`` effect). ``v_s`` is chosen from :data:`STRIBECK_SPEEDS` and the filter ``L`` from
+:data:`~consistid.diagnosis.effects.base.FILTER_CUTOFFS` on the training data, as for the
+``coulomb`` effect. To identify the full law with the rigid body, use
+``consistid.identify(..., friction={joint: "stribeck"})``."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from ...friction.models import MODELS
+from ..gapdata import lowpass_segments
+from .base import Effect, EffectParameter, on_row, tune_cutoff
+
+#: Stribeck speeds ``v_s`` (rad/s) tried: a hump within the low-velocity range.
+STRIBECK_SPEEDS: tuple[float, ...] = (0.005, 0.01, 0.02, 0.05, 0.1, 0.2)
+#: The Stribeck exponent ``δ`` of the hump (Gaussian, the classic choice).
+STRIBECK_EXPONENT = 2.0
+
+
+class StribeckHump(Effect):
+    name = "stribeck"
+    order = 22
+    signature = "a step at q̇ = 0 that decays within ±v_s (a hump beside the Coulomb step)"
+    equation = "`Δf L[sign(q̇_j) exp(−(q̇_j/v_s)²)]`, `Δf = f_s − f_c`, `v_s` and `L` tuned"
+    unit = "N·m"
+    suffix = "dfs"
+    wording = "Stribeck excess of static over Coulomb friction"
+    nonnegative = (0,)
+    tuned = True
+
+    def columns(self, library, atom, data) -> np.ndarray:
+        speed = atom.setting or STRIBECK_SPEEDS[0]
+        hump = MODELS["stribeck"].columns(data.dataset.dq[:, atom.joint],
+                                          np.array([speed, STRIBECK_EXPONENT]))[:, 1]
+        return on_row(data, atom.joint, lowpass_segments(data.dataset, hump, atom.cutoff))
+
+    def tune(self, library, data, residual, atom):
+        """The speed of :data:`STRIBECK_SPEEDS` and the cut-off that explain most of
+        ``residual`` (N,)."""
+        trials = [tune_cutoff(self, library, data, residual, replace(atom, setting=v))
+                  for v in STRIBECK_SPEEDS]
+        return max(trials, key=lambda t: t[1])[0]
+
+    def parameters(self, library, atom, theta, std, joint, fit) -> list[EffectParameter]:
+        seen = (f", seen through a ≈{atom.cutoff:.3g} Hz low-pass"
+                if np.isfinite(atom.cutoff) else "")
+        return [EffectParameter(f"{joint}.{self.suffix}", float(theta[0]), float(std[0]),
+                                self.unit, joint, self.name,
+                                f"v_s = {atom.setting:g} rad/s{seen}", self.wording)]
+
+
+EFFECT = StribeckHump()
