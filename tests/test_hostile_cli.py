@@ -208,6 +208,44 @@ def test_demo_and_simulate_name_bad_arguments(capsys, args, message):
     assert normal(message) in run(["simulate", *args], capsys)
 
 
+@pytest.mark.parametrize("args,message", [
+    (["demo", "--noise", "-1"], "--noise must be a finite number ≥ 0"),
+    (["demo", "--duration", "nan"], "--duration must be a finite number > 0"),
+    (["demo", "--rate", "0"], "--rate must be a finite number > 0"),
+    (["online", "--robot", "pandas"], "robot='pandas' is not supported"),
+    (["online", "--duration", "-1"], "duration must be a finite number > 0"),
+    (["online", "--forgetting", "1.5"], "forgetting must lie in (0, 1]"),
+    (["simulate", "--duration", "-1", "--robot", "ur5"], "duration = -1.0"),
+    (["simulate", "--urdf", "/no/such/arm.urdf"], "'/no/such/arm.urdf' does not exist"),
+])
+def test_numeric_arguments_are_checked_before_the_work(tmp_path, capsys, monkeypatch, args,
+                                                       message):
+    monkeypatch.chdir(tmp_path)
+    assert message in run(args, capsys)
+    assert os.listdir(tmp_path) == []          # no folder or file left behind
+
+
+def test_demo_output_that_exists_is_refused(tmp_path, capsys, monkeypatch):
+    (tmp_path / "out").mkdir()
+    forbid(monkeypatch, ci.simulate, "excitation_run")
+    assert "--output" in run(["demo", "--output", tmp_path / "out"], capsys)
+
+
+def test_identify_output_refuses_existing_results_before_identifying(project, capsys,
+                                                                     monkeypatch):
+    out = project / "results"
+    out.mkdir()
+    for name in commands.IDENTIFY_OUTPUTS:
+        (out / name).write_text("mine")
+    forbid(monkeypatch, ci, "identify")
+    err = run(["identify", write(project, IDENTIFY), "--output", out], capsys)
+    assert "exists; pass --force" in err
+    assert all((out / name).read_text() == "mine" for name in commands.IDENTIFY_OUTPUTS)
+    err = run(["identify", write(project, IDENTIFY), "--output", project / "conf" / "run.toml",
+               "--force"], capsys)
+    assert "existing file, not a folder" in err or "input of this run" in err
+
+
 def test_simulate_effect_that_does_not_exist(capsys, monkeypatch):
     err = run(["simulate", "--robot", "ur5", "--effect", "gremlins=1", "--duration", "0.1"],
               capsys)

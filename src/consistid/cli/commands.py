@@ -24,7 +24,8 @@ from typing import Callable, Sequence
 import numpy as np
 
 import consistid as ci
-from consistid.errors import ConfigError, ConsistidError, OutputPathError, check_option
+from consistid.errors import (ConfigError, ConsistidError, OutputPathError, check_number,
+                             check_option)
 
 from . import online_demo
 from .files import atomic_dir, atomic_path, check_output, check_output_dir
@@ -81,6 +82,10 @@ def demo(args: argparse.Namespace) -> int:
     """Simulate, identify, report."""
     from consistid.robot.inertia import perturb
 
+    for name, value, minimum, strict in (("--duration", args.duration, 0, True),
+                                         ("--rate", args.rate, 0, True),
+                                         ("--noise", args.noise, 0, False)):
+        check_number(name, value, minimum, strict=strict)   # before any folder is made
     model = _cli_model(args)
     folder = _fresh_dir(args.output, f"consistid-demo-{model.name}")
     rng = np.random.default_rng(args.seed)

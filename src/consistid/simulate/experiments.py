@@ -24,7 +24,7 @@ import numpy as np
 
 from ..data.dataset import Dataset
 from .effects import Effects, MountedPayload, measure_position, measure_torque
-from ..errors import ModelError, TrackingWarning
+from ..errors import ModelError, TrackingWarning, check_number
 from ..excitation import FourierTrajectory
 from ..robot.model import RobotModel
 from ..identification.regressor import FrictionArg, RegressorSpec, regressor
@@ -76,6 +76,8 @@ def excitation_run(model: RobotModel, parameters: np.ndarray | None = None,
         torque (N·m) and position (rad); velocities and accelerations stay exact.
     seed : seeds the trajectory (unless given) and the noise.
     """
+    torque_noise = check_number("torque_noise", torque_noise, 0)
+    position_noise = check_number("position_noise", position_noise, 0)
     spec = RegressorSpec.make(model, friction, armature)
     p = model.n_inertial + spec.n_joint_columns
     truth = (np.concatenate([model.prior_parameters, np.zeros(spec.n_joint_columns)])
