@@ -246,6 +246,27 @@ def test_uninformed_groupings_read_as_base_parameters(arm, states):
     assert all(any(g in u for g in groupings) for u in res.uninformed)
 
 
+@pytest.mark.parametrize("robot", ["ur5", "xarm7", "kinova"])
+def test_a_first_joint_that_never_moves_on_other_arms(robot):
+    """Not tuned on: joint 1 frozen leaves the base parameters it alone drives (its link's
+    Izz grouping, inertia products of link 2) to the prior; the SDP names them, OLS refuses."""
+    model = ci.RobotModel.example(robot)
+    q, dq, ddq = random_states(model, 150, 3)
+    for a in (q, dq, ddq):
+        a[:, 0] = 0.0
+    tau = model.rnea(q, dq, ddq) + 0.01 * np.random.default_rng(4).standard_normal(q.shape)
+    data = ci.Dataset(t=np.arange(150) * 0.01, q=q, dq=dq, ddq=ddq, tau=tau)
+    with pytest.warns(PoorExcitationWarning, match="do not inform") as caught:
+        res = ci.identify(model, data, friction=None)
+    assert len(res.uninformed) >= 3
+    second = model.body_names[1]
+    assert any(second in u for u in res.uninformed)
+    assert all(u.split(" = ")[0].startswith("β") for u in res.uninformed)
+    assert any(str(len(res.uninformed)) in str(w.message) for w in caught)
+    with pytest.raises(ci.PoorExcitationError, match=rf"do not excite {len(res.uninformed)} of"):
+        ci.identify(model, data, method="ols", friction=None)
+
+
 # ================================================================= 4. options
 OPTIONS = [
     (dict(method="lsq"), "method='lsq'"),
