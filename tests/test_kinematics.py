@@ -647,3 +647,58 @@ def test_d_optimal_poses_beat_random_ones_and_respect_the_cell(ur5):
     from consistid.kinematics.poses import _cond
 
     assert cond.cond < _cond(jac[:, :, cols], rand) and cond.cond <= plan.cond * 1.05
+
+
+# --------------------------------------------------------------------------------- CLI
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "panda"
+
+
+def test_consistid_calibrate_command(tmp_path, capsys):
+    from consistid.cli.commands import main
+
+    data = tmp_path / "poses.csv"
+    data.write_bytes((EXAMPLE / "calibration_poses.csv").read_bytes())
+    config = tmp_path / "calibrate.toml"
+    config.write_text((EXAMPLE / "calibrate.toml").read_text()
+                      .replace("calibration_poses.csv", "poses.csv")
+                      .replace("../../out/", ""))
+    assert main(["calibrate", str(config)]) == 0
+    out = capsys.readouterr()
+    assert "panda_joint2.zero" in out.out and "wrote" in out.err
+    urdf, page = tmp_path / "panda_calibrated.urdf", tmp_path / "panda_calibration.html"
+    reloaded = ci.RobotModel.from_urdf(urdf, locked_joints=("panda_finger_joint1",
+                                                            "panda_finger_joint2"))
+    assert reloaded.nv == 7 and "<img" in page.read_text()
+    # the same calibration through the API
+    res, written = ci.kinematics.run_calibrate(config, urdf=tmp_path / "again.urdf",
+                                               report=tmp_path / "again.html")
+    assert (tmp_path / "again.urdf").read_text() == urdf.read_text()
+    # existing outputs need --force, and are refused before the work
+    stamp = urdf.stat().st_mtime_ns
+    assert main(["calibrate", str(config)]) == 2
+    assert "exists; pass --force" in capsys.readouterr().err
+    assert urdf.stat().st_mtime_ns == stamp
+    assert main(["calibrate", str(config), "--force"]) == 0
+    # an input is never an output, --force or not
+    assert main(["calibrate", str(config), "--urdf", str(data), "--force"]) == 2
+    assert "input of this run" in capsys.readouterr().err
+    assert (tmp_path / "poses.csv").read_bytes() == (EXAMPLE / "calibration_poses.csv").read_bytes()
+    with pytest.raises(ci.ConfigError, match=r"unknown key\(s\) \['sigmaa'\]"):
+        bad = tmp_path / "bad.toml"
+        bad.write_text("[model]\nexample = 'panda'\n[calibrate]\ndata = 'poses.csv'\n"
+                       "sigmaa = 1e-4\n")
+        ci.kinematics.load_calibration_config(bad)
+    with pytest.raises(ci.MissingColumnsError, match="no measurement columns"):
+        (tmp_path / "nomeas.csv").write_text("q1,q2,q3,q4,q5,q6,q7,a\n" + "0,0,0,0,0,0,0,1\n")
+        bad.write_text("[model]\nexample = 'panda'\n[calibrate]\ndata = 'nomeas.csv'\n")
+        ci.kinematics.load_calibration_config(bad)
+
+
+# --------------------------------------------------------------------------------- tutorial
+def test_tutorial_page_runs():
+    page = Path(__file__).resolve().parents[1] / "docs" / "tutorials" / "kinematic_calibration.md"
+    blocks = re.findall(r"```python\n(.*?)```", page.read_text(), re.S)
+    assert blocks
+    namespace: dict = {}
+    for block in blocks:
+        exec(compile(block, str(page), "exec"), namespace)

@@ -396,6 +396,18 @@ def _report_target(path, inputs: list, force: bool, what: str) -> Path:
     return folder
 
 
+def calibrate(args: argparse.Namespace) -> int:
+    """Kinematic calibration from a TOML configuration (:mod:`consistid.kinematics.config`;
+    it applies the file rules of :mod:`consistid.cli.files`: outputs checked first, inputs never
+    written over, existing files only with ``--force``, atomic writes)."""
+    result, written = ci.kinematics.run_calibrate(args.config, urdf=args.urdf,
+                                                  report=args.report, force=args.force)
+    print(result.summary(max_rows=None if args.all else 30))
+    for path in written.values():
+        _log(f"wrote {path}")
+    return 0
+
+
 COMMANDS: dict[str, tuple[Callable[[argparse.Namespace], int], str]] = {
     "demo": (demo, "simulate an excitation run, identify it, print a report"),
     "identify": (identify, "identify a robot from the logs named in a TOML config"),
@@ -404,6 +416,7 @@ COMMANDS: dict[str, tuple[Callable[[argparse.Namespace], int], str]] = {
     "recover": (recover, "consistent standard parameters from base coefficients (TOML config)"),
     "payload": (payload, "estimate a payload from unloaded and loaded logs (TOML config)"),
     "diagnose": (diagnose, "sim-to-real gap diagnosis of a model against logs (TOML config)"),
+    "calibrate": (calibrate, "kinematic calibration from measured poses (TOML config)"),
     "online": (online_demo.run, "recursive estimation with a payload change, and Slotine–Li "
                                 "adaptive control on the MuJoCo robot (demo)"),
 }
@@ -460,6 +473,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("config", help="TOML file with [model], [data] and optionally [diagnose]")
     p.add_argument("--output", help="report directory, .html or .txt (default: [diagnose] "
                                     "output; none: text to stdout only)")
+    _add_force(p)
+    p = sub.add_parser("calibrate", help=COMMANDS["calibrate"][1])
+    p.add_argument("config", help="TOML file with [model] and [calibrate] tables")
+    p.add_argument("--urdf", help="calibrated URDF path (default: [calibrate] urdf)")
+    p.add_argument("--report", help="HTML report path (default: [calibrate] report)")
+    p.add_argument("--all", action="store_true", help="list every parameter")
     _add_force(p)
     online_demo.add_arguments(sub.add_parser("online", help=COMMANDS["online"][1]))
     for p in sub.choices.values():

@@ -1,0 +1,267 @@
+r"""``consistid calibrate CONFIG``: a kinematic calibration from a TOML file.
+
+Example (``examples/panda/calibrate.toml``)::
+
+    root = "."                              # relative paths start here (relative to this file)
+
+    [model]
+    example = "panda"                       # or urdf = "robot.urdf", locked_joints = [...]
+
+    [calibrate]
+    data = "calibration_poses.csv"          # joint columns and x, y, z [, qx, qy, qz, qw] or d
+    frame = "panda_hand_tcp"                # default: the end effector
+    parameters = ["joints", "tool", "base"] # keywords, names or patterns (default "all")
+    sigma = [1e-4, 8.7e-4]                  # m [, rad]; leave out to estimate it
+    # loss = "soft_l1"   outliers = "reject"   base = [[...4×4...]]   anchor = [x, y, z]
+    urdf = "panda_calibrated.urdf"          # outputs (optional)
+    report = "calibration.html"
+
+The data file is a CSV with a header — one column per joint (the model's joint names, or
+``q1 … qn``), then ``x, y, z`` (positions), ``x, y, z, qx, qy, qz, qw`` (poses) or ``d``
+(distances) — or an NPZ with arrays ``q`` and one of ``positions``, ``poses`` ((N, 7) or
+(N, 4, 4)) or ``distances``.
+
+File rules (as every ``consistid`` command): outputs are checked before the calibration runs; an
+output that is one of the run's inputs (the configuration, the data, the URDF) is refused even
+with ``force``; an existing output needs ``force``; files are written to a temporary name in the
+same folder and renamed into place.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import uuid
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from ..errors import ConfigError, MissingColumnsError, OutputPathError
+from ..robot.model import RobotModel, model_without_dynamics
+from .calibrate import calibrate_kinematics
+from .result import CalibrationResult
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10 only
+    import tomli as tomllib
+
+MODEL_KEYS = ("urdf", "example", "locked_joints", "gravity", "name", "strip_dynamics")
+CALIBRATE_KEYS = ("data", "frame", "parameters", "sigma", "loss", "f_scale", "outliers",
+                  "outlier_alpha", "base", "anchor", "max_nfev", "urdf", "report")
+#: keys passed to :func:`calibrate_kinematics` as they are
+OPTION_KEYS = ("frame", "parameters", "sigma", "loss", "f_scale", "outliers", "outlier_alpha",
+               "base", "anchor", "max_nfev")
+OUTPUT_KEYS = ("urdf", "report")
+MEASUREMENT_COLUMNS = {"pose": ("x", "y", "z", "qx", "qy", "qz", "qw"),
+                       "position": ("x", "y", "z"), "distance": ("d",)}
+
+
+@dataclass(frozen=True)
+class CalibrationConfig:
+    """A parsed ``consistid calibrate`` configuration.
+
+    Attributes
+    ----------
+    path : the TOML file; ``root`` where relative paths start.
+    model : the nominal robot; ``q`` (N, nv) and ``measurements`` read from ``data``.
+    options : keyword arguments of :func:`calibrate_kinematics`.
+    outputs : ``{"urdf": Path, "report": Path}`` as configured (absolute).
+    """
+
+    path: Path
+    root: Path
+    model: RobotModel
+    data: Path
+    q: np.ndarray = field(repr=False)
+    measurements: np.ndarray = field(repr=False)
+    options: dict[str, Any]
+    outputs: dict[str, Path]
+
+    @property
+    def inputs(self) -> list[Path]:
+        """Every file the run reads: never written over."""
+        out = [self.path, self.data]
+        if self.model.source is not None:
+            out.append(Path(self.model.source))
+        return out
+
+    def run(self) -> CalibrationResult:
+        return calibrate_kinematics(self.model, self.q, self.measurements, **self.options)
+
+
+def _resolve(root: Path, value: Any, what: str, source: Path) -> Path:
+    if not isinstance(value, str) or not value:
+        raise ConfigError(f"{source.name}: {what} must be a path string, got {value!r}")
+    p = Path(value).expanduser()
+    return p if p.is_absolute() else (root / p).resolve()
+
+
+def _model(table: dict[str, Any], root: Path, source: Path) -> RobotModel:
+    unknown = sorted(set(table) - set(MODEL_KEYS))
+    if unknown:
+        raise ConfigError(f"{source.name}: unknown key(s) {unknown} in [model]; allowed: "
+                          f"{list(MODEL_KEYS)}")
+    if "example" in table:
+        if set(table) != {"example"}:
+            raise ConfigError(f"{source.name}: [model] example = {table['example']!r} takes "
+                              f"no other key; got {sorted(set(table) - {'example'})}")
+        return RobotModel.example(table["example"])
+    if "urdf" not in table:
+        raise ConfigError(f"{source.name}: [model] needs urdf = \"robot.urdf\" or example = "
+                          "\"panda\"")
+    urdf = _resolve(root, table["urdf"], "[model] urdf", source)
+    kwargs = {k: table[k] for k in ("locked_joints", "gravity", "name") if k in table}
+    if table.get("strip_dynamics", False):
+        return model_without_dynamics(urdf, **kwargs)[0]
+    return RobotModel.from_urdf(urdf, **kwargs)
+
+
+def read_calibration_data(path: Path, model: RobotModel) -> tuple[np.ndarray, np.ndarray]:
+    """``(q, measurements)`` from a CSV or NPZ file (module docstring for the columns);
+    :class:`MissingColumnsError` names what is missing."""
+    if not path.is_file():
+        raise ConfigError(f"calibration data file {str(path)!r} does not exist")
+    if path.suffix.lower() == ".npz":
+        with np.load(path) as f:
+            if "q" not in f.files:
+                raise MissingColumnsError(f"{path.name}: needs an array 'q' (N, {model.nv})")
+            found = [k for k in ("poses", "positions", "distances") if k in f.files]
+            if len(found) != 1:
+                raise MissingColumnsError(f"{path.name}: needs exactly one of the arrays "
+                                          f"'poses', 'positions', 'distances'; has {f.files}")
+            return np.array(f["q"], dtype=float), np.array(f[found[0]], dtype=float)
+    if path.suffix.lower() != ".csv":
+        raise ConfigError(f"{path.name}: calibration data must be .csv or .npz")
+    with open(path, encoding="utf-8") as fh:
+        header = [h.strip() for h in fh.readline().split(",")]
+    try:
+        table = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    except ValueError as exc:
+        raise ConfigError(f"{path.name}: not a numeric CSV after the header ({exc})") from exc
+    if table.shape[1] != len(header):
+        raise ConfigError(f"{path.name}: {len(header)} header names but {table.shape[1]} "
+                          "columns")
+    index = {h: i for i, h in enumerate(header)}
+    joints = list(model.joint_names)
+    if not all(j in index for j in joints):
+        joints = [f"q{i + 1}" for i in range(model.nv)]
+    missing = [j for j in joints if j not in index]
+    if missing:
+        raise MissingColumnsError(f"{path.name}: no joint columns {missing} (name them after the "
+                                  f"model's joints {model.joint_names} or q1 … q{model.nv})")
+    for kind, cols in MEASUREMENT_COLUMNS.items():
+        if all(c in index for c in cols):
+            values = table[:, [index[c] for c in cols]]
+            return table[:, [index[j] for j in joints]], (values[:, 0] if kind == "distance"
+                                                          else values)
+    raise MissingColumnsError(f"{path.name}: no measurement columns: give x, y, z "
+                              "(positions), x, y, z, qx, qy, qz, qw (poses) or d (distances)")
+
+
+def load_calibration_config(path: str | Path, *, urdf: str | Path | None = None,
+                            report: str | Path | None = None) -> CalibrationConfig:
+    """Parse a ``consistid calibrate`` TOML file (module docstring); ``urdf``/``report``
+    override the configured outputs. Unknown tables or keys raise :class:`ConfigError`."""
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError(f"configuration file {str(path)!r} does not exist")
+    try:
+        with open(path, "rb") as fh:
+            tables = tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{path.name} is not valid TOML: {exc}") from exc
+    root_value = tables.pop("root", ".")
+    if not isinstance(root_value, str):
+        raise ConfigError(f"{path.name}: root must be a path string, got {root_value!r}")
+    unknown = sorted(set(tables) - {"model", "calibrate"})
+    if unknown:
+        raise ConfigError(f"{path.name}: unknown table(s) {unknown}; a calibration has [model] "
+                          "and [calibrate]")
+    for name in ("model", "calibrate"):
+        if not isinstance(tables.get(name), dict):
+            raise ConfigError(f"{path.name}: missing table [{name}]")
+    root = (path.resolve().parent / root_value).resolve()
+    model = _model(dict(tables["model"]), root, path)
+    t = dict(tables["calibrate"])
+    unknown = sorted(set(t) - set(CALIBRATE_KEYS))
+    if unknown:
+        raise ConfigError(f"{path.name}: unknown key(s) {unknown} in [calibrate]; allowed: "
+                          f"{list(CALIBRATE_KEYS)}")
+    if "data" not in t:
+        raise ConfigError(f"{path.name}: [calibrate] needs data = \"poses.csv\" (joint columns "
+                          "and measurement columns)")
+    data = _resolve(root, t["data"], "[calibrate] data", path)
+    q, measurements = read_calibration_data(data, model)
+    options = {k: t[k] for k in OPTION_KEYS if k in t}
+    if "base" in options:
+        options["base"] = np.asarray(options["base"], dtype=float)
+    outputs = {k: _resolve(root, t[k], f"[calibrate] {k}", path) for k in OUTPUT_KEYS if k in t}
+    for key, value in (("urdf", urdf), ("report", report)):
+        if value is not None:
+            outputs[key] = Path(value).expanduser().resolve()
+    return CalibrationConfig(path.resolve(), root, model, data, q, measurements, options,
+                             outputs)
+
+
+def check_outputs(outputs: dict[str, Path], inputs: list[Path], force: bool) -> None:
+    """:class:`OutputPathError` for an output that is an input, an existing file without
+    ``force``, or in a folder that does not exist."""
+    for key, out in outputs.items():
+        what = f"[calibrate] {key}"
+        for source in inputs:
+            if out.resolve() == Path(source).resolve() or (
+                    out.exists() and Path(source).exists() and os.path.samefile(out, source)):
+                raise OutputPathError(f"{what} {str(out)!r} is an input of this run: never "
+                                      "written over, even with force; choose another path")
+        if out.is_dir():
+            raise OutputPathError(f"{what} {str(out)!r} is an existing folder, not a file")
+        if out.exists() and not force:
+            raise OutputPathError(f"{what} {str(out)!r} exists; pass --force (force=True) to "
+                                  "replace it")
+        if not out.parent.is_dir():
+            raise OutputPathError(f"{what} {str(out)!r}: folder {str(out.parent)!r} does not "
+                                  "exist")
+
+
+def _atomic(out: Path, write: Callable[[Path], Any]) -> Path:
+    tmp = out.with_name(f".{out.stem}.{uuid.uuid4().hex[:8]}.tmp{out.suffix}")
+    try:
+        write(tmp)
+        os.replace(tmp, out)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    return out
+
+
+def run_calibrate(config_path: str | Path, *, urdf: str | Path | None = None,
+                  report: str | Path | None = None, force: bool = False
+                  ) -> tuple[CalibrationResult, dict[str, Path]]:
+    """Run the calibration a TOML file describes; write its outputs.
+
+    Parameters
+    ----------
+    config_path : the configuration (module docstring).
+    urdf, report : override ``[calibrate] urdf`` / ``report``.
+    force : replace existing outputs (never an input).
+
+    Returns
+    -------
+    (result, written) : the :class:`CalibrationResult` and ``{"urdf": path, "report": path}``
+    of the files written.
+    """
+    config = load_calibration_config(config_path, urdf=urdf, report=report)
+    check_outputs(config.outputs, config.inputs, force)       # before the work
+    result = config.run()
+    written = {}
+    if "urdf" in config.outputs:
+        written["urdf"] = _atomic(config.outputs["urdf"], result.to_urdf)
+    if "report" in config.outputs:
+        out = config.outputs["report"]
+        if out.suffix.lower() not in (".html", ".htm"):
+            raise OutputPathError(f"[calibrate] report {str(out)!r} must be an .html file")
+        written["report"] = _atomic(out, result.report)
+    return result, written
