@@ -40,7 +40,8 @@ from ..errors import DatasetError, IdentificationError, ModelError, OptionError,
 from ..identification.result import StandardParameterSet
 from ..identification.summary import table
 from ..robot.model import RobotModel
-from ..simulate.effects import Effects, explicit_friction, has_explicit_friction
+from ..simulate.effects import (Effects, explicit_friction, explicit_friction_slope,
+                                has_explicit_friction)
 from .ramp import RampPlan, ramp_plan
 
 #: Default detection threshold ``v_th`` (rad/s) and standstill before an event (s).
@@ -180,6 +181,15 @@ def simulate_ramps(model: RobotModel, plan: RampPlan, effects: Effects | None = 
     link, nv = robot.link_dof, model.nv
     pm = model.pin_model
     pdata = pm.createData()
+    if has_explicit_friction(eff):     # applied once per step: h·slope/M_jj < 1 at the pose
+        inertia = np.diag(pin.crba(pm, pdata, model.configuration(plan.pose))) \
+            + np.asarray(eff.armature)
+        ratio = timestep * explicit_friction_slope(eff) / inertia
+        if np.any(ratio >= 1.0):
+            j = int(np.argmax(ratio))
+            raise ModelError(f"the explicit friction on {model.joint_names[j]!r} is too steep "
+                             f"for the physics step at the pose: h·slope/M_jj = {ratio[j]:.3g} "
+                             "≥ 1; shorten timestep or soften the friction law")
     kp, kd = HOLD_BANDWIDTH ** 2, 2.0 * HOLD_BANDWIDTH
     data.qpos[link] = plan.pose
     data.qvel[:] = 0.0
@@ -313,9 +323,9 @@ def estimate_breakaway(model: RobotModel | StandardParameterSet, data: Dataset |
                   f"(MuJoCo, {time.perf_counter() - start_time:.1f} s wall)")
         default_joints = sorted({r.joint for r in plan.ramps})
     else:
-        if plan_options or plan is not None or effects is not None:
-            raise OptionError("effects, plan and ramp options apply to the simulated experiment "
-                              "(data=None), not to a given log")
+        if plan_options or plan is not None or effects is not None or parameters is not None:
+            raise OptionError("effects, parameters, plan and ramp options apply to the simulated "
+                              "experiment (data=None), not to a given log")
         if not isinstance(data, Dataset):
             raise DatasetError(f"data must be a Dataset (or None to simulate ramps), got "
                                f"{type(data).__name__}")
