@@ -448,3 +448,16 @@ def test_periodic_projection_keeps_a_consistent_model_at_hand(planar_2r):
     est.update_batch(q, dq, ddq, tau, record=False)
     assert len(est.projection_seconds) == 3 and est.consistent.is_consistent
     assert np.allclose(est.consistent.given, est.base_parameters)
+
+
+def test_the_batch_trace_keeps_the_flagging_statistic(planar_2r):
+    q, dq, ddq = random_states(planar_2r, 400, 12)
+    est = ci.RecursiveEstimator(planar_2r, noise_std=0.01)
+    tau = est.predict(q, dq, ddq)
+    tau[200:] += 3.0
+    trace = est.update_batch(q, dq, ddq, tau)
+    # an offset step is not a payload: flagged again when the detector re-arms, then reset
+    assert trace.flagged.tolist() == [200, 299]
+    assert [c.action for c in est.changes] == ["payload", "reset"]
+    assert trace.statistic[200] > est.detector.threshold / est.detector.window
+    assert trace.statistic[200] == pytest.approx(est.changes[0].statistic)

@@ -38,7 +38,9 @@ adapts (``on_change``): ``"payload"`` adds the prior covariance of a payload on 
 (:data:`PAYLOAD_PRIOR_MASS`, :data:`PAYLOAD_PRIOR_RADIUS`; the rule of change of Gaz & De Luca
 2017 cited in :mod:`consistid.estimation.payload`: ``β_L = β + B_{[:, n]} π_L``) to ``P``, so the
 ten directions a payload moves are re-learnt at once and the rest is kept; ``"reset"`` divides
-the information by :data:`RESET_FACTOR` (every direction re-learnt); ``None`` only flags. The
+the information by :data:`RESET_FACTOR` (every direction re-learnt); ``None`` only flags.
+``"payload"`` escalates to a reset when the detector flags again as soon as it re-arms (the
+change was not a payload). The
 estimate and covariance just before the flag are kept (:attr:`RecursiveEstimator.changes`), and
 :meth:`RecursiveEstimator.payload` runs :func:`consistid.payload_from_base_change` between them
 and the current estimate.
@@ -55,7 +57,7 @@ only after the warm-up.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Sequence
 
 import numpy as np
@@ -100,6 +102,7 @@ class Change:
     statistic, threshold : the detector's value and threshold at the flag.
     base_parameters, covariance : the estimate ``β̂`` and ``P`` just before the sample that
         flagged it (what the robot was before the change, for :meth:`RecursiveEstimator.payload`).
+    action : how the estimator adapted: ``"payload"``, ``"reset"`` or ``None``.
     """
 
     index: int
@@ -108,10 +111,13 @@ class Change:
     threshold: float
     base_parameters: np.ndarray = field(repr=False)
     covariance: np.ndarray = field(repr=False)
+    action: str | None = None
 
     def __str__(self) -> str:
         when = f"t = {self.time:.3f} s" if self.time is not None else f"sample {self.index}"
-        return f"change flagged at {when} (statistic {self.statistic:.4g} > {self.threshold:.4g})"
+        adapted = f"; {self.action} adaptation" if self.action else ""
+        return (f"change flagged at {when} (statistic {self.statistic:.4g} > "
+                f"{self.threshold:.4g}{adapted})")
 
 
 @dataclass(frozen=True, eq=False)
@@ -469,19 +475,31 @@ class RecursiveEstimator:
         self._sigma_matrix = np.diag(self._sigma2)
 
     def _absorb(self, w: np.ndarray, tau: np.ndarray, t: float | None) -> np.ndarray:
-        """Adapt to a flagged change (``on_change``), then take the flagging sample."""
-        if self.on_change == "payload":
+        """Adapt to a flagged change (``on_change``), then take the flagging sample.
+
+        ``"payload"`` escalates to ``"reset"`` when the previous change was flagged as soon as
+        the detector re-armed after it (within two windows): the payload directions did not
+        absorb it, so it is not a payload (an offset, a friction change …)."""
+        window = max(int(getattr(self.detector, "window",
+                                 getattr(self.detector, "refractory", 0))), 1)
+        action = self.on_change
+        if action == "payload" and len(self._changes) >= 2 \
+                and self._changes[-1].index - self._changes[-2].index <= 2 * window + 1:
+            action = "reset"
+        if action == "payload":
             self._p = self._p + self._payload_cov
         else:
             self._p = self._p / RESET_FACTOR
-        window = getattr(self.detector, "window", getattr(self.detector, "refractory", 0))
-        self._absorbing = max(int(window), 1)
+        self._changes[-1] = replace(self._changes[-1], action=action)
+        self._absorbing = window
         return self._update_after_flag(w, tau, t)
 
     def _update_after_flag(self, w: np.ndarray, tau: np.ndarray, t: float | None) -> np.ndarray:
-        flag = self._flag
+        """The flagging sample, taken with the adapted covariance; the flag and the statistic
+        that raised it are kept (not those of the re-run)."""
+        flag, statistic = self._flag, self.last_statistic
         out = self._update(w, tau, t)
-        self._flag = flag
+        self._flag, self.last_statistic = flag, statistic
         return out
 
     # ------------------------------------------------------------------------- many samples
