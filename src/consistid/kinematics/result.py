@@ -179,12 +179,14 @@ class CalibrationResult:
         return write_calibrated_urdf(self, path)
 
     def _rows(self) -> list[tuple[str, str, str, str, str]]:
-        rows = []
+        """Identified parameters first (in name order), then the held ones."""
+        rows, held = [], []
         for name, v, s, k in zip(self.parameter_names, self.values, self.std, self.identified):
             unit = self.chart.units(name)
-            rows.append((name, self.chart.describe(name), _fmt(v, unit) if k else "0 (held)",
-                         _std(s, unit), f"{abs(v / s):.1f}" if k and s > 0 else ""))
-        return rows
+            row = (name, self.chart.describe(name), _fmt(v, unit) if k else "0 (held)",
+                   _std(s, unit), f"{abs(v / s):.1f}" if k and s > 0 else "")
+            (rows if k else held).append(row)
+        return rows + held
 
     def _notes(self) -> list[str]:
         notes = [f"identified {int(self.identified.sum())} of {len(self.parameter_names)} "
