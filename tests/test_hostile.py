@@ -507,6 +507,30 @@ def test_extreme_but_valid_coefficients_name_the_coefficient(arm, ols):
         assert rec.is_consistent
 
 
+@pytest.mark.parametrize("scale", [1e-4, 1e6])
+def test_recovery_of_a_robot_far_from_the_kilogram_scale(tmp_path, scale):
+    """The same 2R arm with every mass and inertia × scale: recovered and consistent, or an
+    error that blames the scale (never 'try another solver' alone)."""
+    v = dict(PLANAR_2R_VALUES)
+    v.update(m1=v["m1"] * scale, m2=v["m2"] * scale, i1=v["i1"] * scale, i2=v["i2"] * scale)
+    text = (PLANAR_2R.format(**v).replace('ixx="0.01"', f'ixx="{0.01 * scale}"')
+            .replace('iyy="0.045"', f'iyy="{0.045 * scale}"')
+            .replace('iyy="0.03"', f'iyy="{0.03 * scale}"'))
+    (tmp_path / "big.urdf").write_text(text)
+    model = ci.RobotModel.from_urdf(tmp_path / "big.urdf", gravity=(0.0, -9.81, 0.0))
+    q, dq, ddq = random_states(model, 300, 0)
+    data = ci.Dataset(t=np.arange(300) * 0.01, q=q, dq=dq, ddq=ddq,
+                      tau=model.rnea(q, dq, ddq) * (1 + 1e-3))
+    res = ci.identify(model, data, friction=None)
+    assert res.solver.status == "optimal" and res.is_consistent
+    try:
+        rec = ci.recover_standard(model, ci.identify(model, data, method="ols", friction=None))
+    except ci.IdentificationError as exc:
+        assert f"weigh up to {2 * scale:.3g} kg" in str(exc)
+    else:
+        assert rec.is_consistent
+
+
 @pytest.mark.parametrize("kwargs,message", [
     (dict(mode="closest"), "mode='closest'"), (dict(prior=None), "prior=None"),
     (dict(margin=-1.0), "margin must be"), (dict(slack=0.0), "slack must be"),

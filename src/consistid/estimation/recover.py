@@ -479,13 +479,22 @@ def _finish(problem: _Problem, mode: str, x: np.ndarray, reports: tuple[SolverRe
 
 def _far_from_prior(problem: _Problem, exc: IdentificationError) -> IdentificationError:
     """The error for a solver failure on realisable coefficients: if some coefficient is far
-    (> 100×) from the prior's, name it — valid but extreme scaling, not a solver to swap."""
+    (> 100×) from the prior's, name it; if the whole robot is far from the kilogram scale, say
+    so — valid but extreme scaling, not a solver to swap."""
     prior_beta = problem.base.project(problem.prior)
     scale = np.maximum(np.abs(prior_beta), 1e-3 * max(np.max(np.abs(prior_beta)), 1e-12))
     ratio = np.abs(problem.beta - prior_beta) / scale
     k = int(np.argmax(ratio))
     if ratio[k] <= 100:
-        return exc
+        masses = np.abs(problem.prior[: problem.model.n_inertial: 10])
+        unit = float(np.max(masses)) if masses.size else 1.0
+        if 1e-3 <= unit <= 1e3:
+            return exc
+        return type(exc)(
+            f"{exc}. The coefficients match the prior's scale, but the bodies weigh up to "
+            f"{unit:.3g} kg, far from the ~1 kg scale the solver's tolerances suit: the failure "
+            "is one of scale, not of the data. Express the robot in other units (scale the "
+            "masses and inertias, and the coefficients, by the same factor) and scale back")
     return type(exc)(
         f"{exc}. The coefficients look realisable but far from the prior: β[{k}] "
         f"({problem.base.groupings[k]}) = {problem.beta[k]:.4g} against the prior's "
