@@ -227,7 +227,8 @@ def diagnosis_page(diag: "Diagnosis", figures: bool = True) -> Page:
                    [[j.joint, j.rms, j.floor, j.ratio, j.excess, (j.p_value, ".2g"), j.flagged,
                      *[j.regimes.get(r, float("nan")) for r in regimes],
                      "; ".join(j.pointers) or "-"] for j in remainder.joints],
-                   row_classes=["bad" if j.flagged else "" for j in remainder.joints])
+                   row_classes=["bad" if j.flagged else "" for j in remainder.joints],
+                   floatfmt=".3g", keys=())
     page.heading("Where the nominal residual lies", anchor="where")
     page.table(["joint", "RMS [N·m]", "share", "relative", "drift [N·m/s]"],
                [[n, w.rms[j], _pct(w.share[j]), _pct(w.relative[j]),
