@@ -461,3 +461,22 @@ def test_the_batch_trace_keeps_the_flagging_statistic(planar_2r):
     assert [c.action for c in est.changes] == ["payload", "reset"]
     assert trace.statistic[200] > est.detector.threshold / est.detector.window
     assert trace.statistic[200] == pytest.approx(est.changes[0].statistic)
+
+
+def test_reports_and_intervals(tmp_path, panda_adaptive, planar_2r):
+    path = panda_adaptive.report(tmp_path)
+    text = path.read_text()
+    assert path.name == "adaptive_run.html" and "data:image/png;base64," in text
+    assert "payload attached" in panda_adaptive._repr_html_()
+    q, dq, ddq = random_states(planar_2r, 200, 13)
+    est = ci.RecursiveEstimator(planar_2r, noise_std=0.05, detector=None)
+    truth = est.base_parameters + 0.1
+    tau = np.stack([est.row(*s) @ truth for s in zip(q, dq, ddq)])
+    tau += np.random.default_rng(3).normal(0.0, 0.05, tau.shape)
+    est.update_batch(q, dq, ddq, tau, record=False)
+    ci95 = est.conf_int(0.05)
+    assert np.all(ci95[:, 0] < est.base_parameters) and np.all(est.base_parameters < ci95[:, 1])
+    assert np.allclose(ci95[:, 1] - ci95[:, 0], 2 * 1.959964 * est.std, rtol=1e-6)
+    assert "base parameter" in est.summary() and est._repr_html_().startswith("<pre>")
+    with pytest.raises(OptionError, match="alpha"):
+        est.conf_int(1.5)

@@ -19,6 +19,7 @@ standard parameters themselves (which the motion need not determine), a controll
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Callable
 
 import numpy as np
@@ -30,6 +31,7 @@ from ..identification.regressor import prior_vector, regressor
 from ..robot.inertia import from_mass_com_inertia, to_mass_com_inertia
 from ..robot.model import RobotModel, require_model
 from ..simulate.effects import Effects, MountedPayload
+from . import report
 from .scenario import DEFAULT_PAYLOAD
 from .slotine_li import SlotineLiController
 
@@ -126,6 +128,21 @@ class AdaptiveRun:
 
     def __str__(self) -> str:
         return self.summary()
+
+    def figure(self):
+        """A matplotlib ``Figure``: tracking error and estimate error versus time, RMS per
+        period (the grasp as a dashed line)."""
+        return report.adaptive_figure(self)
+
+    def report(self, path: str | Path) -> Path:
+        """Write an HTML page (the figure embedded, the summary) to ``path`` (a ``.html`` file,
+        or a folder that gets ``adaptive_run.html``); returns the file."""
+        title = f"consistid Slotine–Li adaptive control of {self.controller.model.name!r}"
+        return report.write(path, report.page(title, self.summary(), self.figure()),
+                            "adaptive_run.html")
+
+    def _repr_html_(self) -> str:
+        return report.fragment(self.summary())
 
 
 def adaptive_run(model: RobotModel, *, periods: int = 8, period: float = 4.0,

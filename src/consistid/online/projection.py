@@ -57,6 +57,7 @@ from ..identification.sdp import default_prior_weight
 from ..identification.solver import DEFAULT_SOLVER, SolverReport, check_solver, solve
 from ..robot.inertia import pseudo_inertia
 from ..robot.model import RobotModel
+from .report import fragment
 
 #: Weight (1/N·m) of the ridge that keeps the per-joint columns' normal matrix definite.
 JOINT_RIDGE = 1e-6
@@ -99,6 +100,9 @@ class ProjectedEstimate(StandardParameterSet):
 
     def __str__(self) -> str:
         return self.summary()
+
+    def _repr_html_(self) -> str:
+        return fragment(self.summary())
 
 
 class ConsistencyProjector:

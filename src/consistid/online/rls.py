@@ -62,6 +62,7 @@ from typing import Any, Sequence
 
 import numpy as np
 import pinocchio as pin
+import scipy.stats
 from scipy.linalg.lapack import dpotrf as _potrf, dtrtri as _trtri
 
 from ..errors import (DatasetError, IdentificationError, JointCountError, OptionError,
@@ -70,7 +71,9 @@ from ..identification.base import BaseParameters, compute_base_parameters, rando
 from ..identification.regressor import (DEFAULT_FRICTION, FrictionArg, RegressorSpec,
                                         parameter_names, prior_vector, regressor)
 from ..robot.model import RobotModel, require_model
+from ..identification.summary import table
 from .change import ChangeDetector, Cusum, WindowedChiSquare
+from .report import fragment
 
 WINDUP = (None, "trace")
 ON_CHANGE = (None, "payload", "reset")
@@ -584,6 +587,35 @@ class RecursiveEstimator:
         self.consistent = self._projector.project(self._beta, self._p)
         self.projection_seconds.append(self.consistent.seconds)
         return self.consistent
+
+    def conf_int(self, alpha: float = 0.05) -> np.ndarray:
+        """Two-sided ``1 − alpha`` intervals of the base parameters from ``P``, shape (b, 2)."""
+        alpha = check_number("alpha", alpha, 0, strict=True)
+        if alpha >= 1:
+            raise OptionError(f"alpha must lie in (0, 1), got {alpha}")
+        z = float(scipy.stats.norm.ppf(1 - alpha / 2))
+        return np.column_stack([self._beta - z * self.std, self._beta + z * self.std])
+
+    def summary(self, max_rows: int | None = 20) -> str:
+        """The estimate ± σ per base parameter (the first ``max_rows``; ``None``: all), the
+        noise σ in use and the changes flagged."""
+        std = self.std
+        rows = [(n, b, s, g) for n, b, s, g in zip(self.parameter_names, self._beta, std,
+                                                      self.base.groupings)]
+        shown = rows if max_rows is None else rows[:max_rows]
+        lines = [repr(self),
+                 f"noise σ [N·m] ({'given' if self.noise_given else 'estimated'}): "
+                 + ", ".join(f"{s:.3g}" for s in self.noise_std),
+                 "", table(["base parameter", "estimate", "σ", "grouping"],
+                           [(n, b, s, g if len(g) <= 60 else g[:59] + "…")
+                            for n, b, s, g in shown])]
+        if len(shown) < len(rows):
+            lines.append(f"… {len(rows) - len(shown)} more (summary(max_rows=None))")
+        lines += ["", *(str(c) for c in self._changes)] if self._changes else []
+        return "\n".join(lines)
+
+    def _repr_html_(self) -> str:
+        return fragment(self.summary())
 
     def __repr__(self) -> str:
         return (f"RecursiveEstimator({self.model.name!r}, {self.base.n_base} base parameters, "
