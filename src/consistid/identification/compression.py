@@ -26,7 +26,7 @@ import numpy as np
 from ..data.dataset import Dataset
 from ..errors import OptionError
 from ..robot.model import RobotModel
-from .regressor import RegressorSpec, iter_regressor
+from .regressor import RegressorSpec, column_support, iter_regressor
 
 #: Per-joint σ is floored at this fraction of the joint's torque RMS (noise-free data).
 SIGMA_FLOOR = 1e-6
@@ -101,26 +101,34 @@ def compress(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
         if weights.shape != tau.shape or not np.all(np.isfinite(weights)) or np.any(weights < 0):
             raise OptionError(f"row weights must be finite, ≥ 0 and of shape {tau.shape}, got "
                               f"shape {weights.shape}")
-    factors = None
+    support = column_support(model, spec)
+    factors = np.zeros((model.nv, support.shape[1] + 1, support.shape[1] + 1))
     for s, y in iter_regressor(model, dataset, spec, chunk):
-        if factors is None:
-            factors = np.zeros((model.nv, y.shape[2] + 1, y.shape[2] + 1))
-        accumulate(factors, y, tau[s], None if weights is None else weights[s])
+        accumulate(factors, y, tau[s], None if weights is None else weights[s], support)
     return CompressedProblem(factors, dataset.n_samples, np.sum(tau ** 2, axis=0))
 
 
 def accumulate(factors: np.ndarray, columns: np.ndarray, tau: np.ndarray,
-               weights: np.ndarray | None = None) -> None:
+               weights: np.ndarray | None = None, support: np.ndarray | None = None) -> None:
     """One chunk into the per-joint R factors, in place: ``R̄_j ← qr([R̄_j; √w_j·[Y_j | τ_j]])``.
 
     ``factors`` (nv, p + 1, p + 1), ``columns`` (n, nv, p), ``tau`` and ``weights`` (n, nv).
+    ``support`` (nv, p), optional: the columns that can be non-zero in each joint's rows
+    (:func:`~consistid.identification.regressor.column_support`). The QR then runs on those
+    columns only, and its factor is scattered back: compact row ``i`` to row ``s_i`` of the
+    full factor, the residual row to row ``p``. With ``s_i`` increasing the result is still
+    upper triangular, with zero rows at the structurally zero columns, and ``R̄ᵀR̄`` is
+    unchanged — the same factor, for the flops of the non-zero columns.
     """
     size = factors.shape[1]
     for j in range(factors.shape[0]):
-        block = np.column_stack([columns[:, j, :], tau[:, j]])
+        keep = (np.arange(size) if support is None
+                else np.append(np.flatnonzero(support[j]), size - 1))
+        block = np.column_stack([columns[:, j, keep[:-1]], tau[:, j]])
         if weights is not None:
             block *= np.sqrt(weights[:, j])[:, None]
-        factors[j] = _r_factor(np.vstack([factors[j], block]), size)
+        grid = np.ix_(keep, keep)
+        factors[j][grid] = _r_factor(np.vstack([factors[j][grid], block]), keep.size)
 
 
 def floor_sigma(sigma: np.ndarray, problem: CompressedProblem) -> np.ndarray:
