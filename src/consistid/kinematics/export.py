@@ -31,6 +31,7 @@ import pinocchio as pin
 from ..errors import ExportWarning, ModelError
 
 if TYPE_CHECKING:
+    from .parameters import KinematicParameters
     from .result import CalibrationResult
 
 
@@ -119,13 +120,18 @@ class _UrdfText:
 
 def calibrated_urdf_text(res: "CalibrationResult") -> str:
     """The nominal URDF's text with the calibration written in (module docstring)."""
-    model = res.nominal
+    return corrected_urdf_text(res.chart, res.full_values)
+
+
+def corrected_urdf_text(chart: "KinematicParameters", values: np.ndarray) -> str:
+    """The URDF of ``chart.model`` with the corrections ``values`` (named by ``chart.names``)
+    written into its joint origins and axes (module docstring)."""
+    model = chart.model
     if model.source is None or not Path(model.source).is_file():
         raise ModelError(f"{model.name!r} has no source URDF to write the calibration into "
                          "(build the model with RobotModel.from_urdf)")
     source = Path(model.source)
     doc = _UrdfText(source.read_bytes().decode("utf-8"), source.name)
-    chart, values = res.chart, res.full_values
     joint_d = values[:chart.n_joint].reshape(-1, 9)
     for g, d in zip(chart.joints, joint_d):
         if not np.any(d):
