@@ -254,3 +254,26 @@ def test_identify_on_the_kuka_example(kuka_dir, tmp_path, capsys):
     back = pin.buildModelFromUrdf(str(out / "robot.urdf"))
     assert np.array_equal(back.friction, fc) and np.array_equal(back.damping, fv)
     check_html((out / "report.html").read_text(), n_images=6)
+
+
+def test_a_large_bag_shows_progress(tmp_path):
+    """read_bag / read_log report every ~1 % (at least 1000 messages) of a bag's messages; the
+    data read are the same with and without."""
+    pytest.importorskip("rosbags")
+    from consistid.data.formats import read_log
+
+    from .test_formats import write_bag
+
+    n = 2500
+    s = np.arange(n) * 0.002
+    log = dict(ns=(1_700_000_000 * 10**9 + np.arange(n) * 2_000_000), names=("a", "b", "c"),
+               q=np.column_stack([np.sin(s), np.cos(s), s]), dq=np.ones((n, 3)),
+               tau=np.column_stack([s, 2 * s, 3 * s]))
+    bag = write_bag(tmp_path / "big", log)
+    lines: list[str] = []
+    with_bar = read_log(bag, progress=lines.append)
+    assert lines == [f"reading big {k}/{n}" for k in (1000, 2000)]
+    plain = read_log(bag, progress=False)
+    assert np.array_equal(with_bar.t, plain.t) and set(plain.fields) >= {"q", "tau"}
+    for key, value in plain.fields.items():
+        assert np.array_equal(with_bar.fields[key], value), key

@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 from ...errors import DatasetError, OptionError
+from ...progress import ProgressArg
 from .columns import Log
 from .csv import read_csv
 from .frame import read_frame
@@ -56,10 +57,12 @@ def format_of(path: str | Path) -> str:
 
 def read_log(path: str | Path, *, joints: Sequence[str] | None = None,
              columns: Mapping[str, Any] | None = None, topic: str | None = None,
-             delimiter: str | None = None, stamp: str = "header") -> Log:
+             delimiter: str | None = None, stamp: str = "header",
+             progress: ProgressArg = None) -> Log:
     """Read a log file by its suffix (module table). ``topic``/``stamp`` apply to bags,
     ``delimiter`` to text, ``columns`` to tables; giving one where it does not apply raises
-    :class:`OptionError`."""
+    :class:`OptionError`. ``progress`` (:mod:`consistid.progress`) shows a bar over a bag's
+    messages; the other formats are read in one call."""
     kind = format_of(path)
     if kind == "npz":
         raise DatasetError(f"{Path(path).name}: .npz logs are read by "
@@ -71,7 +74,7 @@ def read_log(path: str | Path, *, joints: Sequence[str] | None = None,
     if kind == "bag":
         if columns:
             raise OptionError("columns= does not apply to ROS bags (JointState fields are fixed)")
-        return read_bag(path, joints=joints, topic=topic, stamp=stamp)
+        return read_bag(path, joints=joints, topic=topic, stamp=stamp, progress=progress)
     if kind == "csv":
         return read_csv(path, joints=joints, columns=columns, delimiter=delimiter)
     if kind == "parquet":

@@ -20,6 +20,7 @@ from typing import Sequence
 import numpy as np
 
 from ...errors import DatasetError, MissingColumnsError, MissingDependencyError, check_option
+from ...progress import Progress, ProgressArg
 from .columns import Log
 
 JOINT_STATE = ("sensor_msgs/msg/JointState", "sensor_msgs/JointState")
@@ -40,7 +41,7 @@ def _reader(path: Path):
 
 
 def read_bag(path: str | Path, *, joints: Sequence[str] | None = None, topic: str | None = None,
-             stamp: str = "header") -> Log:
+             stamp: str = "header", progress: ProgressArg = None) -> Log:
     """Read ``JointState`` messages of a ROS 1/2 bag or MCAP file into a
     :class:`~consistid.data.formats.columns.Log` (module docstring).
 
@@ -50,6 +51,8 @@ def read_bag(path: str | Path, *, joints: Sequence[str] | None = None, topic: st
     joints : joints to keep, in this order; default every joint of the first message.
     topic : the ``JointState`` topic; default the only one.
     stamp : ``"header"`` or ``"receive"``.
+    progress : ``None`` (a bar over the messages when stderr is a terminal), ``True``,
+        ``False`` or a callable given a line per step (:mod:`consistid.progress`).
 
     Raises
     ------
@@ -67,6 +70,7 @@ def read_bag(path: str | Path, *, joints: Sequence[str] | None = None, topic: st
         reader.open()
     except Exception as exc:
         raise DatasetError(f"{source} is not a readable ROS bag: {exc}") from None
+    bar: Progress | None = None
     try:
         conns = [c for c in reader.connections if c.msgtype in JOINT_STATE]
         topics = sorted({c.topic for c in conns})
@@ -87,8 +91,13 @@ def read_bag(path: str | Path, *, joints: Sequence[str] | None = None, topic: st
         selected = list(joints) if joints is not None else None
         skipped, n_msgs = 0, 0
         seen: set[str] = set()
+        total = sum(int(getattr(c, "msgcount", 0) or 0) for c in conns) or None
+        chunk = max(1000, (total or 0) // 100)          # at most ~100 updates
+        bar = Progress(progress, total, f"reading {source}", "msg")
         for conn, t_recv, raw in reader.messages(connections=conns):
             n_msgs += 1
+            if n_msgs % chunk == 0:
+                bar.step(n=chunk)
             msg = reader.deserialize(raw, conn.msgtype)
             names = [str(n) for n in msg.name]
             seen.update(names)
@@ -111,6 +120,8 @@ def read_bag(path: str | Path, *, joints: Sequence[str] | None = None, topic: st
             header_t.append(int(s.sec) * 10 ** 9 + int(s.nanosec))
             receive_t.append(int(t_recv))
     finally:
+        if bar is not None:
+            bar.close()
         reader.close()
     if n_msgs == 0:
         raise DatasetError(f"{source}: topic {topic!r} has no messages")
