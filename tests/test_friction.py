@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 import consistid as ci
 from consistid.errors import DatasetError, IdentificationError, ModelError, OptionError
 from consistid.friction import MODELS, estimate_breakaway, ramp_plan, simulate_ramps
-from consistid.friction.fit import identify_nonlinear, parse_friction
+from consistid.friction.fit import Projection, identify_nonlinear, parse_friction
 from consistid.simulate import Effects, record
 from consistid.simulate.effects import explicit_friction, friction_torque
 
@@ -314,3 +314,41 @@ def test_diagnosis_names_the_stribeck_hump_and_not_on_plain_coulomb(panda):
     assert ("stribeck", ("panda_joint2",)) in named["hump"]
     assert ("coulomb", ("panda_joint2",)) in named["hump"]
     assert not any(name == "stribeck" for name, _ in named["plain"])
+
+
+@settings(max_examples=8, deadline=None)
+@given(seed=st.integers(0, 1000))
+def test_projection_is_least_squares_and_its_gradient_is_exact(planar_2r, seed):
+    """Invariants of the variable projection on random shapes (2R arm, Stribeck on joint1,
+    sigmoid on joint2): the projected residual equals numpy's least squares on the assembled
+    columns, and Kaufman's Jacobian gives the exact gradient Jᵀr of ½‖r‖² (finite differences)."""
+    rng = np.random.default_rng(seed)
+    run = ci.simulate.excitation_run(planar_2r, duration=3.0, rate=100.0, torque_noise=0.05,
+                                     seed=seed)
+    data = run.dataset
+    y = ci.regressor(planar_2r, data.q, data.dq, data.ddq).reshape(data.n_samples, 2, -1)
+    base = ci.compute_base_parameters(planar_2r)
+    x = y[:, :, base.independent]
+    sigma = rng.uniform(0.5, 2.0, size=2)
+    keep = (rng.uniform(size=data.dq.shape) > 0.1).astype(float)
+    prob = Projection(x, data.tau, data.dq, ("stribeck", "sigmoid"), sigma, keep)
+    u = np.array([np.log(rng.uniform(0.05, 0.5)), np.log(rng.uniform(1.0, 3.0)),
+                  np.log(rng.uniform(3.0, 20.0)), rng.uniform(-0.1, 0.1)])
+    r = prob.fun(u)
+    cols, _ = prob.columns(u)
+    a = np.zeros((data.n_samples, 2, x.shape[2] + 3))
+    a[:, :, :x.shape[2]] = x * keep[:, :, None] / sigma[None, :, None]
+    a[:, 0, x.shape[2]:x.shape[2] + 2] = cols[0]
+    a[:, 1, x.shape[2] + 2] = cols[1][:, 0]
+    b = (data.tau * keep / sigma).ravel()
+    a = a.reshape(-1, a.shape[2])
+    expected = b - a @ np.linalg.lstsq(a, b, rcond=None)[0]
+    np.testing.assert_allclose(r, expected, atol=1e-8 * np.linalg.norm(b))
+    grad = prob.jac(u).T @ r
+    for i in range(u.size):
+        h = 1e-6
+        up, down = u.copy(), u.copy()
+        up[i] += h
+        down[i] -= h
+        fd = (0.5 * np.sum(prob.fun(up) ** 2) - 0.5 * np.sum(prob.fun(down) ** 2)) / (2 * h)
+        assert grad[i] == pytest.approx(fd, rel=1e-4, abs=1e-6 * np.sum(r ** 2))

@@ -271,11 +271,14 @@ class NonlinearFrictionResult(IdentificationResult):
 
 # ------------------------------------------------------------------------------ the projection
 @dataclass(eq=False)
-class _Problem:
-    """The data of a variable-projection fit, whitened per joint by ``1/σ_j``.
+class Projection:
+    """A variable-projection problem (module docstring), rows whitened per joint by ``1/σ_j``.
 
-    ``x`` (N, nv, b) the fixed base columns, ``tau`` (N, nv), ``dq`` (N, nv); ``laws`` per
-    joint; ``sigma`` (nv,)."""
+    ``x`` (N, nv, b) the fixed base columns, ``tau`` (N, nv), ``dq`` (N, nv), ``laws`` per
+    joint, ``sigma`` (nv,), ``keep`` (N, nv) row weights 0/1 (rows left out have weight 0).
+    :meth:`fun` is the projected residual ``P^⊥ τ`` (whitened, flattened) at search
+    coordinates ``u`` and :meth:`jac` Kaufman's Jacobian, for
+    :func:`scipy.optimize.least_squares`; :meth:`solve` gives the linear parameters."""
 
     x: np.ndarray
     tau: np.ndarray
@@ -451,7 +454,7 @@ def _solve_sym(s_mat: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     return np.linalg.lstsq(s_mat, rhs, rcond=1e-12)[0]
 
 
-def _search(problem: _Problem, u0: np.ndarray, max_nfev: int) -> tuple[np.ndarray, dict]:
+def _search(problem: Projection, u0: np.ndarray, max_nfev: int) -> tuple[np.ndarray, dict]:
     lo, hi = [], []
     for j in problem.joints:
         a, b = MODELS[problem.laws[j]].internal_bounds()
@@ -473,7 +476,7 @@ def _search(problem: _Problem, u0: np.ndarray, max_nfev: int) -> tuple[np.ndarra
     return sol.x, report
 
 
-def _starts(problem: _Problem, shapes: Mapping[str, float] | None,
+def _starts(problem: Projection, shapes: Mapping[str, float] | None,
             model: RobotModel) -> np.ndarray:
     """Search start: each law's :meth:`FrictionModel.start`, or given ``shapes``
     (``{"<joint>.<shape>": value}``)."""
@@ -538,7 +541,7 @@ def identify_nonlinear(model: RobotModel, dataset: Dataset, method: str, frictio
     min_speed = check_number("min_speed", min_speed, 0)
     keep = (np.abs(dataset.dq) >= min_speed).astype(float)
     n_kept = keep.sum(axis=0)
-    problem = _Problem(x, tau, dataset.dq, selection.laws, np.ones(nv), keep)
+    problem = Projection(x, tau, dataset.dq, selection.laws, np.ones(nv), keep)
     u = _starts(problem, start, model)
     amp_names, shape_names = _names(model, selection.laws)
     k_all, m_all = len(amp_names), u.size
@@ -662,7 +665,7 @@ def _nearest_standard(base: BaseParameters, beta: np.ndarray, prior: np.ndarray)
     return prior + np.linalg.lstsq(mat, beta - mat @ prior, rcond=None)[0]
 
 
-def _at_bounds(problem: _Problem, u: np.ndarray, names: Sequence[str]) -> list[str]:
+def _at_bounds(problem: Projection, u: np.ndarray, names: Sequence[str]) -> list[str]:
     """Names of the shape parameters within 0.01 (search coordinates: 1 % for the positive
     ones) of a search bound."""
     out, k = [], 0
@@ -709,7 +712,7 @@ def _sqrt_spd(s_mat: np.ndarray) -> np.ndarray:
 
 
 def _sdp(model: RobotModel, y: np.ndarray, tau: np.ndarray, spec: RegressorSpec,
-         base: BaseParameters, problem: _Problem, u: np.ndarray, constraints: object,
+         base: BaseParameters, problem: Projection, u: np.ndarray, constraints: object,
          prior: object, options: dict[str, Any]) -> tuple[np.ndarray, np.ndarray, Any]:
     """The consistent SDP at ``η̂``: each joint's amplitudes profiled out of its compressed
     problem (R factor of ``[C_j | Y_j | τ_j]``, trailing block), the SDP on the rest, then the
