@@ -18,12 +18,12 @@ from hypothesis import strategies as st
 
 import consistid as ci
 from consistid.errors import DatasetError, JointCountError, OptionError
-from consistid.identification.regressor import regressor
-from consistid.online.adaptive_run import adaptive_run, capacity_body
-from consistid.online.change import Cusum, WindowedChiSquare
 from consistid.identification.constraints import pseudo_inertia as pseudo_inertia_expression
 from consistid.identification.priors import logdet_metric
+from consistid.identification.regressor import regressor
 from consistid.identification.sdp import default_prior_weight
+from consistid.online.adaptive_run import adaptive_run, capacity_body
+from consistid.online.change import Cusum, WindowedChiSquare
 from consistid.online.projection import JOINT_RIDGE, ConsistencyProjector
 from consistid.online.scenario import payload_change_run
 from consistid.online.slotine_li import (CLIP_RTOL, SlotineLiController, natural_metric,
@@ -91,7 +91,10 @@ def test_change_detected_is_true_on_the_flagging_sample_only(planar_2r):
 
 
 # --------------------------------------------------------------------------- RLS = batch LS
-@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+FIXTURE_OK = [HealthCheck.function_scoped_fixture]     # session fixtures, read-only
+
+
+@settings(max_examples=15, deadline=None, suppress_health_check=FIXTURE_OK)
 @given(seed=st.integers(0, 10_000), forgetting=st.sampled_from([1.0, 0.99, 0.9]),
        n=st.integers(1, 40))
 def test_rls_equals_weighted_batch_least_squares(planar_2r, seed, forgetting, n):
@@ -264,7 +267,7 @@ def test_slotine_li_regressor_is_the_regressor_when_qr_is_q(robot):
         assert np.allclose(y, regressor(model, q[k], dq[k], ddq[k], spec), atol=1e-10)
 
 
-@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=20, deadline=None, suppress_health_check=FIXTURE_OK)
 @given(seed=st.integers(0, 10_000))
 def test_slotine_li_regressor_against_the_2r_closed_form(planar_2r, seed):
     """``Y π = M q̈_r + C(q, q̇) q̇_r + g`` with the planar 2R arm's textbook ``M``, the

@@ -254,6 +254,7 @@ def adaptive_run(model: RobotModel, *, periods: int = 8, period: float = 4.0,
     snap_t, snap_err = [], []
     attached = False
     h = 1.0 / rate
+    dq_prev = dqd[0]
     for k in range(steps):
         if payload is not None and not attached and t[k] >= payload_time - 1e-12:
             robot.set_payload(True)

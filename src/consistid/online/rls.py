@@ -63,15 +63,16 @@ from typing import Any, Sequence
 import numpy as np
 import pinocchio as pin
 import scipy.stats
-from scipy.linalg.lapack import dpotrf as _potrf, dtrtri as _trtri
+from scipy.linalg.lapack import dpotrf as _potrf
+from scipy.linalg.lapack import dtrtri as _trtri
 
 from ..errors import (DatasetError, IdentificationError, JointCountError, OptionError,
                       check_number, check_option)
 from ..identification.base import BaseParameters, compute_base_parameters, random_states
 from ..identification.regressor import (DEFAULT_FRICTION, FrictionArg, RegressorSpec,
                                         parameter_names, prior_vector, regressor)
-from ..robot.model import RobotModel, require_model
 from ..identification.summary import table
+from ..robot.model import RobotModel, require_model
 from .change import ChangeDetector, Cusum, WindowedChiSquare
 from .report import fragment
 
