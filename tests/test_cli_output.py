@@ -203,6 +203,15 @@ def test_progress_argument(monkeypatch, capsys):
             for k in range(3):
                 bar.step(f"item {k}")
         assert ("work" in "".join(stream.text)) == drawn, (tty, progress)
+    from consistid.progress import silenced
+
+    stream = Terminal(True)
+    monkeypatch.setattr(sys, "stderr", stream)
+    with silenced(), Progress(None, 3, "work") as bar:          # what -q does in the CLI
+        bar.step()
+    with silenced(), Progress(True, 3, "forced") as bar:
+        bar.step()
+    assert "work" not in "".join(stream.text) and "forced" in "".join(stream.text)
     lines = []
     with Progress(lines.append, 2, "work") as bar:
         bar.step("a")

@@ -11,14 +11,15 @@ loops, large files) takes ``progress=``:
 a callable
     called with one line of text per step instead of a bar (what a GUI or a logger wants).
 
-The ``consistid`` command passes ``False`` under ``-q``. ``tqdm`` is imported only when a bar is
-drawn.
+The ``consistid`` command runs under :func:`silenced` with ``-q``: there ``None`` means no
+bar, wherever the call is made. ``tqdm`` is imported only when a bar is drawn.
 """
 
 from __future__ import annotations
 
+import contextlib
 import sys
-from typing import Any, Callable, Union
+from typing import Any, Callable, Iterator, Union
 
 from .errors import OptionError
 
@@ -26,9 +27,28 @@ from .errors import OptionError
 ProgressArg = Union[bool, None, Callable[[str], None]]
 
 
+#: Inside :func:`silenced`: ``progress=None`` draws no bar.
+_SILENCED = [False]
+
+
+@contextlib.contextmanager
+def silenced(on: bool = True) -> Iterator[None]:
+    """Within the block, ``progress=None`` draws no bar (``-q`` of the ``consistid`` command);
+    an explicit ``True`` or callable still reports."""
+    before = _SILENCED[0]
+    _SILENCED[0] = bool(on)
+    try:
+        yield
+    finally:
+        _SILENCED[0] = before
+
+
 def wants_bar(progress: ProgressArg) -> bool:
-    """Whether ``progress`` asks for a drawn bar (``None``: when stderr is a terminal)."""
+    """Whether ``progress`` asks for a drawn bar (``None``: when stderr is a terminal, outside
+    :func:`silenced`)."""
     if progress is None:
+        if _SILENCED[0]:
+            return False
         stream = sys.stderr
         return bool(stream is not None and hasattr(stream, "isatty") and stream.isatty())
     return progress is True

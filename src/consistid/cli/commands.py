@@ -30,6 +30,7 @@ from consistid.errors import (ConfigError, ConsistidError, OutputPathError, chec
 from . import online_demo
 from .files import atomic_dir, atomic_path, check_output, check_output_dir
 from .hints import toml_hints, toml_value
+from ..progress import silenced
 
 #: Set by ``-q``: no progress bars, no step messages on stderr (errors are still printed).
 QUIET = False
@@ -526,7 +527,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     QUIET = bool(args.quiet)
     try:
-        return COMMANDS[args.command][0](args)
+        with silenced(QUIET):                     # -q: no bar from any library call either
+            return COMMANDS[args.command][0](args)
     except ConsistidError as exc:
         print(f"consistid {args.command}: error: {toml_hints(str(exc))}", file=sys.stderr,
               flush=True)
