@@ -74,7 +74,7 @@ def verdict(res: "IdentificationResult") -> tuple[str, list[str]]:
 
 def _fit_rows(res: "IdentificationResult", sets: Sequence[tuple[str, Dataset]]
               ) -> tuple[list[str], list[list[Any]]]:
-    header = ["joint", "noise σ [N·m]", "train RMS [N·m]"]
+    header = ["joint", "noise σ [N·m]", "RMS at the fit [N·m]"]
     columns = []
     for label, data in sets:
         rel, total = res.relative_error(data)
