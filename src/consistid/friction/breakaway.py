@@ -16,10 +16,10 @@ experiments), and its spread ``1.4826·MAD``; the medians per direction are kept
 gravity-model error shifts both the same way, ``(f⁺ + f⁻)/2`` is free of it).
 
 Sources of events: any log (``estimate_breakaway(model, data)``: the first motion after each
-standstill), or, with ``data=None``, the torque ramps of a :class:`~consistid.friction.ramp.RampPlan`
-run on the MuJoCo robot (:func:`simulate_ramps`) carrying the given
-:class:`~consistid.simulate.Effects` — MuJoCo's ``frictionloss`` holds a joint up to its value,
-so a set value is a truth to check against.
+standstill), or, with ``data=None``, the torque ramps of a
+:class:`~consistid.friction.ramp.RampPlan` run on the MuJoCo robot (:func:`simulate_ramps`)
+carrying the given :class:`~consistid.simulate.Effects` — MuJoCo's ``frictionloss`` holds a
+joint up to its value, so a set value is a truth to check against.
 """
 
 from __future__ import annotations
@@ -164,8 +164,9 @@ def simulate_ramps(model: RobotModel, plan: RampPlan, effects: Effects | None = 
 
     Before each ramp every joint is held at the pose by computed torque on ``model`` (bandwidth
     :data:`HOLD_BANDWIDTH`); during a ramp the other joints stay held and the ramped joint's
-    torque ramps from the torque that held it (``g(q₀)`` plus what holding needed), until it reaches ``plan.abort_speed``, leaves
-    ``plan.max_excursion`` or the ramp reaches ``max_torque``. Every physics step is logged:
+    torque ramps from the torque that held it (``g(q₀)`` plus what holding needed), until it
+    reaches ``plan.abort_speed``, leaves ``plan.max_excursion`` or the ramp reaches
+    ``max_torque``. Every physics step is logged:
     MuJoCo's exact ``q, q̇, q̈`` and the commanded torque with ``effects.torque_noise``.
     Raises :class:`ModelError` for elastic joints (the ramp acts on the link).
     """

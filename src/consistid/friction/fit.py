@@ -69,7 +69,7 @@ from ..identification.solver import SolverReport
 from ..identification.statistics import autocorrelation_time
 from ..identification.summary import table
 from ..robot.model import RobotModel
-from .models import LINEAR, MODELS, FrictionModel, get_model
+from .models import LINEAR, MODELS, get_model
 
 #: Linear per-joint terms that come with a nonlinear selection given as a name or a mapping.
 DEFAULT_LINEAR: tuple[str, ...] = ("viscous", "offset")

@@ -22,17 +22,20 @@ name            field(s)                      added drive torque
                                               or :math:`f_c\tanh(\dot q/v_s)` as an external
                                               torque (``coulomb_model="tanh"``, ``v_s`` =
                                               ``coulomb_speed``)
-``stribeck``    ``static_friction`` f_s       :math:`(f_c + (f_s - f_c)e^{-|\dot q/v_s|^δ})\operatorname{sign}\dot q`:
-                (N·m ≥ f_c), ``stribeck_speed``  MuJoCo's ``frictionloss`` set to :math:`f_s` (it holds
-                v_s (rad/s), ``stribeck_exponent`` the joint up to f_s at rest) and, as an external torque
-                δ (≥ 1)                       computed per step, the relief
-                                              :math:`(f_s-f_c)(1-e^{-|\dot q/v_s|^δ})\operatorname{sign}\dot q`
-                                              (zero at rest, continuous); needs
+``stribeck``    ``static_friction`` f_s       the Stribeck curve
+                (N·m, ≥ f_c),                 :math:`(f_c + (f_s - f_c)e^{-|\dot q/v_s|^δ})`
+                ``stribeck_speed`` v_s        :math:`\cdot\operatorname{sign}\dot q`: MuJoCo's
+                (rad/s),                      ``frictionloss`` set to :math:`f_s` (it holds the
+                ``stribeck_exponent`` δ ≥ 1   joint up to f_s at rest) and, as an external
+                                              torque computed per step, the relief
+                                              :math:`(f_s-f_c)(1-e^{-|\dot q/v_s|^δ})`
+                                              :math:`\cdot\operatorname{sign}\dot q` (zero at
+                                              rest, continuous); needs
                                               ``coulomb_model="frictionloss"``
-``sigmoid``     ``sigmoid_amplitude`` φ1      Gaz et al. 2019 (RA-L 4(4), eq. 8):
-                (N·m), ``sigmoid_steepness``  :math:`φ_1/(1+e^{-φ_2(\dot q+φ_3)}) - φ_1/(1+e^{-φ_2φ_3})`
-                φ2 (s/rad), ``sigmoid_shift`` as an external torque computed per step
-                φ3 (rad/s)
+``sigmoid``     ``sigmoid_amplitude`` φ1      Gaz et al. 2019 (RA-L 4(4), eq. 8),
+                (N·m), ``sigmoid_steepness``  :math:`φ_1σ(φ_2(\dot q+φ_3)) - φ_1σ(φ_2φ_3)`,
+                φ2 (s/rad),                   σ the logistic function, as an external
+                ``sigmoid_shift`` φ3 (rad/s)  torque computed per step
 ``armature``    ``armature`` (kg·m²)          :math:`I_a\,\ddot q` (MuJoCo ``dof_armature``)
 ``payload``     ``payload``                   a rigid body on the flange (:class:`MountedPayload`)
 ``elasticity``  ``stiffness`` K (N·m/rad),    a motor inertia B coupled to the link by a spring
@@ -529,10 +532,11 @@ def effect_torque(model: RobotModel, effects: Effects, q: np.ndarray, dq: np.nda
     .. math:: \Delta\tau = f_v \dot q + f_c s(\dot q) + I_a \ddot q + Y_p(q,\dot q,\ddot q)\,\pi_p
 
     with ``s = sign`` for ``"frictionloss"`` (what MuJoCo applies once ``|q̇|`` ≳ 0.01 rad/s)
-    or ``tanh(·/v_s)``, the Stribeck and sigmoid terms added (:func:`friction_torque`), and ``Y_p π_p`` the payload through the regressor of the body that
-    carries it. On an elastic joint the drive-side terms ``f_v q̇ + f_c s + I_a q̈`` are zero:
-    they act on the motor, and the torque sensor at the spring reads the link-side torque
-    (rigid body and payload) only. Sensor effects are not included (see :func:`sensor_torque`).
+    or ``tanh(·/v_s)``, the Stribeck and sigmoid terms added (:func:`friction_torque`), and
+    ``Y_p π_p`` the payload through the regressor of the body that carries it. On an elastic
+    joint the drive-side terms ``f_v q̇ + f_c s + I_a q̈`` are zero: they act on the motor, and
+    the torque sensor at the spring reads the link-side torque (rigid body and payload) only.
+    Sensor effects are not included (see :func:`sensor_torque`).
 
     ``Y_p π_p`` is computed as the inverse dynamics (``pinocchio.rnea``) of a copy of the
     robot that carries the payload and nothing else (every body massless, no armature): the
