@@ -35,6 +35,8 @@ METHODS = ("spline", "linear")
 MIN_RATE_FRACTION = 0.9
 #: Steps within this fraction of the median step set the nominal rate.
 NEAR_MEDIAN = 0.1
+#: A stretch shorter than this (samples) does not set the rate of a log whose rate changed.
+MIN_STRETCH = 256
 
 
 def uniform_grid(start: float, stop: float, rate: float) -> np.ndarray:
@@ -58,7 +60,8 @@ def nominal_rate(t: np.ndarray) -> float:
     dt = dt[dt > 0]
     if dt.size == 0:
         raise DatasetError("fewer than two distinct time stamps: no sampling rate")
-    med = float(np.median(dt))
+    k = (dt.size - 1) // 2
+    med = float(np.partition(dt, k)[k])        # the lower median: a step of the log itself
     near = dt[np.abs(dt - med) <= NEAR_MEDIAN * med]
     return float(f"{1.0 / float(np.mean(near)):.7g}")
 
@@ -67,13 +70,16 @@ def supported_rate(pieces: list[np.ndarray]) -> tuple[float, str]:
     """The rate (Hz) a log made of the stamp arrays ``pieces`` (gap-free stretches) supports,
     and how it was chosen.
 
-    The nominal rate of all steps together (:func:`nominal_rate`); if some stretch is sampled
-    faster than that by more than 1 / :data:`MIN_RATE_FRACTION` (a log whose rate changed),
-    the fastest stretch's rate, so that no stretch is resampled below what it carries.
+    The nominal rate of all steps together (:func:`nominal_rate`); if some long stretch (at least
+    :data:`MIN_STRETCH` samples and a tenth of the log; short ones scatter by chance) is
+    sampled faster than that by more than 1 / :data:`MIN_RATE_FRACTION` (a log whose rate
+    changed), the fastest such stretch's rate, so that none is resampled below what it
+    carries.
     """
     steps = np.concatenate([np.diff(p) for p in pieces if p.size > 1] or [np.zeros(0)])
     rate = nominal_rate(np.concatenate([[0.0], np.cumsum(steps)]))
-    own = [nominal_rate(p) for p in pieces if p.size > 16]
+    total = sum(p.size for p in pieces)
+    own = [nominal_rate(p) for p in pieces if p.size >= max(MIN_STRETCH, 0.1 * total)]
     fastest = max(own, default=rate)
     if fastest * MIN_RATE_FRACTION > rate:
         return fastest, (f"{fastest:.7g} Hz, the fastest stretch's rate (the log's typical step "
