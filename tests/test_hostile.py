@@ -304,6 +304,12 @@ OPTIONS = [
     (dict(prior_weights=np.ones(20)), "prior_weights are the Euclidean prior's metric"),
     (dict(friction=("coulomb", "stiction")), "stiction"),
     (dict(armature=["joint9"]), "joint9"),
+    (dict(scale="yes"), "scale must be True or False"),
+    (dict(friction_nonnegative=3), "friction_nonnegative must be True or False"),
+    (dict(solver_options=5), "solver_options must be a mapping"),
+    (dict(solver_options={"max_iter": "x"}), "could not run with the options"),
+    (dict(neighbourhood=ci.identification.priors.Neighbourhood(mass=0.1), prior=None,
+          prior_weight=2.0), "prior=None has none"),
     (dict(method="ols", prior="logdet"), "apply to method='sdp' only"),
     (dict(method="wls", margin=0.1), "apply to method='sdp' only"),
 ]
@@ -469,6 +475,14 @@ def test_rnea_names_a_nan_input(arm, field):
 def test_ellipsoids_refuse_degenerate_shapes(center, axes, rotation, message):
     with pytest.raises(OptionError, match=message):
         Ellipsoid.from_semi_axes(center, axes, rotation)
+
+
+@pytest.mark.parametrize("value", ["x", -1.0, float("nan"), True])
+def test_neighbourhood_bounds_are_numbers(value):
+    from consistid.identification.priors import Neighbourhood
+
+    with pytest.raises(OptionError, match="Neighbourhood.com must be a finite number ≥ 0"):
+        Neighbourhood(com=value)
 
 
 def test_ellipsoid_shape_must_be_positive_definite():

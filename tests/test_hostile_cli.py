@@ -131,6 +131,14 @@ WRONG_TYPES = [
      "prior_weight must be a finite number"),
     ("[identify]", 'method = "ols"', 'method = "sdp"\nmass_bounds = 3',
      "mass_bounds must be a mapping"),
+    ("[identify]", 'method = "ols"', 'method = "sdp"\nneighbourhood = {mass = "x"}',
+     "Neighbourhood.mass must be a finite number"),
+    ("[identify]", 'method = "ols"', 'method = "sdp"\nsolver_options = 5',
+     "solver_options must be a mapping"),
+    ("[identify]", 'method = "ols"', 'method = "sdp"\nscale = "yes"', "scale must be True or"),
+    ("[identify]", 'method = "ols"', 'method = "sdp"\nellipsoids = {link1 = 5}',
+     "[identify.ellipsoids.link1] must be a table"),
+    ("[identify]", 'friction = ["coulomb"]', "friction = 3", "friction must be term names"),
 ]
 
 

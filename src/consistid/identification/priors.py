@@ -19,7 +19,7 @@ import numpy as np
 
 from .constraints import BodyScaling, inertia_matrix
 from .constraints import pseudo_inertia as pseudo_inertia_expression
-from ..errors import InconsistentParametersError, OptionError
+from ..errors import InconsistentParametersError, OptionError, check_number
 from ..robot.inertia import inertia_about_origin, pseudo_inertia_map
 from ..robot.inertia import pseudo_inertia as pseudo_inertia_numeric
 
@@ -108,8 +108,8 @@ class Neighbourhood:
     def __post_init__(self) -> None:
         for name in ("mass", "com", "inertia"):
             value = getattr(self, name)
-            if value is not None and not (np.isfinite(value) and value >= 0):
-                raise OptionError(f"Neighbourhood.{name} must be a finite number ≥ 0, got {value}")
+            if value is not None:
+                check_number(f"Neighbourhood.{name}", value, 0)
 
 
 def neighbourhood_constraints(x: cp.Expression, prior: np.ndarray,

@@ -210,6 +210,12 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
     check_option("prior", prior, PRIORS)
     check_option("loss", loss, LOSSES)
     solver = check_solver(solver)
+    for name, value in (("scale", scale), ("friction_nonnegative", friction_nonnegative)):
+        if not isinstance(value, (bool, np.bool_)):
+            raise OptionError(f"{name} must be True or False, got {value!r}")
+    if solver_options is not None and not isinstance(solver_options, Mapping):
+        raise OptionError(f"solver_options must be a mapping of solver settings (e.g. "
+                          f"{{'max_iter': 200}}), got {solver_options!r}")
     nv, n = problem.nv, problem.n_samples
     if problem.n_columns != base.n_standard:
         raise OptionError(f"the compressed problem has {problem.n_columns} columns but the base "
