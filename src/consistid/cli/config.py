@@ -55,12 +55,13 @@ from __future__ import annotations
 
 import inspect
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any, Iterable, Mapping
 
 from ..errors import ConfigError
 from ..robot.model import RobotModel
+from ..data.chain import PreprocessOptions
 from ..data.recordings import Recording, load_recording
 
 if sys.version_info >= (3, 11):
@@ -74,11 +75,12 @@ MODEL_KEYS = ("urdf", "example", "strip_dynamics", "locked_joints", "gravity", "
 DATA_KEYS = ("dir", "keys", "joint_names", "trim_start", "trim_end", "duplicates", "train",
              "held_out", "joints", "columns", "topic", "stamp", "delimiter", "time_unit",
              "timestamp", "derivatives", "signals")
-#: Keys of ``[data.signals]``: the signal chain's options (:class:`consistid.data.chain.
-#: PreprocessOptions`) for logs without logged velocities and accelerations.
-SIGNAL_KEYS = ("derivative", "cutoff", "bandwidth", "order", "period", "rate", "outliers",
-               "outlier_window", "trim", "min_speed", "decimate", "gap", "jitter",
-               "filter_torque", "polyorder")
+#: Keys of ``[data.signals]``: the signal chain's options (the fields of
+#: :class:`consistid.data.chain.PreprocessOptions`, one schema for the API and the TOML) for
+#: logs without logged velocities and accelerations; ``duplicates``, ``timestamp`` and
+#: ``time_unit`` are ``[data]`` keys, as they apply to every log.
+SIGNAL_KEYS = tuple(f.name for f in fields(PreprocessOptions)
+                    if f.name not in ("duplicates", "timestamp", "time_unit"))
 
 
 @dataclass(frozen=True)
