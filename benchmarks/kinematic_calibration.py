@@ -21,10 +21,10 @@ Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/kinematic_calibration.py [--seed
 from __future__ import annotations
 
 import argparse
+import tempfile
 import time
 import xml.etree.ElementTree as ET
 from pathlib import Path
-import tempfile
 
 import numpy as np
 import pinocchio as pin
@@ -91,7 +91,8 @@ def main() -> int:
     rows, sigma_rows = [], []
     for robot, (frame, tool_joint) in ROBOTS.items():
         model = ci.RobotModel.example(robot)
-        z_all, held_rms, chi2, times, counts, dopt, rand, worst_rep = [], [], [], [], [], [], [], 0.0
+        z_all, held_rms, chi2, times, counts, dopt, rand = [], [], [], [], [], [], []
+        worst_rep = 0.0
         for seed in range(args.seeds):
             truth, offsets = truth_robot(model, tool_joint, seed, folder)
             rng = np.random.default_rng(1000 + seed)

@@ -8,7 +8,6 @@ model in a tracker frame, plus Gaussian noise.
 
 from __future__ import annotations
 
-import difflib
 import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -22,12 +21,13 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 import consistid as ci
-from consistid.kinematics import (CalibrationResult, KinematicParameters, calibrate_kinematics,
-                                  select_poses)
+from consistid.kinematics import (
+    KinematicParameters,
+    calibrate_kinematics,
+    select_poses,
+)
 from consistid.kinematics.measurements import as_measurements, residual_jacobian, residuals
 from consistid.kinematics.parameters import random_configurations
-
-from .conftest import PLANAR_2R, PLANAR_2R_VALUES
 
 SIG_P, SIG_R = 1e-4, np.radians(0.05)          # the issue's noise: 0.1 mm, 0.05°
 TOOL_JOINT = {"ur5": ("tool0", "wrist_3_link-tool0_fixed_joint"),
@@ -422,7 +422,9 @@ def test_written_urdf_changes_only_calibrated_values_and_reloads_to_the_model(pa
     changed = [(a, b) for a, b in zip(before, after) if a != b]
     assert changed and all("<origin" in b for _, b in changed)
     # outside the attribute values, the changed lines are the same text
-    strip = (lambda line: re.sub(r'"[^"]*"', '""', line))
+    def strip(line: str) -> str:
+        return re.sub(r'"[^"]*"', '""', line)
+
     assert all(strip(a) == strip(b) for a, b in changed)
     reloaded = ci.RobotModel.from_urdf(out, locked_joints=panda.locked_joints)
     d1, d2 = cal.model.pin_model.createData(), reloaded.pin_model.createData()
@@ -479,7 +481,6 @@ def test_summary_report_html_and_intervals(ur5, tmp_path, poses50):
     html = page.read_text()
     assert page.name == "calibration.html" and "data:image/png;base64" in html
     assert "<table>" in cal._repr_html_() and "elbow_joint.zero" in html
-    assert "residual" not in cal.residual_table().lower() or True
     assert len(cal.residual_table().splitlines()) == cal.n_measurements + 2
 
 
@@ -626,10 +627,13 @@ def test_d_optimal_poses_beat_random_ones_and_respect_the_cell(ur5):
     jac = candidate_jacobians(chart, plan.candidates, sel, np.eye(3)[None] * 1e-8, None)
     kept = [chart.names[i] for i in sel]
     cols = [kept.index(n) for n in plan.parameter_names]
-    info = (lambda rows: np.einsum("nji,njk->ik", jac[rows][:, :, cols], jac[rows][:, :, cols]))
+    def info(rows: np.ndarray) -> np.ndarray:
+        return np.einsum("nji,njk->ik", jac[rows][:, :, cols], jac[rows][:, :, cols])
+
     assert np.linalg.slogdet(info(plan.indices))[1] > np.linalg.slogdet(info(rand))[1]
-    assert plan.mean_std()["m"] < np.mean(np.sqrt(np.diag(np.linalg.inv(info(rand))))[
-        [i for i, n in enumerate(plan.parameter_names) if chart.units(n) == "m"]] * 1e-4 / 1e-4)
+    lengths = [i for i, n in enumerate(plan.parameter_names) if chart.units(n) == "m"]
+    random_std = np.sqrt(np.diag(np.linalg.inv(info(rand))))[lengths]   # whitened: σ 0.1 mm
+    assert plan.mean_std()["m"] < np.mean(random_std)
     pm, data = ur5.pin_model, ur5.pin_model.createData()
     lim = ur5.limits
     for qk in plan.q:

@@ -28,16 +28,29 @@ import pinocchio as pin
 import scipy.optimize
 import scipy.stats
 
-from ..errors import (IdentificationError, OptionError, PoorExcitationError, check_number,
-                      check_option)
+from ..errors import (
+    IdentificationError,
+    OptionError,
+    PoorExcitationError,
+    check_number,
+    check_option,
+)
 from ..excitation.limits import end_effector_frame
 from ..identification.result import SolverReport
 from ..robot.model import RobotModel, require_model
-from .identifiability import (null_directions, normalised, sequential_selection,
-                              structural_selection)
-from .measurements import (Measurements, as_measurements, joint_coordinates, kabsch,
-                           mahalanobis, noise_covariance, residual_jacobian, residuals,
-                           trilaterate, whitening)
+from .identifiability import normalised, null_directions, sequential_selection, structural_selection
+from .measurements import (
+    Measurements,
+    as_measurements,
+    joint_coordinates,
+    kabsch,
+    mahalanobis,
+    noise_covariance,
+    residual_jacobian,
+    residuals,
+    trilaterate,
+    whitening,
+)
 from .parameters import KinematicParameters
 from .result import CalibrationResult
 

@@ -60,7 +60,9 @@ class Measurements:
         return len(COMPONENTS[self.kind])
 
     def subset(self, rows: np.ndarray) -> "Measurements":
-        pick = (lambda a: None if a is None else a[rows])
+        def pick(a: np.ndarray | None) -> np.ndarray | None:
+            return None if a is None else a[rows]
+
         return Measurements(self.kind, pick(self.positions), pick(self.rotations),
                             pick(self.distances))
 

@@ -18,7 +18,8 @@ Per moving joint ``J`` (nine):
 
 The measured frame (``tool.x … tool.rz``): the origin of the fixed joint that carries it, in the
 same two conventions. The measurement system (``base.x … base.rz``): the pose ``T_MB`` of the
-robot's base in the tracker's frame, :math:`t = t_0 + \delta t`, :math:`R = R_0\exp([\theta]_\times)`.
+robot's base in the tracker's frame, :math:`t = t_0 + \delta t`,
+:math:`R = R_0\exp([\theta]_\times)`.
 For distance measurements, ``anchor.x, anchor.y, anchor.z``: the fixed point (ball-bar pivot,
 tracker station) in the base frame.
 
@@ -265,12 +266,13 @@ class KinematicParameters:
                         if self._in_group(item, n, joint_names) and n not in self.fixed_axes]
             else:
                 hits = [i for i, n in enumerate(self.names) if fnmatch.fnmatchcase(n, item)]
-                if any(self.names[i] in self.fixed_axes for i in hits):
+                fixed = sorted(self.names[i] for i in hits if self.names[i] in self.fixed_axes)
+                if fixed:
                     raise OptionError(
                         f"parameters item {item!r} names the axis of a continuous joint "
-                        f"({sorted(self.names[i] for i in hits if self.names[i] in self.fixed_axes)}"
-                        "): Pinocchio has no unbounded revolute joint about an arbitrary axis; "
-                        "the joint's and its child's origin rotations cover the tilt")
+                        f"({fixed}): Pinocchio has no unbounded revolute joint about an "
+                        "arbitrary axis; the joint's and its child's origin rotations cover "
+                        "the tilt")
             if not hits:
                 raise OptionError(
                     f"parameters item {item!r} matches no parameter of {self.model.name} "

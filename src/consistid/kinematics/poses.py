@@ -29,12 +29,24 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import DatasetError, OptionError, PoorExcitationError, check_number, check_option
-from ..excitation.limits import (CartesianBox, ConstraintSet, ExcitationLimits, FloorPlane,
-                                 KeepOutSphere, end_effector_frame)
+from ..excitation.limits import (
+    CartesianBox,
+    ConstraintSet,
+    ExcitationLimits,
+    FloorPlane,
+    KeepOutSphere,
+    end_effector_frame,
+)
 from ..robot.model import RobotModel, require_model
 from .identifiability import normalised, structural_selection
-from .measurements import (COMPONENTS, Measurements, joint_coordinates, noise_covariance,
-                           residual_jacobian, whitening)
+from .measurements import (
+    COMPONENTS,
+    Measurements,
+    joint_coordinates,
+    noise_covariance,
+    residual_jacobian,
+    whitening,
+)
 from .parameters import KINDS, KinematicParameters, random_configurations
 
 CRITERIA = ("d-opt", "cond")

@@ -15,7 +15,6 @@ import pinocchio as pin
 import scipy.stats
 
 from ..errors import DatasetError
-
 from ..identification.result import SolverReport
 from ..identification.summary import table
 from ..robot.model import RobotModel
