@@ -121,10 +121,11 @@ def read_csv(path: str | Path, *, joints: Sequence[str] | None = None,
         raise DatasetError(f"{source}: a header ({len(names)} columns) but no data rows")
     try:
         table = np.loadtxt(io.StringIO(text), delimiter=None if delimiter == " " else delimiter,
-                           skiprows=k + 1, comments="#", ndmin=2, dtype=float, usecols=usecols)
-    except ValueError:
+                           skiprows=k + 1, comments="#", ndmin=2, dtype=float, usecols=usecols,
+                           quotechar='"')
+    except ValueError as exc:
         _locate(path, k + 1, delimiter, names, decimal_comma, source)
-        raise
+        raise DatasetError(f"{source}: not readable as numbers after the header ({exc})") from None
     if table.shape[0] == 0:
         raise DatasetError(f"{source}: a header ({len(names)} columns) but no data rows")
     all_lines = text.splitlines()
