@@ -159,9 +159,10 @@ def test_ols_accepts_saying_no_prior_and_no_constraints(planar_2r):
 
 def test_report_writes_the_summary(panda, runs, tmp_path):
     res = ci.identify(panda, runs[0], method="ols", friction=None)
-    text = res.report(tmp_path / "report.txt")
-    assert text == res.summary()
-    assert (tmp_path / "report.txt").read_text().startswith("consistid identification")
+    path = res.report(tmp_path / "report.txt")       # the path written, as Diagnosis.report
+    assert path == tmp_path / "report.txt"
+    assert path.read_text() == res.summary() + "\n"
+    assert res.report() == res.summary()
 
 
 
