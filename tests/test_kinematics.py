@@ -739,3 +739,32 @@ def test_written_urdf_reproduces_any_corrections(seed, robot):
     changed = [b for a, b in zip(source, text.splitlines()) if a != b]
     assert len(source) == len(text.splitlines())
     assert all("<origin" in line or "<axis" in line for line in changed)
+
+
+def test_continuous_joints_take_pinocchio_configurations():
+    # kinova: continuous joints (nq ≠ nv); q may be given as angles or as (cos, sin) pairs
+    kinova = ci.RobotModel.example("kinova")
+    frame = ci.excitation.end_effector_frame(kinova)
+    chart = KinematicParameters(kinova, frame, "position")
+    assert chart.fixed_axes and not chart.fixed_axes & {chart.names[i]
+                                                        for i in chart.select("all")}
+    truth = np.zeros(chart.size)
+    truth[chart.select("zero")] = np.radians([0.3, -0.2, 0.1, 0.25, -0.3, 0.15])
+    robot = chart.robot_model(truth)
+    q = random_configurations(kinova, 40, np.random.default_rng(0))
+    pm, data = robot.pin_model, robot.pin_model.createData()
+    pts = []
+    for qk in q:
+        pin.framesForwardKinematics(pm, data, robot.configuration(qk))
+        pts.append(data.oMf[pm.getFrameId(frame)].translation.copy())
+    configs = np.array([kinova.configuration(qk) for qk in q])
+    assert configs.shape[1] == kinova.pin_model.nq > kinova.nv
+    a = calibrate_kinematics(kinova, q, np.array(pts), frame=frame, parameters="zero", sigma=1e-5)
+    b = calibrate_kinematics(kinova, configs, np.array(pts), frame=frame, parameters="zero",
+                             sigma=1e-5)
+    ok = a.identified
+    assert np.allclose(a.values[ok], truth[chart.select("zero")][ok], atol=1e-9)
+    assert np.allclose(a.values, b.values, atol=1e-12)
+    with pytest.raises(ci.OptionError, match="continuous joint"):
+        calibrate_kinematics(kinova, q, np.array(pts), frame=frame,
+                             parameters=[f"{kinova.joint_names[0]}.axis_u"])

@@ -27,7 +27,7 @@ if TYPE_CHECKING:
 
 
 def _fmt(value: float, unit: str) -> str:
-    """mm / mdeg-free display: metres as mm, radians as degrees."""
+    """A correction for tables: metres as mm, radians as degrees."""
     if not np.isfinite(value):
         return "—"
     return f"{value * 1e3:+.4f} mm" if unit == "m" else f"{np.degrees(value):+.5f}°"
@@ -194,6 +194,14 @@ class CalibrationResult:
                  f"noise σ {self.sigma_source}; χ²/dof = {self.chi2_reduced:.3g} (≈ 1 when σ "
                  "describes the residuals)",
                  f"cond(J) = {self.condition_number:.4g} (whitened, columns normalised)"]
+        units = np.array(self.units())
+        for unit, label in (("m", "length"), ("rad", "angle")):
+            pick = np.flatnonzero(self.identified & (units == unit))
+            if pick.size:
+                worst = pick[int(np.argmax(self.std[pick]))]
+                notes.append(f"least certain {label}: {self.parameter_names[worst]} ± "
+                             f"{_std(self.std[worst], unit)} (median σ "
+                             f"{_std(float(np.median(self.std[pick])), unit)})")
         if self.held_at_solution:
             notes.append(f"held because the data do not see them at the solution (special "
                          f"geometry, e.g. the measured point on a joint axis): "
