@@ -412,3 +412,33 @@ def test_a_log_whose_rate_changed_is_resampled_at_its_faster_rate():
     assert pre.rate == 1000.0 and "fastest stretch" in str(pre)
     assert list(np.unique(pre.dataset.segment)) == [0, 1]
     np.testing.assert_allclose(np.diff(pre.dataset.t[pre.dataset.segment == 0]), 1e-3)
+
+
+def test_a_simulated_jittered_log_loads_as_accurately_as_a_uniform_one():
+    """Issue 13's acceptance on a MuJoCo log: UR5 at 5 kHz, cut into a 1 kHz log and a log with
+    steps of 0.8–8.8 ms (median 1 ms); the default call loads both, with comparable q̇, q̈
+    against MuJoCo's true states."""
+    from consistid.simulate import Effects, record
+
+    model = ci.RobotModel.example("ur5")
+    traj = FourierTrajectory.random(model, 5, 10.0, seed=4)
+    rec = record(model, traj, Effects(torque_noise=0.05), duration=6.0, rate=5000.0,
+                 physics_rate=5000.0, seed=4)
+    rng = np.random.default_rng(4)
+    steps = np.clip(np.rint(rng.normal(5, 0.5, rec.n_samples // 4)), 4, None)
+    steps[rng.random(steps.size) < 0.02] = rng.integers(10, 45, 1)[0]
+    steps[7] = 44
+    jit = np.concatenate([[0], np.cumsum(steps.astype(int))])
+    jit = jit[jit < rec.n_samples]
+    dt = np.diff(rec.t[jit])
+    assert dt.min() <= 8.1e-4 and dt.max() == pytest.approx(8.8e-3)
+    assert np.median(dt) == pytest.approx(1e-3)
+    errors = {}
+    for name, idx in (("uniform", np.arange(0, rec.n_samples, 5)), ("jittered", jit)):
+        d = ci.Dataset.from_recording(rec.t[idx], rec.q[idx], rec.tau[idx])
+        true_dq = np.column_stack([np.interp(d.t, rec.t, c) for c in rec.true_dq.T])
+        true_ddq = np.column_stack([np.interp(d.t, rec.t, c) for c in rec.true_ddq.T])
+        errors[name] = (np.sqrt(np.mean((d.dq - true_dq) ** 2)),
+                        np.sqrt(np.mean((d.ddq - true_ddq) ** 2)))
+    assert errors["jittered"][0] < 1.5 * errors["uniform"][0]
+    assert errors["jittered"][1] < 1.5 * errors["uniform"][1]
