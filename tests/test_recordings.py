@@ -209,3 +209,10 @@ def test_collapsed_stamps_are_refused_by_the_loader_unless_a_policy_is_given():
     assert spread.dataset.n_samples == 200
     np.testing.assert_allclose(np.diff(spread.dataset.t), 0.001, atol=1e-6)
     assert from_arrays(**a, duplicates="average").dataset.n_samples == 20
+
+
+def test_a_recording_renders_its_record():
+    rec = from_arrays(**log())
+    assert rec.summary() == str(rec) and rec.summary().count("\n  - ") == len(rec.steps)
+    page = rec._repr_html_()
+    assert page.count("<li>") == len(rec.steps) and "Unix time stamps" in page

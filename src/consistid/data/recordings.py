@@ -44,6 +44,7 @@ what was done:
 
 from __future__ import annotations
 
+import html
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
@@ -102,10 +103,20 @@ class Recording:
     time_origin: float = 0.0
 
     def __str__(self) -> str:
+        return self.summary()
+
+    def summary(self) -> str:
+        """The source, the size, and one line per step applied."""
         d = self.dataset
         head = (f"recording {self.source}: {d.n_samples} samples × {d.nv} joints, "
                 f"{d.duration:.3f} s")
         return "\n".join([head, *(f"  - {s}" for s in self.steps)])
+
+    def _repr_html_(self) -> str:
+        d = self.dataset
+        items = "".join(f"<li>{html.escape(s)}</li>" for s in self.steps)
+        return (f"<p><b>recording</b> {html.escape(self.source)}: {d.n_samples} samples × "
+                f"{d.nv} joints, {d.duration:.3f} s</p><ol>{items}</ol>")
 
     @staticmethod
     def concatenate(recordings: Sequence["Recording"]) -> "Recording":

@@ -11,6 +11,7 @@ so that ``from consistid.data.signals import lowpass`` keeps working.
 
 from __future__ import annotations
 
+import html
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -71,10 +72,21 @@ class Preprocessed:
     options: PreprocessOptions
 
     def __str__(self) -> str:
+        return self.summary()
+
+    def summary(self) -> str:
+        """The result's size and rate, and one numbered line per step applied."""
         lines = [f"{len(self.steps)} steps → {self.dataset.n_samples} samples, "
                  f"{len(np.unique(self.dataset.segment))} segment(s) at {self.rate:.6g} Hz"]
         lines += [f"  {i + 1}. {s}" for i, s in enumerate(self.steps)]
         return "\n".join(lines)
+
+    def _repr_html_(self) -> str:
+        items = "".join(f"<li><b>{html.escape(s.name)}</b>: {html.escape(s.detail)}</li>"
+                        for s in self.steps)
+        return (f"<p>{self.dataset.n_samples} samples, "
+                f"{len(np.unique(self.dataset.segment))} segment(s) at {self.rate:.6g} Hz</p>"
+                f"<ol>{items}</ol>")
 
 
 def preprocess(t: np.ndarray, q: np.ndarray, tau: np.ndarray, *,
