@@ -44,6 +44,9 @@ def identification_summary(res: "IdentificationResult", max_rows: int | None = N
              table(["base parameter", "prior", "estimate", "± std", "std %"], shown)]
     if len(shown) < len(rows):
         lines.append(f"… {len(rows) - len(shown)} more rows (summary(max_rows=None) shows all)")
+    if any(name.endswith("*") for name in res.base.names):
+        lines.append("* regroups others the data cannot tell apart from it (res.base.groupings "
+                     "lists them; so do the report and parameters.csv)")
     lines += ["", table(["joint", "train RMS [N·m]", "noise σ [N·m]"],
                         [(n, r, s) for n, r, s in zip(res.model.joint_names, res.train_rms,
                                                       res.sigma)])]
