@@ -248,3 +248,25 @@ def test_arrays_round_trip_bit_for_bit(values, shape):
     b = decode(json.loads(json.dumps(encode(a), allow_nan=False)))
     assert b.dtype == a.dtype and b.shape == a.shape
     assert np.array_equal(a, b, equal_nan=True)
+
+
+def test_uninformed_directions_round_trip_and_are_reported(tmp_path):
+    """One second of motion leaves directions the data do not inform (σ = inf): the file keeps
+    them (as tagged non-finite numbers in standard JSON), and the report's verdict names them."""
+    from consistid.identification.report import verdict
+
+    model = ci.RobotModel.example("ur5")
+    run = ci.simulate.excitation_run(model, duration=1.0, rate=100.0, torque_noise=0.1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = ci.identify(model, run.dataset)
+    assert res.uninformed and np.isinf(res.base_std).any()
+    path = res.save(tmp_path / "r.json")
+    json.loads(path.read_text(), parse_constant=lambda c: pytest.fail(f"{c} in the JSON"))
+    back = ci.IdentificationResult.load(path)
+    _assert_equal_results(res, back)
+    level, lines = verdict(back)
+    assert level == "warn" and any("not informed" in line for line in lines)
+    with open(back.to_csv(tmp_path / "p.csv"), newline="") as fh:
+        stds = [r["std"] for r in csv.DictReader(fh) if r["kind"] == "base"]
+    assert "inf" in stds

@@ -61,6 +61,13 @@ def verdict(res: "IdentificationResult") -> tuple[str, list[str]]:
         bad = [b.body for b in cons.bodies if not b.ok]
         lines.append(f"{len(bad)} of {len(cons.bodies)} bodies are not physically consistent "
                      f"({', '.join(bad)}): a simulator cannot use them as they are.")
+    uninformed = tuple(getattr(res, "uninformed", ()))
+    if uninformed:
+        level = "bad" if level == "bad" else "warn"
+        lines.append(f"{len(uninformed)} base-parameter direction(s) are not informed by the "
+                     f"data (σ = inf): {'; '.join(uninformed[:4])}"
+                     + (" …" if len(uninformed) > 4 else "")
+                     + ". Their values come from the prior or the constraints alone.")
     if res.condition_number > COND_WARN:
         level = "bad" if level == "bad" else "warn"
         lines.append(f"cond(W_b) = {res.condition_number:.4g} > {COND_WARN:.0e}: some base "
