@@ -110,7 +110,7 @@ WRONG_TYPES = [
     ("[model]", "gravity = [0.0, -9.81, 0.0]", "gravity = [0, true, 0]",
      "[model] gravity must be"),
     ("[model]", "gravity = [0.0, -9.81, 0.0]", 'locked_joints = "joint1"',
-     "[model] locked_joints must be a array of strings"),
+     "[model] locked_joints must be an array of strings"),
     ("[model]", "gravity = [0.0, -9.81, 0.0]", 'strip_dynamics = "yes"',
      "[model] strip_dynamics must be a boolean"),
     ("[model]", "gravity = [0.0, -9.81, 0.0]", "name = 7", "[model] name must be a string"),
@@ -122,7 +122,7 @@ WRONG_TYPES = [
     ("[data]", 'held_out = ["run2.npz"]', "held_out = true", "[data] held_out must be"),
     ("[data]", 'dir = "data"', 'dir = "data"\ntrim_start = "2 s"', "[data] trim_start must be a number"),
     ("[data]", 'dir = "data"', 'dir = "data"\njoint_names = "joint1"',
-     "[data] joint_names must be a array of strings"),
+     "[data] joint_names must be an array of strings"),
     ("[data]", 'dir = "data"', 'dir = "data"\nduplicates = 0', "[data] duplicates must be a string"),
     ("[identify]", 'method = "ols"', "method = 5", "method=5 is not supported"),
     ("[identify]", 'method = "ols"', 'method = "ols"\ncovariance = 1', "covariance=1"),
@@ -178,13 +178,35 @@ def test_excite_values_of_the_wrong_type(project, capsys, monkeypatch, new, mess
 
 
 @pytest.mark.parametrize("new,message", [
+    ("effects = 5", "[diagnose] effects must be a string or array of strings"),
+    ('split = "half"', "[diagnose] split must be a number"),
+    ('sigma = [1, "x"]', "[diagnose] sigma must be an array of numbers"),
+    ("max_steps = 1.5", "[diagnose] max_steps must be an integer"),
+    ("output = 3", "[diagnose] output must be a string"),
+])
+def test_diagnose_values_of_the_wrong_type(project, capsys, monkeypatch, new, message):
+    forbid(monkeypatch, ci, "diagnose")
+    text = MODEL + DATA + f"[diagnose]\n{new}\n"
+    assert message in run(["diagnose", write(project, text)], capsys)
+
+
+def test_excite_boundary_of_the_wrong_type(project, capsys):
+    text = MODEL + '[excite]\nharmonics = 2\nfriction = []\n[excite.boundary]\nq_start = "x"\n'
+    assert "[excite.boundary] q_start must be a number" in run(["excite", write(project, text)],
+                                                              capsys)
+
+
+@pytest.mark.parametrize("new,message", [
+    ("loaded = 5", "[payload] loaded must be a string or array of strings"),
     ('mass_range = "heavy"', "mass_range must be a pair"),
     ("mass_range = [3.0, 1.0]", "lower bound above the upper"),
     ('route = "magic"', "route='magic' is not supported"),
-    ("frame = 3", "frame must be a frame/body name"),
+    ("frame = 3", "[payload] frame must be a string"),
+    ("body = [1]", "[payload] body must be a string"),
 ])
 def test_payload_options_of_the_wrong_type(project, capsys, new, message):
-    text = MODEL + DATA + f'[payload]\nloaded = ["run2.npz"]\n{new}\n'
+    loaded = "" if new.startswith("loaded") else 'loaded = ["run2.npz"]\n'
+    text = MODEL + DATA + f"[payload]\n{loaded}{new}\n"
     assert normal(message) in run(["payload", write(project, text)], capsys)
 
 
@@ -195,6 +217,8 @@ def test_payload_options_of_the_wrong_type(project, capsys, new, message):
     ('mode = "closest"', "mode='closest'"),
     ("margin = \"wide\"", "[recover] margin must be a number"),
     ("urdf = 5", "[recover] urdf must be a string"),
+    ('merged = "glue"', "[recover] merged='glue' is not supported"),
+    ('merged = "lump"', "no urdf = \"out.urdf\" to write"),
 ])
 def test_recover_values_are_checked(project, capsys, new, message):
     text = MODEL + DATA + f"[recover]\n{new}\n"

@@ -26,6 +26,7 @@ import numpy as np
 import consistid as ci
 from consistid.errors import (ConfigError, ConsistidError, OutputPathError, check_number,
                              check_option)
+from consistid.robot.export import MERGED
 
 from . import online_demo
 from .files import atomic_dir, atomic_path, check_output, check_output_dir
@@ -256,6 +257,11 @@ def recover(args: argparse.Namespace) -> int:
                       ("armature", "boolean")):
         if key in t and not (key == "armature" and isinstance(t[key], list)):
             config.expect("recover", key, t[key], kind)
+    if "merged" in t:
+        check_option("[recover] merged", t["merged"], MERGED)
+        if "urdf" not in t:
+            raise ConfigError(f"{config.path.name}: [recover] merged = {t['merged']!r} says how "
+                              "to write the URDF, and there is no urdf = \"out.urdf\" to write")
     urdf = (check_output(config.resolve(t["urdf"]), inputs=config_inputs(config, model),
                          force=args.force, what="[recover] urdf") if "urdf" in t else None)
     options = {k: t[k] for k in ("mode", "prior", "margin", "slack") if k in t}
@@ -313,6 +319,10 @@ def payload(args: argparse.Namespace) -> int:
     if not t.get("loaded"):
         raise ConfigError(f"{config.path.name}: [payload] needs loaded = [\"file.npz\", ...] "
                           "(the logs recorded with the payload)")
+    config.expect("payload", "loaded", t["loaded"], "string or array of strings")
+    for key in ("frame", "body"):
+        if key in t:
+            config.expect("payload", key, t[key], "string")
     ellipsoid = (config_ellipsoid(config, "payload.ellipsoid", t["ellipsoid"])
                  if "ellipsoid" in t else None)
     options = {"method": "ols", **config_identify(config)}
@@ -348,9 +358,16 @@ def diagnose(args: argparse.Namespace) -> int:
     config = load_config(args.config)
     model = config_model(config)
     t = config.table("diagnose", DIAGNOSE_KEYS, required=False)
-    for key in ("nominal_urdf", "output"):
+    for key, kind in (("nominal_urdf", "string"), ("output", "string"),
+                      ("effects", "string or array of strings"), ("split", "number"),
+                      ("alpha", "number"), ("min_gain", "number"), ("tie", "number"),
+                      ("max_steps", "integer"), ("inertia_solver", "string")):
         if key in t:
-            config.expect("diagnose", key, t[key], "string")
+            config.expect("diagnose", key, t[key], kind)
+    if "sigma" in t and not isinstance(t["sigma"], list):
+        config.expect("diagnose", "sigma", t["sigma"], "number")
+    elif "sigma" in t:
+        config.expect("diagnose", "sigma", t["sigma"], "array of numbers")
     output = args.output or t.get("output")
     if output:
         output = _report_target(output if args.output else config.resolve(output),

@@ -148,7 +148,8 @@ class RunConfig:
                        "array of numbers": "[0.0, 1.0]",
                        "string or array of strings": '"a" or ["a", "b"]',
                        "string or table": '"name" or {t = "time", ...}'}[kind]
-            raise ConfigError(f"{self.path.name}: [{table}] {key} must be a {kind} (e.g. "
+            article = "an" if kind[0] in "aeiou" else "a"
+            raise ConfigError(f"{self.path.name}: [{table}] {key} must be {article} {kind} (e.g. "
                               f"{key} = {example}), got {key} = {_toml(value)}")
         return value
 

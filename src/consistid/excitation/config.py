@@ -103,8 +103,13 @@ def load_excitation_config(path: str | Path) -> ExcitationConfig:
         options["friction"] = ((friction,) if isinstance(friction, str)   # one term
                                else tuple(friction)) or None
     if "boundary" in ex:
-        options["boundary"] = BoundaryConditions(
-            **config.check_table("excite.boundary", ex["boundary"], BOUNDARY_KEYS))
+        boundary = config.check_table("excite.boundary", ex["boundary"], BOUNDARY_KEYS)
+        for key, value in boundary.items():
+            if not isinstance(value, list):
+                config.expect("excite.boundary", key, value, "number")
+            else:
+                config.expect("excite.boundary", key, value, "array of numbers")
+        options["boundary"] = BoundaryConditions(**boundary)
     options["limits"] = limits
     output = config.expect("excite", "output", ex.get("output", "excitation.csv"), "string")
     rate = config.expect("excite", "rate", ex.get("rate", 500.0), "number")
