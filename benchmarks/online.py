@@ -34,21 +34,28 @@ def update_cost(model: ci.RobotModel, n: int, repeat: int) -> None:
     q, dq, ddq = random_states(model, n, np.random.default_rng(0))
     tau = np.random.default_rng(1).normal(size=q.shape)
     m, d = model.pin_model, model.pin_model.createData()
-    rnea, upd = [], []
+    rnea, upd, growth = [], [], []
     for _ in range(repeat):
         t0 = time.perf_counter()
         for k in range(n):
             pin.rnea(m, d, q[k], dq[k], ddq[k])
         rnea.append((time.perf_counter() - t0) / n)
         est = ci.RecursiveEstimator(model, noise_std=1.0, detector="chi2")
+        tenth = max(n // 10, 1)
+        marks = []
         t0 = time.perf_counter()
         for k in range(n):
+            if k % tenth == 0:
+                marks.append(time.perf_counter())
             est.update(q[k], dq[k], ddq[k], tau[k])
-        upd.append((time.perf_counter() - t0) / n)
+        end = time.perf_counter()
+        upd.append((end - t0) / n)
+        growth.append((end - marks[-1]) / (marks[1] - marks[0]))
     r, u = statistics.median(rnea), statistics.median(upd)
     print(f"update cost ({model.name}, {est.base.n_base} base parameters, friction, regressor "
           f"row included, {n} samples × {repeat}): {u * 1e6:.1f} µs per sample; pin.rnea "
-          f"{r * 1e6:.2f} µs; ratio {u / r:.1f} (target ≤ 50 µs)")
+          f"{r * 1e6:.2f} µs; ratio {u / r:.1f} (target ≤ 50 µs); last tenth / first tenth of "
+          f"the updates {statistics.median(growth):.2f} (independent of time: 1)")
 
 
 def projection_time(model: ci.RobotModel, repeat: int) -> None:

@@ -485,3 +485,21 @@ def test_reports_and_intervals(tmp_path, panda_adaptive, planar_2r):
     assert "base parameter" in est.summary() and est._repr_html_().startswith("<pre>")
     with pytest.raises(OptionError, match="alpha"):
         est.conf_int(1.5)
+
+
+def test_adaptive_run_with_unmodelled_friction_and_refused_effects(panda):
+    """Coulomb friction the controller does not model (no friction columns): the run completes
+    and stays consistent; with friction columns the adaptation absorbs it (lower last-period
+    error). Elastic joints are refused by name."""
+    from consistid.simulate import Effects
+
+    eff = Effects(coulomb=0.5, coulomb_model="tanh", coulomb_speed=0.05)
+    plain = adaptive_run(panda, periods=3, payload=None, effects=eff, seed=2)
+    assert np.all(plain.projected_minimum >= plain.controller.margin * (1 - CLIP_RTOL))
+    adapted = adaptive_run(panda, periods=3, payload=None, effects=eff, seed=2,
+                           friction=("coulomb",))
+    assert adapted.period_rms()[-1] < plain.period_rms()[-1]
+    coulomb = adapted.final_parameters[panda.n_inertial:]
+    assert np.all(coulomb >= 0) and np.median(coulomb) > 0.1         # truth 0.5 N·m
+    with pytest.raises(OptionError, match="elastic"):
+        adaptive_run(panda, periods=1, payload=None, effects=Effects(stiffness=1000.0))

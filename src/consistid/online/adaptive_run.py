@@ -27,10 +27,11 @@ import pinocchio as pin
 
 from ..errors import ModelError, OptionError, check_number
 from ..excitation import FourierTrajectory
-from ..identification.regressor import prior_vector, regressor
+from ..identification.regressor import FrictionArg, RegressorSpec, prior_vector, regressor
 from ..robot.inertia import from_mass_com_inertia, to_mass_com_inertia
 from ..robot.model import RobotModel, require_model
-from ..simulate.effects import Effects, MountedPayload
+from ..simulate.effects import (Effects, MountedPayload, explicit_friction,
+                                has_explicit_friction)
 from . import report
 from .scenario import DEFAULT_PAYLOAD
 from .slotine_li import SlotineLiController
@@ -154,8 +155,8 @@ def adaptive_run(model: RobotModel, *, periods: int = 8, period: float = 4.0,
                  lam: float | np.ndarray = 5.0, bandwidth: float = 50.0,
                  gamma: float | np.ndarray = 10.0, rate: float = 1000.0,
                  project_every: int = 1, composite: float = 0.0,
-                 payload_capacity: float = 3.0, snapshot: float = 0.1,
-                 seed: int = 0,
+                 payload_capacity: float = 3.0, friction: FrictionArg = None,
+                 snapshot: float = 0.1, seed: int = 0,
                  controller: SlotineLiController | None = None,
                  progress: Callable[[float], None] | None = None) -> AdaptiveRun:
     """Run the Slotine–Li controller on the MuJoCo robot (module docstring).
@@ -169,7 +170,11 @@ def adaptive_run(model: RobotModel, *, periods: int = 8, period: float = 4.0,
     nominal_error : relative error of every body of the controller's initial model.
     payload : attached at ``payload_time`` (default: the start of the middle period,
         ``(periods // 2)·period``); ``None`` for no payload.
-    effects : further effects of the simulated robot (friction …; its ``payload`` must be unset).
+    effects : further effects of the simulated robot: friction (MuJoCo's ``damping`` and
+        ``frictionloss``, and the explicit tanh, Stribeck and sigmoid torques of
+        :func:`consistid.simulate.effects.explicit_friction`, applied every step) and armature;
+        its ``payload`` must be unset and elasticity is refused. Sensor effects (noise, delay,
+        quantisation) are not applied: the controller reads the true state.
     lam : ``Λ`` (1/s). ``bandwidth`` : ``K = bandwidth · M̂(q_d(0))`` (N·m·s/rad, the nominal
         mass matrix at the start), the poles of the ``s`` dynamics at about ``bandwidth`` rad/s.
     payload_capacity : kg the last body may carry: the controller's reference body there is the
@@ -183,6 +188,8 @@ def adaptive_run(model: RobotModel, *, periods: int = 8, period: float = 4.0,
     gamma : the controller's ``Γ`` (a number: the natural gain).
     rate : physics and control rate (Hz).
     project_every : the controller's projection period (steps).
+    friction : per-joint columns the controller adapts (:meth:`RegressorSpec.make`; start at
+        0); default none. Their truth (for the estimate's error) is taken as 0.
     snapshot : seconds between estimate snapshots.
     controller : a ready controller (then ``lam``, ``bandwidth``, ``gamma``, ``nominal_error``,
         ``project_every`` are not used).
@@ -214,6 +221,10 @@ def adaptive_run(model: RobotModel, *, periods: int = 8, period: float = 4.0,
         payload_time = (periods // 2) * period if payload_time is None else float(payload_time)
         effects = effects.with_payload(payload)
     robot = MujocoRobot(model, effects, truth, timestep=1.0 / rate)
+    if robot.effects.elastic.any():
+        raise OptionError("adaptive_run drives the link joints directly: elastic joints "
+                          "(effects.stiffness) are not supported here")
+    explicit = has_explicit_friction(robot.effects)
     loaded = truth.copy()
     if payload is not None:
         joint, values = robot.payload
@@ -231,9 +242,12 @@ def adaptive_run(model: RobotModel, *, periods: int = 8, period: float = 4.0,
         if payload_capacity > 0:
             joint = robot.payload[0] if robot.payload is not None else model.nv - 1
             reference[10 * joint:10 * joint + 10] += capacity_body(payload_capacity)
-        controller = SlotineLiController(model, lam, bandwidth * m0, gamma, initial=nominal,
-                                         project_every=project_every, composite=composite,
-                                         reference=reference)
+        spec = RegressorSpec.make(model, friction)
+        controller = SlotineLiController(
+            model, lam, bandwidth * m0, gamma,
+            initial=np.concatenate([nominal, np.zeros(spec.n_joint_columns)]),
+            friction=friction, project_every=project_every, composite=composite,
+            reference=reference)
     initial = controller.parameters.copy()
     spec = controller.spec
     n_truth = prior_vector(model, spec).size
@@ -264,7 +278,8 @@ def adaptive_run(model: RobotModel, *, periods: int = 8, period: float = 4.0,
             controller.observe(q_log[k - 1], dq_prev, (dq - dq_prev) / h, tau_log[k - 1])
         dq_prev = dq
         tau = controller.step(q, dq, qd[k], dqd[k], ddqd[k], h)
-        data.qfrc_applied[link] = tau
+        data.qfrc_applied[link] = (tau - explicit_friction(robot.effects, dq) if explicit
+                                   else tau)
         mujoco.mj_step(mj, data)
         if data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number:
             raise ModelError(f"the MuJoCo simulation diverged at t = {t[k]:.3f} s (bad "
