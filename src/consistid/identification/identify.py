@@ -170,12 +170,18 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
     Returns
     -------
     IdentificationResult
+        ``uninformed`` names the base-parameter directions the data do not inform (SDP: their
+        values come from the prior alone, a :class:`PoorExcitationWarning` says so).
 
     Raises
     ------
     OptionError for an unknown method or friction term; JointCountError when the dataset's joint
-    count differs from the model's; PoorExcitationError when the data cannot determine the base
-    parameters (OLS/WLS); IdentificationError / InfeasibleError when the SDP solver fails.
+    count differs from the model's; DatasetError for values beyond ±1e8 (SI units) or a dead
+    torque channel, PoorExcitationError for data without any motion
+    (:mod:`consistid.data.checks`, before any numerics; a lone glitch only warns,
+    :class:`~consistid.errors.DataQualityWarning`); PoorExcitationError when the data cannot
+    determine the base parameters (OLS/WLS, naming the directions); IdentificationError /
+    InfeasibleError when the SDP solver fails, SolverError when it crashes.
     """
     check_option("method", method, METHODS)
     check_option("covariance", covariance, COVARIANCE_OPTIONS)
