@@ -22,6 +22,7 @@ import numpy as np
 import consistid as ci
 from consistid.estimation.mounting import estimate_mounting, gravity_from_tilt
 from consistid.identification.summary import table
+from consistid.progress import Progress
 
 FRICTION = ("coulomb", "viscous", "offset")
 TILT = (math.radians(-1.0), math.radians(2.0))
@@ -43,10 +44,12 @@ def main() -> int:
     args = ap.parse_args()
     model = ci.RobotModel.example("panda")
     rows = []
-    for noise, phi in ((0.0, 0.0), (0.05, 0.0), (0.2, 0.0), (1.0, 0.0), (0.1, 0.95),
-                       (0.1, 0.98)):
+    levels = ((0.0, 0.0), (0.05, 0.0), (0.2, 0.0), (1.0, 0.0), (0.1, 0.95), (0.1, 0.98))
+    bar = Progress(None, 1 + (len(levels) - 1) * args.seeds, "Monte Carlo runs", "run")
+    for noise, phi in levels:
         errors, z, times, before, after, taus = [], [], [], [], [], []
         for seed in range(args.seeds if noise > 0 else 1):
+            bar.step(f"σ = {noise:g}, seed {seed}")
             data = run(model, noise, phi, seed)
             t0 = time.perf_counter()
             est = estimate_mounting(model, data, friction=FRICTION)
@@ -65,6 +68,7 @@ def main() -> int:
                      f"{np.min(taus):.0f}–{np.max(taus):.0f}",
                      f"{100 * np.median(before):.3g} → {100 * np.median(after):.3g}",
                      np.median(times)])
+    bar.close()
     print(f"Panda, base tilted {math.degrees(TILT[0]):+.1f}° about x and "
           f"{math.degrees(TILT[1]):+.1f}° about y; 10 s at 200 Hz per run")
     print(table(["torque noise σ (N·m)", "true τ", "runs", "max |angle error| (°)",
