@@ -335,3 +335,12 @@ def test_a_missing_optional_package_names_the_extra(tmp_path, monkeypatch, log):
     with pytest.raises(MissingDependencyError, match=r"rosbags: pip install 'consistid\[io\]'"):
         load_recording(tmp_path / "x.mcap")
     assert issubclass(MissingDependencyError, ImportError)
+
+
+
+def test_load_recording_passes_progress_to_the_bag_reader(tmp_path, log):
+    pytest.importorskip("rosbags")
+    path = write_bag(tmp_path / "bag", log)
+    lines = []
+    load_recording(path, progress=lines.append)
+    assert lines and all("bag" in line for line in lines)

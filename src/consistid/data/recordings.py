@@ -53,6 +53,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ..errors import DatasetError, JointNameError, MissingColumnsError, check_option
+from ..progress import ProgressArg
 from ..robot.model import RobotModel
 from .chain import PreprocessOptions, run_chain
 from .dataset import Dataset, open_npz
@@ -408,7 +409,7 @@ def load_recording(path: str | Path, keys: str | Mapping[str, str] = "auto", *,
                    trim_start: float = 0.0, trim_end: float = 0.0,
                    duplicates: str | None = None, time_unit: str | None = None,
                    timestamp: str | Mapping[str, str] = "centre", derivatives: str = "auto",
-                   **signal_options: object) -> Recording:
+                   progress: ProgressArg = None, **signal_options: object) -> Recording:
     """Read a log file into a :class:`Recording` (module docstring: what is done, in order).
 
     The format is chosen by the suffix: ``.npz`` (below), ``.csv``/``.tsv``/``.txt``,
@@ -436,6 +437,8 @@ def load_recording(path: str | Path, keys: str | Mapping[str, str] = "auto", *,
     model, trim_start, trim_end, duplicates, time_unit, timestamp, signal_options : see
         :func:`from_arrays`.
     derivatives : see :func:`from_log` (not for ``.npz``, whose ``keys`` say it).
+    progress : ROS bags and MCAP: ``None`` (a bar on a terminal), ``True``, ``False`` or a
+        callable (:mod:`consistid.progress`); the other formats read fast and ignore it.
 
     Examples
     --------
@@ -456,7 +459,7 @@ def load_recording(path: str | Path, keys: str | Mapping[str, str] = "auto", *,
         if joints is None and model is not None:
             joints = model.joint_names
         log = read_log(path, joints=joints, columns=columns, topic=topic, delimiter=delimiter,
-                       stamp=stamp)
+                       stamp=stamp, progress=progress if kind == "bag" else None)
         rec = from_log(log, derivatives=derivatives, **common)
         return Recording(rec.dataset, rec.steps, str(path), rec.time_origin)
     if columns is not None or topic is not None or delimiter is not None or joints is not None:
