@@ -95,7 +95,9 @@ def table_html(header: Sequence[str], rows: Iterable[Sequence[Any]], *, caption:
     out = ["<table>"]
     if caption:
         out.append(f"<caption>{esc(caption)}</caption>")
-    out.append("<thead><tr>" + "".join(f"<th>{esc(h)}</th>" for h in header) + "</tr></thead>")
+    if any(header):
+        out.append("<thead><tr>" + "".join(f"<th>{esc(h)}</th>" for h in header)
+                   + "</tr></thead>")
     out.append("<tbody>")
     for k, row in enumerate(rows):
         cls = f' class="{esc(row_classes[k])}"' if row_classes and row_classes[k] else ""
