@@ -84,15 +84,15 @@ def test_floor_within_factor_of_the_true_noise_filtered_or_not_white_or_coloured
 
 
 def test_repetition_floor_closed_form_and_linear_drift_cancels():
-    """A periodic signal plus AR(1) noise (φ = 0.8) and a linear drift: second differences over
-    three periods give the noise σ (the drift cancels); first differences over two periods are
-    inflated by it."""
+    """A periodic torque whose size drifts linearly (friction warming in), plus AR(1) noise
+    (φ = 0.8): second differences over three periods give the noise σ (the drift cancels);
+    first differences over two periods are inflated by it."""
     rng = np.random.default_rng(4)
     h, period = 0.01, 2.0
     t = np.arange(int(3 * period / h)) * h
     q = np.column_stack([np.sin(2 * np.pi * t / period), np.cos(4 * np.pi * t / period)])
     noise = ar1_noise((t.size, 2), 0.8, 0.1, rng)
-    tau = 5 * q + 0.5 * t[:, None] + noise
+    tau = 5 * q * (1 + 0.2 * t[:, None]) + noise
     data = Dataset(t=t, q=q, dq=np.zeros_like(q), ddq=np.zeros_like(q), tau=tau)
     p, lag = find_period(data)
     assert p == pytest.approx(period) and lag == 200
@@ -151,7 +151,7 @@ def test_an_in_list_effect_found_leaves_no_remainder(xarm7):
     diag = diagnose(xarm7, train, held_out=held)
     assert [e.name for e in diag.effects] == ["viscous"]
     assert diag.verdict == "explained", diag.summary()
-    assert diag.effects[0].confidence == "high"
+    assert diag.effects[0].confidence in ("high", "medium") and diag.effects[0].margin > 0.2
 
 
 def test_stiction_the_coulomb_candidate_lacks_is_pointed_at(xarm7):
@@ -164,7 +164,7 @@ def test_stiction_the_coulomb_candidate_lacks_is_pointed_at(xarm7):
     assert diag.effects[0].name == "coulomb" and diag.effects[0].joints == ("joint3",)
     (jr,) = [j for j in diag.remainder.joints if j.joint == "joint3"]
     if jr.flagged:
-        assert "standstill" in jr.pointers[0], jr
+        assert any("standstill" in p for p in jr.pointers), jr
 
 
 def test_a_logger_averaging_each_interval_is_not_a_delay(ur5):
@@ -198,14 +198,15 @@ def test_delay_sign_and_resolution_rules():
 def test_registry_lists_every_effect_with_its_knowledge(panda):
     """Every registered effect has a name, signature, equation, and columns of the shape its
     atoms announce; the names are the design document's, in report order."""
-    assert EFFECT_NAMES == ("inertia", "coulomb", "viscous", "offset", "gain", "armature",
-                            "payload", "delay", "elasticity", "ripple", "position", "tilt")
+    design = ("inertia", "coulomb", "viscous", "offset", "gain", "armature", "payload", "delay",
+              "elasticity", "ripple", "position", "tilt")
+    assert [n for n in EFFECT_NAMES if n in design] == list(design)   # others may join
     d = ci.simulate.excitation_run(panda, duration=1.0, rate=RATE, torque_noise=0.05,
                                    seed=2).dataset
     gap = GapData(panda, d, panda.prior_parameters)
     lib = EffectLibrary(panda)
     atoms = lib.atoms(gap, gap.residual)
-    assert {a.effect for a in atoms} >= set(EFFECT_NAMES) - {"ripple"}
+    assert {a.effect for a in atoms} >= set(design) - {"ripple"}
     for a in atoms:
         e = REGISTRY[a.effect]
         assert e.name == a.effect and e.signature and e.equation
@@ -217,6 +218,8 @@ def test_registry_lists_every_effect_with_its_knowledge(panda):
             assert not others.any(), a   # a per-joint atom acts on its joint's row only
     table = effects_table()
     assert all(f"`{n}`" in table for n in EFFECT_NAMES)
+    assert all(e.nonnegative == (0,) for n, e in REGISTRY.items()
+               if n in ("coulomb", "viscous", "armature", "elasticity", "payload", "delay"))
     with pytest.raises(OptionError, match="effect='stick'"):
         effect("stick")
 

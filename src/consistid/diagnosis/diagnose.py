@@ -5,7 +5,8 @@ Method
 ------
 1. *Residual.* ``r = τ_meas − τ_nom`` with the nominal (simulator) parameters, on training and
    held-out data (a different recording, or the last 30 % of each recording when none is given).
-2. *Candidates.* Every effect of :mod:`consistid.diagnosis.candidates` offers atoms (an effect on one joint,
+2. *Candidates.* Every effect of the registry (:mod:`consistid.diagnosis.effects`) offers atoms
+   (an effect on one joint,
    or arm-wide) whose correction ``Φ_a θ_a`` is linear in its parameters. All atoms' columns are
    compressed once into per-joint Gram matrices ``Φ_jᵀΦ_j``, ``Φ_jᵀr_j`` (training and held-out),
    so that any subset is fitted and scored without touching the samples again.
@@ -28,7 +29,8 @@ Method
 
    The best atom (largest held-out reduction) that passes is kept. Rows are counted as
    ``N / τ`` effectively independent samples, ``τ`` the integrated autocorrelation time of the
-   residual that no candidate explains (:func:`consistid.identification.statistics.autocorrelation_time`): filtered
+   residual that no candidate explains
+   (:func:`consistid.identification.statistics.autocorrelation_time`): filtered
    torques make neighbouring samples nearly equal, and tests counting every row would accept
    any wiggle.
 
@@ -59,19 +61,19 @@ import numpy as np
 import scipy.optimize
 import scipy.stats
 
-from .candidates import EFFECT_NAMES, SIGNATURES, Atom, EffectLibrary, GapData
-from .effects import REGISTRY, EffectParameter
 from ..data.checks import check_for_identification
 from ..data.dataset import Dataset, as_dataset
 from ..errors import ModelError, OptionError, check_number, check_option
+from ..identification.regressor import joint_columns
+from ..identification.statistics import autocorrelation_time, coloured_covariance
 from ..progress import Progress
+from ..robot.inertia import is_physically_consistent
+from ..robot.model import RobotModel, require_model
+from .candidates import EFFECT_NAMES, SIGNATURES, Atom, EffectLibrary, GapData
+from .effects import REGISTRY, EffectParameter
 from .gap import GapBreakdown, gap_breakdown, residual_spectra
 from .noise import NoiseFloor, estimate_noise_floor, fine_spectra, spectral_floor
 from .remainder import Remainder, analyse_remainder
-from ..robot.model import RobotModel, require_model
-from ..robot.inertia import is_physically_consistent
-from ..identification.regressor import joint_columns
-from ..identification.statistics import autocorrelation_time, coloured_covariance
 
 #: A held-out shrink below this fraction does not list a joint under an arm-wide effect.
 JOINT_SHRINK_FLOOR = 0.05
@@ -207,7 +209,8 @@ class Diagnosis:
     effects : selected effects, ranked by held-out residual reduction (largest first: how much
         the held-out residual grows when the effect is removed from all the selected ones);
         ``rms_before``/``rms_after`` of each are cumulative in this order.
-    where : where the nominal model's residual lies (:class:`~consistid.diagnosis.gap.GapBreakdown`).
+    where : where the nominal model's residual lies
+        (:class:`~consistid.diagnosis.gap.GapBreakdown`).
     noise_floor : (nv,) torque noise standard deviation per joint (N·m).
     noise_source : ``"given"`` or how it was estimated.
     rms_nominal, rms_final : (nv,) held-out RMS of the nominal model and of the nominal model
@@ -285,7 +288,7 @@ class Diagnosis:
     def __repr__(self) -> str:
         found = ", ".join(f"{e.name}({', '.join(e.joints)})" for e in self.effects) or "none"
         return (f"Diagnosis({self.model_name!r}, effects=[{found}], "
-                f"at_noise_floor={self.at_noise_floor})")
+                f"verdict={self.verdict!r})")
 
     def report(self, path: str | None = None):
         """Write the report: ``*.html`` (plots embedded), ``*.txt``, or a directory (both, plus
@@ -592,9 +595,11 @@ def _coloured_covariance(prob: _Problem, cols: np.ndarray, pinv: np.ndarray, s2:
     184–197, 1946; the general form with a lag-window estimate is Newey & West, Econometrica
     55(3), 703–708, 1987). Parameters of one joint are thus ``√τ_j`` times less certain than
     independent rows say, arm-wide ones by a mixture of the joints' ``τ``; ``τ`` is the one the
-    selection counts ``N_eff`` with (:func:`consistid.identification.statistics.autocorrelation_time` of the
+    selection counts ``N_eff`` with
+    (:func:`consistid.identification.statistics.autocorrelation_time` of the
     residual that no candidate explains). With ``τ_j = 1`` this is ``s² G⁺``
-    (:func:`consistid.identification.statistics.coloured_covariance` with ``C = s² G⁺``, ``w_j / s²``).
+    (:func:`consistid.identification.statistics.coloured_covariance` with ``C = s² G⁺``,
+    ``w_j / s²``).
     """
     tau = np.broadcast_to(np.asarray(prob.tau_corr, dtype=float), prob.w.shape)
     return coloured_covariance(s2 * pinv, prob.train.G[:, cols][:, :, cols],
@@ -761,7 +766,8 @@ def _tuned_atoms(library: EffectLibrary, train: GapData, floor: np.ndarray
 def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=None,
              held_out: Dataset | Sequence[Dataset] | None = None,
              effects: Sequence[str] = EFFECT_NAMES, sigma: float | Sequence[float] | None = None,
-             *, torque_resolution: float | Sequence[float] | None = None, alpha: float = 1e-3, min_gain: float = 0.01, tie: float = 0.05,
+             *, torque_resolution: float | Sequence[float] | None = None, alpha: float = 1e-3,
+             min_gain: float = 0.01, tie: float = 0.05,
              max_steps: int = 20, split: float = 0.7, inertia_solver: str = "sdp",
              progress: bool | None | Callable[[str], None] = None) -> Diagnosis:
     """Diagnose the gap between a nominal (simulator) model and measured torques.
@@ -775,7 +781,8 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
         :class:`~consistid.IdentificationResult` (its rigid body and friction are the nominal).
     held_out : data to score on (ideally a different trajectory); default the last
         ``1 − split`` of each recording of ``dataset``.
-    effects : candidate effect names (default all of :data:`~consistid.diagnosis.candidates.EFFECT_NAMES`).
+    effects : candidate effect names (default all of the registry,
+        :data:`~consistid.diagnosis.effects.EFFECT_NAMES`).
     sigma : torque noise standard deviation (N·m), scalar or per joint; default estimated
         without the candidates (:func:`consistid.diagnosis.noise.estimate_noise_floor`: from the
         repetition of a periodic excitation, else from the residual spectrum above the motion
@@ -790,7 +797,8 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     max_steps : most atoms selected.
     split : training fraction of each recording when ``held_out`` is ``None``.
     inertia_solver : how the selected ``inertia`` effect is finally fitted: ``"sdp"``
-        (:mod:`consistid.identification.sdp`: every body physically consistent, log-det prior around the
+        (:mod:`consistid.identification.sdp`: every body physically consistent, log-det prior
+        around the
         nominal; Euclidean when a nominal body is not realisable) or ``"ls"`` (least squares on
         the base parameters). The selection itself always scores inertia by least squares.
     progress : ``None`` (default: a progress bar over the selection steps when stderr is a
@@ -955,10 +963,14 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
         floor = np.where(spectral, np.minimum(floor, again), floor)
         noise_source += " (spectral level re-estimated without the selected effects' tails)"
     where = gap_breakdown(everything, floor, spectra=spectra)
-    remainder = analyse_remainder(held, held.residual - fit.correction(held), floor,
-                                  autocorrelation_time(held.dataset,
-                                                       held.residual - fit.correction(held)),
-                                  where.band_edges, reliable=noise.reliable)
+    # The remainder is judged on the recordings whose noise the floor measures: the repeating
+    # (training) ones for a repetition floor — a held-out recording the chain filtered at
+    # another cut-off holds another noise level — else the held-out data.
+    tested = train if any(m == "repetition" for m in noise.method) else held
+    left = tested.residual - fit.correction(tested)
+    remainder = analyse_remainder(tested, left, floor, autocorrelation_time(tested.dataset, left),
+                                  where.band_edges, reliable=noise.reliable,
+                                  source="training" if tested is train else "held-out")
     if not noise.reliable.all():
         notes.append("the noise floor cannot be seen on "
                      + ", ".join(names[j] for j in np.flatnonzero(~noise.reliable))

@@ -16,9 +16,9 @@ Noise floor
     scatter unclipped). This equals ``S₀ f_N`` for white noise and stays right when the torques
     were low-pass filtered above ``6 f_s`` (the filtered band contributes what it has). It cannot
     see noise filtered away *below* ``6 f_s``; :func:`high_band_rolloff` detects such
-    filtering (the spectrum keeps falling instead of levelling out), and
-    :func:`consistid.diagnose` then uses the *library floor* instead (an upper bound) unless
-    ``sigma`` is given.
+    filtering (the spectrum keeps falling instead of levelling out).
+    :func:`consistid.diagnose` takes its floor from :mod:`consistid.diagnosis.noise` (repetition
+    of the excitation, or a fitted low-pass roll-off), never from what the candidates leave.
 """
 
 from __future__ import annotations
@@ -28,8 +28,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 import scipy.signal
 
-from .candidates import GapData
 from ..data.dataset import Dataset
+from .candidates import GapData
 
 REGIMES: tuple[str, ...] = ("near-zero velocity", "moving +", "moving −", "high acceleration",
                             "gravity-dominated")

@@ -66,8 +66,9 @@ def time_derivatives(dataset: Dataset, x: np.ndarray, window: float = DERIVATIVE
 
 def tilt_directions(gravity: np.ndarray) -> np.ndarray:
     """``(∂g/∂a₁, ∂g/∂a₂)`` at ``a = 0`` of ``g(a) = R_v(a₂) R_u(a₁) g₀``
-    (:func:`consistid.estimation.mounting.gravity_from_tilt`): ``u × g₀`` and ``v × g₀`` with ``u, v`` the
-    axes of :func:`consistid.estimation.mounting.tilt_axes` (``x``, ``y`` for ``g₀ ∥ −z``), shape (2, 3)."""
+    (:func:`consistid.estimation.mounting.gravity_from_tilt`): ``u × g₀`` and ``v × g₀`` with
+    ``u, v`` the axes of :func:`consistid.estimation.mounting.tilt_axes` (``x``, ``y`` for
+    ``g₀ ∥ −z``), shape (2, 3)."""
     g0 = np.asarray(gravity, dtype=float)
     return np.cross(tilt_axes(g0), g0)
 

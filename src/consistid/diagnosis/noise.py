@@ -15,8 +15,8 @@ in this order of preference (:func:`estimate_noise_floor` says which one each jo
     repeats too, and ``d(t) = τ(t + P) − τ(t)`` is the difference of two independent noise
     samples: ``σ² = Var(d) / 2``, whatever the noise's colour or filtering (as long as ``P`` is
     much longer than the noise's correlation time); with three periods, second differences
-    ``τ(t+2P) − 2τ(t+P) + τ(t)`` (variance ``6σ²``) also cancel a linear drift (friction warming
-    in over the log). The period ``P`` is found on the joint
+    ``τ(t+2P) − 2τ(t+P) + τ(t)`` (variance ``6σ²``) also cancel a torque whose size drifts
+    linearly (friction warming in over the log). The period ``P`` is found on the joint
     positions (:func:`find_period`): the smallest whole number of samples after which ``q``
     repeats to within :data:`REPEAT_TOLERANCE` of its variance. Needs two periods within one
     recording; recordings without are estimated as below.

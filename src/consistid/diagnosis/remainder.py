@@ -1,8 +1,10 @@
 r"""The unexplained remainder: what the selected effects leave above the noise floor, per joint,
 and where it lies.
 
-For joint ``j`` the held-out residual after every selected effect, ``e_j = τ_j − τ̂_j``, has RMS
-``ρ_j``; the noise floor (:mod:`consistid.diagnosis.noise`, never fitted by the candidates) is
+For joint ``j`` the residual after every selected effect, ``e_j = τ_j − τ̂_j``, has RMS ``ρ_j``
+on the recordings the floor was measured on (the repeating training recordings for a floor from
+repetition: a held-out recording that the signal chain filtered at another cut-off holds another
+noise level; the held-out recordings otherwise); the noise floor (:mod:`consistid.diagnosis.noise`, never fitted by the candidates) is
 ``σ_j``. A remainder is flagged on joint ``j`` when both
 
 * ``ρ_j > REMAINDER_RATIO · σ_j`` (1.5) — an unexplained component of RMS
@@ -28,7 +30,9 @@ For joint ``j`` the held-out residual after every selected effect, ``e_j = τ_j 
   channels);
 * **hysteresis**: the mean difference, at the same position bin, between moving ``+`` and
   moving ``−`` (backlash or friction that depends on direction and angle);
-* **drift**: the slope of its window means over time within recordings.
+* **drift**: the slope of its window means over time within recordings, and whether its RMS
+  grows or shrinks over each recording (last third against first third: friction warming in
+  changes the size of a friction-shaped remainder while its mean stays near zero).
 
 The largest of these, measured as the fraction of the remainder's mean square each accounts
 for, is named in the verdict. These are pointers for an engineer, not fitted effects.
@@ -79,6 +83,8 @@ class JointRemainder:
     crosstalk : largest ``|corr|`` with another joint's measured torque, and that joint.
     band_rms : (B,) remainder RMS per frequency band (N·m); ``band_edges`` (B + 1,) Hz.
     drift : slope of the remainder over time within recordings (N·m/s).
+    growth : RMS of the remainder over the last third of each recording divided by that over
+        the first third.
     pointers : the patterns that account for most of the remainder's mean square, largest
         first, as text.
     """
@@ -99,6 +105,7 @@ class JointRemainder:
     drift: float
     pointers: tuple[str, ...]
     determined: bool = True
+    growth: float = 1.0
 
     def __str__(self) -> str:
         head = (f"{self.joint}: {self.rms:.3g} N·m left = {self.ratio:.2f} × the noise floor "
@@ -114,9 +121,11 @@ class JointRemainder:
 @dataclass(frozen=True)
 class Remainder:
     """The unexplained remainder of a diagnosis: one :class:`JointRemainder` per joint and the
-    verdict (``"explained"`` or ``"remainder on <joints>"``)."""
+    verdict (``"explained"``, ``"remainder on <joints>"`` or ``"undetermined on <joints>"``);
+    ``source``: the data it was judged on (``"training"`` or ``"held-out"``)."""
 
     joints: tuple[JointRemainder, ...]
+    source: str = "held-out"
 
     @property
     def flagged(self) -> tuple[str, ...]:
@@ -141,7 +150,7 @@ class Remainder:
                 "pass sigma)")
 
     def summary(self) -> str:
-        return "\n".join([f"Unexplained remainder: {self.verdict}."]
+        return "\n".join([f"Unexplained remainder ({self.source} data): {self.verdict}."]
                          + ["  " + str(j) for j in self.joints])
 
     def __str__(self) -> str:
@@ -189,6 +198,23 @@ def _drift(data: GapData, e: np.ndarray) -> float:
     return float(x @ y / sxx) if sxx > 0 else 0.0
 
 
+def _growth(data: GapData, e: np.ndarray) -> float:
+    ds = data.dataset
+    first, last = [], []
+    for s in np.unique(ds.segment):
+        idx = np.flatnonzero(ds.segment == s)
+        if idx.size < 30:
+            continue
+        k = idx.size // 3
+        first.append(e[idx[:k]])
+        last.append(e[idx[-k:]])
+    if not first:
+        return 1.0
+    a = float(np.sqrt(np.mean(np.concatenate(first) ** 2)))
+    b = float(np.sqrt(np.mean(np.concatenate(last) ** 2)))
+    return b / a if a > 0 else 1.0
+
+
 def _bands(data: GapData, e: np.ndarray, edges: np.ndarray) -> np.ndarray:
     """RMS of ``e`` (N,) per frequency band (periodogram per recording, pooled)."""
     ds = data.dataset
@@ -214,9 +240,10 @@ def analyse_remainder(data: GapData, remainder: np.ndarray, floor: np.ndarray,
                       tau_corr: np.ndarray, band_edges: np.ndarray,
                       alpha: float = REMAINDER_ALPHA,
                       relevance: float = REMAINDER_RELEVANCE,
-                      reliable: np.ndarray | None = None) -> Remainder:
-    """The :class:`Remainder` of ``remainder`` (N, nv), the held-out residual after every
-    selected effect on ``data``, against ``floor`` (nv,); ``tau_corr`` (nv,) the residual's
+                      reliable: np.ndarray | None = None, source: str = "held-out"
+                      ) -> Remainder:
+    """The :class:`Remainder` of ``remainder`` (N, nv), the residual after every selected
+    effect on ``data`` (``source``: which data), against ``floor`` (nv,); ``tau_corr`` (nv,) the residual's
     autocorrelation time (samples), ``band_edges`` the frequency bands (Hz)."""
     names = data.model.joint_names
     ds = data.dataset
@@ -262,6 +289,7 @@ def analyse_remainder(data: GapData, remainder: np.ndarray, floor: np.ndarray,
                 best = (c, names[k])
         bands = _bands(data, e, band_edges)
         drift = _drift(data, e)
+        growth = _growth(data, e)
         pointers = []
         if flagged:
             ms = max(rms ** 2, 1e-300)
@@ -276,6 +304,9 @@ def analyse_remainder(data: GapData, remainder: np.ndarray, floor: np.ndarray,
                                "cross-talk between torque channels?"),
                 ((drift * span / np.sqrt(12)) ** 2 / ms,
                  f"drifts over time ({drift:.3g} N·m/s)"),
+                (abs(growth ** 2 - 1) / (growth ** 2 + 1) / 3,
+                 f"{'grows' if growth > 1 else 'shrinks'} over each recording (RMS of the last "
+                 f"third {growth:.2g} × the first's: a friction or gain that drifts?)"),
             ]
             for name, val in regimes.items():
                 frac = float(np.mean(slow if name == "standstill" else
@@ -295,5 +326,5 @@ def analyse_remainder(data: GapData, remainder: np.ndarray, floor: np.ndarray,
                         if share > 0.1]
         out.append(JointRemainder(names[j], rms, sig, excess, rms / sig, p, flagged, regimes,
                                   spread, hysteresis, best, bands, band_edges, drift,
-                                  tuple(pointers), determined))
-    return Remainder(tuple(out))
+                                  tuple(pointers), determined, growth))
+    return Remainder(tuple(out), source)
