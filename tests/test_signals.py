@@ -442,3 +442,23 @@ def test_a_simulated_jittered_log_loads_as_accurately_as_a_uniform_one():
                         np.sqrt(np.mean((d.ddq - true_ddq) ** 2)))
     assert errors["jittered"][0] < 1.5 * errors["uniform"][0]
     assert errors["jittered"][1] < 1.5 * errors["uniform"][1]
+
+
+def test_interval_centres_follow_the_actual_steps_of_a_jittered_log():
+    """With jitter, each averaged torque belongs to the centre of its own interval
+    [t_{k-1}, t_k], not to a median half-step away."""
+    rng = np.random.default_rng(8)
+    t = np.concatenate([[0.0], np.cumsum(rng.uniform(3.5e-3, 6.5e-3, 3000))])
+    w = 2 * np.pi * 3.0
+    q = np.column_stack([np.sin(0.5 * w * t), np.cos(0.3 * w * t)])
+    prev = np.concatenate([[t[0] - 5e-3], t[:-1]])
+    h = t - prev
+    averaged = np.column_stack([(np.cos(w * prev) - np.cos(w * t)) / (w * h),
+                                (np.sin(w * t) - np.sin(w * prev)) / (w * h)])
+    kw = dict(cutoff=20.0, outliers=None)
+    fixed = signals.preprocess(t, q, averaged, timestamp="end", **kw).dataset
+    plain = signals.preprocess(t, q, averaged, **kw).dataset
+    exact = np.column_stack([np.sin(w * fixed.t), np.cos(w * fixed.t)])
+    lag = np.max(np.abs(plain.tau - np.column_stack([np.sin(w * plain.t), np.cos(w * plain.t)])))
+    err = np.max(np.abs(fixed.tau - exact))
+    assert err < 1.2 * (w * h.max()) ** 2 / 24 < 0.05 * lag
