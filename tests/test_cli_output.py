@@ -219,6 +219,14 @@ def test_progress_argument(monkeypatch, capsys):
     assert lines == ["work 1/2: a", "work 2/2: b"]
     with pytest.raises(ci.OptionError, match="progress"):
         Progress("yes", 2, "work")
+    # without tqdm: a bar asked for is a named error, the automatic one is simply not drawn
+    monkeypatch.setitem(sys.modules, "tqdm", None)
+    monkeypatch.setitem(sys.modules, "tqdm.auto", None)
+    with pytest.raises(ci.MissingDependencyError, match="pip install tqdm"):
+        Progress(True, 2, "work")
+    with Progress(None, 2, "work") as bar:
+        bar.step()
+        assert bar.bar is None
 
 
 def test_diagnose_and_design_take_progress(capsys):

@@ -21,7 +21,7 @@ import contextlib
 import sys
 from typing import Any, Callable, Iterator, Union
 
-from .errors import OptionError
+from .errors import MissingDependencyError, OptionError
 
 #: What ``progress=`` accepts (module docstring).
 ProgressArg = Union[bool, None, Callable[[str], None]]
@@ -73,8 +73,13 @@ class Progress:
         self.total = total
         self.desc = desc
         if self.callback is None and wants_bar(progress):
-            from tqdm.auto import tqdm  # heavy: only when a bar is drawn
-
+            try:
+                from tqdm.auto import tqdm  # heavy: only when a bar is drawn
+            except ImportError:
+                if progress is True:         # asked for explicitly: say what is missing
+                    raise MissingDependencyError("progress=True draws a bar with tqdm: pip "
+                                                 "install tqdm") from None
+                return                       # None means "a bar when possible"
             self.bar = tqdm(total=total, desc=desc, unit=unit, file=sys.stderr,
                             dynamic_ncols=True, leave=False)
 
