@@ -10,10 +10,17 @@ velocity of the body increases"). Its friction torque is what the model does not
 — the gravity torque of the pose with the identified (or nominal) model, and, with
 ``inertial=True`` (default), the inertial and Coriolis torque of the starting motion, which a
 threshold crossing always has (without it a ramp of slope ``ṙ`` reads high by about
-``√(2 M_jj v_th ṙ)``). The break-away torque of the joint is the median of ``s_k f_k`` over its
-events (``s_k`` the direction of motion), as in the report (Section 4.2, box plots of 25
-experiments), and its spread ``1.4826·MAD``; the medians per direction are kept too (a
-gravity-model error shifts both the same way, ``(f⁺ + f⁻)/2`` is free of it).
+``√(2 M_jj v_th ṙ)``). The event's value is the largest ``s·f_k`` from the crossing until the
+speed reaches :data:`PEAK_FACTOR` ``· v_th``: a stiction that creeps before it lets go (a soft
+one, e.g. MuJoCo's friction loss on a joint of small inertia, whose creep speed grows as
+``τ/M_jj``) is still rising at the crossing, and the peak is where it breaks away; the maximum
+over the window reads torque noise ``σ`` high by about one to two ``σ``. A stiction so soft
+that the joint creeps beyond ``PEAK_FACTOR · v_th`` before it lets go reads low (raise
+``threshold`` and the plan's ``abort_speed`` together). The break-away torque of the joint is
+the median of ``s_k f_k`` over its events (``s_k`` the direction of motion), as in the report
+(Section 4.2, box plots of 25 experiments), and its spread ``1.4826·MAD``; the medians per
+direction are kept too (a gravity-model error ``Δg`` moves them by ``∓Δg``: their mean
+``(f⁺ + f⁻)/2`` is free of it).
 
 Sources of events: any log (``estimate_breakaway(model, data)``: the first motion after each
 standstill), or, with ``data=None``, the torque ramps of a
@@ -46,6 +53,8 @@ from .ramp import RampPlan, ramp_plan
 
 #: Default detection threshold ``v_th`` (rad/s) and standstill before an event (s).
 THRESHOLD, MIN_STILL = 0.02, 0.1
+#: The friction of an event is read up to ``PEAK_FACTOR · v_th`` (module docstring).
+PEAK_FACTOR = 2.5
 #: Bandwidth (rad/s) of the computed-torque hold of the other joints during simulated ramps.
 HOLD_BANDWIDTH = 30.0
 MISSING = ("raise", "warn")
@@ -250,6 +259,17 @@ def simulate_ramps(model: RobotModel, plan: RampPlan, effects: Effects | None = 
     return RampRun(dataset, plan, tuple(windows))
 
 
+def _reading_window(dq: np.ndarray, segment: np.ndarray, k: int, speed: float) -> np.ndarray:
+    """Samples from the crossing ``k`` while ``|q̇| < speed`` (the crossing always), the joint
+    moving the same way in the same segment (a ramp's torque is replaced by the holding
+    controller's once the joint reaches its abort speed: that sample is not read)."""
+    s, n, stop = np.sign(dq[k]), dq.size, k
+    while stop + 1 < n and segment[stop + 1] == segment[k] and np.sign(dq[stop + 1]) == s \
+            and abs(dq[stop + 1]) < speed:
+        stop += 1
+    return np.arange(k, stop + 1)
+
+
 def _events(dq: np.ndarray, t: np.ndarray, segment: np.ndarray, threshold: float,
             min_still: float, start: int = 0) -> tuple[list[int], bool]:
     """Indices of the first samples at or above ``threshold`` after ``≥ min_still`` s below it
@@ -377,12 +397,12 @@ def estimate_breakaway(model: RobotModel | StandardParameterSet, data: Dataset |
                                  f"to move again (|q̇| ≥ {threshold:g} rad/s): no break-away "
                                  "event"))
                 continue
-        idx_arr = np.asarray(idx)
-        model_tau = robot.rnea(data.q[idx_arr], dq[idx_arr], ddq[idx_arr])[:, j]
-        direction = np.sign(data.dq[idx_arr, j]).astype(int)
-        magnitude = direction * (tau[idx_arr, j] - model_tau)
-        events += [BreakawayEvent(j, float(data.t[k]), int(s), float(f), float(abs(data.dq[k, j])))
-                   for k, s, f in zip(idx_arr, direction, magnitude)]
+        for k in idx:
+            window = _reading_window(data.dq[:, j], segment, k, PEAK_FACTOR * threshold)
+            s = int(np.sign(data.dq[k, j]))
+            f = s * (tau[window, j] - robot.rnea(data.q[window], dq[window], ddq[window])[:, j])
+            events.append(BreakawayEvent(j, float(data.t[k]), s, float(np.max(f)),
+                                         float(abs(data.dq[k, j]))))
     for kind, message in problems:
         if missing == "raise":
             raise kind(message)
@@ -391,10 +411,11 @@ def estimate_breakaway(model: RobotModel | StandardParameterSet, data: Dataset |
     torque, spread, pos, neg = (np.full(nv, np.nan) for _ in range(4))
     count = np.zeros(nv, dtype=int)
     for j in chosen:
-        values = np.array([e.torque for e in events if e.joint == j])
+        own = [e for e in events if e.joint == j]
+        values = np.array([e.torque for e in own])
         if values.size == 0:
             continue
-        dirs = np.array([e.direction for e in events if e.joint == j])
+        dirs = np.array([e.direction for e in own])
         torque[j] = float(np.median(values))
         spread[j] = float(1.4826 * np.median(np.abs(values - torque[j])))
         pos[j] = float(np.median(values[dirs > 0])) if np.any(dirs > 0) else np.nan
