@@ -294,3 +294,15 @@ def test_a_large_bag_shows_progress(tmp_path):
     assert np.array_equal(with_bar.t, plain.t) and set(plain.fields) >= {"q", "tau"}
     for key, value in plain.fields.items():
         assert np.array_equal(with_bar.fields[key], value), key
+
+
+def test_a_failed_demo_leaves_no_folder(tmp_path, monkeypatch):
+    """A demo that fails after making its folder (here: the simulation) removes it again."""
+    monkeypatch.chdir(tmp_path)
+
+    def fail(*args, **kwargs):
+        raise ci.ModelError("simulated failure")
+
+    monkeypatch.setattr(ci.simulate, "excitation_run", fail)
+    assert main(["-q", "demo", "--robot", "ur5"]) == 2
+    assert list(tmp_path.iterdir()) == []

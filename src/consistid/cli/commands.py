@@ -82,14 +82,24 @@ def _fresh_dir(requested: str | None, default: str) -> Path:
 
 def demo(args: argparse.Namespace) -> int:
     """Simulate, identify, report."""
-    from consistid.robot.inertia import perturb
-
     for name, value, minimum, strict in (("--duration", args.duration, 0, True),
                                          ("--rate", args.rate, 0, True),
                                          ("--noise", args.noise, 0, False)):
         check_number(name, value, minimum, strict=strict)   # before any folder is made
     model = _cli_model(args)
     folder = _fresh_dir(args.output, f"consistid-demo-{model.name}")
+    try:
+        return _demo(args, model, folder)
+    except BaseException:
+        if folder.is_dir() and not any(folder.iterdir()):
+            folder.rmdir()                         # a failed demo leaves no empty folder
+        raise
+
+
+def _demo(args: argparse.Namespace, model: "ci.RobotModel", folder: Path) -> int:
+    """The demo's work (:func:`demo`), its files written into ``folder``."""
+    from consistid.robot.inertia import perturb
+
     rng = np.random.default_rng(args.seed)
     truth = perturb(model.prior_parameters, 0.2, rng)
     _log(f"[1/4] simulating {args.duration:.0f} s of excitation on {model.name} "
