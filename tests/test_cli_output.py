@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import hashlib
+import re
 import json
 import sys
 import tomllib
@@ -306,3 +307,19 @@ def test_a_failed_demo_leaves_no_folder(tmp_path, monkeypatch):
     monkeypatch.setattr(ci.simulate, "excitation_run", fail)
     assert main(["-q", "demo", "--robot", "ur5"]) == 2
     assert list(tmp_path.iterdir()) == []
+
+
+def test_the_tracking_warning_says_how_to_stiffen_and_the_advice_works(panda):
+    """The warning names the controller setting to raise; taking its advice shrinks the
+    tracking error (the PD gains scale with the bandwidth squared)."""
+    from consistid.simulate import Effects, TrackingController, record
+
+    trajectory = ci.FourierTrajectory.random(panda, 5, 10.0, seed=3)
+    eff = Effects(coulomb={6: 2.0})
+    with pytest.warns(ci.TrackingWarning, match=r"TrackingController\(bandwidth=100\)") as w:
+        soft = record(panda, trajectory, eff, max_tracking_error=0.05, duration=2.0,
+                      settle=0.1)
+    bandwidth = float(re.search(r"bandwidth=([0-9.]+)", str(w[0].message)).group(1))
+    stiff = record(panda, trajectory, eff, max_tracking_error=1.0, duration=2.0, settle=0.1,
+                   controller=TrackingController(bandwidth=bandwidth))
+    assert stiff.tracking_error[6] < 0.5 * soft.tracking_error[6]

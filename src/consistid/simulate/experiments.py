@@ -319,7 +319,10 @@ def record(model: RobotModel, trajectory: DesiredMotion, effects: Effects | None
                       f"{tracking[worst]:.3g} on {model.joint_names[worst]!r} exceeds "
                       f"max_tracking_error = {max_tracking_error:g} (a controller too soft "
                       "for the effects, or an unstable simulation); the log is not the "
-                      "intended motion", TrackingWarning, stacklevel=2)
+                      "intended motion. To stiffen the controller, raise its bandwidth: "
+                      f"controller=TrackingController(bandwidth={2 * controller.bandwidth:g}) "
+                      f"(now {controller.bandwidth:g} rad/s; the gains scale with its square)",
+                      TrackingWarning, stacklevel=2)
     payload = robot.payload or (None, None)
     return SimulatedRecording(
         t=trace.t, q=measure_position(trace.sensed_q, eff, rng),
