@@ -8,8 +8,9 @@ r"""Plots that several reports draw, as matplotlib ``Figure`` objects (no pyplot
     left out) shows there.
 ``residual_spectra``
     Welch's power spectral density of the residual per joint (Welch 1967,
-    doi:10.1109/TAU.1967.1161901) with each joint's white-noise level :math:`\sigma_j^2 / (f_s/2)` (one-sided PSD of white
-    noise of variance σ² sampled at :math:`f_s`): a residual above it at low frequency is
+    doi:10.1109/TAU.1967.1161901) with each joint's white-noise level
+    :math:`\sigma_j^2 / (f_s/2)` (one-sided PSD of white noise of variance σ² sampled at
+    :math:`f_s`): a residual above it at low frequency is
     model error, one above it at high frequency unmodelled dynamics or a delay.
 ``grouped_bars``
     values per joint for several series, with a reference level per joint drawn as a line across
