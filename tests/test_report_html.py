@@ -243,3 +243,18 @@ def test_diagnosis_repr_html_and_progress(diagnosis_report):
     checker = Checker()
     checker.feed(fragment)
     assert checker.errors == [] and checker.stack == [] and checker.tables >= 4
+
+
+def test_any_standard_parameter_answer_has_an_html_view(planar_2r):
+    """A recovery (base coefficients → consistent standard parameters) shows its bodies'
+    margins as a table in Jupyter."""
+    base = ci.compute_base_parameters(planar_2r)
+    rec = ci.recover_standard(planar_2r, base.project(planar_2r.prior_parameters),
+                              friction=None)
+    fragment = rec._repr_html_()
+    checker = Checker()
+    checker.feed(fragment)
+    assert checker.errors == [] and checker.stack == [] and checker.tables == 1
+    assert checker.table_rows == [1 + planar_2r.n_bodies]
+    for check in rec.consistency.bodies:
+        assert f">{check.body}</td>" in fragment

@@ -261,3 +261,21 @@ def identification_page(res: "IdentificationResult", data: Dataset | None = None
             page.raw("<details><summary>configuration</summary><pre>"
                      + esc(json.dumps(prov["config"], indent=1, default=str)) + "</pre></details>")
     return page
+
+
+def standard_set_page(answer: Any, title: str) -> Page:
+    """A quick page for any answer carrying a full standard vector (e.g. a
+    :class:`~consistid.estimation.recover.RecoveryResult`): each body's consistency and margin,
+    the per-joint terms, and its text summary when it has one."""
+    page = Page(title)
+    page.heading("Bodies: consistency and margins", anchor="bodies")
+    rows, classes = body_rows(answer)
+    page.table(BODY_HEADER, rows, row_classes=classes)
+    header, rows = _joint_term_rows(answer)
+    if rows:
+        page.table(header, rows, caption="Per-joint terms")
+    summary = getattr(answer, "summary", None)
+    if callable(summary):
+        page.heading("Summary", anchor="summary")
+        page.raw(f"<pre>{esc(summary())}</pre>")
+    return page

@@ -21,7 +21,7 @@ from ..robot.model import RobotModel
 from ..robot.inertia import ConsistencyReport, is_physically_consistent
 from .regressor import RegressorSpec, predict_torque
 from .solver import SolverReport
-from .report import identification_page
+from .report import identification_page, standard_set_page
 from .summary import identification_summary
 
 
@@ -59,6 +59,10 @@ class StandardParameterSet:
         """Write the model's URDF with these inertias and Coulomb/viscous friction
         (:func:`consistid.robot.export.write_urdf`); refuses an inconsistent body."""
         return write_urdf(self.model, path, self.parameters, self.parameter_names, merged)
+
+    def _repr_html_(self) -> str:
+        """Jupyter: each body's consistency and margin, the per-joint terms, the summary."""
+        return standard_set_page(self, f"{type(self).__name__}: {self.model.name}").fragment()
 
     def to_mjcf(self, path: str | Path) -> Path:
         """Write an MJCF of the model with these inertias, Coulomb friction (``frictionloss``),
