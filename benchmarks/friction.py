@@ -87,15 +87,24 @@ def simulated_fits(model: ci.RobotModel, seeds: int) -> None:
 
 def breakaway(model: ci.RobotModel, seeds: int) -> None:
     rows = []
-    for seed in range(seeds):
-        t0 = time.perf_counter()
-        est = estimate_breakaway(model, effects=Effects(coulomb=FS, torque_noise=0.01),
-                                 seed=seed)
-        wall = time.perf_counter() - t0
-        err = 100 * (est.torque - FS) / FS
-        rows.append([seed, *err, float(np.max(np.abs(err))), est.duration, wall])
-    print("\n== (2) break-away from simulated torque ramps (known frictionloss), error % ==")
-    print(table(["seed", *(f"j{j + 1}" for j in range(7)), "max |%|", "experiment [s]",
+    arms = [("panda", model, FS, {})] + [
+        (name, ci.RobotModel.example(name), None, opts)
+        for name, opts in (("ur5", {}), ("xarm7", {}), ("kinova", {}),
+                           ("kinova", dict(threshold=0.04, abort_speed=0.12)))]
+    for name, arm, fs, opts in arms:
+        fs = np.linspace(2.0, 0.4, arm.nv) if fs is None else fs
+        for seed in range(seeds):
+            t0 = time.perf_counter()
+            est = estimate_breakaway(arm, effects=Effects(coulomb=fs, torque_noise=0.01),
+                                     seed=seed, **opts)
+            wall = time.perf_counter() - t0
+            err = 100 * (est.torque - fs) / fs
+            rows.append([name + (" (v_th 0.04)" if opts else ""), seed,
+                         *np.pad(err, (0, 7 - err.size), constant_values=np.nan),
+                         float(np.max(np.abs(err))), est.duration, wall])
+    print("\n== (2) break-away from simulated torque ramps (known frictionloss, torque noise "
+          "0.01 N·m), error % ==")
+    print(table(["arm", "seed", *(f"j{j + 1}" for j in range(7)), "max |%|", "experiment [s]",
                  "wall [s]"], rows, floatfmt=".3g"))
 
 

@@ -13,8 +13,9 @@ threshold crossing always has (without it a ramp of slope ``ṙ`` reads high by 
 ``√(2 M_jj v_th ṙ)``). The event's value is the largest ``s·f_k`` from the crossing until the
 speed reaches :data:`PEAK_FACTOR` ``· v_th``: a stiction that creeps before it lets go (a soft
 one, e.g. MuJoCo's friction loss on a joint of small inertia, whose creep speed grows as
-``τ/M_jj``) is still rising at the crossing, and the peak is where it breaks away; the maximum
-over the window reads torque noise ``σ`` high by about one to two ``σ``. A stiction so soft
+``τ/M_jj``) is still rising at the crossing, and the peak is where it breaks away. The peak is
+that of a moving mean over :data:`PEAK_SMOOTHING` samples, so torque noise ``σ`` biases it by
+about ``σ/√5`` to ``σ`` (fewer samples: more). A stiction so soft
 that the joint creeps beyond ``PEAK_FACTOR · v_th`` before it lets go reads low (raise
 ``threshold`` and the plan's ``abort_speed`` together). The break-away torque of the joint is
 the median of ``s_k f_k`` over its events (``s_k`` the direction of motion), as in the report
@@ -55,6 +56,8 @@ from .ramp import RampPlan, ramp_plan
 THRESHOLD, MIN_STILL = 0.02, 0.1
 #: The friction of an event is read up to ``PEAK_FACTOR · v_th`` (module docstring).
 PEAK_FACTOR = 2.5
+#: ... as the peak of its moving mean over this many samples (when the window has them).
+PEAK_SMOOTHING = 5
 #: Bandwidth (rad/s) of the computed-torque hold of the other joints during simulated ramps.
 HOLD_BANDWIDTH = 30.0
 MISSING = ("raise", "warn")
@@ -401,6 +404,8 @@ def estimate_breakaway(model: RobotModel | StandardParameterSet, data: Dataset |
             window = _reading_window(data.dq[:, j], segment, k, PEAK_FACTOR * threshold)
             s = int(np.sign(data.dq[k, j]))
             f = s * (tau[window, j] - robot.rnea(data.q[window], dq[window], ddq[window])[:, j])
+            if f.size >= PEAK_SMOOTHING:    # the peak of a moving mean: less noise bias
+                f = np.convolve(f, np.full(PEAK_SMOOTHING, 1.0 / PEAK_SMOOTHING), "valid")
             events.append(BreakawayEvent(j, float(data.t[k]), s, float(np.max(f)),
                                          float(abs(data.dq[k, j]))))
     for kind, message in problems:
