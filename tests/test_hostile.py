@@ -304,6 +304,8 @@ OPTIONS = [
     (dict(prior_weights=np.ones(20)), "prior_weights are the Euclidean prior's metric"),
     (dict(friction=("coulomb", "stiction")), "stiction"),
     (dict(armature=["joint9"]), "joint9"),
+    (dict(margin=1.0), "margin ≥ 1 excludes the prior itself"),
+    (dict(prior_uncertainty=1e-300), "gives the prior weight 2/r² = inf"),
     (dict(scale="yes"), "scale must be True or False"),
     (dict(friction_nonnegative=3), "friction_nonnegative must be True or False"),
     (dict(solver_options=5), "solver_options must be a mapping"),
@@ -336,6 +338,18 @@ def test_a_rust_panic_becomes_a_solver_error(arm, data, monkeypatch):
     with pytest.raises(SolverError, match="crashed .*PanicException") as err:
         ci.identify(arm, data, method="sdp", friction=None)
     assert isinstance(err.value, Exception)       # caught by `except Exception`
+
+
+@pytest.mark.parametrize("weight", [1e300, 1e-300])
+def test_an_extreme_prior_weight_is_named_as_the_cause(arm, data, weight):
+    """A weight 10^±300 breaks the solver (a Rust panic at 1e300): the error names the weight
+    and the range that solves, not only 'another solver may help'."""
+    try:
+        res = ci.identify(arm, data, friction=None, prior_weight=weight)
+    except SolverError as exc:
+        assert f"prior_weight = {weight:.3g} is" in str(exc) and "× the default" in str(exc)
+    else:
+        assert res.solver.status == "optimal" and res.is_consistent
 
 
 def test_keyboard_interrupt_is_not_swallowed(monkeypatch):

@@ -70,6 +70,9 @@ from ..robot.inertia import body_slice, from_pseudo_inertia, pseudo_inertia
 from .regressor import RegressorSpec, parameter_names, predict_torque, prior_vector
 from .result import IdentificationResult
 
+#: Prior weights (× the default) over which every solve of ``benchmarks/sdp_accuracy.py`` ended
+#: ``optimal``; a solver failure outside it is blamed on the weight (:func:`_extreme_weight`).
+PRIOR_WEIGHT_SOLVED = (1e-6, 1e2)
 #: Relative uncertainty ``r`` of CAD pseudo-inertias assumed by :func:`default_prior_weight`.
 DEFAULT_PRIOR_UNCERTAINTY = 0.3
 #: ``None``: constraints only. (Recovery from base coefficients, :data:`consistid.estimation.recover.PRIORS`,
@@ -93,7 +96,12 @@ def default_prior_weight(uncertainty: float = DEFAULT_PRIOR_UNCERTAINTY) -> floa
     """
     if not (np.isfinite(uncertainty) and uncertainty > 0):
         raise OptionError(f"prior_uncertainty must be a finite number > 0, got {uncertainty}")
-    return 2.0 / uncertainty ** 2
+    with np.errstate(over="ignore", divide="ignore"):
+        gamma = 2.0 / np.float64(uncertainty) ** 2
+    if not np.isfinite(gamma):
+        raise OptionError(f"prior_uncertainty = {uncertainty!r} gives the prior weight 2/r² = "
+                          f"{gamma}: give a relative uncertainty such as 0.01 … 1")
+    return float(gamma)
 
 
 @dataclass(frozen=True, eq=False)
@@ -227,6 +235,10 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
     passes = ((5 if loss == "huber" else 0) if reweight is None
               else check_number("reweight", reweight, 0, integer=True))
     margin = check_number("margin", margin, 0)
+    if margin >= 1:
+        raise OptionError(f"margin = {margin!r}: the LMIs ask J ⪰ margin·J_ref with J_ref the "
+                          "prior body, so margin ≥ 1 excludes the prior itself; use a small "
+                          "relative margin such as 1e-6 (the default)")
     huber_c = (HUBER_DEFAULT if huber_threshold is None
                else check_number("huber_threshold", huber_threshold, 0, strict=True))
     gamma_default = default_prior_weight(
@@ -262,8 +274,11 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
         r_full, z_full, _ = work.stacked(sigma=sig)
         program = _build(model, spec, r_full, z_full, prior_vec, setup, scale)
         setup_time += time.perf_counter() - t0
-        program, reports = _solve_pass(program, model, spec, r_full, z_full, prior_vec, setup,
-                                       solver, solver_options, scale)
+        try:
+            program, reports = _solve_pass(program, model, spec, r_full, z_full, prior_vec,
+                                           setup, solver, solver_options, scale)
+        except IdentificationError as exc:
+            raise _extreme_weight(exc, gamma, gamma_default) from exc
         report = reports[-1]
         refinements += len(reports) - 1
         solve_time += sum(rep.solve_time for rep in reports)
@@ -320,6 +335,22 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
         solver=SolverReport(f"{solver} via cvxpy (compressed{', scaled' if scale else ''})",
                             report.status, solve_time, compile_time, iterations),
         details=details, uninformed=uninformed)
+
+
+def _extreme_weight(exc: IdentificationError, gamma: float, gamma_default: float
+                    ) -> IdentificationError:
+    """``exc``, or (for a solver failure with a prior weight far from the default) the same
+    error naming the weight as the cause: valid but extreme, not a solver to swap."""
+    ratio = gamma / gamma_default
+    if isinstance(exc, InfeasibleError) or gamma == 0 or PRIOR_WEIGHT_SOLVED[0] <= ratio \
+            <= PRIOR_WEIGHT_SOLVED[1]:
+        return exc
+    return type(exc)(
+        f"{exc}. The likely cause is the prior weight: prior_weight = {gamma:.3g} is "
+        f"{ratio:.3g} × the default {gamma_default:.3g}, which leaves the solver a program "
+        f"scaled beyond what it resolves (solved: {PRIOR_WEIGHT_SOLVED[0]:g} … "
+        f"{PRIOR_WEIGHT_SOLVED[1]:g} × default, benchmarks/sdp_accuracy.py); use a weight in "
+        "that range, or prior=None for no prior at all")
 
 
 # ------------------------------------------------------------------------------------ options
