@@ -42,9 +42,14 @@ def _log(msg: str) -> None:
         print(msg, file=sys.stderr, flush=True)
 
 
-def _progress() -> bool | None:
-    """``progress=`` for the library: off under ``-q``, else a bar when stderr is a terminal."""
-    return False if QUIET else None
+def _progress(line: Callable[[object], str] = str) -> bool | None | Callable[[object], None]:
+    """``progress=`` for the library: nothing under ``-q``; a bar on a terminal; in a log (stderr
+    not a terminal) one line per step, ``line(step)``."""
+    if QUIET:
+        return False
+    if sys.stderr is not None and sys.stderr.isatty():
+        return None
+    return lambda step: _log(f"      {line(step)}")
 
 
 def _cli_model(args: argparse.Namespace) -> "ci.RobotModel":
@@ -394,7 +399,7 @@ def diagnose(args: argparse.Namespace) -> int:
          f"{'held-out logs' if held is not None else 'time split'}")
     t0 = time.perf_counter()
     diag = ci.diagnose(model, train.dataset, nominal=nominal,
-                       held_out=None if held is None else held.dataset, progress=_log,
+                       held_out=None if held is None else held.dataset, progress=_progress(),
                        **options)
     _log(f"      done in {time.perf_counter() - t0:.2f} s")
     print(diag.summary())
