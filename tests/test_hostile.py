@@ -75,7 +75,8 @@ NONFINITE = [(f, idx, v) for f in ("t", "q", "dq", "ddq", "tau")
                          ids=[f"{f}-{i}-{v}" for f, i, v in NONFINITE])
 def test_non_finite_values_name_field_and_index(states, field, index, value):
     idx = index[0] if field == "t" else index
-    with pytest.raises(ci.DatasetError, match=rf"dataset\.{field}\[{idx[0] if field != 't' else idx}"):
+    first = idx if field == "t" else idx[0]
+    with pytest.raises(ci.DatasetError, match=rf"dataset\.{field}\[{first}"):
         dataset(states, **{field: poke(states[field], idx, value)})
 
 
@@ -265,6 +266,36 @@ def test_a_first_joint_that_never_moves_on_other_arms(robot):
     assert any(str(len(res.uninformed)) in str(w.message) for w in caught)
     with pytest.raises(ci.PoorExcitationError, match=rf"do not excite {len(res.uninformed)} of"):
         ci.identify(model, data, method="ols", friction=None)
+
+
+def test_null_directions_of_a_known_factor():
+    from consistid.identification.uninformed import null_directions
+
+    r = np.array([[1.0, 1.0, 0.0], [0.0, 0.0, 2.0]])      # β1 + β2 informed, β3 informed
+    rows = null_directions(r)
+    assert rows.shape == (1, 3)
+    np.testing.assert_allclose(rows[0] / rows[0][np.argmax(np.abs(rows[0]))],
+                               [1.0, -1.0, 0.0] if rows[0][0] > 0 else [-1.0, 1.0, 0.0],
+                               atol=1e-12)
+
+
+@settings(max_examples=40, deadline=None, derandomize=True)
+@given(b=st.integers(2, 12), rank=st.integers(0, 12), seed=st.integers(0, 1000))
+def test_null_directions_span_the_null_space(b, rank, seed):
+    """Rows are in the null space of r_b, independent, and as many as b − rank (numpy's rank,
+    an independent computation)."""
+    from consistid.identification.uninformed import null_directions
+
+    rank = min(rank, b)
+    rng = np.random.default_rng(seed)
+    r = rng.normal(size=(b, rank)) @ rng.normal(size=(rank, b))
+    rows = null_directions(r)
+    tol = 1e-11 * max(1e-300, np.linalg.norm(r, 2))
+    assert rows.shape == (b - np.linalg.matrix_rank(r, tol=tol), b)
+    if rows.size:
+        assert np.max(np.abs(r @ rows.T)) <= 1e-8 * max(1.0, np.linalg.norm(r, 2)) \
+            * np.max(np.abs(rows))
+        assert np.linalg.matrix_rank(rows) == rows.shape[0]
 
 
 # ================================================================= 4. options
@@ -634,11 +665,12 @@ NAN_IN = [
     ("is_physically_consistent", lambda m: inertia.is_physically_consistent(
         np.r_[_nan_body(0), _nan_body(1)]), "m = nan"),
     ("to_mass_com_inertia", lambda m: inertia.to_mass_com_inertia(_nan_body(5)), "Ixy = nan"),
-    ("from_mass_com_inertia", lambda m: inertia.from_mass_com_inertia(1.0, [0, np.nan, 0],
-                                                                       np.eye(3)), "must be finite"),
+    ("from_mass_com_inertia",
+     lambda m: inertia.from_mass_com_inertia(1.0, [0, np.nan, 0], np.eye(3)), "must be finite"),
     ("perturb", lambda m: inertia.perturb(_nan_body(2), 0.1, np.random.default_rng(0)),
      "my = nan"),
-    ("inertias_from_vector", lambda m: inertia.inertias_from_vector(_nan_body(4)), "Ixx = nan|finite"),
+    ("inertias_from_vector", lambda m: inertia.inertias_from_vector(_nan_body(4)),
+     "Ixx = nan|finite"),
 ]
 
 

@@ -63,8 +63,9 @@ def check_magnitudes(dataset: Dataset, fields: Sequence[str] = FIELDS,
         if big.size:
             k, j = (int(i) for i in big[0])
             raise DatasetError(
-                f"{_where(dataset, name, k, j, joint_names)} = {a[k, j]:.3g}: beyond ±{MAX_ABS:.0e}, no "
-                f"physical joint value in SI units ({len(big)} such value(s) in {name}); a "
+                f"{_where(dataset, name, k, j, joint_names)} = {a[k, j]:.3g}: beyond "
+                f"±{MAX_ABS:.0e}, no physical joint value in SI units ({len(big)} such "
+                f"value(s) in {name}); a "
                 "glitch or wrong units (degrees? mN·m?). Remove or rescale those samples")
 
 
@@ -115,7 +116,8 @@ def check_glitches(dataset: Dataset, fields: Sequence[str] = ("tau",),
             if far.size and far.size <= max(1, a.shape[0] // 1000) \
                     and np.max(np.delete(z, far)) < GLITCH_FACTOR / 10:
                 k = int(far[np.argmax(z[far])])
-                found.append(f"{_where(dataset, name, k, j, joint_names)} = {a[k, j]:.4g} ({z[k]:.3g} robust "
+                found.append(f"{_where(dataset, name, k, j, joint_names)} = {a[k, j]:.4g} "
+                             f"({z[k]:.3g} robust "
                              f"σ from the channel's median {med[j]:.4g})")
     if found:
         warnings.warn(f"lone outlying sample(s), likely glitches: {'; '.join(found[:5])}. Least "

@@ -17,6 +17,7 @@ import numpy as np
 import scipy.linalg
 
 from .base import RANK_RTOL, BaseParameters
+from ..errors import IdentificationError
 
 __all__ = ["uninformed_directions", "null_directions"]
 
@@ -30,7 +31,8 @@ def null_directions(r_b: np.ndarray, rtol: float = RANK_RTOL) -> np.ndarray:
     r_b = np.asarray(r_b, dtype=float)
     b = r_b.shape[1]
     if not np.all(np.isfinite(r_b)):
-        raise ValueError("r_b has non-finite entries")
+        raise IdentificationError("the weighted base regressor has non-finite entries (noise "
+                                  "weights 1/σ overflowed?): check the torques' magnitudes")
     _, s, vt = np.linalg.svd(r_b, full_matrices=True)
     s = np.concatenate([s, np.zeros(b - s.size)])
     dead = vt[s <= rtol * s[0]] if s[0] > 0 else np.eye(b)
