@@ -503,3 +503,19 @@ def test_adaptive_run_with_unmodelled_friction_and_refused_effects(panda):
     assert np.all(coulomb >= 0) and np.median(coulomb) > 0.1         # truth 0.5 N·m
     with pytest.raises(OptionError, match="elastic"):
         adaptive_run(panda, periods=1, payload=None, effects=Effects(stiffness=1000.0))
+
+
+def test_reset_on_change_relearns_a_non_payload_change(planar_2r):
+    """An offset step of 3 N·m: with on_change="reset" it is flagged once and the offsets are
+    re-learnt from the samples after it."""
+    q, dq, ddq = random_states(planar_2r, 800, 14)
+    est = ci.RecursiveEstimator(planar_2r, noise_std=0.01, on_change="reset")
+    truth = est.base_parameters
+    tau = est.predict(q, dq, ddq) + np.random.default_rng(5).normal(0.0, 0.01, (800, 2))
+    tau[300:] += 3.0
+    est.update_batch(q, dq, ddq, tau, record=False)
+    assert [(c.index, c.action) for c in est.changes] == [(300, "reset")]
+    offsets = [i for i, n in enumerate(est.base.standard_names) if n.endswith(".fo")]
+    rows = [r for r, i in enumerate(est.base.independent) if i in offsets]
+    shift = est.base_parameters[rows] - truth[rows]
+    assert np.allclose(shift, 3.0, atol=0.05)
