@@ -167,7 +167,8 @@ def _effect_rows(diag: "Diagnosis") -> list[list[object]]:
 def _verdict(diag: "Diagnosis") -> tuple[str, str]:
     remainder = getattr(diag, "remainder", None)
     if remainder is not None:
-        return ("ok" if not remainder.flagged else "warn"), f"Verdict: {remainder.verdict}."
+        level = "warn" if remainder.flagged or remainder.undetermined else "ok"
+        return level, f"Verdict: {remainder.verdict}."
     if diag.at_noise_floor:
         return "ok", "Verdict: the remaining gap is at the noise floor."
     if diag.at_library_floor:
