@@ -326,6 +326,7 @@ class CalibrationResult:
                 "collapse}td,th{border:1px solid #ccc;padding:2px 6px;text-align:right}"
                 "</style></head><body>" + self._html_tables()
                 + f"<h4>Error per measurement</h4><img src='data:image/png;base64,{img}'/>"
+                + f"<pre>{html.escape(self.residual_table())}</pre>"
                 + f"<h4>Text summary</h4><pre>{html.escape(self.summary())}</pre>"
                 + "</body></html>\n")
         path.write_text(text, encoding="utf-8")
