@@ -582,6 +582,9 @@ def test_bad_input_raises_named_errors(ur5):
     with pytest.raises(ci.PoorExcitationError, match="identify"):
         calibrate_kinematics(ur5, same, measure(ur5, same, np.zeros(6), "tool0", TRACKER),
                              frame="tool0", sigma=(1e-4, 1e-3))
+    with pytest.raises(ci.PoorExcitationError, match="none of the selected parameters"):
+        calibrate_kinematics(ur5, q, poses[:, :3, 3], frame="tool0", parameters="tool.r*",
+                             sigma=1e-4)
     with pytest.raises(ci.ModelError, match="frame 'tool9' does not exist"):
         calibrate_kinematics(ur5, q, poses, frame="tool9")
     with pytest.raises(ci.OptionError, match="matches no parameter"):

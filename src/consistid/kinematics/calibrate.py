@@ -255,6 +255,11 @@ def calibrate_kinematics(model: RobotModel, q: object, measurements: object,
     kept = structural_selection(gprob.weighted(zero, sel)[1],
                                 gprob.weighted(generic_values, sel)[1], order)
     r = int(kept.sum())
+    if r == 0:
+        raise PoorExcitationError(
+            f"none of the selected parameters {names[:6]}{' …' if len(names) > 6 else ''} "
+            f"changes a {meas.kind} measurement of {frame!r} (e.g. a point has no orientation): "
+            "select others")
     if n * m < r:
         raise PoorExcitationError(
             f"{n} {meas.kind} measurements give {n * m} residuals, fewer than the {r} "
