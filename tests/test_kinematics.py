@@ -589,6 +589,8 @@ def test_bad_input_raises_named_errors(ur5):
         calibrate_kinematics(ur5, q, poses, frame="tool9")
     with pytest.raises(ci.OptionError, match="matches no parameter"):
         calibrate_kinematics(ur5, q, poses, frame="tool0", parameters=["zero", "elbow.x"])
+    with pytest.raises(ci.OptionError, match="parameters must be"):
+        calibrate_kinematics(ur5, q, poses, frame="tool0", parameters=None)
     with pytest.raises(ci.OptionError, match="σ_position"):
         calibrate_kinematics(ur5, q, poses, frame="tool0", sigma=1e-4)
     with pytest.raises(ci.OptionError, match="sigma"):

@@ -252,7 +252,15 @@ class KinematicParameters:
         (``"panda_joint2.*"``, ``"*.zero"``), or a list of them; every item must match something
         (:class:`OptionError` otherwise, listing the keywords and an example name).
         """
-        items = [parameters] if isinstance(parameters, str) else list(parameters)
+        if isinstance(parameters, str):
+            items = [parameters]
+        else:
+            try:
+                items = list(parameters)
+            except TypeError:
+                raise OptionError(f"parameters must be a keyword, a name or a list of them (e.g. "
+                                  f"'all' or ['zero', 'translation']), got {parameters!r}"
+                                  ) from None
         if not items:
             raise OptionError("parameters is empty; name at least one (e.g. 'all', 'zero', "
                               f"'translation', {self.names[0]!r})")
