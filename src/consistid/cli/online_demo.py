@@ -16,6 +16,7 @@ import time
 import numpy as np
 
 import consistid as ci
+from consistid.errors import check_number
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -36,11 +37,13 @@ def run(args: argparse.Namespace) -> int:
     from consistid.online.scenario import payload_change_run
 
     model = ci.RobotModel.example(args.robot)
+    check_number("--periods", args.periods, 1, integer=True)       # every option before the work
+    est = ci.RecursiveEstimator(model, forgetting=args.forgetting)
+    check_number("duration", args.duration, 0, strict=True)
     change_time = min(args.change, 0.8 * args.duration)
     sim = payload_change_run(model, duration=args.duration, change_time=change_time,
                              torque_noise=args.noise, seed=args.seed)
     d = sim.dataset
-    est = ci.RecursiveEstimator(model, forgetting=args.forgetting)
     print(f"recursive least squares on {model.name}: {d.n_samples} samples at 1 kHz, "
           f"σ = {args.noise:g} N·m, {sim.payload.mass:g} kg payload at t = {change_time:g} s, "
           f"{est.base.n_base} base parameters, λ = {args.forgetting:g}")
