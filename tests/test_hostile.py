@@ -366,6 +366,10 @@ def test_a_rust_panic_becomes_a_solver_error(arm, data, monkeypatch):
         raise PanicException("called `Result::unwrap()` on an `Err` value")
 
     monkeypatch.setattr(cp.Problem, "solve", panic)
+    # the scaled Clarabel program is solved directly (consistid.identification.program)
+    from consistid.identification import program
+
+    monkeypatch.setattr(program, "run_clarabel", panic)
     with pytest.raises(SolverError, match="crashed .*PanicException") as err:
         ci.identify(arm, data, method="sdp", friction=None)
     assert isinstance(err.value, Exception)       # caught by `except Exception`

@@ -57,6 +57,7 @@ import scipy.linalg
 
 from . import constraints as cons
 from . import priors
+from . import program as compiled_programs
 from .base import COND_WARN, RANK_RTOL, BaseParameters
 from .compression import CompressedProblem, compress, floor_sigma, joint_sigma
 from .solver import DEFAULT_SOLVER, SolverReport, check_solver, solve
@@ -272,7 +273,7 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
     for k in range(passes + 1):
         t0 = time.perf_counter()
         r_full, z_full, _ = work.stacked(sigma=sig)
-        program = _build(model, spec, r_full, z_full, prior_vec, setup, scale)
+        program = _build(model, spec, r_full, z_full, prior_vec, setup, scale, solver=solver)
         setup_time += time.perf_counter() - t0
         try:
             program, reports = _solve_pass(program, model, spec, r_full, z_full, prior_vec,
@@ -621,18 +622,72 @@ class _Program:
 
 def _build(model: RobotModel, spec: RegressorSpec, r: np.ndarray, z: np.ndarray,
            prior_vec: np.ndarray, setup: _Setup, scale: bool,
-           around: np.ndarray | None = None) -> _Program:
-    """The cvxpy program of one pass (module docstring)."""
+           around: np.ndarray | None = None, solver: str = DEFAULT_SOLVER
+           ) -> _Program | compiled_programs.BoundProgram:
+    """The program of one pass (module docstring). Scaled and solved by Clarabel: the
+    structure compiled once per model and options (:mod:`consistid.identification.program`)
+    with this pass's data bound to it; otherwise a cvxpy program built afresh."""
     nb, p = model.n_bodies, prior_vec.size
-    prior, gamma, neighbourhood = setup.prior, setup.gamma, setup.neighbourhood
-    com_boxes, mass_bounds, total_mass = setup.com_boxes, setup.mass_bounds, setup.total_mass
     if scale:
         theta_c, phi = _whitening(r, z, prior_vec, setup, nb, around)
     else:
         theta_c, phi = np.zeros(p), np.eye(p)
+    if scale and solver == "CLARABEL":
+        key = _structure_key(spec, prior_vec, setup)
+        program = compiled_programs.compiled(
+            model, key, lambda: _compile(model, spec, prior_vec, setup))
+        return program.bind(theta_c, phi, r, z, setup.gamma)
     w = cp.Variable(p, name="w")
     theta = theta_c + phi @ w
     objective = cp.sum_squares((r @ phi) @ w - (z - r @ theta_c))
+    labelled, prior_terms = _constraints(model, spec, theta, prior_vec, setup, scale, phi)
+    if prior_terms and setup.gamma > 0:
+        objective = objective + setup.gamma * cp.sum(cp.hstack(prior_terms))
+    problem = cp.Problem(cp.Minimize(objective), [c for c, _ in labelled])
+    return _Program(problem, w, theta_c, phi, tuple(labelled))
+
+
+def _structure_key(spec: RegressorSpec, prior_vec: np.ndarray, setup: _Setup) -> tuple:
+    """What fixes a compiled program's structure and constants (not the data, σ or γ)."""
+    akey = compiled_programs.array_key
+    return (spec, akey(prior_vec), setup.levels, akey(setup.references),
+            tuple(akey(b) for b in setup.bounds),
+            tuple(None if e is None else (akey(e.center), akey(e.shape))
+                  for e in setup.ellipsoids),
+            akey(setup.nonnegative), akey(setup.euclid_w), setup.prior, setup.gamma > 0,
+            setup.neighbourhood,
+            tuple((b, akey(lo), akey(hi)) for b, (lo, hi) in sorted(setup.com_boxes.items())),
+            tuple((b, lo, hi) for b, (lo, hi) in sorted(setup.mass_bounds.items())),
+            None if setup.total_mass is None else tuple(setup.total_mass))
+
+
+def _compile(model: RobotModel, spec: RegressorSpec, prior_vec: np.ndarray,
+             setup: _Setup) -> compiled_programs.CompiledProgram:
+    """The structure of the scaled program in prior-normalised variables ``y`` (``θ = T y``),
+    its prior term at unit weight: :class:`~consistid.identification.program.CompiledProgram`."""
+    nb, p = model.n_bodies, prior_vec.size
+    t_map = np.eye(p)
+    t_map[:10 * nb, :10 * nb] = scipy.linalg.block_diag(
+        *(sc.parameter_map() for sc in setup.scalings))
+    y = cp.Variable(p, name="y")
+    labelled, prior_terms = _constraints(model, spec, t_map @ y, prior_vec, setup, True, None)
+    objective = (cp.sum(cp.hstack(prior_terms)) if prior_terms and setup.gamma > 0
+                 else cp.Constant(0.0))
+    problem = cp.Problem(cp.Minimize(objective), [c for c, _ in labelled])
+    idx = np.flatnonzero(setup.nonnegative)
+    return compiled_programs.CompiledProgram(problem, y, t_map, labelled,
+                                             (len(labelled) - 1, idx) if idx.size else None)
+
+
+def _constraints(model: RobotModel, spec: RegressorSpec, theta: cp.Expression,
+                 prior_vec: np.ndarray, setup: _Setup, scale: bool, phi: np.ndarray | None
+                 ) -> tuple[list[tuple[cp.Constraint, tuple[str, ...]]], list[cp.Expression]]:
+    """The labelled constraints and the prior terms (unit weight) on ``theta``; ``phi`` gives
+    the friction bounds' unit scale (``None``: unscaled rows, which
+    :class:`~consistid.identification.program.BoundProgram` normalises itself)."""
+    nb = model.n_bodies
+    prior, neighbourhood = setup.prior, setup.neighbourhood
+    com_boxes, mass_bounds, total_mass = setup.com_boxes, setup.mass_bounds, setup.total_mass
     labelled: list[tuple[cp.Constraint, tuple[str, ...]]] = []
     prior_terms = []
     for i, body in enumerate(model.body_names):
@@ -677,13 +732,11 @@ def _build(model: RobotModel, spec: RegressorSpec, r: np.ndarray, z: np.ndarray,
     if idx.size:
         names = parameter_names(model, spec)
         # unit scale per column: the whitening's scale of that parameter
-        col = np.maximum(np.linalg.norm(phi[idx], axis=1), 1e-300) if scale else np.ones(idx.size)
+        col = (np.maximum(np.linalg.norm(phi[idx], axis=1), 1e-300)
+               if scale and phi is not None else np.ones(idx.size))
         labelled.append((cp.multiply(1.0 / col, theta[idx]) >= 0,
                          tuple(f"{names[k]} ≥ 0" for k in idx)))
-    if prior_terms and gamma > 0:
-        objective = objective + gamma * cp.sum(cp.hstack(prior_terms))
-    problem = cp.Problem(cp.Minimize(objective), [c for c, _ in labelled])
-    return _Program(problem, w, theta_c, phi, tuple(labelled))
+    return labelled, prior_terms
 
 
 def _solve_pass(program: _Program, model: RobotModel, spec: RegressorSpec, r: np.ndarray,
@@ -706,7 +759,8 @@ def _solve_pass(program: _Program, model: RobotModel, spec: RegressorSpec, r: np
     if first.status != cp.OPTIMAL_INACCURATE:
         _rewarn(caught)
         return program, [first]
-    refined = _build(model, spec, r, z, prior_vec, setup, scale, around=program.theta())
+    refined = _build(model, spec, r, z, prior_vec, setup, scale, around=program.theta(),
+                     solver=solver)
     try:
         second = _solve(refined, model, prior_vec, solver, options, scale)
     except IdentificationError:
@@ -734,8 +788,12 @@ def _solve(program: _Program, model: RobotModel, prior_vec: np.ndarray, solver: 
         # with it the Panda sweep over prior weights 1e-6..1e2 × default ended inaccurate once
         # (at 1e-6) in 54 solves, without it never.
         options = {"equilibrate_enable": False, **(options or {})}
+    what = f"SDP identification of {model.name!r}"
     try:
-        return solve(program.problem, f"SDP identification of {model.name!r}", solver, options)
+        if isinstance(program, compiled_programs.BoundProgram):
+            status, solve_time, setup_time, iterations = program.solve(what, options)
+            return SolverReport(solver, status, solve_time, setup_time, iterations)
+        return solve(program.problem, what, solver, options)
     except InfeasibleError as exc:
         program.w.value = np.linalg.solve(program.phi, prior_vec - program.theta_c)
         violated = [f"{label} (slack {v:.3g})" for label, v in program.slacks()
