@@ -789,3 +789,62 @@ def test_continuous_joints_take_pinocchio_configurations():
     with pytest.raises(ci.OptionError, match="continuous joint"):
         calibrate_kinematics(kinova, q, np.array(pts), frame=frame,
                              parameters=[f"{kinova.joint_names[0]}.axis_u"])
+
+
+RPR = """<?xml version="1.0"?>
+<robot name="rpr">
+  <link name="base"/>
+  <link name="l1"><inertial><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0"
+    ixz="0" iyz="0"/></inertial></link>
+  <link name="l2"><inertial><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0"
+    ixz="0" iyz="0"/></inertial></link>
+  <link name="l3"><inertial><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0"
+    ixz="0" iyz="0"/></inertial></link>
+  <link name="tip"/>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/>
+    <origin xyz="0 0 0.3"/><axis xyz="0 0 1"/><limit lower="-3" upper="3" velocity="1" effort="10"/>
+  </joint>
+  <joint name="j2" type="prismatic"><parent link="l1"/><child link="l2"/>
+    <origin xyz="0.2 0 0" rpy="0 1.5707963267948966 0"/><axis xyz="0 0 1"/>
+    <limit lower="0" upper="0.4" velocity="1" effort="10"/></joint>
+  <joint name="j3" type="revolute"><parent link="l2"/><child link="l3"/>
+    <origin xyz="0 0.05 0.1"/><axis xyz="0 1 0"/>
+    <limit lower="-3" upper="3" velocity="1" effort="10"/></joint>
+  <joint name="tip_joint" type="fixed"><parent link="l3"/><child link="tip"/>
+    <origin xyz="0.15 0.02 0.05"/></joint>
+</robot>
+"""
+
+
+def test_a_prismatic_joint(tmp_path):
+    # an R-P-R arm from a URDF string: derivatives, exact noise-free recovery, the URDF written
+    path = tmp_path / "rpr.urdf"
+    path.write_text(RPR)
+    model = ci.RobotModel.from_urdf(path)
+    chart = KinematicParameters(model, "tip", "pose")
+    assert chart.units("j2.zero") == "m" and chart.units("j1.zero") == "rad"
+    rng = np.random.default_rng(0)
+    truth = rng.normal(0, 0.01, chart.size) * (np.arange(chart.size) < chart.n_kinematic)
+    q = random_configurations(model, 30, rng)
+    _, _, tw = chart.frame_kinematics(truth, q)
+    for i in range(chart.n_kinematic):
+        vp, vm = truth.copy(), truth.copy()
+        vp[i] += 1e-7
+        vm[i] -= 1e-7
+        (pp, rp, _), (pm_, rm, _) = (chart.frame_kinematics(v, q, False) for v in (vp, vm))
+        ang = Rotation.from_matrix(np.einsum("nij,nkj->nik", rp, rm)).as_rotvec() / 2e-7
+        assert np.allclose((pp - pm_) / 2e-7, tw[:, :3, i], atol=1e-6), chart.names[i]
+        assert np.allclose(ang, tw[:, 3:, i], atol=1e-6), chart.names[i]
+    real = chart.robot_model(truth)
+    poses = measure(real, q, np.zeros(3), "tip", TRACKER)
+    cal = calibrate_kinematics(model, q, poses, frame="tip", sigma=(1e-4, 1e-3))
+    assert cal.identified.sum() == 4 * 2 + 2 + 6      # 4 per revolute, 2 per prismatic, + 6
+    held = random_configurations(model, 10, rng)
+    assert np.abs(cal.residuals(held, measure(real, held, np.zeros(3), "tip", TRACKER))).max() \
+        < 1e-9
+    reloaded = ci.RobotModel.from_urdf(cal.to_urdf(tmp_path / "rpr_cal.urdf"))
+    err = cal.residuals(held, measure(reloaded, held, np.zeros(3), "tip",
+                                      pin.SE3(cal.base[:3, :3], cal.base[:3, 3])))
+    assert np.abs(err).max() < 1e-9
+    with pytest.raises(ci.ModelError, match="joints"):
+        model.with_kinematics(ci.RobotModel.example("ur5").pin_model)
