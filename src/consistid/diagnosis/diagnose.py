@@ -729,8 +729,8 @@ def _tuned_atoms(library: EffectLibrary, train: GapData, floor: np.ndarray
     training columns ``(N, nv, P)``.
 
     The settings are tuned against the residual of the *saturated* fit (every linear candidate
-    at once): a *tuned* effect's setting (the Coulomb smoothing speed) on that residual plus the
-    atom's own fit, a *searched* effect's atoms (ripple orders) on that residual; so other
+    at once): a *tuned* effect's setting (the Coulomb smoothing speed) on that residual plus what
+    the tuned atoms of its joint explain in it, a *searched* effect's atoms (ripple orders) on that residual; so other
     effects do not masquerade as them. Searched effects' atoms come last.
     """
     model = library.model
@@ -746,14 +746,18 @@ def _tuned_atoms(library: EffectLibrary, train: GapData, floor: np.ndarray
     g = _Grams.build(phi_tr, train.residual)
     theta, _, _ = _solve(*g.weighted(1.0 / floor ** 2, np.arange(phi_tr.shape[2])))
     rest = train.residual - phi_tr @ theta
-    o = 0
+    offsets = np.cumsum([0] + [a.n_parameters for a in atoms])
+    # What the tuned atoms of each joint explain together in the saturated fit (e.g. a Coulomb
+    # step and a Stribeck hump share the step at q̇ = 0): each is tuned on the rest plus that.
+    tuned_part: dict[int, np.ndarray] = {}
     for i, a in enumerate(atoms):
         if REGISTRY[a.effect].tuned and a.joint is not None:
-            own = theta[o:o + a.n_parameters]
-            partial = rest[:, a.joint] + blocks[i][:, a.joint, :] @ own
-            atoms[i] = library.tune(train, partial, a)
+            own = theta[offsets[i]:offsets[i + 1]]
+            tuned_part[a.joint] = tuned_part.get(a.joint, 0.0) + blocks[i][:, a.joint, :] @ own
+    for i, a in enumerate(atoms):
+        if REGISTRY[a.effect].tuned and a.joint is not None:
+            atoms[i] = library.tune(train, rest[:, a.joint] + tuned_part[a.joint], a)
             blocks[i] = library.columns(atoms[i], train)
-        o += a.n_parameters
     if searched:
         for a in EffectLibrary(model, tuple(searched), base=library.base,
                                ripple_orders=library.ripple_orders).atoms(train, rest):
