@@ -64,7 +64,10 @@ class CompressedProblem:
         sigma = np.ones(self.nv) if sigma is None else np.asarray(sigma, dtype=float)
         cols = np.arange(self.n_columns) if columns is None else np.asarray(columns)
         keep = np.append(cols, self.n_columns)
-        a = np.vstack([self.factors[j][:, keep] / sigma[j] for j in range(self.nv)])
+        # only each factor's non-zero rows (structurally zero columns leave zero rows): the
+        # same R, for the flops of the rows that carry data
+        a = np.vstack([self.factors[j][np.any(self.factors[j] != 0.0, axis=1)][:, keep]
+                       / sigma[j] for j in range(self.nv)])
         r = _r_factor(a, keep.size)
         return r[:-1, :-1], r[:-1, -1], float(r[-1, -1] ** 2)
 

@@ -248,7 +248,7 @@ def with_covariance(result: IdentificationResult, problem: CompressedProblem,
     tau = stats.autocorrelation_time()
     cols = result.base.independent
     r_b = problem.factors[:, :-1, :-1][:, :, cols]
-    grams = np.einsum("jkp,jkq->jpq", r_b, r_b)
+    grams = np.matmul(r_b.transpose(0, 2, 1), r_b)  # BLAS per joint (einsum is not)
     sigma = np.asarray(result.sigma, dtype=float)
     weights = np.where(sigma > 0, 1.0 / np.where(sigma > 0, sigma, 1.0) ** 2, 1.0)
     # each joint's own residual variance (OLS weighs joints alike whatever their noise)

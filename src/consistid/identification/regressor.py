@@ -209,15 +209,44 @@ def prior_vector(model: RobotModel, spec: RegressorSpec) -> np.ndarray:
     return np.concatenate([model.prior_parameters, np.zeros(spec.n_joint_columns)])
 
 
+def _signal(suffix: str, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> np.ndarray:
+    """The per-joint signal multiplying the coefficient ``suffix``, for samples ``(n,)``."""
+    if suffix == "fc":
+        return np.sign(dq)
+    if suffix == "fv":
+        return dq
+    if suffix == "fo":
+        return np.ones_like(dq)
+    if suffix == "ps1":
+        return np.sin(q)
+    if suffix == "pc1":
+        return np.cos(q)
+    return ddq                                                     # "Ia"
+
+
 def joint_columns(q: np.ndarray, dq: np.ndarray, ddq: np.ndarray,
-                  spec: RegressorSpec) -> np.ndarray:
-    """The per-joint blocks for samples ``(N, nv)`` as an array ``(N, nv, n_joint_columns)``."""
+                  spec: RegressorSpec, out: np.ndarray | None = None) -> np.ndarray:
+    """The per-joint blocks for samples ``(N, nv)`` as an array ``(N, nv, n_joint_columns)``
+    (``out``: a preallocated one to fill). Each signal is computed for its joint's column only:
+    ``(N, nv, c)`` zeros plus one strided copy per column, no per-term ``(N, nv)`` arrays."""
     n, nv = dq.shape
-    signals = {"fc": np.sign(dq), "fv": dq, "fo": np.ones_like(dq), "ps1": np.sin(q),
-               "pc1": np.cos(q), "Ia": ddq}
-    out = np.zeros((n, nv, spec.n_joint_columns))
+    if out is None:
+        out = np.zeros((n, nv, spec.n_joint_columns))
+    else:
+        out[...] = 0.0
     for c, (_, j, suffix) in enumerate(spec.columns):
-        out[:, j, c] = signals[suffix][:, j]
+        out[:, j, c] = _signal(suffix, q[:, j], dq[:, j], ddq[:, j])
+    return out
+
+
+def joint_torque(q: np.ndarray, dq: np.ndarray, ddq: np.ndarray, spec: RegressorSpec,
+                 coefficients: np.ndarray) -> np.ndarray:
+    """``Σ_c coefficient_c · signal_c`` of the per-joint columns, shape ``(N, nv)``: their part
+    of ``Y θ`` without building the ``(N, nv, n_joint_columns)`` block."""
+    out = np.zeros(dq.shape)
+    for c, (_, j, suffix) in enumerate(spec.columns):
+        if coefficients[c] != 0.0:
+            out[:, j] += coefficients[c] * _signal(suffix, q[:, j], dq[:, j], ddq[:, j])
     return out
 
 
@@ -266,7 +295,7 @@ def regressor(model: RobotModel, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray,
     y = np.empty((n, model.nv, p)) if out is None else out
     rigid_body_regressor(model, q, dq, ddq, out=y[:, :, :model.n_inertial])
     if spec.n_joint_columns:
-        y[:, :, model.n_inertial:] = joint_columns(q, dq, ddq, spec)
+        joint_columns(q, dq, ddq, spec, out=y[:, :, model.n_inertial:])
     return y.reshape(n * model.nv, p)
 
 
@@ -315,13 +344,36 @@ def column_support(model: RobotModel, spec: RegressorSpec) -> np.ndarray:
     return support
 
 
+def batch_rnea(model: RobotModel, carrier: pin.Model, q: np.ndarray, dq: np.ndarray,
+               ddq: np.ndarray, chunk: int = 65536) -> np.ndarray:
+    """``pinocchio.rnea(carrier, q_k, dq_k, ddq_k)`` for every sample, shape ``(N, nv)``.
+
+    ``pinocchio.rneaInParallel`` on one thread (the samples as columns, Fortran order), in
+    chunks of ``chunk`` samples; ``model`` maps angles to Pinocchio configurations for
+    continuous joints (``nq ≠ nv``). The same numbers as a loop of ``pinocchio.rnea`` calls,
+    without the Python call per sample."""
+    n = q.shape[0]
+    out = np.empty((n, carrier.nv))
+    pool = pin.ModelPool(carrier, 1)
+    for start in range(0, n, chunk):
+        s = slice(start, min(start + chunk, n))
+        qs = q[s] if carrier.nq == carrier.nv else np.array(
+            [model.configuration(row) for row in q[s]])
+        tau = np.empty((carrier.nv, s.stop - s.start), order="F")
+        pin.rneaInParallel(1, pool, np.asfortranarray(qs.T), np.asfortranarray(dq[s].T),
+                           np.asfortranarray(ddq[s].T), tau)
+        out[s] = tau.T
+    return out
+
+
 def predict_torque(model: RobotModel, dataset: Dataset, spec: RegressorSpec, theta: np.ndarray,
                    chunk: int = 4096) -> np.ndarray:
     """``Y(q, q̇, q̈) θ`` for a dataset's samples, shape (N, nv).
 
     The rigid-body part is ``pinocchio.rnea`` of the model carrying ``θ``'s inertias (armature
-    zeroed: the regressor has none), about a third of the cost of building the regressor; the
-    per-joint columns are added directly. ``rnea`` is linear in each body's
+    zeroed: the regressor has none), about a third of the cost of building the regressor, over
+    all samples in one call (``pinocchio.rneaInParallel`` on one thread: no Python loop); the
+    per-joint columns are added directly (:func:`joint_torque`). ``rnea`` is linear in each body's
     ``(m, h, I)`` whatever their physical consistency, but Pinocchio stores a body as mass, CoM
     and inertia about the CoM, so a body whose mass is ~0 (its CoM undefined) falls back to the
     regressor, built chunk by chunk (:func:`iter_regressor`; memory O(chunk·nv·p)).
@@ -333,14 +385,10 @@ def predict_torque(model: RobotModel, dataset: Dataset, spec: RegressorSpec, the
         dataset.check_joints(model.nv, model.joint_names)
         carrier = model.with_parameters(theta[:model.n_inertial]).pin_model
         carrier.armature[:] = 0.0
-        data = carrier.createData()
-        same = carrier.nq == carrier.nv
-        out = np.empty((dataset.n_samples, model.nv))
-        for k in range(dataset.n_samples):
-            qk = dataset.q[k] if same else model.configuration(dataset.q[k])
-            out[k] = pin.rnea(carrier, data, qk, dataset.dq[k], dataset.ddq[k])
+        out = batch_rnea(model, carrier, dataset.q, dataset.dq, dataset.ddq)
         if spec.n_joint_columns:
-            out += joint_columns(dataset.q, dataset.dq, dataset.ddq, spec) @ theta[model.n_inertial:]
+            out += joint_torque(dataset.q, dataset.dq, dataset.ddq, spec,
+                                theta[model.n_inertial:])
         return out
     out = np.empty((dataset.n_samples, model.nv))
     for s, y in iter_regressor(model, dataset, spec, chunk):
