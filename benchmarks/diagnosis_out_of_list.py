@@ -9,8 +9,9 @@ training 30 s, held-out 10 s), the logs go through the default signal chain, and
 runs with the nominal URDF model. Scored:
 
 * ``remainder``: the diagnosis flags an unexplained remainder on a joint the hidden effect acts
-  on (its joint; crosstalk: the channel that picks it up; backlash: the joints whose torque the
-  position error changes by at least half as much as the most affected one's);
+  on (its joint; crosstalk: the channel that picks it up; backlash: its joint, and the joints
+  whose torque the position error changes by at least half as much as the most affected
+  one's);
 * ``dishonest``: an effect was named and no remainder flagged (a confident wrong answer);
 * what was named (effects that explain part of it, e.g. Coulomb friction for a position-dependent
   one, are expected; they must come with the remainder).
@@ -91,7 +92,7 @@ def affected_joints(model, dist: Disturbance, rec) -> list[int]:
     change = model.rnea(rec.q, rec.true_dq, rec.true_ddq) - model.rnea(rec.true_q, rec.true_dq,
                                                                         rec.true_ddq)
     rms = np.sqrt(np.mean(change ** 2, axis=0))
-    return [int(j) for j in np.flatnonzero(rms >= 0.5 * rms.max())]
+    return sorted({dist.joint, *(int(j) for j in np.flatnonzero(rms >= 0.5 * rms.max()))})
 
 
 def run_case(model, kind: str, seed: int) -> dict:
