@@ -146,11 +146,18 @@ def test_no_motion_at_all_is_an_error(arm, states, method):
 
 
 @pytest.mark.parametrize("method", ["ols", "sdp"])
-def test_a_single_glitch_warns_with_its_sample_and_joint(arm, states, method):
-    tau = poke(states["tau"], (123, 0), 1e5)
-    with pytest.warns(DataQualityWarning, match=r"tau\[123, 'joint1'\] = 1e\+05"):
-        res = ci.identify(arm, dataset(states, tau=tau), method=method, friction=None)
+@pytest.mark.parametrize("field", ["dq", "ddq", "tau"])
+def test_a_single_glitch_warns_with_its_sample_and_joint(arm, states, method, field):
+    value = poke(states[field], (123, 0), 1e5)
+    with pytest.warns(DataQualityWarning, match=rf"{field}\[123, 'joint1'\] = 1e\+05"):
+        res = ci.identify(arm, dataset(states, **{field: value}), method=method, friction=None)
     assert np.all(np.isfinite(res.parameters))
+
+
+def test_clean_simulated_data_raise_no_glitch_warning(arm, data):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DataQualityWarning)
+        ci.identify(arm, data, method="ols", friction=None)
 
 
 def test_wrong_joint_count_and_missing_torque(arm, states):

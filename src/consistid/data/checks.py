@@ -13,7 +13,8 @@ non-increasing time. What it accepts can still break or fool the linear algebra 
 * **A dead torque channel** (``τ_j = 0`` in every sample): no joint of a real arm carries no
   torque at all, and per-joint noise weights ``1/σ_j`` would be infinite (σ is floored at a
   multiple of the channel's RMS, here 0): :func:`check_torque` raises :class:`DatasetError`.
-* **A single glitch**: a sample further than :data:`GLITCH_FACTOR` robust standard deviations
+* **A single glitch** (in ``q``, ``dq``, ``ddq`` or ``tau``; none found in the real KUKA LWR4+
+  logs of ``../shared``): a sample further than :data:`GLITCH_FACTOR` robust standard deviations
   (``1.4826 · MAD``) from its channel's median, in a channel whose other samples stay within
   ``GLITCH_FACTOR / 10`` of them. Least squares follows such a sample; the warning
   (:class:`~consistid.errors.DataQualityWarning`) names it and suggests ``loss="huber"``.
@@ -134,4 +135,4 @@ def check_for_identification(dataset: Dataset, joint_names: Sequence[str] | None
     check_magnitudes(dataset, joint_names=joint_names)
     check_motion(dataset)
     check_torque(dataset, joint_names)
-    check_glitches(dataset, joint_names=joint_names, stacklevel=5)
+    check_glitches(dataset, FIELDS, joint_names=joint_names, stacklevel=5)
