@@ -22,6 +22,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg import lapack
 
 from ..data.dataset import Dataset
 from ..errors import OptionError
@@ -123,15 +124,25 @@ def accumulate(factors: np.ndarray, columns: np.ndarray, tau: np.ndarray,
     upper triangular, with zero rows at the structurally zero columns, and ``R̄ᵀR̄`` is
     unchanged — the same factor, for the flops of the non-zero columns.
     """
-    size = factors.shape[1]
+    size, n = factors.shape[1], columns.shape[0]
     for j in range(factors.shape[0]):
         keep = (np.arange(size) if support is None
                 else np.append(np.flatnonzero(support[j]), size - 1))
-        block = np.column_stack([columns[:, j, keep[:-1]], tau[:, j]])
-        if weights is not None:
-            block *= np.sqrt(weights[:, j])[:, None]
+        k = keep.size
+        # [R̄_j; √w·[Y_j | τ_j]] written once into a column-major buffer that LAPACK's geqrf
+        # factorises in place (numpy's qr would copy the stacked block again)
+        buf = np.empty((k + n, k), order="F")
         grid = np.ix_(keep, keep)
-        factors[j][grid] = _r_factor(np.vstack([factors[j][grid], block]), keep.size)
+        buf[:k] = factors[j][grid]
+        buf[k:, :k - 1] = columns[:, j, keep[:-1]]
+        buf[k:, k - 1] = tau[:, j]
+        if weights is not None:
+            buf[k:] *= np.sqrt(weights[:, j])[:, None]
+        lwork = int(lapack.dgeqrf_lwork(k + n, k)[0])
+        qr, _, _, info = lapack.dgeqrf(buf, lwork=lwork, overwrite_a=1)
+        if info != 0:
+            raise ValueError(f"LAPACK dgeqrf failed (info {info}) on joint {j}'s rows")
+        factors[j][grid] = np.triu(qr[:k])
 
 
 def floor_sigma(sigma: np.ndarray, problem: CompressedProblem) -> np.ndarray:
