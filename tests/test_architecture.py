@@ -18,7 +18,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "src" / "consistid"
 
 #: Third-party packages slow to import or optional: a function may import these (or a module of
 #: ours that imports one at module level) where they are first needed.
-HEAVY = ("pinocchio", "scipy", "cvxpy", "mujoco", "matplotlib", "pyarrow", "pandas", "rosbags", "dask", "distributed",
+HEAVY = ("pinocchio", "scipy", "cvxpy", "clarabel", "mujoco", "matplotlib", "pyarrow", "pandas", "rosbags", "dask", "distributed",
          "joblib", "tqdm", "coal", "threadpoolctl")
 
 

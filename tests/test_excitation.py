@@ -425,7 +425,7 @@ def test_random_excitation_needs_no_base_parameters(planar_2r, monkeypatch):
 
 
 def test_config_friction_string_is_one_term(planar_2r, tmp_path):
-    from consistid.excitation.config import load_excitation_config
+    from consistid.cli.excite import load_excitation_config
     cfg = tmp_path / "excite.toml"
     cfg.write_text(f'[model]\nurdf = "{planar_2r.source}"\n\n[excite]\nfriction = "viscous"\n')
     assert load_excitation_config(cfg).options["friction"] == ("viscous",)

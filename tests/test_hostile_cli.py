@@ -361,7 +361,7 @@ output = "traj.csv"
 
 def test_excite_refuses_an_existing_csv_before_designing(project, capsys, monkeypatch):
     (project / "traj.csv").write_text("keep")
-    from consistid.excitation.config import ExcitationConfig
+    from consistid.cli.excite import ExcitationConfig
 
     forbid(monkeypatch, ExcitationConfig, "run")
     assert "traj.csv' exists; pass --force" in run(["excite", write(project, EXCITE)], capsys)
@@ -370,7 +370,7 @@ def test_excite_refuses_an_existing_csv_before_designing(project, capsys, monkey
 
 @pytest.mark.parametrize("target", ["conf/run.toml", "data/arm.urdf"])
 def test_excite_output_never_replaces_an_input(project, capsys, monkeypatch, target):
-    from consistid.excitation.config import ExcitationConfig
+    from consistid.cli.excite import ExcitationConfig
 
     forbid(monkeypatch, ExcitationConfig, "run")
     config = write(project, EXCITE)
@@ -381,7 +381,7 @@ def test_excite_output_never_replaces_an_input(project, capsys, monkeypatch, tar
 
 
 def test_excite_output_that_is_a_folder(project, capsys, monkeypatch):
-    from consistid.excitation.config import ExcitationConfig
+    from consistid.cli.excite import ExcitationConfig
 
     forbid(monkeypatch, ExcitationConfig, "run")
     assert "is an existing folder" in run(["excite", write(project, EXCITE), "--output",

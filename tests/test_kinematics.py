@@ -21,6 +21,7 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 import consistid as ci
+from consistid.cli.calibrate import load_calibration_config, run_calibrate
 from consistid.kinematics import (
     KinematicParameters,
     calibrate_kinematics,
@@ -695,7 +696,7 @@ def test_consistid_calibrate_command(tmp_path, capsys):
                                                             "panda_finger_joint2"))
     assert reloaded.nv == 7 and "<img" in page.read_text()
     # the same calibration through the API
-    res, written = ci.kinematics.run_calibrate(config, urdf=tmp_path / "again.urdf",
+    res, written = run_calibrate(config, urdf=tmp_path / "again.urdf",
                                                report=tmp_path / "again.html")
     assert (tmp_path / "again.urdf").read_text() == urdf.read_text()
     # existing outputs need --force, and are refused before the work
@@ -712,11 +713,11 @@ def test_consistid_calibrate_command(tmp_path, capsys):
         bad = tmp_path / "bad.toml"
         bad.write_text("[model]\nexample = 'panda'\n[calibrate]\ndata = 'poses.csv'\n"
                        "sigmaa = 1e-4\n")
-        ci.kinematics.load_calibration_config(bad)
+        load_calibration_config(bad)
     with pytest.raises(ci.MissingColumnsError, match="no measurement columns"):
         (tmp_path / "nomeas.csv").write_text("q1,q2,q3,q4,q5,q6,q7,a\n" + "0,0,0,0,0,0,0,1\n")
         bad.write_text("[model]\nexample = 'panda'\n[calibrate]\ndata = 'nomeas.csv'\n")
-        ci.kinematics.load_calibration_config(bad)
+        load_calibration_config(bad)
 
 
 # --------------------------------------------------------------------------------- tutorial

@@ -29,6 +29,9 @@ from consistid.errors import (ConfigError, ConsistidError, OutputPathError, chec
 from consistid.robot.export import MERGED
 
 from . import online_demo
+from .calibrate import run_calibrate
+from .config import config_inputs, load_config
+from .excite import load_excitation_config
 from .files import atomic_dir, atomic_path, check_output, check_output_dir
 from .hints import toml_hints, toml_value
 from ..progress import silenced
@@ -217,10 +220,7 @@ def _write_identification(res: "ci.IdentificationResult", folder: Path, train: "
 
 
 def excite(args: argparse.Namespace) -> int:
-    """Design an optimal excitation trajectory (:mod:`consistid.excitation.config`), write CSV."""
-    from consistid.cli.config import config_inputs, load_config
-    from consistid.excitation.config import load_excitation_config
-
+    """Design an optimal excitation trajectory (:mod:`consistid.cli.excite`), write CSV."""
     config = load_excitation_config(args.config)
     inputs = config_inputs(load_config(args.config), config.model)
     output = check_output(args.output or config.output, inputs=inputs, force=args.force,
@@ -430,10 +430,10 @@ def _report_target(path, inputs: list, force: bool, what: str) -> Path:
 
 
 def calibrate(args: argparse.Namespace) -> int:
-    """Kinematic calibration from a TOML configuration (:mod:`consistid.kinematics.config`;
+    """Kinematic calibration from a TOML configuration (:mod:`consistid.cli.calibrate`;
     it applies the file rules of :mod:`consistid.cli.files`: outputs checked first, inputs never
     written over, existing files only with ``--force``, atomic writes)."""
-    result, written = ci.kinematics.run_calibrate(args.config, urdf=args.urdf,
+    result, written = run_calibrate(args.config, urdf=args.urdf,
                                                   report=args.report, force=args.force)
     print(result.summary(max_rows=None if args.all else 30))
     for path in written.values():

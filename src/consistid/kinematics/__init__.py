@@ -18,7 +18,6 @@
 """
 
 from .calibrate import calibrate_kinematics
-from .config import load_calibration_config, run_calibrate
 from .identifiability import Unidentifiable
 from .measurements import Measurements
 from .parameters import GROUPS, KinematicParameters
@@ -26,5 +25,4 @@ from .poses import PoseSelection, select_poses
 from .result import CalibrationResult
 
 __all__ = ["GROUPS", "CalibrationResult", "KinematicParameters", "Measurements",
-           "PoseSelection", "Unidentifiable", "calibrate_kinematics", "load_calibration_config",
-           "run_calibrate", "select_poses"]
+           "PoseSelection", "Unidentifiable", "calibrate_kinematics", "select_poses"]

@@ -38,12 +38,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from ..cli.config import RunConfig, config_model, load_config
+from .config import RunConfig, config_model, load_config
 from ..errors import ConfigError
 from ..robot.model import RobotModel
-from .design import ExcitationDesign, StartResult, design_excitation
-from .limits import CartesianBox, ExcitationLimits, FloorPlane, KeepOutSphere
-from .trajectory import BoundaryConditions
+from ..excitation.design import ExcitationDesign, StartResult, design_excitation
+from ..excitation.limits import CartesianBox, ExcitationLimits, FloorPlane, KeepOutSphere
+from ..excitation.trajectory import BoundaryConditions
 
 EXCITE_KEYS = {"trajectory", "harmonics", "period", "criterion", "friction", "armature", "seed",
                "n_starts", "max_iter", "method", "via_points", "degree", "column_scale",

@@ -29,19 +29,18 @@ same folder and renamed into place.
 
 from __future__ import annotations
 
-import os
 import sys
-import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
 from ..errors import ConfigError, MissingColumnsError, OutputPathError
+from ..kinematics.calibrate import calibrate_kinematics
+from ..kinematics.result import CalibrationResult
 from ..robot.model import RobotModel, model_without_dynamics
-from .calibrate import calibrate_kinematics
-from .result import CalibrationResult
+from .files import atomic_path, check_output
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -206,37 +205,6 @@ def load_calibration_config(path: str | Path, *, urdf: str | Path | None = None,
                              outputs)
 
 
-def check_outputs(outputs: dict[str, Path], inputs: list[Path], force: bool) -> None:
-    """:class:`OutputPathError` for an output that is an input, an existing file without
-    ``force``, or in a folder that does not exist."""
-    for key, out in outputs.items():
-        what = f"[calibrate] {key}"
-        for source in inputs:
-            if out.resolve() == Path(source).resolve() or (
-                    out.exists() and Path(source).exists() and os.path.samefile(out, source)):
-                raise OutputPathError(f"{what} {str(out)!r} is an input of this run: never "
-                                      "written over, even with force; choose another path")
-        if out.is_dir():
-            raise OutputPathError(f"{what} {str(out)!r} is an existing folder, not a file")
-        if out.exists() and not force:
-            raise OutputPathError(f"{what} {str(out)!r} exists; pass --force (force=True) to "
-                                  "replace it")
-        if not out.parent.is_dir():
-            raise OutputPathError(f"{what} {str(out)!r}: folder {str(out.parent)!r} does not "
-                                  "exist")
-
-
-def _atomic(out: Path, write: Callable[[Path], Any]) -> Path:
-    tmp = out.with_name(f".{out.stem}.{uuid.uuid4().hex[:8]}.tmp{out.suffix}")
-    try:
-        write(tmp)
-        os.replace(tmp, out)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
-    return out
-
-
 def run_calibrate(config_path: str | Path, *, urdf: str | Path | None = None,
                   report: str | Path | None = None, force: bool = False
                   ) -> tuple[CalibrationResult, dict[str, Path]]:
@@ -254,14 +222,17 @@ def run_calibrate(config_path: str | Path, *, urdf: str | Path | None = None,
     of the files written.
     """
     config = load_calibration_config(config_path, urdf=urdf, report=report)
-    check_outputs(config.outputs, config.inputs, force)       # before the work
+    for key, out in config.outputs.items():                  # before the work
+        check_output(out, inputs=config.inputs, force=force, what=f"[calibrate] {key}")
+    if "report" in config.outputs and config.outputs["report"].suffix.lower() not in (".html",
+                                                                                      ".htm"):
+        raise OutputPathError(f"[calibrate] report {str(config.outputs['report'])!r} must be "
+                              "an .html file")
     result = config.run()
     written = {}
-    if "urdf" in config.outputs:
-        written["urdf"] = _atomic(config.outputs["urdf"], result.to_urdf)
-    if "report" in config.outputs:
-        out = config.outputs["report"]
-        if out.suffix.lower() not in (".html", ".htm"):
-            raise OutputPathError(f"[calibrate] report {str(out)!r} must be an .html file")
-        written["report"] = _atomic(out, result.report)
+    for key, write in (("urdf", result.to_urdf), ("report", result.report)):
+        if key in config.outputs:
+            with atomic_path(config.outputs[key]) as tmp:
+                write(tmp)
+            written[key] = config.outputs[key]
     return result, written
