@@ -720,16 +720,6 @@ def test_consistid_calibrate_command(tmp_path, capsys):
         load_calibration_config(bad)
 
 
-# --------------------------------------------------------------------------------- tutorial
-def test_tutorial_page_runs():
-    page = Path(__file__).resolve().parents[1] / "docs" / "tutorials" / "kinematic_calibration.md"
-    blocks = re.findall(r"```python\n(.*?)```", page.read_text(), re.S)
-    assert blocks
-    namespace: dict = {}
-    for block in blocks:
-        exec(compile(block, str(page), "exec"), namespace)
-
-
 @settings(max_examples=10, deadline=None)
 @given(seed=st.integers(0, 2**16), robot=st.sampled_from(["ur5", "panda", "xarm7"]))
 def test_written_urdf_reproduces_any_corrections(seed, robot):
