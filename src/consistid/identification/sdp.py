@@ -39,7 +39,13 @@ Park 2019, "Geometric robot dynamic identification: a convex programming approac
   pseudo-inertia (:class:`~consistid.identification.constraints.BodyScaling`). Clarabel's own equilibration is
   then redundant and is switched off. A solve that still ends ``optimal_inaccurate`` is rescaled
   once around its answer and repeated (``details["refinements"]``). Changes of variables only:
-  the optimum is unchanged. Per-joint ``σ`` (also the Huber scale) is floored at
+  the optimum is unchanged.
+* **Compiled once**: with Clarabel and ``scale=True`` the program's structure (constraints, and
+  the prior at unit weight, in prior-normalised variables) is canonicalised by cvxpy once per
+  model and options and cached; every pass, re-weighting, refinement and later call on the same
+  model binds its ``θ_c, Φ, R, z, σ, γ`` and calls Clarabel directly
+  (:mod:`consistid.identification.program`). Other solvers and ``scale=False`` build the cvxpy
+  program afresh. Per-joint ``σ`` (also the Huber scale) is floored at
   :data:`~consistid.identification.compression.SIGMA_FLOOR` times the joint's torque RMS
   (:func:`~consistid.identification.compression.floor_sigma`), so noise-free data do not give infinite weights.
 """
@@ -287,6 +293,10 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
         iterations += sum(rep.iterations or 0 for rep in reports)
         active = _check_answer(program)
         new = program.theta()
+        # Entries constrained ≥ 0 (friction, armature) come back within the solver's tolerance,
+        # e.g. −7e-12 (larger violations were refused just above): set those to 0, so that the
+        # URDF/MJCF writers, which refuse negative damping, see the sign the constraint gave.
+        new = np.where(setup.nonnegative & (new < 0), 0.0, new)
         done = theta is not None and (np.linalg.norm(new - theta)
                                       <= 1e-8 * max(np.linalg.norm(theta), 1e-300))
         theta = new
