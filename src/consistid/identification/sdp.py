@@ -39,15 +39,15 @@ Park 2019, "Geometric robot dynamic identification: a convex programming approac
   pseudo-inertia (:class:`~consistid.identification.constraints.BodyScaling`). Clarabel's own equilibration is
   then redundant and is switched off. A solve that still ends ``optimal_inaccurate`` is rescaled
   once around its answer and repeated (``details["refinements"]``). Changes of variables only:
-  the optimum is unchanged.
+  the optimum is unchanged. Per-joint ``σ`` (also the Huber scale) is floored at
+  :data:`~consistid.identification.compression.SIGMA_FLOOR` times the joint's torque RMS
+  (:func:`~consistid.identification.compression.floor_sigma`), so noise-free data do not give infinite weights.
 * **Compiled once**: with Clarabel and ``scale=True`` the program's structure (constraints, and
   the prior at unit weight, in prior-normalised variables) is canonicalised by cvxpy once per
   model and options and cached; every pass, re-weighting, refinement and later call on the same
   model binds its ``θ_c, Φ, R, z, σ, γ`` and calls Clarabel directly
   (:mod:`consistid.identification.program`). Other solvers and ``scale=False`` build the cvxpy
-  program afresh. Per-joint ``σ`` (also the Huber scale) is floored at
-  :data:`~consistid.identification.compression.SIGMA_FLOOR` times the joint's torque RMS
-  (:func:`~consistid.identification.compression.floor_sigma`), so noise-free data do not give infinite weights.
+  program afresh.
 """
 
 from __future__ import annotations
