@@ -26,8 +26,10 @@ the friction bounds is the unit scale :mod:`~consistid.identification.sdp` used 
 
 Mathematically the program is the one :func:`consistid.identification.sdp.identify_sdp` builds
 afresh with ``scale=True``; the answers agree to the solver's tolerance (tests/test_program.py).
-Compiled programs are cached per model (weakly: they go with the model) and per structure key
-(``consistid.identification.sdp``'s structure key), at most :data:`CACHE_SIZE` per model.
+Compiled programs are cached by content (``consistid.identification.sdp``'s structure key: the
+prior, the names, the regressor columns and every option that shapes the program, not the model
+object, so that a model rebuilt with the same inertias, e.g. by ``model.with_parameters`` in a
+diagnosis refit, reuses it), the :data:`CACHE_SIZE` most recently used.
 """
 
 from __future__ import annotations
@@ -35,7 +37,6 @@ from __future__ import annotations
 import threading
 import time
 import warnings
-import weakref
 from collections import OrderedDict
 from typing import Any, Callable, Hashable, Sequence
 
@@ -45,13 +46,11 @@ import scipy.sparse as sp
 
 from ..errors import (IdentificationError, InaccurateSolutionWarning, InfeasibleError,
                       OptionError, SolverError)
-from ..robot.model import RobotModel
 
-#: Compiled structures kept per model (least recently used dropped first).
-CACHE_SIZE = 8
+#: Compiled structures kept (least recently used dropped first).
+CACHE_SIZE = 16
 
-_CACHE: "weakref.WeakKeyDictionary[RobotModel, OrderedDict[Hashable, CompiledProgram]]" = \
-    weakref.WeakKeyDictionary()
+_CACHE: "OrderedDict[Hashable, CompiledProgram]" = OrderedDict()
 _CACHE_LOCK = threading.Lock()
 
 Labelled = Sequence[tuple[cp.Constraint, tuple[str, ...]]]
@@ -245,38 +244,28 @@ def run_clarabel(pmat: sp.csc_array, q: np.ndarray, a: sp.csc_array, b: np.ndarr
     return solver.solve(), ready
 
 
-def compiled(model: RobotModel, key: Hashable,
-             build: Callable[[], CompiledProgram]) -> CompiledProgram:
-    """The compiled program of ``(model, key)``: from the cache, or ``build()`` (then cached).
+def compiled(key: Hashable, build: Callable[[], CompiledProgram]) -> CompiledProgram:
+    """The compiled program of ``key``: from the cache, or ``build()`` (then cached).
 
     Shared between threads: a solve keeps its data in its own :class:`BoundProgram` and Clarabel
     solver; only :meth:`BoundProgram.slacks` writes the shared variable's value, under a lock."""
     with _CACHE_LOCK:
-        per_model = _CACHE.setdefault(model, OrderedDict())
-        found = per_model.get(key)
+        found = _CACHE.get(key)
         if found is not None:
-            per_model.move_to_end(key)
+            _CACHE.move_to_end(key)
             return found
     program = build()
     with _CACHE_LOCK:
-        per_model = _CACHE.setdefault(model, OrderedDict())
-        per_model[key] = program
-        while len(per_model) > CACHE_SIZE:
-            per_model.popitem(last=False)
+        _CACHE[key] = program
+        while len(_CACHE) > CACHE_SIZE:
+            _CACHE.popitem(last=False)
     return program
 
 
-def forget(model: RobotModel, key: Hashable) -> None:
-    """Drop ``(model, key)`` from the cache (after a failed solve, so that nothing of it is
-    reused)."""
+def cache_info() -> dict[str, int]:
+    """``{"programs": compiled structures cached, "solves": solves they served}``."""
     with _CACHE_LOCK:
-        _CACHE.get(model, {}).pop(key, None)
-
-
-def cache_info(model: RobotModel) -> dict[str, int]:
-    """``{"programs": compiled structures cached for model, "solves": solves they served}``."""
-    with _CACHE_LOCK:
-        programs = list(_CACHE.get(model, {}).values())
+        programs = list(_CACHE.values())
     return {"programs": len(programs), "solves": sum(p.solves for p in programs)}
 
 
@@ -295,4 +284,4 @@ def array_key(a: object) -> Hashable:
 
 
 __all__ = ["CACHE_SIZE", "BoundProgram", "CompiledProgram", "array_key", "cache_info",
-           "clear_cache", "compiled", "forget", "run_clarabel"]
+           "clear_cache", "compiled", "run_clarabel"]

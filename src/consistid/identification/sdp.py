@@ -643,9 +643,10 @@ def _build(model: RobotModel, spec: RegressorSpec, r: np.ndarray, z: np.ndarray,
     else:
         theta_c, phi = np.zeros(p), np.eye(p)
     if scale and solver == "CLARABEL":
-        key = _structure_key(spec, prior_vec, setup)
+        key = (tuple(model.body_names), tuple(parameter_names(model, spec)),
+               _structure_key(spec, prior_vec, setup))
         program = compiled_programs.compiled(
-            model, key, lambda: _compile(model, spec, prior_vec, setup))
+            key, lambda: _compile(model, spec, prior_vec, setup))
         return program.bind(theta_c, phi, r, z, setup.gamma)
     w = cp.Variable(p, name="w")
     theta = theta_c + phi @ w
