@@ -36,7 +36,7 @@ import cvxpy as cp
 import numpy as np
 
 from ..identification.base import BaseParameters, random_states
-from ..identification.compression import CompressedProblem, joint_sigma
+from ..identification.compression import CompressedProblem, floor_sigma, joint_sigma
 from ..identification.solver import DEFAULT_SOLVER, solve
 from ..robot.shapes import Ellipsoid
 from ..identification.constraints import (BodyScaling, com_box, ellipsoid_lmi, mass_bounds,
@@ -508,7 +508,8 @@ def estimate_payload(model: RobotModel, loaded: Dataset | DataStream | Identific
                              f"{spec.describe()} needs ({expected},). "
                              f"{_matching_settings(model, theta.size - model.n_inertial)}")
     index, frame_name, transform = _resolve_frame(model, frame, body)
-    problem = compress_data(model, loaded, spec).minus(theta)  # what the robot leaves: τ − Y θ
+    measured = compress_data(model, loaded, spec)
+    problem = measured.minus(theta)                     # what the robot leaves: τ − Y θ
     n = problem.n_samples
     if n * model.nv <= 10:
         raise PoorExcitationError(f"{n} samples × {model.nv} joints give {n * model.nv} "
@@ -518,8 +519,9 @@ def estimate_payload(model: RobotModel, loaded: Dataset | DataStream | Identific
     r1, z1, _ = problem.stacked(columns=cols)
     theta_ls = np.linalg.lstsq(r1 @ transform, z1, rcond=None)[0]
     sse = problem.sum_squares(transform @ theta_ls, cols)
-    sigma = joint_sigma(sse, n, 10)
-    sigma = np.where(sigma > 0, sigma, max(sigma.max(), 1e-12))
+    # floored at a fraction of the measured torque's RMS (floor_sigma, as identify does):
+    # noise-free data fit to round-off, and 1/σ would blow the weights up to ~1e16
+    sigma = floor_sigma(joint_sigma(sse, n, 10), measured)
     r, z, _ = problem.stacked(sigma=sigma, columns=cols)
     r = r @ transform
     ident = _identifiability(r)
