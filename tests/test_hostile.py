@@ -820,3 +820,9 @@ def test_fuzz_dataset_identify_predict(planar_2r, arrays, method):
                    and "do not inform" in str(w.message) for w in caught)
     for w in caught:    # no numpy RuntimeWarning (overflow, invalid value) leaks out
         assert not issubclass(w.category, RuntimeWarning), str(w.message)
+
+
+@pytest.mark.parametrize("effects", [0.5, {"coulomb": 1.0}, "coulomb"])
+def test_effects_that_are_not_an_effects_value_are_named(panda, effects):
+    with pytest.raises(ci.ModelError, match="effects must be a consistid.simulate.Effects"):
+        ci.estimate_breakaway(panda, effects=effects)

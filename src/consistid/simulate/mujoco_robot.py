@@ -253,6 +253,9 @@ class MujocoRobot:
                  integrator: str = "Euler") -> None:
         if not (np.isfinite(timestep) and timestep > 0):
             raise ModelError(f"timestep = {timestep!r}; it must be a positive number of seconds")
+        if effects is not None and not isinstance(effects, Effects):
+            raise ModelError(f"effects must be a consistid.simulate.Effects (e.g. "
+                             f"Effects(coulomb=0.5)), got {type(effects).__name__} {effects!r}")
         self.model = model if parameters is None else model.with_parameters(parameters)
         self.effects = (effects or Effects()).for_model(model)
         self.timestep = float(timestep)
