@@ -182,7 +182,8 @@ def test_panda_recover(checkout, capsys, config, urdf):
     path = checkout / "out" / urdf
     check_urdf(path, 7)
     # the written inertials are realisable: the URDF reloads into consistent bodies
-    model = ci.RobotModel.from_urdf(path, locked_joints=ci.RobotModel.example("panda").locked_joints)
+    locked = ci.RobotModel.example("panda").locked_joints       # the fingers, as example() does
+    model = ci.RobotModel.from_urdf(path, locked_joints=locked)
     assert model.nv == 7
     bodies = ci.InertialParameters.split(model.prior_parameters)
     assert len(bodies) == model.n_bodies and all(b.consistent() for b in bodies)
