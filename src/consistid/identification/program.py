@@ -43,6 +43,8 @@ from typing import Any, Callable, Hashable, Sequence
 import cvxpy as cp
 import numpy as np
 import scipy.sparse as sp
+from cvxpy.reductions.solvers.conic_solvers.clarabel_conif import (CLARABEL,
+                                                                   dims_to_solver_cones)
 
 from ..errors import (IdentificationError, InaccurateSolutionWarning, InfeasibleError,
                       OptionError, SolverError)
@@ -74,8 +76,6 @@ class CompiledProgram:
     def __init__(self, problem: cp.Problem, y: cp.Variable, t_map: np.ndarray,
                  labelled: Labelled, unit_rows: tuple[int, np.ndarray] | None = None) -> None:
         start = time.perf_counter()
-        from cvxpy.reductions.solvers.conic_solvers.clarabel_conif import dims_to_solver_cones
-
         p = y.size
         if any(v.id == y.id for v in problem.variables()):
             data, _, _ = problem.get_problem_data(cp.CLARABEL)
@@ -185,8 +185,6 @@ class BoundProgram:
         setup time of the structure's first solve includes its one-off canonicalisation); sets
         ``w.value``. Raises as :func:`consistid.identification.solver.solve` does.
         """
-        from cvxpy.reductions.solvers.conic_solvers.clarabel_conif import CLARABEL
-
         start = time.perf_counter()
         pmat, q, a, b = self.standard_form()
         if not (np.all(np.isfinite(pmat.data)) and np.all(np.isfinite(q))

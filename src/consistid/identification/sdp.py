@@ -343,8 +343,11 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
         parameter_names=tuple(parameter_names(model, spec)), prior=prior_vec,
         base_parameters=base.project(theta), base_covariance=cov, sigma=sig,
         condition_number=cond, train_rms=np.sqrt(problem.sum_squares(theta) / n), n_samples=n,
-        solver=SolverReport(f"{solver} via cvxpy (compressed{', scaled' if scale else ''})",
-                            report.status, solve_time, compile_time, iterations),
+        solver=SolverReport(
+            f"{solver} on a program cvxpy compiled once (compressed, scaled)"
+            if isinstance(program, compiled_programs.BoundProgram)
+            else f"{solver} via cvxpy (compressed{', scaled' if scale else ''})",
+            report.status, solve_time, compile_time, iterations),
         details=details, uninformed=uninformed)
 
 
