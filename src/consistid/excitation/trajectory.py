@@ -93,6 +93,8 @@ class BoundaryConditions:
     q_end : (nv,) rad, or ``None`` for ``q_end = q_start`` (a closed trajectory).
     dq_start, dq_end, ddq_start, ddq_end : scalars or (nv,), rad/s and rad/s²; default 0.
 
+    Notes
+    -----
     A trajectory whose end state equals its start state is *periodic*: repeating it keeps
     ``q, q̇, q̈`` continuous, which allows averaging over periods.
     """
