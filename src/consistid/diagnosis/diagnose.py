@@ -109,7 +109,8 @@ class EffectFinding:
     runner_up : the best other candidate that explains the same residual (held-out correction
         with cosine ≥ 0.5 to this one's) when it entered, or ``""``.
     margin : confidence against it: ``1 − gain_runner_up / gain`` of the held-out reductions
-        (1: no rival; near 0: the runner-up explains nearly as much, both are shown).
+        (1: no rival; near 0: the runner-up explains nearly as much, both are shown; negative:
+        the runner-up explains more but was refused, e.g. an unphysical fit).
     """
 
     name: str
@@ -140,6 +141,7 @@ class EffectFinding:
         alt = f" (indistinguishable from {', '.join(self.alternatives)})" if self.alternatives \
             else ""
         rival = (f"; runner-up {self.runner_up} explains {100 * (1 - self.margin):.0f} % as much"
+                 + (" but was refused (see the steps)" if self.margin < 0 else "")
                  if self.runner_up and self.margin < 0.5 else "")
         return (f"{self.name} on {', '.join(self.joints) or 'no joint'}: held-out shrink "
                 f"{100 * self.total_shrink:.1f} %, confidence {self.confidence} (margin "
@@ -730,8 +732,9 @@ def _tuned_atoms(library: EffectLibrary, train: GapData, floor: np.ndarray
 
     The settings are tuned against the residual of the *saturated* fit (every linear candidate
     at once): a *tuned* effect's setting (the Coulomb smoothing speed) on that residual plus what
-    the tuned atoms of its joint explain in it, a *searched* effect's atoms (ripple orders) on that residual; so other
-    effects do not masquerade as them. Searched effects' atoms come last.
+    the tuned atoms of its joint explain in it, a *searched* effect's atoms (ripple orders) on
+    that residual; so other effects do not masquerade as them. Searched effects' atoms come
+    last.
     """
     model = library.model
     plain = [e for e in library.effects if not REGISTRY[e].searched]

@@ -4,8 +4,9 @@ and where it lies.
 For joint ``j`` the residual after every selected effect, ``e_j = τ_j − τ̂_j``, has RMS ``ρ_j``
 on the recordings the floor was measured on (the repeating training recordings for a floor from
 repetition: a held-out recording that the signal chain filtered at another cut-off holds another
-noise level; the held-out recordings otherwise); the noise floor (:mod:`consistid.diagnosis.noise`, never fitted by the candidates) is
-``σ_j``. A remainder is flagged on joint ``j`` when both
+noise level; the held-out recordings otherwise); the noise floor
+(:mod:`consistid.diagnosis.noise`, never fitted by the candidates) is
+``σ_j``. A remainder is flagged on joint ``j`` when all of
 
 * ``ρ_j > REMAINDER_RATIO · σ_j`` (1.5) — an unexplained component of RMS
   ``√(ρ_j² − σ_j²) ≥ 1.1 σ_j``: the margin covers the floor's own estimation error (an estimate
@@ -30,6 +31,9 @@ noise level; the held-out recordings otherwise); the noise floor (:mod:`consisti
   channels);
 * **hysteresis**: the mean difference, at the same position bin, between moving ``+`` and
   moving ``−`` (backlash or friction that depends on direction and angle);
+* a **time shift**: the least-squares ``d_j`` of ``e_j ≈ −d_j τ̇_nom,j`` (in quadrature with the
+  torque); a shift near half a sample is what a logger that averages over each interval and
+  stamps it at the end leaves (the delay candidate refuses to name it a delay);
 * **drift**: the slope of its window means over time within recordings, and whether its RMS
   grows or shrinks over each recording (last third against first third: friction warming in
   changes the size of a friction-shaped remainder while its mean stays near zero).
@@ -83,6 +87,8 @@ class JointRemainder:
     crosstalk : largest ``|corr|`` with another joint's measured torque, and that joint.
     band_rms : (B,) remainder RMS per frequency band (N·m); ``band_edges`` (B + 1,) Hz.
     drift : slope of the remainder over time within recordings (N·m/s).
+    shift : the time shift ``d_j`` (s) that best explains it as ``−d_j τ̇_nom,j``, and the
+        fraction of its mean square that this explains (``shift_share``).
     growth : RMS of the remainder over the last third of each recording divided by that over
         the first third.
     pointers : the patterns that account for most of the remainder's mean square, largest
@@ -106,6 +112,8 @@ class JointRemainder:
     pointers: tuple[str, ...]
     determined: bool = True
     growth: float = 1.0
+    shift: float = 0.0
+    shift_share: float = 0.0
 
     def __str__(self) -> str:
         head = (f"{self.joint}: {self.rms:.3g} N·m left = {self.ratio:.2f} × the noise floor "
@@ -243,7 +251,8 @@ def analyse_remainder(data: GapData, remainder: np.ndarray, floor: np.ndarray,
                       reliable: np.ndarray | None = None, source: str = "held-out"
                       ) -> Remainder:
     """The :class:`Remainder` of ``remainder`` (N, nv), the residual after every selected
-    effect on ``data`` (``source``: which data), against ``floor`` (nv,); ``tau_corr`` (nv,) the residual's
+    effect on ``data`` (``source``: which data), against ``floor`` (nv,); ``tau_corr`` (nv,)
+    the residual's
     autocorrelation time (samples), ``band_edges`` the frequency bands (Hz)."""
     names = data.model.joint_names
     ds = data.dataset
@@ -290,9 +299,14 @@ def analyse_remainder(data: GapData, remainder: np.ndarray, floor: np.ndarray,
         bands = _bands(data, e, band_edges)
         drift = _drift(data, e)
         growth = _growth(data, e)
+        rate = data.tau_nom_derivatives[1][:, j]
+        rr = float(rate @ rate)
+        shift = float(-(rate @ e) / rr) if rr > 0 else 0.0
+        shift_share = float((rate @ e) ** 2 / rr / max(float(e @ e), 1e-300)) if rr > 0 else 0.0
         pointers = []
         if flagged:
             ms = max(rms ** 2, 1e-300)
+            h = float(np.median(np.diff(ds.t)))
             span = float(np.ptp(ds.t))
             cand = [
                 (spread ** 2 / ms, f"varies with the position of {names[j]} "
@@ -304,6 +318,9 @@ def analyse_remainder(data: GapData, remainder: np.ndarray, floor: np.ndarray,
                                "cross-talk between torque channels?"),
                 ((drift * span / np.sqrt(12)) ** 2 / ms,
                  f"drifts over time ({drift:.3g} N·m/s)"),
+                (shift_share, f"in quadrature with the torque: a time shift of "
+                              f"{1e3 * shift:.3g} ms (half a sample is {500 * h:.3g} ms: a "
+                              "logger averaging each interval? load with timestamp=)"),
                 (abs(growth ** 2 - 1) / (growth ** 2 + 1) / 3,
                  f"{'grows' if growth > 1 else 'shrinks'} over each recording (RMS of the last "
                  f"third {growth:.2g} × the first's: a friction or gain that drifts?)"),
@@ -326,5 +343,5 @@ def analyse_remainder(data: GapData, remainder: np.ndarray, floor: np.ndarray,
                         if share > 0.1]
         out.append(JointRemainder(names[j], rms, sig, excess, rms / sig, p, flagged, regimes,
                                   spread, hysteresis, best, bands, band_edges, drift,
-                                  tuple(pointers), determined, growth))
+                                  tuple(pointers), determined, growth, shift, shift_share))
     return Remainder(tuple(out), source)
