@@ -190,8 +190,12 @@ def test_panda_recover(checkout, capsys, config, urdf):
 
 
 def test_panda_payload(checkout, capsys):
-    run("payload", "examples/panda/payload.toml")
-    printed = capsys.readouterr().out
+    assert main(["payload", "examples/panda/payload.toml"]) == 0
+    captured = capsys.readouterr()
+    printed = captured.out
+    # the step message spells the options as the configuration does (TOML, not a Python dict)
+    assert 'identifying the unloaded robot (method = "ols", friction = ["coulomb", "viscous", ' \
+           '"offset"])' in captured.err
     mass = float(re.search(r"^mass\s+([-\d.e]+) ± ([\d.e-]+) kg", printed, re.M).group(1))
     com = re.search(r"^CoM\s+\[([^\]]+)\] m", printed, re.M).group(1).split()
     assert "optimal" in printed

@@ -346,7 +346,8 @@ def payload(args: argparse.Namespace) -> int:
                                   "held_out": []}})
     unloaded, _ = config_recordings(config, model)
     loaded, _ = config_recordings(loaded_config, model)
-    _log(f"identifying the unloaded robot ({options})")
+    _log("identifying the unloaded robot ("
+         f"{', '.join(_toml_pair(k, v) for k, v in options.items())})")
     robot = ci.identify(model, unloaded.dataset, **options)
     target = (loaded.dataset if route == "torque"
               else ci.identify(model, loaded.dataset, **options))
