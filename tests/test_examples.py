@@ -17,6 +17,7 @@ import json
 import re
 import runpy
 import shutil
+import subprocess
 import sys
 from html.parser import HTMLParser
 from pathlib import Path
@@ -187,6 +188,21 @@ def test_panda_recover(checkout, capsys, config, urdf):
     assert model.nv == 7
     bodies = ci.InertialParameters.split(model.prior_parameters)
     assert len(bodies) == model.n_bodies and all(b.consistent() for b in bodies)
+
+
+def test_warnings_read_as_command_line_messages(checkout):
+    """A library warning on the command line names the command and the category, without
+    Python's file:line and source line (a subprocess: pytest records warnings itself)."""
+    done = subprocess.run([sys.executable, "-c", "import sys; from consistid.cli import main; "
+                           "sys.exit(main(sys.argv[1:]))", "-q", "recover",
+                           "examples/panda/recover_coefficients.toml"],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    lines = done.stderr.splitlines()
+    assert any(ln.startswith("consistid recover: warning: ExportWarning: URDF has no tag for "
+                             "torque offsets") for ln in lines), done.stderr
+    assert all(ln.startswith("consistid recover: warning: ") for ln in lines), done.stderr
+    assert ".py:" not in done.stderr
 
 
 def test_panda_payload(checkout, capsys):

@@ -18,6 +18,7 @@ import importlib.metadata
 import platform
 import sys
 import time
+import warnings
 from pathlib import Path
 from typing import Callable, Sequence
 
@@ -559,6 +560,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     global QUIET
     args = build_parser().parse_args(argv)
     QUIET = bool(args.quiet)
+    # A library warning reads like an error line (command, category, message, TOML hints),
+    # without Python's "file.py:61:" and source line, which mean nothing on a command line.
+    # formatwarning, not showwarning: a caller that records warnings still gets them.
+    previous = warnings.formatwarning
+    warnings.formatwarning = lambda message, category, *_, **__: (
+        f"consistid {args.command}: warning: {category.__name__}: {toml_hints(str(message))}\n")
     try:
         with silenced(QUIET):                     # -q: no bar from any library call either
             return COMMANDS[args.command][0](args)
@@ -566,6 +573,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"consistid {args.command}: error: {toml_hints(str(exc))}", file=sys.stderr,
               flush=True)
         return 2
+    finally:
+        warnings.formatwarning = previous
 
 
 if __name__ == "__main__":
