@@ -112,16 +112,17 @@ def test_the_readme_lists_every_example_with_its_command():
             f"examples/README.md has no `consistid {command} {rel}` line"
 
 
-def test_every_key_of_the_new_examples_is_commented():
-    """Each key line of the Panda configurations written for this page carries a comment
-    (what the key means, its unit, the allowed values), or continues one above it."""
-    for name in ("identify", "recover", "recover_coefficients", "payload", "diagnose"):
-        lines = (PANDA / f"{name}.toml").read_text().splitlines()
+def test_every_key_of_the_panda_examples_is_commented():
+    """Each key of the Panda configurations carries a comment on its line (what it means, its
+    unit, the allowed values); a multi-line array, on the line that closes it."""
+    for config in sorted(PANDA.glob("*.toml")):
+        lines = config.read_text().splitlines()
         for k, line in enumerate(lines):
             if re.match(r"^[a-z_]+\s*=", line) and "#" not in line:
-                follow = lines[k + 1] if k + 1 < len(lines) else ""
-                assert follow.lstrip().startswith(("#", '"')) or line.rstrip().endswith(
-                    ("[", ",")), f"{name}.toml line {k + 1} has no comment: {line!r}"
+                assert line.rstrip().endswith(("[", ",")), \
+                    f"{config.name} line {k + 1} has no comment: {line!r}"
+                close = next(ln for ln in lines[k + 1:] if "]" in ln.split("#")[0])
+                assert "#" in close, f"{config.name}: the array of line {k + 1} has no comment"
 
 
 def test_the_generator_reproduces_the_committed_data(tmp_path, monkeypatch):
