@@ -17,8 +17,9 @@ runs with the nominal URDF model. Scored:
   one, are expected; they must come with the remainder).
 
 A second table checks the noise floor: the Panda and the UR5 with no effect, white or AR(1)
-(φ = 0.9) noise, torques filtered by the chain or not: reported floor over the true noise of
-the processed torques (the chain applied to the noise alone).
+(φ = 0.9) noise, torques filtered by the chain or not, a training log of two periods (the floor
+from repetition) or one (from the spectrum): reported floor over the true noise of the
+processed torques (the chain applied to the noise alone), and the verdict.
 
 A third checks timing: a clean 200 Hz log whose logger averaged each 5 ms interval of a 1 kHz
 signal and stamped it at the interval's end (a half-sample shift): no delay may be named.
@@ -118,30 +119,33 @@ def run_case(model, kind: str, seed: int) -> dict:
 
 
 def floor_table(arms: list[str]) -> None:
-    print("\nnoise floor: reported / true (processed-noise std), median and range over joints")
-    print(f"{'arm':<7} {'noise':<6} {'torques':<11} {'method':<11} {'median':>7} {'range':>12}")
+    print("\nnoise floor: reported / true (processed-noise std), median and range over joints; "
+          "training log of two periods (repetition) or one (spectrum)")
+    print(f"{'arm':<7} {'noise':<6} {'torques':<11} {'method':<11} {'median':>7} {'range':>12}"
+          "  verdict")
     for arm in arms:
         model = ci.RobotModel.example(arm)
-        traj = FourierTrajectory.random(model, 5, 10.0, seed=5)
-        held_traj = FourierTrajectory.random(model, 5, 10.0, seed=6)
-        recs = [record(model, tr, Effects(), duration=d, rate=RATE, seed=1)
-                for tr, d in ((traj, 20.0), (held_traj, 10.0))]
-        for kind in ("white", "AR(1)"):
-            rng = np.random.default_rng(7)
-            noises = [NOISE * rng.standard_normal(r.tau.shape) if kind == "white"
-                      else ar1_noise(r.tau.shape, 0.9, NOISE, rng) for r in recs]
-            for filt in (True, False):
-                sets, true = [], []
-                for r, e in zip(recs, noises):
-                    noisy = preprocess(r.t, r.q, r.tau + e, filter_torque=filt).dataset
-                    clean = preprocess(r.t, r.q, r.tau, filter_torque=filt).dataset
-                    sets.append(noisy)
-                    true.append(noisy.tau - clean.tau)
-                diag = diagnose(model, sets[0], held_out=sets[1])
-                ratio = diag.noise_floor / np.std(np.concatenate(true), axis=0)
-                print(f"{arm:<7} {kind:<6} {'filtered' if filt else 'unfiltered':<11} "
-                      f"{diag.noise.method[0]:<11} {np.median(ratio):>7.2f} "
-                      f"{ratio.min():>5.2f}–{ratio.max():<5.2f}", flush=True)
+        for train_duration in (20.0, 10.0):
+            traj = FourierTrajectory.random(model, 5, 10.0, seed=5)
+            held_traj = FourierTrajectory.random(model, 5, 10.0, seed=6)
+            recs = [record(model, tr, Effects(), duration=d, rate=RATE, seed=1)
+                    for tr, d in ((traj, train_duration), (held_traj, 10.0))]
+            for kind in ("white", "AR(1)"):
+                rng = np.random.default_rng(7)
+                noises = [NOISE * rng.standard_normal(r.tau.shape) if kind == "white"
+                          else ar1_noise(r.tau.shape, 0.9, NOISE, rng) for r in recs]
+                for filt in (True, False):
+                    sets, true = [], []
+                    for r, e in zip(recs, noises):
+                        noisy = preprocess(r.t, r.q, r.tau + e, filter_torque=filt).dataset
+                        clean = preprocess(r.t, r.q, r.tau, filter_torque=filt).dataset
+                        sets.append(noisy)
+                        true.append(noisy.tau - clean.tau)
+                    diag = diagnose(model, sets[0], held_out=sets[1])
+                    ratio = diag.noise_floor / np.std(np.concatenate(true), axis=0)
+                    print(f"{arm:<7} {kind:<6} {'filtered' if filt else 'unfiltered':<11} "
+                          f"{diag.noise.method[0]:<11} {np.median(ratio):>7.2f} "
+                          f"{ratio.min():>5.2f}–{ratio.max():<5.2f}  {diag.verdict}", flush=True)
 
 
 def averaged_logger(arms: list[str]) -> None:
