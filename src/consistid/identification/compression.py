@@ -31,6 +31,8 @@ from .regressor import RegressorSpec, column_support, iter_regressor
 
 #: Per-joint σ is floored at this fraction of the joint's torque RMS (noise-free data).
 SIGMA_FLOOR = 1e-6
+#: Byte budget of :func:`compress`'s default regressor buffer.
+CHUNK_BYTES = 64 * 2 ** 20
 
 
 def _r_factor(a: np.ndarray, size: int) -> np.ndarray:
@@ -93,12 +95,18 @@ class CompressedProblem:
 
 
 def compress(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
-             chunk: int = 4096, weights: np.ndarray | None = None) -> CompressedProblem:
+             chunk: int | None = None, weights: np.ndarray | None = None) -> CompressedProblem:
     """Accumulate the per-joint R factors of ``[Y_j | τ_j]`` over a dataset (O(p²) memory).
 
+    ``chunk`` samples per regressor buffer; default 4096, fewer (≥ 1024) when that buffer would
+    exceed :data:`CHUNK_BYTES` (a 32-body robot's 4096 samples are 436 MB, whose first touch
+    costs more than the QR's larger share of stacked R rows at 1024).
     ``weights`` (N, nv) ≥ 0 scale each row's squared residual (row ``k`` of joint ``j`` is
     multiplied by ``√w_kj``), as iteratively re-weighted least squares needs.
     """
+    if chunk is None:
+        row_bytes = 8 * model.nv * (model.n_inertial + spec.n_joint_columns)
+        chunk = int(min(4096, max(1024, CHUNK_BYTES // row_bytes)))
     tau = dataset.require_torque()
     if weights is not None:
         weights = np.asarray(weights, dtype=float)
