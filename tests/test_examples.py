@@ -191,6 +191,28 @@ def test_panda_recover(checkout, capsys, config, urdf):
     assert len(bodies) == model.n_bodies and all(b.consistent() for b in bodies)
 
 
+def test_coefficients_in_another_base_map_are_refused(checkout, capsys):
+    """A coefficient file that names its base parameters (base_names) is checked against the
+    base map recover will use: the example's file with two coefficients swapped (values and
+    names) is refused, naming the index; with friction columns the file does not have, too."""
+    data = checkout / "examples" / "panda" / "data" / "panda_coefficients.npz"
+    with np.load(data) as f:
+        arrays = {k: f[k] for k in f.files}
+    order = np.arange(arrays["beta"].size)
+    order[[3, 7]] = order[[7, 3]]
+    np.savez(data, beta=arrays["beta"][order], base_names=arrays["base_names"][order])
+    config = "examples/panda/recover_coefficients.toml"
+    assert main(["-q", "recover", config]) == 2
+    err = capsys.readouterr().err
+    assert "base_names are not consistid's base map" in err and "index 3" in err, err
+    np.savez(data, **arrays)
+    text = (checkout / config).read_text()
+    (checkout / config).write_text(text.replace('friction = ["coulomb", "viscous", "offset"]',
+                                                'friction = ["coulomb", "viscous"]'))
+    assert main(["-q", "recover", config]) == 2
+    assert "64 names, 57 expected" in capsys.readouterr().err
+
+
 def test_warnings_read_as_command_line_messages(checkout):
     """A library warning on the command line names the command and the category, without
     Python's file:line and source line (a subprocess: pytest records warnings itself)."""

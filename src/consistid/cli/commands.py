@@ -284,7 +284,9 @@ def recover(args: argparse.Namespace) -> int:
     # the same columns in both branches: identify's default unless [recover] says otherwise
     friction, armature = t.get("friction", DEFAULT_FRICTION), t.get("armature", False)
     if "coefficients" in t:
-        beta, cov = _coefficients(config.resolve(t["coefficients"]), t["coefficients"])
+        beta, cov, names = _coefficients(config.resolve(t["coefficients"]), t["coefficients"])
+        if names is not None:
+            _check_base_names(model, names, friction, armature, t["coefficients"])
         rec = ci.recover_standard(model, beta, covariance=cov, friction=friction,
                                   armature=armature, **options)
     else:
@@ -301,8 +303,10 @@ def recover(args: argparse.Namespace) -> int:
     return 0
 
 
-def _coefficients(path, written: str) -> tuple[np.ndarray, np.ndarray | None]:
-    """``beta`` and the optional ``covariance`` of a ``[recover] coefficients`` .npz file."""
+def _coefficients(path, written: str
+                  ) -> tuple[np.ndarray, np.ndarray | None, list[str] | None]:
+    """``beta``, the optional ``covariance`` and the optional ``base_names`` (the regrouping each
+    coefficient stands for) of a ``[recover] coefficients`` .npz file."""
     if not path.is_file():
         raise ConfigError(f"[recover] coefficients = {written!r}: file {str(path)!r} does not "
                           "exist")
@@ -313,10 +317,32 @@ def _coefficients(path, written: str) -> tuple[np.ndarray, np.ndarray | None]:
                                   f"; it has {sorted(f.files)}")
             beta = f["beta"]
             cov = f["covariance"] if "covariance" in f.files else None
+            names = [str(n) for n in f["base_names"]] if "base_names" in f.files else None
     except (OSError, ValueError, EOFError) as exc:    # not an npz, a pickled array …
         raise ConfigError(f"[recover] coefficients = {written!r}: not a readable .npz file "
                           f"({exc})") from exc
-    return beta, cov
+    return beta, cov, names
+
+
+def _check_base_names(model: "ci.RobotModel", names: list[str], friction: object,
+                      armature: object, written: str) -> None:
+    """Coefficients that name their base parameters (``base_names``) must be in the base map
+    ``recover_standard`` will use: which columns pivoted QR keeps depends on the settings (and
+    may on the BLAS), and coefficients read in another map would be recovered silently wrong."""
+    from consistid.identification.regressor import RegressorSpec
+
+    expected = ci.compute_base_parameters(model, RegressorSpec.make(model, friction,
+                                                                    armature)).names
+    if list(names) != list(expected):
+        k = next((i for i, (a, b) in enumerate(zip(names, expected)) if a != b),
+                 min(len(names), len(expected)))
+        raise ConfigError(
+            f"[recover] coefficients = {written!r}: its base_names are not consistid's base map "
+            f"for these [recover] friction/armature settings ({len(names)} names, "
+            f"{len(expected)} expected; first difference at index {k}: "
+            f"{names[k] if k < len(names) else '(none)'!r} in the file, "
+            f"{expected[k] if k < len(expected) else '(none)'!r} expected). Check friction and "
+            "armature, or express the coefficients in this map (consistid identify --all lists it)")
 
 
 def payload(args: argparse.Namespace) -> int:
