@@ -750,6 +750,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--reuse-streaming", type=Path, default=None,
                         help="results.json of an earlier run: take its streaming rows (and say "
                         "so) instead of measuring them again")
+    parser.add_argument("--keep-runs", action="store_true",
+                        help="also write every run's metrics to results.json (MBs)")
     parser.add_argument("--from-json", type=Path, default=None,
                         help="rebuild the page and figures from a results.json, measuring nothing")
     parser.add_argument("--out", type=Path, default=Path(__file__).resolve().parents[1] / "docs")
@@ -780,6 +782,8 @@ def main(argv: list[str] | None = None) -> int:
         text = markdown(saved["meta"], saved["cells"], saved["peers"], saved["scale_n"],
                         saved["scale_dof"], saved["streaming"], figs)
         (args.out / "benchmarks.md").write_text(text)
+        if not args.keep_runs:
+            saved.pop("runs", None)
         (out_dir / "results.json").write_text(json.dumps(saved, default=float))
         print(text)
         return 0
@@ -809,7 +813,7 @@ def main(argv: list[str] | None = None) -> int:
                        f"{[r['n'] for r in stream]} streamed{reused}"))
     (out_dir / "results.json").write_text(json.dumps(
         dict(meta=meta, cells=cells, peers=peer_rows, scale_n=scale, scale_dof=dof,
-             streaming=stream, runs=rows), default=float))
+             streaming=stream, **({"runs": rows} if args.keep_runs else {})), default=float))
     text = markdown(meta, cells, peer_rows, scale, dof, stream, figs)
     (args.out / "benchmarks.md").write_text(text)
     print(text)
