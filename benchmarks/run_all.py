@@ -701,7 +701,8 @@ def markdown(meta: dict, cells: list[dict], peer_rows: list[dict], scale: list[d
         lines += ["", f"Growth exponent of identify(sdp) against bodies: "
                   f"{exponent([r['bodies'] for r in dof], [r['sdp'] for r in dof]):.2f}."]
     lines += ["", "Streaming: `identify(model, generator of 50 000-sample Datasets, "
-              "method='sdp')`, each N in a fresh process; data made on the fly with `pin.rnea`; "
+              "method='sdp')`, each N in a fresh process; data made on the fly with `pin.rnea` "
+              "(the time includes making them: Fourier evaluation and a Python loop of rnea); "
               "peak RSS of the whole process (`VmHWM`: Python, Pinocchio, cvxpy and the chunk "
               "being made included).",
               ""]
