@@ -228,6 +228,20 @@ def test_warnings_read_as_command_line_messages(checkout):
     assert ".py:" not in done.stderr
 
 
+def test_a_closed_pipe_ends_quietly(checkout):
+    """`consistid payload … | head -1`: the reader leaves after one line; the command stops
+    with status 1 and no traceback (it printed BrokenPipeError's)."""
+    code = ("import sys; from consistid.cli import main; "
+            "sys.stdout.write(''); sys.exit(main(sys.argv[1:]))")
+    proc = subprocess.Popen([sys.executable, "-c", code, "-q", "payload",
+                             "examples/panda/payload.toml"], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    proc.stdout.close()                            # the reader is gone before any output
+    err = proc.stderr.read()
+    assert proc.wait(timeout=300) == 1, err
+    assert "Traceback" not in err and "BrokenPipeError" not in err, err
+
+
 def test_panda_payload(checkout, capsys):
     assert main(["payload", "examples/panda/payload.toml"]) == 0
     captured = capsys.readouterr()

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import importlib.metadata
+import os
 import platform
 import sys
 import time
@@ -599,6 +600,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"consistid {args.command}: error: {toml_hints(str(exc))}", file=sys.stderr,
               flush=True)
         return 2
+    except BrokenPipeError:
+        # `consistid … | head`: the reader left. Stop quietly, as Unix tools do; what is still
+        # buffered goes to /dev/null, or Python's exit would print a traceback for it (Python
+        # docs, "Note on SIGPIPE").
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
     finally:
         warnings.formatwarning = previous
 
