@@ -106,8 +106,8 @@ class EffectFinding:
     delta_bic : change of the training BIC when it entered (negative = better).
     p_value : held-out F-test p-value when it entered.
     signature : how this effect shows in the residual.
-    runner_up : the best other candidate that explains the same residual (held-out correction
-        with cosine ≥ 0.5 to this one's) when it entered, or ``""``.
+    runner_up : the best other candidate that explains the same residual (its own held-out
+        correction has cosine ≥ 0.5 with this one's) when it entered, or ``""``.
     margin : confidence against it: ``1 − gain_runner_up / gain`` of the held-out reductions
         (1: no rival; near 0: the runner-up explains nearly as much, both are shown; negative:
         the runner-up explains more but was refused, e.g. an unphysical fit).
@@ -556,14 +556,22 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
                                   if sc[0] != i))
         bics.append(float(dbic))
         pvals.append(p)
-        up = pick[5]
+        # Its rival: the best other candidate whose own correction (its columns times its
+        # parameters, on the held-out data) points the same way — it explains the same residual.
+        def own(sc: tuple) -> np.ndarray:
+            u = np.zeros(full_p)
+            u[prob.slices[sc[0]]] = sc[6]
+            return u
+
+        up = own(pick)
         nu = float(up @ g_ho @ up)
         rival = ("", 1.0)
         for sc in scores:
             if sc[0] == i or sc[0] in [g[0] for g in group] or sc[1] <= 0:
                 continue
-            ns = float(sc[5] @ g_ho @ sc[5])
-            if nu > 0 and ns > 0 and abs(sc[5] @ g_ho @ up) / np.sqrt(nu * ns) >= RIVAL_COSINE:
+            us = own(sc)
+            ns = float(us @ g_ho @ us)
+            if nu > 0 and ns > 0 and abs(us @ g_ho @ up) / np.sqrt(nu * ns) >= RIVAL_COSINE:
                 rival = (prob.atoms[sc[0]].label(joint_names), 1.0 - sc[1] / gain)
                 break
         rivals.append(rival)
