@@ -159,3 +159,20 @@ def test_every_raised_exception_is_exported():
               and isinstance(n.exc.func, ast.Name) and hasattr(errors, n.exc.func.id)}
     missing = sorted(e for e in raised if e not in consistid.__all__)
     assert not missing, f"raised but not exported from consistid: {missing}"
+
+
+def test_architecture_page_lists_every_module():
+    """``docs/architecture.md`` has one line per module; a new module must be added there."""
+    page = (PACKAGE.parents[1] / "docs" / "architecture.md").read_text()
+    folders: dict[str, set[str]] = {}
+    current = None
+    for line in page.splitlines():
+        if line.startswith("### `"):
+            current = line.split("`")[1].rstrip("/")
+            current = "" if current == "consistid" else current
+        elif current is not None and line.startswith("| `"):
+            folders.setdefault(current, set()).add(line.split("`")[1])
+    missing = [str(p.relative_to(PACKAGE)) for p in sorted(PACKAGE.rglob("*.py"))
+               if p.name not in folders.get(str(p.parent.relative_to(PACKAGE)).replace(".", ""),
+                                            set())]
+    assert not missing, f"modules missing from docs/architecture.md: {missing}"
