@@ -40,7 +40,7 @@ import numpy as np
 import consistid as ci
 from consistid.data.signals import preprocess
 from consistid.diagnosis.diagnose import diagnose
-from consistid.errors import ModelError, TrackingWarning
+from consistid.errors import ConsistidError, ModelError, TrackingWarning
 from consistid.excitation import FourierTrajectory
 from consistid.simulate import ar1_noise, record
 from consistid.simulate.disturbances import KINDS, Disturbance, record_with
@@ -104,7 +104,10 @@ def run_case(model, kind: str, seed: int) -> dict:
     except ModelError as exc:
         return dict(dist=dist, failed=str(exc).split(":")[0])
     t0 = time.perf_counter()
-    diag = diagnose(model, train, held_out=held)
+    try:
+        diag = diagnose(model, train, held_out=held)
+    except ConsistidError as exc:   # e.g. a dead zone wider than a joint's whole torque
+        return dict(dist=dist, failed=f"diagnose refused the data: {str(exc)[:80]}")
     elapsed = time.perf_counter() - t0
     names = model.joint_names
     right = [names[j] for j in affected_joints(model, dist, rec_ho)]
