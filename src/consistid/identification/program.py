@@ -71,10 +71,15 @@ class CompiledProgram:
     labelled : ``(constraint, labels)`` pairs of ``problem`` (labels name each row).
     unit_rows : ``(k, columns)``: ``labelled[k]`` is ``θ[columns] ≥ 0``, whose slacks are
         reported in the unit scale of the whitening (``θ_i / ‖Φ_i‖``), as the fresh program's.
+    euclidean : ``(W, π₀)`` of a Euclidean prior ``‖W (θ[:len(π₀)] − π₀)‖²`` (unit weight),
+        added by :meth:`BoundProgram.standard_form` straight to the ``w`` block as a quadratic
+        (as cvxpy does for the fresh program), not through cvxpy's auxiliary variables, whose
+        weight ``γ`` alone left the solve inaccurate at small weights.
     """
 
     def __init__(self, problem: cp.Problem, y: cp.Variable, t_map: np.ndarray,
-                 labelled: Labelled, unit_rows: tuple[int, np.ndarray] | None = None) -> None:
+                 labelled: Labelled, unit_rows: tuple[int, np.ndarray] | None = None,
+                 euclidean: tuple[np.ndarray, np.ndarray] | None = None) -> None:
         start = time.perf_counter()
         p = y.size
         if any(v.id == y.id for v in problem.variables()):
@@ -91,7 +96,7 @@ class CompiledProgram:
         pmat = sp.csc_array(data["P"]) if data.get("P") is not None else sp.csc_array((n, n))
         pmat = (pmat + pmat.T) / 2 if (abs(pmat - pmat.T) > 0).nnz else pmat
         self.problem, self.y, self.labelled = problem, y, tuple(labelled)
-        self.unit_rows = unit_rows
+        self.unit_rows, self.euclidean = unit_rows, euclidean
         self.t_map, self.t_inv = t_map, np.linalg.inv(t_map)
         self.a_y = a[:, ycols].toarray()
         self.a_u = sp.csc_array(a[:, ucols])
@@ -153,18 +158,31 @@ class BoundProgram:
                     out += list(zip(labels, (-value).ravel().tolist()))
             return out
 
-    def standard_form(self) -> tuple[sp.csc_array, np.ndarray, sp.csc_array, np.ndarray]:
-        """Clarabel's ``(P (upper triangle), q, A, b)`` of this pass over ``x = (w, u)``."""
+    def standard_form(self) -> tuple[sp.csc_array, np.ndarray, sp.csc_array, np.ndarray,
+                                     list]:
+        """Clarabel's ``(P (upper triangle), q, A, b, cones)`` of this pass over
+        ``x = (w, u, t, e)``.
+
+        As cvxpy states a sum of squares, the data term is ``‖t‖²`` with ``t = G w − h`` (and a
+        Euclidean prior ``γ‖e‖²`` with ``e = W(θ − π₀)``) as equality rows, not ``wᵀ 2GᵀG w``:
+        the objective then keeps its value (χ²), on which Clarabel's relative gap is measured
+        (with the constant dropped the gap was absolute, and small prior weights ended
+        ``optimal_inaccurate``)."""
         c, g = self.compiled, self.gamma
+        p = self.phi.shape[1]
         psi = c.t_inv @ self.phi
         y_c = c.t_inv @ self.theta_c
         a_w = c.a_y @ psi
         b = c.b - c.a_y @ y_c
         gm = self.r @ self.phi
         h = self.z - self.r @ self.theta_c
-        p_ww = 2.0 * gm.T @ gm + g * (psi.T @ c.p_yy @ psi)
-        q_w = -2.0 * gm.T @ h + g * (psi.T @ (c.c_y + c.p_yy @ y_c))
-        q_u = g * (c.c_u + c.p_yu.T @ y_c)
+        eq_w, eq_b, aux_diag = [-gm], [-h], [np.full(gm.shape[0], 2.0)]
+        if c.euclidean is not None and g > 0:
+            w_mat, prior = c.euclidean
+            eq_w.append(-(w_mat @ self.phi[:prior.size]))
+            eq_b.append(w_mat @ (self.theta_c[:prior.size] - prior))
+            aux_diag.append(np.full(prior.size, 2.0 * g))
+        n_aux = sum(e.shape[0] for e in eq_w)
         a = sp.hstack([sp.csc_array(a_w), c.a_u], format="csr")
         rows = np.arange(c.nonneg.start, c.nonneg.stop)
         if rows.size:
@@ -173,9 +191,23 @@ class BoundProgram:
             scale[rows] = 1.0 / np.where(norms > 0, norms, 1.0)
             a = sp.csr_array(sp.diags_array(scale) @ a)
             b = b * scale
-        pmat = sp.block_array([[sp.csc_array(0.5 * (p_ww + p_ww.T)), g * (psi.T @ c.p_yu)],
-                               [None, g * c.p_uu]], format="csc")
-        return sp.csc_array(sp.triu(pmat)), np.concatenate([q_w, q_u]), sp.csc_array(a), b
+        a_eq = sp.hstack([sp.csc_array(np.vstack(eq_w)), sp.csc_array((n_aux, c.n_u)),
+                          sp.identity(n_aux, format="csc")], format="csc")
+        a_all = sp.vstack([a_eq, sp.hstack([a, sp.csc_array((a.shape[0], n_aux))])],
+                          format="csc")
+        p_ww = g * (psi.T @ c.p_yy @ psi)
+        pmat = sp.block_array([[sp.csc_array(0.5 * (p_ww + p_ww.T)),
+                                sp.csc_array(g * (psi.T @ c.p_yu)), None],
+                               [None, sp.csc_array(g * c.p_uu), None],
+                               [None, None, sp.diags_array(np.concatenate(aux_diag))]],
+                              format="csc")
+        q = np.concatenate([g * (psi.T @ (c.c_y + c.p_yy @ y_c)),
+                            g * (c.c_u + c.p_yu.T @ y_c), np.zeros(n_aux)])
+        import clarabel  # heavy: loaded with the first conic solve (as cvxpy does)
+
+        cones = [clarabel.ZeroConeT(n_aux), *c.cones]
+        return (sp.csc_array(sp.triu(pmat)), q, sp.csc_array(a_all),
+                np.concatenate([*eq_b, b]), cones)
 
     def solve(self, what: str, options: dict[str, Any] | None = None) -> tuple[str, float, float,
                                                                                int]:
@@ -186,7 +218,7 @@ class BoundProgram:
         ``w.value``. Raises as :func:`consistid.identification.solver.solve` does.
         """
         start = time.perf_counter()
-        pmat, q, a, b = self.standard_form()
+        pmat, q, a, b, cones = self.standard_form()
         if not (np.all(np.isfinite(pmat.data)) and np.all(np.isfinite(q))
                 and np.all(np.isfinite(a.data)) and np.all(np.isfinite(b))):
             raise SolverError(f"{what}: the problem data hold NaN or inf before solver "
@@ -197,7 +229,7 @@ class BoundProgram:
             raise OptionError(f"{what}: solver CLARABEL could not run with the options "
                               f"{options}: {exc}") from exc
         try:
-            solution, setup = run_clarabel(pmat, q, a, b, self.compiled.cones, settings)
+            solution, setup = run_clarabel(pmat, q, a, b, cones, settings)
             setup -= start
         except (KeyboardInterrupt, SystemExit, GeneratorExit):
             raise

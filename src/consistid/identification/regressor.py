@@ -354,6 +354,12 @@ def batch_rnea(model: RobotModel, carrier: pin.Model, q: np.ndarray, dq: np.ndar
     without the Python call per sample."""
     n = q.shape[0]
     out = np.empty((n, carrier.nv))
+    if not hasattr(pin, "rneaInParallel"):   # a Pinocchio built without it: the same loop
+        data = carrier.createData()
+        for k in range(n):
+            qk = q[k] if carrier.nq == carrier.nv else model.configuration(q[k])
+            out[k] = pin.rnea(carrier, data, qk, dq[k], ddq[k])
+        return out
     pool = pin.ModelPool(carrier, 1)
     for start in range(0, n, chunk):
         s = slice(start, min(start + chunk, n))

@@ -685,12 +685,18 @@ def _compile(model: RobotModel, spec: RegressorSpec, prior_vec: np.ndarray,
         *(sc.parameter_map() for sc in setup.scalings))
     y = cp.Variable(p, name="y")
     labelled, prior_terms = _constraints(model, spec, t_map @ y, prior_vec, setup, True, None)
+    euclidean = None
+    if setup.prior == "euclidean":      # a quadratic in w, added by the bound program itself
+        prior_terms = []
+        if setup.gamma > 0:
+            euclidean = (setup.euclid_w, prior_vec[:10 * nb])
     objective = (cp.sum(cp.hstack(prior_terms)) if prior_terms and setup.gamma > 0
                  else cp.Constant(0.0))
     problem = cp.Problem(cp.Minimize(objective), [c for c, _ in labelled])
     idx = np.flatnonzero(setup.nonnegative)
     return compiled_programs.CompiledProgram(problem, y, t_map, labelled,
-                                             (len(labelled) - 1, idx) if idx.size else None)
+                                             (len(labelled) - 1, idx) if idx.size else None,
+                                             euclidean)
 
 
 def _constraints(model: RobotModel, spec: RegressorSpec, theta: cp.Expression,
