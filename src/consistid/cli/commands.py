@@ -387,8 +387,8 @@ def payload(args: argparse.Namespace) -> int:
 
 
 #: ``[diagnose]`` keys passed to :func:`consistid.diagnose` as they are …
-DIAGNOSE_OPTIONS = ("effects", "sigma", "alpha", "min_gain", "tie", "max_steps", "split",
-                    "inertia_solver")
+DIAGNOSE_OPTIONS = ("effects", "sigma", "torque_resolution", "alpha", "min_gain", "tie",
+                    "max_steps", "split", "inertia_solver")
 #: … and all ``[diagnose]`` keys (``nominal_urdf`` and ``output`` are read by the command).
 DIAGNOSE_KEYS = DIAGNOSE_OPTIONS + ("nominal_urdf", "output")
 
@@ -408,10 +408,11 @@ def diagnose(args: argparse.Namespace) -> int:
                       ("max_steps", "integer"), ("inertia_solver", "string")):
         if key in t:
             config.expect("diagnose", key, t[key], kind)
-    if "sigma" in t and not isinstance(t["sigma"], list):
-        config.expect("diagnose", "sigma", t["sigma"], "number")
-    elif "sigma" in t:
-        config.expect("diagnose", "sigma", t["sigma"], "array of numbers")
+    for key in ("sigma", "torque_resolution"):             # N·m, one number or one per joint
+        if key in t and not isinstance(t[key], list):
+            config.expect("diagnose", key, t[key], "number")
+        elif key in t:
+            config.expect("diagnose", key, t[key], "array of numbers")
     output = args.output or t.get("output")
     if output:
         output = _report_target(output if args.output else config.resolve(output),

@@ -38,6 +38,8 @@ The chain that strings them together is :mod:`consistid.data.chain`.
 
 from __future__ import annotations
 
+import functools
+
 from typing import Sequence
 
 import numpy as np
@@ -62,6 +64,15 @@ def as_2d(name: str, x: np.ndarray) -> np.ndarray:
     return a
 
 
+@functools.lru_cache(maxsize=256)
+def _butterworth(order: int, cutoff: float, rate: float) -> np.ndarray:
+    """The second-order sections of a Butterworth low-pass, designed once per (order, f_c, f_s):
+    a diagnosis filters the same signals at the same cut-offs hundreds of times."""
+    sos = scipy.signal.butter(order, cutoff, fs=rate, output="sos")
+    sos.flags.writeable = False       # shared between callers
+    return sos
+
+
 def lowpass(x: np.ndarray, cutoff: float, rate: float, order: int = 4) -> np.ndarray:
     """Zero-phase Butterworth low-pass along axis 0 (``scipy.signal.sosfiltfilt``).
 
@@ -73,7 +84,7 @@ def lowpass(x: np.ndarray, cutoff: float, rate: float, order: int = 4) -> np.nda
     if not 0 < cutoff < 0.5 * rate:
         raise OptionError(f"cutoff = {cutoff} Hz must lie in (0, {0.5 * rate:g}) Hz, below the "
                           f"Nyquist frequency of {rate:g} Hz sampling")
-    sos = scipy.signal.butter(order, cutoff, fs=rate, output="sos")
+    sos = _butterworth(order, float(cutoff), float(rate)).copy()  # scipy wants it writable
     x = np.asarray(x, dtype=float)
     pad = min(int(np.ceil(PAD_PERIODS * rate / cutoff)), x.shape[0] - 1)
     return scipy.signal.sosfiltfilt(sos, x, axis=0, padlen=pad)
