@@ -616,7 +616,8 @@ def markdown(meta: dict, cells: list[dict], peer_rows: list[dict], scale: list[d
     size = meta["size"]
     lines = [
         "# Benchmarks", "",
-        f"Written by `benchmarks/run_all.py --{size}{meta['overrides']}` on {meta['date']} in "
+        f"Written by `benchmarks/run_all.py{'' if size == 'full' else ' --' + size}"
+        f"{meta.get('overrides', '')}` on {meta['date']} in "
         f"{meta['seconds'] / 60:.1f} min; machine: {meta['machine']}; one BLAS thread; "
         f"{meta['jobs']} joblib worker(s). Sizes that ran: {meta['sizes']}.", "",
         *([f"Not the full run: `python benchmarks/run_all.py` (no size flag) does "
