@@ -58,8 +58,7 @@ from consistid.excitation import FourierTrajectory  # noqa: E402
 from consistid.identification import program  # noqa: E402
 from consistid.identification.base import compute_base_parameters  # noqa: E402
 from consistid.identification.compression import compress  # noqa: E402
-from consistid.identification.regressor import (RegressorSpec, dataset_regressor,  # noqa: E402
-                                                iter_regressor)
+from consistid.identification.regressor import RegressorSpec, dataset_regressor, iter_regressor  # noqa: E402
 from consistid.identification.sdp import identify_sdp  # noqa: E402
 from consistid.identification.streaming import residual_statistics  # noqa: E402
 from consistid.identification.summary import table  # noqa: E402

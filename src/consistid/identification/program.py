@@ -43,11 +43,15 @@ from typing import Any, Callable, Hashable, Sequence
 import cvxpy as cp
 import numpy as np
 import scipy.sparse as sp
-from cvxpy.reductions.solvers.conic_solvers.clarabel_conif import (CLARABEL,
-                                                                   dims_to_solver_cones)
+from cvxpy.reductions.solvers.conic_solvers.clarabel_conif import CLARABEL, dims_to_solver_cones
 
-from ..errors import (IdentificationError, InaccurateSolutionWarning, InfeasibleError,
-                      OptionError, SolverError)
+from ..errors import (
+    IdentificationError,
+    InaccurateSolutionWarning,
+    InfeasibleError,
+    OptionError,
+    SolverError,
+)
 
 #: Compiled structures kept (least recently used dropped first).
 CACHE_SIZE = 16
@@ -169,7 +173,6 @@ class BoundProgram:
         (with the constant dropped the gap was absolute, and small prior weights ended
         ``optimal_inaccurate``)."""
         c, g = self.compiled, self.gamma
-        p = self.phi.shape[1]
         psi = c.t_inv @ self.phi
         y_c = c.t_inv @ self.theta_c
         a_w = c.a_y @ psi
