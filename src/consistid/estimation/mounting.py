@@ -56,6 +56,8 @@ from ..identification.compression import CompressedProblem, accumulate, joint_si
 from ..data.checks import check_for_identification
 from ..data.dataset import Dataset, as_dataset
 from ..errors import DatasetError, ModelError, OptionError, PoorExcitationWarning
+from ..report.html import Page
+from ..report.result import Reported
 from ..threads import single_blas_thread
 from ..robot.model import RobotModel, require_model
 from ..identification.regressor import (DEFAULT_FRICTION, FrictionArg, RegressorSpec,
@@ -101,7 +103,7 @@ def _axis_name(axis: np.ndarray) -> str:
 
 
 @dataclass(frozen=True, eq=False)
-class MountingEstimate:
+class MountingEstimate(Reported):
     """The estimated gravity direction of a robot's base, and what it changes.
 
     Attributes
@@ -140,6 +142,34 @@ class MountingEstimate:
         g, g0 = self.gravity, self.reference_gravity
         c = float(g @ g0) / float(np.linalg.norm(g) * np.linalg.norm(g0))
         return math.acos(max(-1.0, min(1.0, c)))
+
+    @property
+    def estimate(self) -> np.ndarray:
+        """The estimated vector: ``angles`` (rad); ``std``, ``covariance``, ``conf_int`` are
+        its."""
+        return self.angles
+
+    def summary(self) -> str:
+        return str(self)
+
+    def page(self) -> Page:
+        """The HTML report: the tilt ± σ with 95 % intervals, gravity and the fit."""
+        page = Page(f"consistid base tilt: {self.model.name}", str(self))
+        lo_hi = np.degrees(self.conf_int())
+        page.table(["gravity turned about", "angle [°]", "± σ [°]", "95 % interval [°]"],
+                   [(_axis_name(ax), np.degrees(a), np.degrees(s), f"{lo:+.4f} … {hi:+.4f}")
+                    for ax, a, s, (lo, hi) in zip(self.axes, self.angles, self.std, lo_hi)])
+        before, after = self.relative_error
+        page.key_values([("gravity (base frame) [m/s²]", np.array2string(self.gravity,
+                                                                          precision=4)),
+                         ("model's gravity [m/s²]", np.array2string(self.reference_gravity,
+                                                                    precision=4)),
+                         ("tilt from the model's [°]", math.degrees(self.tilt)),
+                         ("relative torque error, model's gravity", f"{100 * before:.3f} %"),
+                         ("relative torque error, estimated gravity", f"{100 * after:.3f} %")])
+        page.table(["joint", "residual autocorrelation time [samples]"],
+                   zip(self.model.joint_names, self.autocorrelation_time))
+        return page
 
     def __str__(self) -> str:
         angles = ", ".join(f"{a:+.3f}° ± {s:.3f}° about {_axis_name(ax)}" for a, s, ax in

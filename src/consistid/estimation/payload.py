@@ -45,6 +45,8 @@ from ..data.dataset import Dataset
 from ..errors import (IdentificationError, InfeasibleError, ModelError, NothingFoundWarning,
                      OptionError, PoorExcitationError, PoorExcitationWarning, check_bounds,
                      check_box, check_option)
+from ..report.html import Page
+from ..report.result import Reported
 from ..robot.model import RobotModel, require_model
 from ..robot.inertia import (INERTIAL_NAMES, body_slice, from_mass_com_inertia, pseudo_inertia,
                              to_mass_com_inertia)
@@ -62,7 +64,7 @@ REFERENCE_RADIUS = 0.1
 
 
 @dataclass(frozen=True, eq=False)
-class Payload:
+class Payload(Reported):
     """An estimated payload, expressed in ``frame``.
 
     Attributes
@@ -171,6 +173,29 @@ class Payload:
                          f"{np.array2string(self.residual_rms, precision=3)}")
         notes = [f"pseudo-inertia min eigenvalue {self.min_eigenvalue:.3g}", *self.notes]
         return "\n".join(lines + ["", "Notes:"] + [f"  - {n}" for n in notes])
+
+    @property
+    def estimate(self) -> np.ndarray:
+        """The estimated vector: the ten ``parameters``; ``std``, ``covariance``, ``conf_int``
+        are its."""
+        return self.parameters
+
+    def page(self) -> Page:
+        """The HTML report: mass and CoM ± σ, the ten parameters with 95 % intervals."""
+        verdict = (f"payload on {self.body!r}: {self.mass:.4g} ± {self.mass_std:.2g} kg"
+                   if self.found else f"no payload found on {self.body!r}")
+        page = Page(f"consistid payload: {self.body}", verdict)
+        page.key_values([("method", self.method), ("frame", self.frame),
+                         ("rank / 10", self.rank), ("condition number", self.condition_number),
+                         ("solver", str(self.solver)),
+                         ("pseudo-inertia min eigenvalue", self.min_eigenvalue)])
+        ci = self.conf_int()
+        page.table(["parameter", "estimate", "± σ", "95 % interval", "identifiable"],
+                   [(n, v, s, f"{lo:.4g} … {hi:.4g}", "yes" if ok else "no")
+                    for n, v, s, (lo, hi), ok in zip(self.parameter_names, self.parameters,
+                                                     self.std, ci, self.identifiable)])
+        page.bullets(self.notes)
+        return page
 
     def __str__(self) -> str:
         return self.summary()

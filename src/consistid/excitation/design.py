@@ -37,6 +37,8 @@ import scipy.sparse
 from ..identification.base import BaseParameters, compute_base_parameters
 from ..data.dataset import Dataset
 from ..errors import InfeasibleExcitationError, OptionError, check_number, check_option
+from ..report.html import Page
+from ..report.result import Reported
 from ..progress import Progress
 from ..threads import single_blas_thread
 from ..robot.model import RobotModel, require_model
@@ -403,7 +405,7 @@ def _optimise(problem: _DesignProblem, x0: np.ndarray, method: str, max_iter: in
 
 # --------------------------------------------------------------------------------- the design
 @dataclass(frozen=True, eq=False)
-class ExcitationDesign:
+class ExcitationDesign(Reported):
     """An optimised excitation trajectory with the evidence that it is good and safe.
 
     Attributes
@@ -450,6 +452,27 @@ class ExcitationDesign:
         """CSV ``t, q1.., dq1.., ddq1..`` for a robot controller
         (:meth:`Trajectory.save_csv`)."""
         return self.trajectory.save_csv(path, rate, duration)
+
+    def summary(self) -> str:
+        return str(self)
+
+    def page(self) -> Page:
+        """The HTML report: the criteria, every start, the margin of every limit."""
+        c = self.quality.criteria
+        page = Page("consistid excitation design",
+                    f"{self.trajectory.parameterisation!r}, criterion {self.criterion} = "
+                    f"{self.value:.4g}, {self.base.n_base} base parameters "
+                    f"({self.spec.describe()})")
+        page.key_values([("cond(Y_b), unscaled", self.cond), ("cond, weighted", c["cond"]),
+                         ("d-opt", c["d-opt"]), ("e-opt", c["e-opt"]),
+                         ("period [s]", self.period), ("design time [s]", self.seconds)])
+        page.heading("Starts")
+        page.table(["start", "result"], [(i + 1, str(s)) for i, s in enumerate(self.starts)],
+                   row_classes=["best" if i == self.best_start else ""
+                                for i in range(len(self.starts))])
+        page.heading("Limits")
+        page.paragraph(str(self.constraints))
+        return page
 
     def __str__(self) -> str:
         c = self.quality.criteria

@@ -131,6 +131,23 @@ class IdentificationResult(StandardParameterSet):
         with np.errstate(divide="ignore", invalid="ignore"):
             return np.where(std == 0, 0.0, 100.0 * std / beta)
 
+    @property
+    def estimate(self) -> np.ndarray:
+        """The estimated vector whose ``std``, ``covariance`` and ``conf_int`` are reported: the
+        base parameters (the identifiable combinations; :attr:`parameters` is the standard
+        vector they come from, with the prior deciding what the data do not)."""
+        return self.base_parameters
+
+    @property
+    def std(self) -> np.ndarray:
+        """Standard deviations of :attr:`estimate` (the base parameters), as on every result."""
+        return self.base_std
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """Covariance of :attr:`estimate` (the base parameters), as on every result."""
+        return self.base_covariance
+
     def conf_int(self, alpha: float = 0.05) -> np.ndarray:
         """Two-sided ``1 − alpha`` confidence intervals of the base parameters, shape (b, 2)."""
         z = scipy.stats.norm.ppf(1 - alpha / 2)
