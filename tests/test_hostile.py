@@ -826,3 +826,14 @@ def test_fuzz_dataset_identify_predict(planar_2r, arrays, method):
 def test_effects_that_are_not_an_effects_value_are_named(panda, effects):
     with pytest.raises(ci.ModelError, match="effects must be a consistid.simulate.Effects"):
         ci.estimate_breakaway(panda, effects=effects)
+
+
+def test_mimic_tag_on_a_fixed_joint_is_harmless():
+    """Talos's fixed gripper joints carry <mimic> tags: nothing moves, nothing is refused."""
+    from consistid.robot.model import example_robot_data_dir
+
+    path = example_robot_data_dir() / "talos_data" / "robots" / "talos_reduced.urdf"
+    if not path.exists():
+        pytest.skip(f"{path} is not in this example-robot-data")
+    assert "<mimic" in path.read_text()
+    assert ci.RobotModel.from_urdf(path).nv == 32

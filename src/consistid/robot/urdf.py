@@ -66,7 +66,7 @@ def check_urdf(path: str | Path, locked_joints: Sequence[str] = ()) -> None:
     number (Pinocchio prints an error and goes on), an inertia entry that is not a finite
     number, a moving joint whose ``<axis>`` is zero or not finite, and ``<mimic>`` joints
     (one joint driven by another: the regressor would treat them as independent) unless they
-    are among ``locked_joints`` (e.g. the Panda's second finger)."""
+    are among ``locked_joints`` (e.g. the Panda's second finger) or fixed (Talos's grippers)."""
     locked = set(locked_joints)
     path = Path(path)
     root = parse_urdf(path).getroot()
@@ -88,12 +88,12 @@ def check_urdf(path: str | Path, locked_joints: Sequence[str] = ()) -> None:
             if text is not None and not np.isfinite(_float(text)):
                 raise ModelError(f"{path.name}: link {name!r} has <inertia {attr}={text!r}>: "
                                  "not a finite number (kg·m²)")
-    for joint in root.iter("joint"):
+    for joint in robot_joints(root):           # not a <transmission>'s <joint> elements
         name, kind = joint.get("name", "?"), joint.get("type", "?")
         if name in locked:
             continue
         mimic = joint.find("mimic")
-        if mimic is not None:
+        if mimic is not None and kind != "fixed":  # a fixed joint never moves: nothing mimicked
             raise ModelError(
                 f"{path.name}: joint {name!r} mimics joint {mimic.get('joint', '?')!r} "
                 f"(multiplier {mimic.get('multiplier', '1')}, offset {mimic.get('offset', '0')}): "
