@@ -50,9 +50,7 @@ import scipy.linalg
 import consistid as ci
 from consistid.identification.base import compute_base_parameters
 from consistid.identification.compression import compress, floor_sigma
-from consistid.identification.regressor import (RegressorSpec, dataset_regressor,
-                                                iter_regressor)
-from consistid.identification.summary import table
+from consistid.identification.regressor import RegressorSpec, dataset_regressor, iter_regressor
 from consistid.robot.inertia import perturb
 
 SIGMA = 0.1

@@ -15,8 +15,8 @@ from consistid.identification.regressor import RegressorSpec
 distributed = pytest.importorskip("distributed")
 pytest.importorskip("dask.bag")
 
-from consistid.identification.distributed import (DaskData, compress_on_dask,  # noqa: E402
-                                                  on_dask)
+from consistid.identification.distributed import DaskData, compress_on_dask, on_dask  # noqa: E402
+
 
 def runs(model, n, duration=2.0, rate=200.0):
     return [ci.simulate.excitation_run(model, duration=duration, rate=rate, seed=s,

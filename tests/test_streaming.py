@@ -13,9 +13,14 @@ import consistid as ci
 from consistid.errors import DatasetError, JointCountError, OptionError
 from consistid.identification.compression import compress
 from consistid.identification.regressor import RegressorSpec
-from consistid.identification.streaming import (DataStream, ResidualStatistics, is_stream,
-                                                merge, merge_all)
 from consistid.identification.statistics import autocorrelation_time
+from consistid.identification.streaming import (
+    DataStream,
+    ResidualStatistics,
+    is_stream,
+    merge,
+    merge_all,
+)
 
 
 def normal_equations(problem):
