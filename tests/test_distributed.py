@@ -107,6 +107,10 @@ def test_bad_collections_are_named(client, planar_2r, ur5, tmp_path):
     with pytest.raises(JointCountError, match="ur5.npz"):
         ci.identify(planar_2r, on_dask([tmp_path / "ur5.npz"], client=client), method="ols")
     assert isinstance(on_dask(runs(planar_2r, 1)), DaskData)
+    import dask.bag as db
+
+    with pytest.raises(OptionError, match="on_dask"):   # not computed here by iteration
+        ci.identify(planar_2r, db.from_sequence(runs(planar_2r, 2)), method="ols")
 
 
 def test_excitation_starts_go_to_the_cluster_through_joblib(client, planar_2r):

@@ -148,6 +148,10 @@ class DataStream:
             raise DatasetError(f"a stream is an iterable of Datasets or files, got one "
                                f"{type(source).__name__}: pass [it], or the Dataset itself "
                                "to identify")
+        if hasattr(source, "__dask_graph__"):
+            # iterating a Dask collection would compute all of it here, in memory
+            raise OptionError("a Dask collection: pass consistid.identification.distributed."
+                              "on_dask(collection) so that it is reduced where it lies")
         if not callable(source):
             try:
                 iter(source)  # type: ignore[call-overload]
