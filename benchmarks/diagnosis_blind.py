@@ -32,7 +32,8 @@ bodies perturbed by ±10–30 % ("inertia"), and position ripple 0.3–1.5 N·m 
 Not drawn by default (``--pool`` adds them): ``position``, a once-per-revolution torque
 0.3–1.5 N·m·sin(q_j + φ), added to the logged torque like the ripple; ``tilt``, the base off
 level by 0.5–2° about x and about y (each, either sign): the simulated robot's gravity is
-:func:`consistid.estimation.mounting.gravity_from_tilt` of the URDF's (its truth for the shrink is the
+:func:`consistid.estimation.mounting.gravity_from_tilt` of the URDF's (its truth for the shrink is
+the
 library's first-order tilt with the true angles).
 
 Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/diagnosis_blind.py [--single 30 --double 8]

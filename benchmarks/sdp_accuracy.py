@@ -2,7 +2,8 @@
 
 Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/sdp_accuracy.py [--seeds 0 1 2] [--skip-large]``.
 
-Protocol (issue 3): Panda, truth = URDF perturbed by ±20 % (:func:`consistid.robot.inertia.perturb`),
+Protocol (issue 3): Panda, truth = URDF perturbed by ±20 %
+(:func:`consistid.robot.inertia.perturb`),
 prior = URDF, torque noise σ = 0.1 N·m, rigid body only. Training: 30 s at 500 Hz; held out: a
 different 10 s trajectory; poorly exciting: 2 s of small-amplitude motion (a random Fourier
 trajectory using 20 % of the joint ranges/limits instead of 80 %). Figures are held-out RMS/σ

@@ -4,7 +4,8 @@ Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/signals.py [--duration 30] [--ro
 [--physics-rate 10000]``.
 
 A MuJoCo Panda (no dynamic effects, inertias the URDF's ±20 %) tracks a 5-harmonic Fourier
-excitation of period 10 s, logged at 1 kHz, under three sensor scenarios (clean; a 19-bit encoder; Gaussian noise on q and τ). For
+excitation of period 10 s, logged at 1 kHz, under three sensor scenarios (clean; a 19-bit encoder;
+Gaussian noise on q and τ). For
 each, four ways to get ``q̇, q̈`` from the logged positions:
 
 ``raw``      central differences of the unfiltered log, torque unfiltered;
@@ -19,7 +20,8 @@ keeps; then the relative error ``‖β̂ − β‖/‖β‖`` of OLS base parame
 dataset, and the processing time (median of 3).
 
 The simulator's own floor: semi-implicit Euler logs positions whose central difference is
-``q̇ + h q̈ / 2`` with ``h`` the *physics* step (see :mod:`consistid.simulate.mujoco_robot`), ~1e-3 rad/s
+``q̇ + h q̈ / 2`` with ``h`` the *physics* step (see :mod:`consistid.simulate.mujoco_robot`), ~1e-3
+rad/s
 at 1 kHz physics; the default 10 kHz physics (and control) brings it to ~1e-4 rad/s so that the
 table shows the signal chain rather than the integrator.
 """

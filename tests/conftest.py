@@ -58,5 +58,6 @@ def kuka_dir() -> Path:
 
 
 def random_states(model: ci.RobotModel, n: int, seed: int):
-    """:func:`consistid.identification.base.random_states` seeded by an integer (hypothesis draws integers)."""
+    """:func:`consistid.identification.base.random_states` seeded by an integer (hypothesis draws
+    integers)."""
     return base.random_states(model, n, np.random.default_rng(seed))

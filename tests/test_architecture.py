@@ -18,8 +18,8 @@ PACKAGE = Path(__file__).resolve().parents[1] / "src" / "consistid"
 
 #: Third-party packages slow to import or optional: a function may import these (or a module of
 #: ours that imports one at module level) where they are first needed.
-HEAVY = ("pinocchio", "scipy", "cvxpy", "clarabel", "mujoco", "matplotlib", "pyarrow", "pandas", "rosbags", "dask", "distributed",
-         "joblib", "tqdm", "coal", "threadpoolctl")
+HEAVY = ("pinocchio", "scipy", "cvxpy", "clarabel", "mujoco", "matplotlib", "pyarrow",
+         "pandas", "rosbags", "dask", "distributed", "joblib", "tqdm", "coal", "threadpoolctl")
 
 
 def _name(path: Path) -> str:
@@ -68,7 +68,8 @@ def _edges(module: str) -> set[str]:
 
 
 def _heavy(module: str, seen: set[str] | None = None) -> bool:
-    """Whether importing ``module`` loads a heavy dependency (module-level imports, transitively)."""
+    """Whether importing ``module`` loads a heavy dependency (module-level imports,
+    transitively)."""
     seen = set() if seen is None else seen
     if module in seen:
         return False
@@ -154,7 +155,8 @@ def test_every_raised_exception_is_exported():
     import consistid
     from consistid import errors
 
-    raised = {n.exc.func.id for p in PACKAGE.rglob("*.py") for n in ast.walk(ast.parse(p.read_text()))
+    trees = [ast.parse(p.read_text()) for p in PACKAGE.rglob("*.py")]
+    raised = {n.exc.func.id for tree in trees for n in ast.walk(tree)
               if isinstance(n, ast.Raise) and isinstance(n.exc, ast.Call)
               and isinstance(n.exc.func, ast.Name) and hasattr(errors, n.exc.func.id)}
     missing = sorted(e for e in raised if e not in consistid.__all__)

@@ -7,7 +7,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import consistid as ci
 from consistid.robot.inertia import perturb
 from consistid.diagnosis.candidates import EffectLibrary, GapData
 from consistid.diagnosis.diagnose import diagnose

@@ -24,8 +24,8 @@ import consistid as ci
 from consistid.errors import GeometryWarning, InaccurateSolutionWarning, ModelError, OptionError
 from consistid.robot.model import example_robot_data_dir
 from consistid.robot.inertia import perturb
-from consistid.robot.shapes import (collision_ellipsoids, collision_points, minimum_volume_ellipsoid,
-                              pad, read_mesh, semi_axes, volume)
+from consistid.robot.shapes import (collision_ellipsoids, collision_points,
+                                    minimum_volume_ellipsoid, pad, read_mesh, semi_axes, volume)
 
 from .test_sdp import j_matrix
 

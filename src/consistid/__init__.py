@@ -1,7 +1,6 @@
 """consistid: physically consistent inertial parameter identification for robot manipulators.
 
->>> import consistid as ci
->>> model = ci.RobotModel.example("panda")
+>>> import consistid as ci >>> model = ci.RobotModel.example("panda")
 >>> run = ci.simulate.excitation_run(model, duration=20.0)
 >>> res = ci.identify(model, run.dataset, method="ols")
 
@@ -41,6 +40,8 @@ _EXPORTS: dict[str, str] = {
     "BaseParameters": "identification.base",
     "compute_base_parameters": "identification.base",
     "identify": "identification.identify",
+    "DataStream": "identification.streaming",
+    "on_dask": "identification.distributed",
     "IdentificationResult": "identification.result",
     "Neighbourhood": "identification.priors",
     "default_prior_weight": "identification.sdp",
@@ -61,6 +62,8 @@ _EXPORTS: dict[str, str] = {
     "calibrate_kinematics": "kinematics",
     "RecursiveEstimator": "online",
     "estimate_breakaway": "friction",
+    "compare_friction_models": "friction",
+    "SlotineLiController": "online",
 }
 
 #: subpackages reachable as attributes (``ci.simulate.record``)
@@ -96,7 +99,12 @@ if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerl
     from .excitation import (BoundaryConditions, ExcitationDesign, ExcitationLimits,
                              FourierTrajectory, design_excitation)
     from .identification.base import BaseParameters, compute_base_parameters
+    from .friction import compare_friction_models, estimate_breakaway
+    from .identification.distributed import on_dask
     from .identification.identify import identify
+    from .identification.streaming import DataStream
+    from .kinematics import calibrate_kinematics
+    from .online import RecursiveEstimator, SlotineLiController
     from .identification.priors import Neighbourhood
     from .identification.regressor import RegressorSpec, regressor
     from .identification.result import IdentificationResult

@@ -47,7 +47,8 @@ anywhere. Unknown tables (:data:`TABLES`) and unknown keys raise
 
 ``tilt = "estimate"`` (``consistid identify`` only) estimates the base's tilt, i.e. the direction
 of ``gravity`` (default the level ``(0, 0, −9.81)``), from the ``train`` recordings with the
-``[identify]`` friction and armature columns (:func:`consistid.estimation.mounting.estimate_mounting`),
+``[identify]`` friction and armature columns
+(:func:`consistid.estimation.mounting.estimate_mounting`),
 prints it, and identifies on the tilted model.
 """
 
@@ -326,7 +327,8 @@ def identify_keys() -> tuple[str, ...]:
 def config_identify(config: RunConfig) -> dict[str, Any]:
     """The keyword arguments of ``[identify]`` for :func:`consistid.identify` (unknown keys raise
     :class:`ConfigError`). TOML tables become objects: ``neighbourhood = {mass, com, inertia}``
-    a :class:`~consistid.identification.priors.Neighbourhood`, ``ellipsoids = {body = {center, semi_axes}}``
+    a :class:`~consistid.identification.priors.Neighbourhood`, ``ellipsoids = {body = {center,
+    semi_axes}}``
     :class:`~consistid.robot.shapes.Ellipsoid` objects (``ellipsoids = "collision"`` passes on:
     the URDF's collision ellipsoids, :func:`consistid.robot.shapes.collision_ellipsoids`)."""
     options = config.table("identify", identify_keys(), required=False)

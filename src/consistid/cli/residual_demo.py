@@ -8,7 +8,8 @@ model's residual ``τ − RNEA(q, q̇, q̈)`` per joint with
 * the residual of the *same* run without the dynamic effects: the floor set by sensor noise and
   signal processing;
 * the residual left after subtracting the injected effects' closed forms
-  (:func:`consistid.simulate.effects.effect_torque`, :func:`~consistid.simulate.effects.sensor_torque`):
+  (:func:`consistid.simulate.effects.effect_torque`,
+  :func:`~consistid.simulate.effects.sensor_torque`):
   it falls back to that floor when the closed forms are right. Delay and elasticity have no
   closed form in the link states, so they stay in this column.
 """

@@ -19,7 +19,8 @@ nonlinear least squares problems whose variables separate", SIAM J. Numer. Anal.
 over two angles ``a`` (rad) about two axes ``u, v`` orthogonal to ``g₀`` (:func:`tilt_axes`:
 the base ``x`` and ``y`` axes when ``g₀`` points along ``−z``: roll, then pitch), ``|g|``
 fixed. The data enter once: per joint, the R factor of
-``[Y(0) | Y_g,x | Y_g,y | Y_g,z | τ]`` (the compression of :mod:`consistid.identification.compression`), so every
+``[Y(0) | Y_g,x | Y_g,y | Y_g,z | τ]`` (the compression of
+:mod:`consistid.identification.compression`), so every
 evaluation of the profile costs a small dense solve whatever the number of samples.
 
 The least squares frees every parameter combination the *level* model identifies (its base
@@ -29,11 +30,14 @@ loads the first joint with their gravity torque, a sinusoid in ``q₁``. Left fr
 give the fit at any tilt, however small, a free once-per-revolution torque on that joint that
 the level fit lacks, so the profile would jump at zero and pull the estimate off a level base
 (a level simulated Panda: 4 σ in one of 20 runs; held at the URDF's, error/σ has an RMS of
-0.9 over the 20). Its covariance is the sandwich ``G⁻¹ (Σ_j τ_j v_j G_j) G⁻¹`` with ``G_j = J_jᵀJ_j``
+0.9 over the 20). Its covariance is the sandwich ``G⁻¹ (Σ_j τ_j v_j G_j) G⁻¹`` with ``G_j =
+J_jᵀJ_j``
 joint ``j``'s Gauss–Newton matrix (``J_j`` the profile residual's Jacobian in the angles, by
 central differences; ``G = Σ_j G_j`` is half the profile Hessian), ``v_j`` the joint's residual
-variance and ``τ_j`` its autocorrelation time (:func:`consistid.identification.statistics.coloured_covariance`,
-:func:`consistid.identification.statistics.autocorrelation_time`): filtered torque logs have correlated
+variance and ``τ_j`` its autocorrelation time
+(:func:`consistid.identification.statistics.coloured_covariance`,
+:func:`consistid.identification.statistics.autocorrelation_time`): filtered torque logs have
+correlated
 residuals, and counting their rows as independent would make the ± far too small. ``τ_j`` is
 estimated from ``N`` samples and biased low when the correlation is long (``N/τ_j`` of the order
 of the parameters): the ± is then optimistic (``benchmarks/mounting.py`` measures it).

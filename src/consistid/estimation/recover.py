@@ -1,7 +1,8 @@
 r"""Base coefficients → a full, physically consistent set of standard parameters.
 
 Given base coefficients ``β̂`` (from our least squares, a manufacturer or a paper) and the map
-``β = B π`` of :mod:`consistid.identification.base`, find standard parameters ``π`` (10 per body, then the
+``β = B π`` of :mod:`consistid.identification.base`, find standard parameters ``π`` (10 per body,
+then the
 friction/armature entries of the regressor spec) such that every body's pseudo-inertia is
 positive semidefinite (Wensing, Kim, Slotine 2017, RA-L 3(1), doi:10.1109/LRA.2017.2729659):
 
@@ -71,8 +72,8 @@ from ..identification.result import IdentificationResult, StandardParameterSet
 from ..identification.solver import SolverReport
 
 MODES = ("exact", "nearest")
-#: Unlike the SDP's (:data:`consistid.identification.sdp.PRIORS`), no ``None``: the coefficients leave the null
-#: space of the base map free, and only a prior picks a point there.
+#: Unlike the SDP's (:data:`consistid.identification.sdp.PRIORS`), no ``None``: the coefficients
+#: leave the null space of the base map free, and only a prior picks a point there.
 PRIORS = ("logdet", "euclidean")
 #: Without a covariance, coefficient ``i`` gets the pseudo standard deviation
 #: ``RELATIVE_STD·|β̂_i| + ABSOLUTE_STD`` (SI units of the coefficient).
@@ -366,7 +367,8 @@ def _weights(beta: np.ndarray, covariance: np.ndarray | None
     deviations.
 
     Coefficients with infinite variance (an SDP's covariance marks the directions its data do
-    not excite so, :func:`consistid.identification.sdp.identify_sdp`) get the pseudo standard deviation and no
+    not excite so, :func:`consistid.identification.sdp.identify_sdp`) get the pseudo standard
+    deviation and no
     correlation; ``undetermined`` flags them.
     """
     b = beta.size
@@ -600,7 +602,8 @@ def recover_standard(model: RobotModel, base_params: np.ndarray | Identification
         ``0`` allows bodies on the boundary of consistency.
     slack : nearest mode: extra weighted squared distance (χ² units with a covariance) allowed
         to the prior stage beyond ``d*(1 + 1e-3)``.
-    joint_constraints : keep the :data:`~consistid.identification.regressor.NONNEGATIVE_TERMS` entries
+    joint_constraints : keep the :data:`~consistid.identification.regressor.NONNEGATIVE_TERMS`
+        entries
         (Coulomb, viscous, armature) ``≥ 0`` (solver round-off
         down to ``−NONNEGATIVE_ROUNDOFF`` is set to 0; counted in ``details``).
     solver, solver_options : cvxpy solver (default Clarabel) and its options.

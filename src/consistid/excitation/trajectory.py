@@ -256,8 +256,8 @@ class FourierPolynomial(Parameterisation):
 
     @property
     def coefficient_names(self) -> list[str]:
-        names = [f"a{l}" for l in range(1, self.harmonics + 1)]
-        names += [f"b{l}" for l in range(1, self.harmonics + 1)]
+        names = [f"a{k}" for k in range(1, self.harmonics + 1)]
+        names += [f"b{k}" for k in range(1, self.harmonics + 1)]
         return names + (["q0"] if self.boundary.free_position else [])
 
     def basis(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

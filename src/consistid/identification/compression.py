@@ -165,7 +165,8 @@ def joint_sigma(sum_squares: np.ndarray, n_samples: int, n_parameters: int,
     """Per-joint noise standard deviation from residual sums of squares (Gautier 1997):
     ``σ_j = sqrt(‖ρ_j‖² / (N − τ_j b/nv))``, the ``b`` fitted parameters' degrees of freedom
     shared evenly among the ``nv`` joints (the denominator is kept ≥ 1). ``τ_j`` (default 1) is
-    the residual's autocorrelation time (:func:`consistid.identification.statistics.autocorrelation_time`):
+    the residual's autocorrelation time
+    (:func:`consistid.identification.statistics.autocorrelation_time`):
     with errors correlated over ``τ_j`` samples a fit absorbs ``≈ τ_j`` times more of their
     variance per parameter (``E‖ρ_j‖² = tr((1 − P) Σ_j) ≈ σ_j² (N − τ_j b/nv)`` for columns that
     vary slowly against the correlation). Not floored: see :func:`floor_sigma`."""

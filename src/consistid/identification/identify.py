@@ -8,22 +8,26 @@ Least squares on the base parameters (Gautier & Khalil 1990; Khalil & Dombre ch.
 with ``Σ = σ² 1`` for OLS (``σ² = ‖ρ‖² / (N·nv − b)``) and, for WLS, ``Σ = diag(σ_j²)`` per joint
 estimated from the OLS residuals (``σ_j² = ‖ρ_j‖² / (N − b/nv)``), Gautier 1997, "Dynamic
 identification of robots with power model", ICRA, doi:10.1109/ROBOT.1997.614364; ``σ_j`` is
-floored by :func:`consistid.identification.compression.floor_sigma` so that noise-free data keep finite weights.
-Everything is solved on the compressed problem (:mod:`consistid.identification.compression`), never on the
+floored by :func:`consistid.identification.compression.floor_sigma` so that noise-free data keep
+finite weights.
+Everything is solved on the compressed problem (:mod:`consistid.identification.compression`), never
+on the
 N-row regressor.
 
 Both covariances count the ``N`` rows of each joint as independent (``covariance="iid"``).
 Filtered torque logs have residuals correlated over tens of samples, which makes them far too
 small; with ``covariance="coloured"`` (the default, ``"auto"``, unless ``loss="huber"``) each
 joint's rows count as ``N / τ_j`` independent ones, ``τ_j`` the
-integrated autocorrelation time of its residual (:func:`consistid.identification.statistics.autocorrelation_time`,
+integrated autocorrelation time of its residual
+(:func:`consistid.identification.statistics.autocorrelation_time`,
 one extra pass over the data), through the sandwich
 :func:`consistid.identification.statistics.coloured_covariance`
 
 .. math::  \operatorname{cov}(\hat\beta) = C \Big(\sum_j τ_j w_j^2 v_j R_{jb}^\top R_{jb}\Big) C,
 
 ``C`` the covariance above, ``w_j = 1/σ_j²`` the weights it was computed with, ``v_j`` joint
-``j``'s own residual variance (:func:`consistid.identification.compression.joint_sigma` with ``τ_j``: OLS
+``j``'s own residual variance (:func:`consistid.identification.compression.joint_sigma` with
+``τ_j``: OLS
 weighs the joints alike whatever their noise) and ``R_{jb}`` joint ``j``'s R factor restricted
 to the base columns (``Y_{jb}^\top Y_{jb} = R_{jb}^\top R_{jb}``).
 The estimate itself is unchanged. On white noise ``τ_j ≈ 1`` and the two agree.
@@ -172,7 +176,8 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
         "offset")``, or ``{joint: law}`` (:mod:`consistid.friction.fit`, variable projection:
         returns a :class:`~consistid.friction.fit.NonlinearFrictionResult`; in-memory data only).
     armature : rotor-inertia columns (``True`` for all joints, or a list of joints).
-    constraints : consistency level(s) of the bodies (:func:`consistid.identification.sdp.identify_sdp`).
+    constraints : consistency level(s) of the bodies
+        (:func:`consistid.identification.sdp.identify_sdp`).
         ``"auto"`` (default): ``"pseudo-inertia"`` for the SDP, none for OLS/WLS, which also
         accept an explicit ``"none"`` and refuse any level.
     prior : ``"logdet"``, ``"euclidean"`` or ``None``/``"none"`` (no prior). ``"auto"``
@@ -186,7 +191,8 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
         does not cover, and for a stream that can be read only once (a generator: the sandwich
         needs a second reading). ``details["covariance"]`` names the choice; with ``"coloured"``,
         ``details["autocorrelation_time"]`` gives ``τ_j`` (samples, per joint).
-    **options : keyword options of :func:`consistid.identification.sdp.identify_sdp`, for ``method="sdp"`` only.
+    **options : keyword options of :func:`consistid.identification.sdp.identify_sdp`, for
+        ``method="sdp"`` only.
         Options that only the SDP uses are refused for OLS/WLS, never silently ignored.
 
     Returns

@@ -19,7 +19,7 @@ import numpy as np
 
 from .constraints import BodyScaling, inertia_matrix
 from .constraints import pseudo_inertia as pseudo_inertia_expression
-from ..errors import InconsistentParametersError, OptionError, check_number
+from ..errors import InconsistentParametersError, check_number
 from ..robot.inertia import inertia_about_origin, pseudo_inertia_map
 from ..robot.inertia import pseudo_inertia as pseudo_inertia_numeric
 

@@ -33,7 +33,8 @@ Columns, in this order:
     arm whose vertical first axis meets it), the link's own gravity torque is already
     ``a sin q_j + b cos q_j`` (D. Ma, J. M. Hollerbach, Y. Xu, "Gravity based autonomous
     calibration for robot manipulators", IEEE ICRA 1994): there the two columns are dependent on
-    that link's first mass moments, and the base parameters (:mod:`consistid.identification.base`) regroup
+    that link's first mass moments, and the base parameters (:mod:`consistid.identification.base`)
+    regroup
     them; torques cannot tell the two apart.
 ``armature``
     one column per enabled joint, names ``"<joint>.Ia"``.

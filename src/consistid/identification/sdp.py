@@ -8,7 +8,8 @@ Park 2019, "Geometric robot dynamic identification: a convex programming approac
 
 .. math::
 
-    \min_\theta \; \|\Sigma^{-1/2}(Y\theta - \tau)\|^2 + \gamma \sum_i d(J_i(\theta) \,\|\, J_i(\pi_0))
+    \min_\theta \; \|\Sigma^{-1/2}(Y\theta - \tau)\|^2
+    + \gamma \sum_i d(J_i(\theta) \,\|\, J_i(\pi_0))
     \quad\text{s.t.}\quad J_i(\theta) \succeq \epsilon\, J_{\text{ref},i}
     \;(\text{or body } i\text{'s level}),
     \quad f_c, f_v, I_a \ge 0,
@@ -19,13 +20,16 @@ Park 2019, "Geometric robot dynamic identification: a convex programming approac
   ``loss="huber"``, replaced by Huber weights per sample (Huber 1964, doi:10.1214/aoms/1177703732;
   IRLS of Holland & Welsch 1977, doi:10.1080/03610927708827533) with a MAD noise scale.
 * **Compression**: the data term equals ``‖R θ − z‖² + ρ²`` with ``(R, z)`` the R factor of the
-  weighted ``[Y | τ]`` (:mod:`consistid.identification.compression`), so the program has ``p`` unknowns and a
+  weighted ``[Y | τ]`` (:mod:`consistid.identification.compression`), so the program has ``p``
+  unknowns and a
   ``p × p`` quadratic whatever the number of samples.
 * **Priors**: ``"logdet"``: the Bregman divergence
   ``d(J‖J₀) = −log det J + log det J₀ + tr(J₀⁻¹J) − 4`` (Lee et al. 2019, eq. 24);
   ``"euclidean"``: ``‖W(π − π₀)‖²`` with ``W`` by default the log-det metric at the prior
-  (:func:`consistid.identification.priors.logdet_metric`), so both priors have the same curvature at ``π₀``;
-  ``None``: constraints only. Optional hard :class:`~consistid.identification.priors.Neighbourhood` bounds.
+  (:func:`consistid.identification.priors.logdet_metric`), so both priors have the same curvature
+  at ``π₀``;
+  ``None``: constraints only. Optional hard :class:`~consistid.identification.priors.Neighbourhood`
+  bounds.
 * **Default prior weight** (:func:`default_prior_weight`): ``γ = 2 / r²`` with ``r`` the relative
   uncertainty of the CAD bodies (default :data:`DEFAULT_PRIOR_UNCERTAINTY`). Near the prior,
   ``γ d ≈ ‖Ĵ − 1‖²_F / r²`` (``Ĵ = L⁻¹JL⁻ᵀ``, ``J₀ = LLᵀ``): a Gaussian prior of standard deviation
@@ -36,12 +40,14 @@ Park 2019, "Geometric robot dynamic identification: a convex programming approac
   prior's Hessian at ``π₀``; ``Φ`` from one QR factorisation, in per-body prior-normalised
   coordinates) and ``θ_c`` the minimiser of that quadratic model: the objective's Hessian is
   ``≈ 1`` in ``w`` for every prior weight, and every body's LMI is imposed on its prior-normalised
-  pseudo-inertia (:class:`~consistid.identification.constraints.BodyScaling`). Clarabel's own equilibration is
+  pseudo-inertia (:class:`~consistid.identification.constraints.BodyScaling`). Clarabel's own
+  equilibration is
   then redundant and is switched off. A solve that still ends ``optimal_inaccurate`` is rescaled
   once around its answer and repeated (``details["refinements"]``). Changes of variables only:
   the optimum is unchanged. Per-joint ``σ`` (also the Huber scale) is floored at
   :data:`~consistid.identification.compression.SIGMA_FLOOR` times the joint's torque RMS
-  (:func:`~consistid.identification.compression.floor_sigma`), so noise-free data do not give infinite weights.
+  (:func:`~consistid.identification.compression.floor_sigma`), so noise-free data do not give
+  infinite weights.
 * **Compiled once**: with Clarabel and ``scale=True`` the program's structure (constraints, and
   the prior at unit weight, in prior-normalised variables) is canonicalised by cvxpy once per
   model and options and cached; every pass, re-weighting, refinement and later call on the same
@@ -82,8 +88,9 @@ from .result import IdentificationResult
 PRIOR_WEIGHT_SOLVED = (1e-6, 1e2)
 #: Relative uncertainty ``r`` of CAD pseudo-inertias assumed by :func:`default_prior_weight`.
 DEFAULT_PRIOR_UNCERTAINTY = 0.3
-#: ``None``: constraints only. (Recovery from base coefficients, :data:`consistid.estimation.recover.PRIORS`,
-#: has no ``None``: there only a prior picks a point in the null space of the base map.)
+#: ``None``: constraints only. (Recovery from base coefficients,
+#: :data:`consistid.estimation.recover.PRIORS`, has no ``None``: there only a prior picks a point
+#: in the null space of the base map.)
 PRIORS = (None, "euclidean", "logdet")
 LOSSES = ("squared", "huber")
 #: A constraint counts as active when its prior-normalised slack is below this …
@@ -167,7 +174,8 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
     prior_weights : Euclidean ``W`` on the inertial parameters, (10·nb,) diagonal or
         (10·nb, 10·nb) full; default the log-det metric at the prior (``prior="euclidean"``
         only).
-    neighbourhood : hard bounds around each prior body (:class:`~consistid.identification.priors.Neighbourhood`).
+    neighbourhood : hard bounds around each prior body
+        (:class:`~consistid.identification.priors.Neighbourhood`).
     ellipsoids : ``{body: Ellipsoid}``, for (and only for) the bodies at level ``"ellipsoid"``;
         or ``"collision"``: the minimum-volume ellipsoids of the URDF's collision geometry
         (:func:`consistid.robot.shapes.collision_ellipsoids`) for the bodies at level
@@ -182,7 +190,8 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
         the 6×6 matrix, for ``"mass-inertia"``), ``J_ref`` the prior body (or its realisable
         stand-in when the prior is not realisable): a margin relative to the prior in every
         direction (:func:`consistid.identification.constraints.relative_bound`), the definition
-        :func:`consistid.estimation.recover.recover_standard` uses, so that answers are strictly realisable
+        :func:`consistid.estimation.recover.recover_standard` uses, so that answers are strictly
+        realisable
         despite the solver's tolerance. ``details["relative_margins"]`` reports it.
     sigma : (nv,) per-joint torque-noise standard deviation; default from an OLS pass.
     reweight : re-weighting passes after the first solve: σ re-estimated from the SDP residuals
@@ -796,7 +805,8 @@ def _rewarn(caught: list[warnings.WarningMessage]) -> None:
 
 def _solve(program: _Program, model: RobotModel, prior_vec: np.ndarray, solver: str,
            options: dict[str, Any] | None, scale: bool) -> SolverReport:
-    """:func:`consistid.identification.solver.solve` (status contract), with a diagnosis added to its errors.
+    """:func:`consistid.identification.solver.solve` (status contract), with a diagnosis added to
+    its errors.
 
     An infeasibility claim is checked at the prior: if the prior satisfies every constraint the
     claim is numerical (typically: no prior, and parameters the data leave free are unbounded),

@@ -6,7 +6,8 @@
 anything else (or no values) → :class:`IdentificationError`. Never a silent ``None`` (the cvxpy
 behaviour the style guide warns about). An unknown or uninstalled solver name is an
 :class:`~consistid.errors.OptionError` (:func:`check_solver`), never a substitution. Used by
-:mod:`consistid.identification.sdp`, :mod:`consistid.estimation.recover` and :mod:`consistid.estimation.payload`.
+:mod:`consistid.identification.sdp`, :mod:`consistid.estimation.recover` and
+:mod:`consistid.estimation.payload`.
 """
 
 from __future__ import annotations

@@ -2,7 +2,10 @@ r"""The standard inertial parameters of a rigid body and their physical consiste
 
 Layout (Pinocchio's ``Inertia.toDynamicParameters`` order), inertia about the body-frame origin:
 
-.. math:: \pi = [m,\; m c_x,\; m c_y,\; m c_z,\; I_{xx},\; I_{xy},\; I_{yy},\; I_{xz},\; I_{yz},\; I_{zz}]
+.. math::
+
+    \pi = [m,\; m c_x,\; m c_y,\; m c_z,\;
+           I_{xx},\; I_{xy},\; I_{yy},\; I_{xz},\; I_{yz},\; I_{zz}]
 
 Equivalent representations, converted by Pinocchio where it can:
 
@@ -87,8 +90,9 @@ def from_mass_com_inertia(m: float, c: Sequence[float], inertia_com: np.ndarray)
             f"c must have shape (3,) and inertia_com (3, 3), got {c.shape} and "
             f"{inertia_com.shape}")
     if not (np.isfinite(float(m)) and np.all(np.isfinite(c)) and np.all(np.isfinite(inertia_com))):
-        raise InconsistentParametersError(f"mass, centre of mass and inertia must be finite, got "
-                                          f"m = {m}, c = {c.tolist()}, I_c = {inertia_com.tolist()}")
+        raise InconsistentParametersError(
+            f"mass, centre of mass and inertia must be finite, got m = {m}, c = {c.tolist()}, "
+            f"I_c = {inertia_com.tolist()}")
     cx = pin.skew(c)
     i = 0.5 * (inertia_com + inertia_com.T) - float(m) * cx @ cx
     return np.array([m, *(float(m) * c), i[0, 0], i[0, 1], i[1, 1], i[0, 2], i[1, 2], i[2, 2]])

@@ -5,7 +5,8 @@ loaded). It keeps Pinocchio's description/workspace split: the model is immutabl
 algorithm creates its own ``pinocchio.Data``.
 
 Joint coordinates in consistid are always *angles* (one per velocity DoF). Pinocchio represents an
-unbounded revolute joint (URDF ``continuous``) by ``(cos θ, sin θ)``; :meth:`RobotModel.configuration`
+unbounded revolute joint (URDF ``continuous``) by ``(cos θ, sin θ)``;
+:meth:`RobotModel.configuration`
 converts, so datasets stay ``(N, nv)`` for every robot.
 """
 
@@ -152,7 +153,8 @@ class RobotModel:
 
         Parameters
         ----------
-        path : path to the URDF file. Meshes are not loaded, so ``package://`` URIs need not resolve.
+        path : path to the URDF file. Meshes are not loaded, so ``package://`` URIs need not
+            resolve.
         locked_joints : joints merged into their parent link (e.g. a gripper's fingers).
         locked_configuration : angle (rad) or position (m) at which to lock each joint, default 0.
         name : label for reports; default the file stem.
@@ -243,7 +245,8 @@ class RobotModel:
     def with_gravity(self, gravity: Sequence[float]) -> "RobotModel":
         """A copy whose gravity vector (base frame, m/s²) is ``gravity``; inertias unchanged.
 
-        E.g. the gravity of a tilted mounting, :func:`consistid.estimation.mounting.estimate_mounting`.
+        E.g. the gravity of a tilted mounting,
+        :func:`consistid.estimation.mounting.estimate_mounting`.
         """
         g = _check_gravity(gravity)
         model = self.pin_model.copy()
@@ -270,7 +273,8 @@ class RobotModel:
     def to_urdf(self, path: str | Path, parameters: np.ndarray | None = None,
                 parameter_names: Sequence[str] | None = None, merged: str = "auto") -> Path:
         """Write the source URDF carrying this model's inertias (or ``parameters``, with optional
-        friction entries named by ``parameter_names``); see :func:`consistid.robot.export.write_urdf`.
+        friction entries named by ``parameter_names``); see
+        :func:`consistid.robot.export.write_urdf`.
 
         Refuses (``InconsistentParametersError``) to write a physically inconsistent body.
         """

@@ -1,7 +1,8 @@
 r"""Bounding shapes of a robot's bodies: minimum-volume ellipsoids around the URDF's collision
 geometry, in the frames of Pinocchio's dynamic parameters.
 
-A body of a :class:`~consistid.robot.model.RobotModel` is the link that moves with a joint plus every
+A body of a :class:`~consistid.robot.model.RobotModel` is the link that moves with a joint plus
+every
 link merged into it (by fixed joints, and by the joints locked when the model was built, e.g. the
 Panda's hand and fingers in its last body). Its collision points are those of the merged links'
 ``<collision>`` elements mapped into the body (joint) frame,

@@ -4,7 +4,8 @@
 Fourier excitation and adds Gaussian noise: the ideal experiment, for checking estimators against
 their assumptions.
 
-:func:`record` runs the MuJoCo "real robot" (:mod:`consistid.simulate.mujoco_robot`), whose data do not
+:func:`record` runs the MuJoCo "real robot" (:mod:`consistid.simulate.mujoco_robot`), whose data do
+not
 come from our equations, through a trajectory under a tracking controller, with the physical and
 sensor effects of :class:`~consistid.simulate.effects.Effects` switched on or off, and returns a
 :class:`SimulatedRecording`: the log ``(t, q, tau)`` a real robot would give, plus the truth for
