@@ -45,6 +45,7 @@ _EXPORTS: dict[str, str] = {
     "IdentificationResult": "identification.result",
     "Neighbourhood": "identification.priors",
     "default_prior_weight": "identification.sdp",
+    "SDPOptions": "identification.sdp",
     "recover_standard": "estimation.recover",
     "RecoveryResult": "estimation.recover",
     "estimate_payload": "estimation.payload",
@@ -108,7 +109,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerl
     from .identification.priors import Neighbourhood
     from .identification.regressor import RegressorSpec, regressor
     from .identification.result import IdentificationResult
-    from .identification.sdp import default_prior_weight
+    from .identification.sdp import SDPOptions, default_prior_weight
     from .robot.inertia import InertialParameters, is_physically_consistent
     from .robot.model import RobotModel
     from .robot.shapes import Ellipsoid

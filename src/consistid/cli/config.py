@@ -312,16 +312,15 @@ def config_recordings(config: RunConfig, model: RobotModel | None = None
 
 
 def identify_keys() -> tuple[str, ...]:
-    """The keys of ``[identify]``: the keyword arguments of :func:`consistid.identify` and of the
-    SDP (:func:`consistid.identification.sdp.identify_sdp`), read from their signatures."""
+    """The keys of ``[identify]``: the keyword arguments of :func:`consistid.identify` and the
+    fields of :class:`~consistid.identification.sdp.SDPOptions` (one schema for the API and the
+    TOML file)."""
     from ..identification.identify import identify
-    from ..identification.sdp import identify_sdp
+    from ..identification.sdp import SDPOptions
 
     own = [n for n, p in inspect.signature(identify).parameters.items()
            if n not in ("model", "dataset") and p.kind is not p.VAR_KEYWORD]
-    sdp = [n for n, p in inspect.signature(identify_sdp).parameters.items()
-           if p.kind is p.KEYWORD_ONLY and n != "dataset"]
-    return tuple(own + sdp)
+    return tuple(own + [f.name for f in fields(SDPOptions) if f.name not in own])
 
 
 def config_identify(config: RunConfig) -> dict[str, Any]:

@@ -246,14 +246,18 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
     if method in ("ols", "wls"):
         result = least_squares(model, problem, base, spec, weighted=method == "wls")
     else:
-        from .sdp import identify_sdp
+        from .sdp import SDPOptions, identify_sdp
 
-        result = identify_sdp(model, problem, base, spec,
-                              constraints="pseudo-inertia" if constraints == "auto"
-                              else constraints,
-                              prior="logdet" if prior == "auto" else prior,
-                              dataset=dataset if isinstance(dataset, Dataset) else None,
-                              **options)
+        given = options.pop("options", None)            # an SDPOptions value, or keywords
+        if given is not None and (options or constraints != "auto" or prior != "auto"):
+            raise OptionError("give the SDP options either as options=SDPOptions(...) or as "
+                              "keywords (constraints=, prior=, ...), not both")
+        if given is None:
+            given = SDPOptions.from_keywords(
+                constraints="pseudo-inertia" if constraints == "auto" else constraints,
+                prior="logdet" if prior == "auto" else prior, **options)
+        result = identify_sdp(model, problem, base, spec, given,
+                              dataset=dataset if isinstance(dataset, Dataset) else None)
     return with_covariance(result, problem, dataset, covariance)
 
 

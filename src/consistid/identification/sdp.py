@@ -60,7 +60,7 @@ from __future__ import annotations
 
 import time
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any, Mapping, Sequence
 
 import cvxpy as cp
@@ -137,23 +137,99 @@ class _Setup:
     total_mass: tuple[float | None, float | None] | None
 
 
+@dataclass(frozen=True)
+class SDPOptions:
+    """The options of the consistent SDP (:func:`identify_sdp`), validated on construction.
+
+    One value shared by the Python API (``ci.identify(model, data, method="sdp", **options)``
+    builds one from its keywords) and the TOML schema (the ``[identify]`` keys of the ``consistid``
+    command are its field names). The meaning of each field is in :func:`identify_sdp`'s
+    docstring. What needs the robot (body names in ``constraints``, ``com_boxes``,
+    ``mass_bounds``, the length of ``sigma``) is checked when the program is set up.
+
+    >>> SDPOptions(prior="euclidean", prior_weight=10.0).prior_weight
+    10.0
+    """
+
+    constraints: str | Mapping[str, str] = "pseudo-inertia"
+    prior: str | None = "logdet"
+    prior_weight: float | None = None
+    prior_uncertainty: float | None = None
+    prior_weights: np.ndarray | None = None
+    neighbourhood: priors.Neighbourhood | None = None
+    ellipsoids: Mapping[str, cons.Ellipsoid] | str | None = None
+    com_boxes: Mapping[str, tuple[Sequence[float], Sequence[float]]] | None = None
+    mass_bounds: Mapping[str, tuple[float | None, float | None]] | None = None
+    total_mass: tuple[float | None, float | None] | None = None
+    friction_nonnegative: bool = True
+    margin: float = 1e-6
+    sigma: Sequence[float] | None = None
+    reweight: int | None = None
+    loss: str = "squared"
+    huber_threshold: float | None = None
+    solver: str = DEFAULT_SOLVER
+    solver_options: Mapping[str, Any] | None = None
+    scale: bool = True
+
+    def __post_init__(self) -> None:
+        check_option("prior", self.prior, PRIORS)
+        check_option("loss", self.loss, LOSSES)
+        object.__setattr__(self, "solver", check_solver(self.solver))
+        for name in ("scale", "friction_nonnegative"):
+            if not isinstance(getattr(self, name), (bool, np.bool_)):
+                raise OptionError(f"{name} must be True or False, got {getattr(self, name)!r}")
+        if self.solver_options is not None and not isinstance(self.solver_options, Mapping):
+            raise OptionError(f"solver_options must be a mapping of solver settings (e.g. "
+                              f"{{'max_iter': 200}}), got {self.solver_options!r}")
+        _check_combinations(self.prior, self.prior_weight, self.prior_uncertainty,
+                            self.prior_weights, self.loss, self.huber_threshold, self.reweight)
+        if self.reweight is not None:
+            check_number("reweight", self.reweight, 0, integer=True)
+        margin = check_number("margin", self.margin, 0)
+        if margin >= 1:
+            raise OptionError(f"margin = {margin!r}: the LMIs ask J ⪰ margin·J_ref with J_ref "
+                              "the prior body, so margin ≥ 1 excludes the prior itself; use a "
+                              "small relative margin such as 1e-6 (the default)")
+        if self.huber_threshold is not None:
+            check_number("huber_threshold", self.huber_threshold, 0, strict=True)
+        if self.prior_uncertainty is not None:
+            check_number("prior_uncertainty", self.prior_uncertainty, 0, strict=True)
+        if self.prior is not None and self.prior_weight is not None:
+            check_number("prior_weight", self.prior_weight, 0)
+
+    @classmethod
+    def from_keywords(cls, **keywords: Any) -> "SDPOptions":
+        """The options from keywords, an unknown one an :class:`OptionError` naming the known
+        ones (the dataclass constructor would raise a bare ``TypeError``)."""
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(keywords) - known)
+        if unknown:
+            raise OptionError(f"unknown SDP option(s) {unknown}; the options are "
+                              f"{sorted(known)}")
+        return cls(**keywords)
+
+    @property
+    def passes(self) -> int:
+        """Re-weighting passes after the first solve (5 for Huber unless ``reweight`` says)."""
+        return (5 if self.loss == "huber" else 0) if self.reweight is None else int(self.reweight)
+
+    @property
+    def default_weight(self) -> float:
+        """``γ`` of :func:`default_prior_weight` at ``prior_uncertainty`` (or the default)."""
+        return default_prior_weight(DEFAULT_PRIOR_UNCERTAINTY if self.prior_uncertainty is None
+                                    else self.prior_uncertainty)
+
+    @property
+    def weight(self) -> float:
+        """The prior weight ``γ`` used: 0 without a prior, else ``prior_weight`` or the default."""
+        if self.prior is None:
+            return 0.0
+        return self.default_weight if self.prior_weight is None else float(self.prior_weight)
+
+
 def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParameters,
-                 spec: RegressorSpec, constraints: str | Mapping[str, str] = "pseudo-inertia",
-                 prior: str | None = "logdet", *,
-                 prior_weight: float | None = None,
-                 prior_uncertainty: float | None = None,
-                 prior_weights: np.ndarray | None = None,
-                 neighbourhood: priors.Neighbourhood | None = None,
-                 ellipsoids: Mapping[str, cons.Ellipsoid] | str | None = None,
-                 com_boxes: Mapping[str, tuple[Sequence[float], Sequence[float]]] | None = None,
-                 mass_bounds: Mapping[str, tuple[float | None, float | None]] | None = None,
-                 total_mass: tuple[float | None, float | None] | None = None,
-                 friction_nonnegative: bool = True, margin: float = 1e-6,
-                 sigma: Sequence[float] | None = None, reweight: int | None = None,
-                 loss: str = "squared", huber_threshold: float | None = None,
-                 dataset: Dataset | None = None, solver: str = DEFAULT_SOLVER,
-                 solver_options: dict[str, Any] | None = None,
-                 scale: bool = True) -> IdentificationResult:
+                 spec: RegressorSpec, options: SDPOptions | None = None, *,
+                 dataset: Dataset | None = None, **keywords: Any) -> IdentificationResult:
     r"""Physically consistent identification on a compressed problem (module docstring).
 
     Usually called through ``consistid.identify(model, data, method="sdp", ...)``.
@@ -162,6 +238,8 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
     ----------
     model, problem, base, spec : the robot, the compressed data (:func:`compression.compress`),
         its base parameters and regressor columns.
+    options : an :class:`SDPOptions`; or its fields given as keywords (``**keywords``), the
+        convenience ``ci.identify`` uses — not both.
     constraints : consistency level of every body, ``"none" | "mass-inertia" | "triangle" |
         "pseudo-inertia" | "ellipsoid"``, or a mapping ``{body: level}`` (unlisted bodies get
         ``"pseudo-inertia"``). ``"triangle"`` is imposed as the pseudo-inertia LMI, which for one
@@ -231,37 +309,24 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
         its constraints beyond tolerance.
     """
     start = time.perf_counter()
-    check_option("prior", prior, PRIORS)
-    check_option("loss", loss, LOSSES)
-    solver = check_solver(solver)
-    for name, value in (("scale", scale), ("friction_nonnegative", friction_nonnegative)):
-        if not isinstance(value, (bool, np.bool_)):
-            raise OptionError(f"{name} must be True or False, got {value!r}")
-    if solver_options is not None and not isinstance(solver_options, Mapping):
-        raise OptionError(f"solver_options must be a mapping of solver settings (e.g. "
-                          f"{{'max_iter': 200}}), got {solver_options!r}")
+    if options is not None and keywords:
+        raise OptionError(f"give the SDP options either as SDPOptions or as keywords, not both "
+                          f"(got options= and {sorted(keywords)})")
+    opts = options if options is not None else SDPOptions.from_keywords(**keywords)
+    (constraints, prior, prior_weights, neighbourhood, ellipsoids, com_boxes, mass_bounds,
+     total_mass, friction_nonnegative, margin, sigma, loss, solver, solver_options, scale) = (
+        opts.constraints, opts.prior, opts.prior_weights, opts.neighbourhood, opts.ellipsoids,
+        opts.com_boxes, opts.mass_bounds, opts.total_mass, opts.friction_nonnegative,
+        float(opts.margin), opts.sigma, opts.loss, opts.solver, opts.solver_options, opts.scale)
     nv, n = problem.nv, problem.n_samples
     if problem.n_columns != base.n_standard:
         raise OptionError(f"the compressed problem has {problem.n_columns} columns but the base "
                           f"parameters are of {base.n_standard} standard ones")
-    _check_combinations(prior, prior_weight, prior_uncertainty, prior_weights, loss,
-                        huber_threshold, reweight)
     if loss == "huber" and dataset is None:
         raise OptionError("loss='huber' re-weights individual samples: pass dataset=")
-    passes = ((5 if loss == "huber" else 0) if reweight is None
-              else check_number("reweight", reweight, 0, integer=True))
-    margin = check_number("margin", margin, 0)
-    if margin >= 1:
-        raise OptionError(f"margin = {margin!r}: the LMIs ask J ⪰ margin·J_ref with J_ref the "
-                          "prior body, so margin ≥ 1 excludes the prior itself; use a small "
-                          "relative margin such as 1e-6 (the default)")
-    huber_c = (HUBER_DEFAULT if huber_threshold is None
-               else check_number("huber_threshold", huber_threshold, 0, strict=True))
-    gamma_default = default_prior_weight(
-        DEFAULT_PRIOR_UNCERTAINTY if prior_uncertainty is None
-        else check_number("prior_uncertainty", prior_uncertainty, 0, strict=True))
-    gamma = 0.0 if prior is None else (gamma_default if prior_weight is None
-                                       else check_number("prior_weight", prior_weight, 0))
+    passes = opts.passes
+    huber_c = HUBER_DEFAULT if opts.huber_threshold is None else float(opts.huber_threshold)
+    gamma_default, gamma = opts.default_weight, opts.weight
     _check_bound_options(model, constraints, com_boxes, mass_bounds, total_mass)
     constraints, ellipsoids = _collision_levels(model, constraints, ellipsoids)
     prior_vec = prior_vector(model, spec)
@@ -338,7 +403,8 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
                       "and no prior: poorly excited directions are decided by the constraints "
                       "alone; consider prior='logdet'", PoorExcitationWarning, stacklevel=3)
     chi2 = float(np.sum(work.sum_squares(theta) / sig ** 2))
-    details = _details(model, theta, setup, prior_vec, gamma_default, prior_weight, active, chi2)
+    details = _details(model, theta, setup, prior_vec, gamma_default, opts.prior_weight, active,
+                       chi2)
     size = program.problem.size_metrics
     details.update(program_size={"variables": int(size.num_scalar_variables),
                                  "constraints": len(program.problem.constraints),
