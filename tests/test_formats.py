@@ -344,3 +344,26 @@ def test_load_recording_passes_progress_to_the_bag_reader(tmp_path, log):
     lines = []
     load_recording(path, progress=lines.append)
     assert lines and all("bag" in line for line in lines)
+
+
+def test_units_in_column_headers_are_read_or_refused(tmp_path):
+    """``q_<joint> [deg]`` is converted (and said so), ``[rad]``/``[Nm]`` read as they are, and a
+    unit consistid does not know is refused by column — never silently taken as SI."""
+    rng = np.random.default_rng(0)
+    t = np.arange(400) / 200.0
+    q = 0.5 * np.sin(np.outer(t, [1.0, 1.7])) + rng.normal(0, 1e-4, (400, 2))
+    tau = np.cos(np.outer(t, [1.3, 0.7]))
+
+    def write(name, q_unit, values):
+        path = tmp_path / name
+        header = ["t", f"q_a [{q_unit}]", f"q_b [{q_unit}]", "tau_a [Nm]", "tau_b [N·m]"]
+        np.savetxt(path, np.column_stack([t, values, tau]), delimiter=",",
+                   header=",".join(header), comments="", encoding="utf-8")
+        return path
+
+    rad = load_recording(write("rad.csv", "rad", q))
+    deg = load_recording(write("deg.csv", "deg", np.degrees(q)))
+    np.testing.assert_allclose(deg.dataset.q, rad.dataset.q, atol=1e-12)
+    assert "converted to radians" in deg.summary()
+    with pytest.raises(DatasetError, match=r"column 'q_a \[grad\]'.*unit \[grad\]"):
+        load_recording(write("grad.csv", "grad", q))

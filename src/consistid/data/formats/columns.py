@@ -306,6 +306,40 @@ def map_columns(names: Sequence[str], source: str, *, joints: Sequence[str] | No
     return ColumnMap(time, fields, names_out, unit, tuple(dropped), ignored)
 
 
+#: SI spellings of each field's unit in a ``name [unit]`` header: read as they are.
+SI_UNITS: dict[str, tuple[str, ...]] = {
+    "q": ("rad", "m"), "dq": ("rad/s", "m/s"), "ddq": ("rad/s^2", "rad/s2", "rad/s²", "m/s^2",
+                                                     "m/s2", "m/s²"),
+    "tau": ("nm", "n.m", "n*m", "n m", "n·m", "newton-metre", "newton-meter", "n")}
+#: Degree spellings of each angular field's unit, converted by π/180 (and said so).
+DEGREE_UNITS: dict[str, tuple[str, ...]] = {
+    "q": ("deg", "degree", "degrees", "°"), "dq": ("deg/s", "°/s", "degree/s"),
+    "ddq": ("deg/s^2", "deg/s2", "deg/s²", "°/s^2", "°/s²")}
+
+
+def column_unit(name: str) -> str | None:
+    """The unit written in brackets at the end of a column name (``"q1 [deg]"`` → ``"deg"``),
+    lower case without spaces at the ends, or ``None``."""
+    m = re.search(r"[\[(]([^\])]*)[\])]\s*$", str(name).strip())
+    return m.group(1).strip().lower() if m and _BRACKET_UNIT.search(str(name).strip()) else None
+
+
+def unit_factor(field_name: str, column: str, source: str) -> tuple[float, str | None]:
+    """``(factor to SI, note)`` for a per-joint column whose header names a unit: 1 for SI,
+    π/180 for degrees of an angle (noted), :class:`DatasetError` for any other unit, which
+    consistid will not guess (convert the column, or rename it without the unit)."""
+    unit = column_unit(column)
+    if unit is None or unit in SI_UNITS[field_name]:
+        return 1.0, None
+    if unit in DEGREE_UNITS.get(field_name, ()):
+        return float(np.pi / 180.0), f"{column!r} in {unit}: converted to radians"
+    raise DatasetError(f"{source}, column {column!r}: unit [{unit}] is not one consistid "
+                       f"reads for {field_name} (SI: {', '.join(SI_UNITS[field_name])}"
+                       + (f"; degrees: {', '.join(DEGREE_UNITS[field_name])}"
+                          if field_name in DEGREE_UNITS else "")
+                       + "); convert the column to SI units or name its unit")
+
+
 def log_from_columns(get, cmap: ColumnMap, source: str, n_rows: int,
                      rows: np.ndarray | None = None, extra_notes: Sequence[str] = ()) -> Log:
     """A :class:`Log` from a column getter ``get(name) -> (N,) array`` and a column map;
@@ -337,8 +371,12 @@ def log_from_columns(get, cmap: ColumnMap, source: str, n_rows: int,
         return a
 
     t = column(cmap.time)
-    fields = {f: np.column_stack([column(c) for c in cols]) for f, cols in cmap.fields.items()}
+    fields, unit_notes = {}, []
+    for f, cols in cmap.fields.items():
+        factors = [unit_factor(f, c, source) for c in cols]
+        unit_notes += [note for _, note in factors if note]
+        fields[f] = np.column_stack([column(c) * k for c, (k, _) in zip(cols, factors)])
     if t.size != n_rows or t.size == 0:
         raise DatasetError(f"{source}: no data rows")
-    notes = (cmap.describe(source), *extra_notes)
+    notes = (cmap.describe(source), *unit_notes, *extra_notes)
     return Log(t, fields, cmap.joint_names, source, notes, cmap.time_unit, rows)
