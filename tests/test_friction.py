@@ -305,7 +305,7 @@ def test_linear_laws_through_the_projection_reproduce_identify(panda, method):
                                                                 np.full(7, -0.05)]))
     ref = ci.identify(panda, run.dataset, method=method, covariance="iid")
     mine = identify_nonlinear(panda, run.dataset, method, {j: "coulomb" for j in range(7)},
-                              covariance="iid")
+                              covariance="iid", min_speed=0.0)        # every row, as identify
     np.testing.assert_allclose(mine.base_parameters, ref.base_parameters, rtol=1e-5,
                                atol=1e-6 * np.max(np.abs(ref.base_parameters)))
     np.testing.assert_allclose(mine.predict(run.dataset), ref.predict(run.dataset), atol=1e-6)
@@ -366,3 +366,13 @@ def test_projection_is_least_squares_and_its_gradient_is_exact(planar_2r, seed):
         down[i] -= h
         fd = (0.5 * np.sum(prob.fun(up) ** 2) - 0.5 * np.sum(prob.fun(down) ** 2)) / (2 * h)
         assert grad[i] == pytest.approx(fd, rel=1e-4, abs=1e-6 * np.sum(r ** 2))
+
+
+def test_standstill_rows_are_left_out_by_default(panda):
+    """At standstill stiction holds a joint with any torque up to break-away, which no law of q̇
+    predicts: the nonlinear fits leave |q̇| < 0.02 rad/s out unless told otherwise."""
+    run = ci.simulate.excitation_run(panda, duration=4.0, rate=100.0, torque_noise=0.05, seed=8)
+    res = identify_nonlinear(panda, run.dataset, "ols", {0: "tanh"}, covariance="iid")
+    slow = np.abs(run.dataset.dq) < 0.02
+    assert res.details["min_speed"] == 0.02
+    np.testing.assert_array_equal(res.details["rows_used"], (~slow).sum(axis=0))

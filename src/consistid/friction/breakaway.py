@@ -50,10 +50,11 @@ from ..identification.summary import table
 from ..robot.model import RobotModel
 from ..simulate.effects import (Effects, explicit_friction, explicit_friction_slope,
                                 has_explicit_friction)
+from .models import STANDSTILL_SPEED
 from .ramp import RampPlan, ramp_plan
 
 #: Default detection threshold ``v_th`` (rad/s) and standstill before an event (s).
-THRESHOLD, MIN_STILL = 0.02, 0.1
+THRESHOLD, MIN_STILL = STANDSTILL_SPEED, 0.1
 #: The friction of an event is read up to ``PEAK_FACTOR · v_th`` (module docstring).
 PEAK_FACTOR = 2.5
 #: ... as the peak of its moving mean over this many samples (when the window has them).

@@ -69,7 +69,7 @@ from ..identification.solver import SolverReport
 from ..identification.statistics import autocorrelation_time
 from ..identification.summary import table
 from ..robot.model import RobotModel
-from .models import LINEAR, MODELS, get_model
+from .models import LINEAR, MODELS, STANDSTILL_SPEED, get_model
 
 #: Linear per-joint terms that come with a nonlinear selection given as a name or a mapping.
 DEFAULT_LINEAR: tuple[str, ...] = ("viscous", "offset")
@@ -500,7 +500,7 @@ def identify_nonlinear(model: RobotModel, dataset: Dataset, method: str, frictio
                        armature: bool | Sequence[int | str] = False,
                        constraints: str | dict[str, str] = "auto", prior: str | None = "auto",
                        covariance: str = "coloured", *, start: Mapping[str, float] | None = None,
-                       max_nfev: int = MAX_EVALUATIONS, min_speed: float = 0.0,
+                       max_nfev: int = MAX_EVALUATIONS, min_speed: float | None = None,
                        **options: Any) -> NonlinearFrictionResult:
     """Identify rigid body and nonlinear friction (module docstring); called by
     :func:`consistid.identify` when ``friction`` names a nonlinear law.
@@ -518,8 +518,9 @@ def identify_nonlinear(model: RobotModel, dataset: Dataset, method: str, frictio
     min_speed : rows of joint ``j`` with ``|q̇_j| < min_speed`` (rad/s) are left out of the fit
         (weight 0), everything else unchanged: at standstill stiction holds the joint with any
         torque up to the break-away, which no law of ``q̇`` predicts (the seed lecture's advice:
-        discard near-zero velocities unless the friction model covers them). Default 0: all
-        rows. ``details["rows_used"]`` gives the count per joint.
+        discard near-zero velocities unless the friction model covers them). Default
+        :data:`~consistid.friction.models.STANDSTILL_SPEED` (0.02 rad/s); 0 keeps every row.
+        ``details["rows_used"]`` gives the count per joint.
     **options : options of :func:`consistid.identification.sdp.identify_sdp` (SDP only;
         ``loss="huber"`` is refused: its re-weighting re-compresses without the nonlinear
         columns).
@@ -538,7 +539,8 @@ def identify_nonlinear(model: RobotModel, dataset: Dataset, method: str, frictio
     y = regressor(model, dataset.q, dataset.dq, dataset.ddq, spec).reshape(n, nv, -1)
     x = np.ascontiguousarray(y[:, :, base.independent])
     b = base.n_base
-    min_speed = check_number("min_speed", min_speed, 0)
+    min_speed = (STANDSTILL_SPEED if min_speed is None
+                 else check_number("min_speed", min_speed, 0))
     keep = (np.abs(dataset.dq) >= min_speed).astype(float)
     n_kept = keep.sum(axis=0)
     problem = Projection(x, tau, dataset.dq, selection.laws, np.ones(nv), keep)

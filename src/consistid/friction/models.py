@@ -212,6 +212,11 @@ class TanhCoulomb(FrictionModel):
 
 
 #: name → model; the names ``identify(..., friction=...)`` accepts for a joint's nonlinear law.
+#: Below this joint speed (rad/s) a joint is taken to stand still: stiction holds it with any
+#: torque up to the break-away, which no law of ``q̇`` predicts. The nonlinear fits leave such rows
+#: out by default and the break-away estimate detects motion above it.
+STANDSTILL_SPEED = 0.02
+
 MODELS: dict[str, FrictionModel] = {m.name: m for m in (Stribeck(), GazSigmoid(), TanhCoulomb())}
 #: The name of the linear law (``fc·sign q̇``, the ``coulomb`` column) in per-joint selections.
 LINEAR = "coulomb"
