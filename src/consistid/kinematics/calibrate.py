@@ -58,6 +58,12 @@ LOSSES = ("linear", "soft_l1", "huber", "cauchy", "arctan")
 OUTLIERS = ("reject", "keep")
 #: noise scales assumed where none is given yet (first pass of the σ estimate): m, rad
 DEFAULT_SCALE = {"position": 1e-4, "orientation": 1e-3, "distance": 1e-4}
+#: a kept parameter whose standard deviation given the ones before it (in the priority order)
+#: exceeds this (m or rad) at the current values is held at the URDF's value in the solve: such
+#: a direction is flat to within the noise over a range where the model is far from linear (e.g.
+#: the last joint's zero offset seen from a point on its axis), and a trust region wanders in it
+#: instead of converging; it is freed again when the solution makes it identifiable
+WEAK_STD = 0.05
 
 
 def _as_se3(value: object, what: str) -> pin.SE3:
@@ -120,6 +126,34 @@ class _Problem:
             f_scale=f_scale, x_scale="jac", max_nfev=max_nfev, xtol=1e-12, ftol=1e-12,
             gtol=1e-10)
         return full(sol.x), sol
+
+
+def _conditional_std(jac: np.ndarray, order: np.ndarray) -> np.ndarray:
+    """Per column of the whitened Jacobian ``jac``, the standard deviation of that parameter
+    given the columns before it in ``order`` that were not themselves too weak
+    (``1 / ‖residual of the column after projection‖``; ``inf`` for a vanishing column)."""
+    a, norms = normalised(jac)
+    std = np.full(jac.shape[1], np.inf)
+    basis = np.zeros((jac.shape[0], 0))
+    for c in order:
+        if norms[c] == 0:
+            continue
+        r = a[:, c] - basis @ (basis.T @ a[:, c])
+        r -= basis @ (basis.T @ r)
+        nr = np.linalg.norm(r)
+        if nr * norms[c] > 0:
+            std[c] = 1.0 / (nr * norms[c])
+        if nr > 1e-7 and std[c] <= WEAK_STD:
+            basis = np.column_stack([basis, r / nr])
+    return std
+
+
+def _weak(prob: _Problem, values: np.ndarray, cols: np.ndarray, order: np.ndarray
+          ) -> np.ndarray:
+    """Mask over ``cols`` (parameter indices, priority ``order`` over them) of the directions
+    too weak at ``values`` to be solved for (:data:`WEAK_STD`)."""
+    jac = prob.weighted(values, cols)[1]
+    return ~(_conditional_std(jac, order) <= WEAK_STD)
 
 
 def _blocks(kind: str) -> list[tuple[str, slice]]:
@@ -280,6 +314,15 @@ def calibrate_kinematics(model: RobotModel, q: object, measurements: object,
         values, _ = prob.solve(values, extra_free, "linear", 1.0, max_nfev)
     before_values = values.copy()
 
+    # --- directions (nearly) flat at the start (the URDF on a special geometry, e.g. the
+    # measured point on the last joint's axis): held at the URDF's values while solving, freed
+    # when the solution makes them identifiable, else reported as held
+    kept_idx = np.flatnonzero(kept)
+    kept_order = np.argsort(np.argsort(order)[kept_idx])
+    held_now = np.zeros(len(sel), dtype=bool)
+    held_now[kept_idx] = _weak(prob, values, sel[kept_idx], kept_order)
+    free = sel[kept & ~held_now]
+
     # --- solve; estimate σ; reject outliers
     active = np.arange(n)
     rejected: list[int] = []
@@ -291,15 +334,22 @@ def calibrate_kinematics(model: RobotModel, q: object, measurements: object,
                        base0, anchor0)
         values, sol = sub.solve(values, free, loss, f_scale, max_nfev)
         if sol.status == 0:
-            raise IdentificationError(
-                f"least_squares stopped after {sol.nfev} evaluations without converging "
-                f"({sol.message}); raise max_nfev, check the measurement frame (base=) or the "
-                "frame name")
+            raise IdentificationError(_not_converged(sub, values, sol, sel, kept, order,
+                                                     names))
         if sol.status < 0:
             raise IdentificationError(f"least_squares failed: {sol.message}")
+        if held_now.any():
+            # the held directions the solution makes identifiable are freed and solved for
+            held_idx = np.flatnonzero(held_now)
+            cols = np.flatnonzero(kept & ~held_now).tolist() + held_idx.tolist()
+            weak = _weak(sub, values, sel[cols], np.arange(len(cols)))[-held_idx.size:]
+            if not weak.all():
+                held_now[held_idx[~weak]] = False
+                free = sel[kept & ~held_now]
+                continue
         res_active, _ = sub.raw(values)
         if given_cov is None and updates < 2:
-            cov[:] = _estimate_cov(meas.kind, res_active, r)[0]
+            cov[:] = _estimate_cov(meas.kind, res_active, free.size)[0]
             sigma_source = "estimated from the residuals (per block, after the first fit)"
             updates += 1
             continue
@@ -316,7 +366,7 @@ def calibrate_kinematics(model: RobotModel, q: object, measurements: object,
         # inflates its neighbours' residuals, which the next fit no longer does
         rejected.append(int(active[worst]))
         active = np.delete(active, worst)
-        if active.size * m < r:
+        if active.size * m < free.size:
             raise PoorExcitationError(
                 f"rejecting outliers left {active.size} measurements ({active.size * m} "
                 f"residuals) for {r} identifiable combinations; the data disagree with the "
@@ -326,6 +376,10 @@ def calibrate_kinematics(model: RobotModel, q: object, measurements: object,
     # --- uncertainty and the unidentifiable directions at the solution
     final = _Problem(chart, qa[active], meas.subset(active), whitening(cov[active]), base0,
                      anchor0)
+    start_held = tuple(names[i] for i in np.flatnonzero(held_now))
+    if start_held:
+        kept = kept & ~held_now
+        r = int(kept.sum())
     res_w, jac_w = final.weighted(values, sel, True)
     # a kept parameter the data cannot see *at the solution* (the robot sits on a special
     # geometry, e.g. the measured point exactly on the last axis): hold it there too
@@ -375,7 +429,26 @@ def calibrate_kinematics(model: RobotModel, q: object, measurements: object,
         mahalanobis=dist, rejected=tuple(sorted(rejected)), noise_covariance=cov,
         sigma_source=sigma_source, chi2_reduced=chi2_red, condition_number=cond,
         n_measurements=n, solver=solver, chart=chart, full_values=values,
-        held_at_solution=vanished)
+        held_at_solution=start_held + vanished)
+
+
+def _not_converged(prob: _Problem, values: np.ndarray, sol: scipy.optimize.OptimizeResult,
+                   sel: np.ndarray, kept: np.ndarray, order: np.ndarray, names: list[str]
+                   ) -> str:
+    """The message for a solve that hit ``max_nfev``: the nearly unidentifiable parameters
+    when there are (more evaluations do not help there), else raise max_nfev."""
+    kept_idx = np.flatnonzero(kept)
+    std = _conditional_std(prob.weighted(values, sel[kept_idx])[1],
+                           np.argsort(np.argsort(order)[kept_idx]))
+    worst = np.argsort(-std)[:4]
+    weak = [f"{names[kept_idx[i]]} (σ≈{std[i]:.2g})" for i in worst if std[i] > 0.1 * WEAK_STD]
+    head = (f"least_squares stopped after {sol.nfev} evaluations without converging "
+            f"({sol.message}, ‖gradient‖ = {np.abs(sol.grad).max():.2g})")
+    if weak:
+        return (f"{head}; the data barely see {', '.join(weak)}: the cost is nearly flat along "
+                "them, so more evaluations will not help; fix them (parameters=... without "
+                "them), or measure configurations that move them (select_poses)")
+    return f"{head}; raise max_nfev, check the measurement frame (base=) or the frame name"
 
 
 def _generic_measurements(chart: KinematicParameters, q: np.ndarray, values: np.ndarray,

@@ -68,8 +68,9 @@ class CalibrationResult:
     chi2_reduced : weighted RSS / (n − r): ≈ 1 when σ describes the residuals.
     condition_number : of the whitened, column-normalised Jacobian of the identified ones.
     solver : :class:`~consistid.identification.result.SolverReport`.
-    held_at_solution : parameters a generic robot shows but these data, at this solution, do
-        not (special geometry, e.g. a measured point exactly on the last joint's axis); held too.
+    held_at_solution : parameters a generic robot shows but these data, at the URDF and at
+        this solution, do not (or only with σ above ``calibrate.WEAK_STD``: special geometry,
+        e.g. a measured point exactly on the last joint's axis); held at the URDF's values too.
     """
 
     model: RobotModel
