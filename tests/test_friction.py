@@ -376,3 +376,16 @@ def test_standstill_rows_are_left_out_by_default(panda):
     slow = np.abs(run.dataset.dq) < 0.02
     assert res.details["min_speed"] == 0.02
     np.testing.assert_array_equal(res.details["rows_used"], (~slow).sum(axis=0))
+
+
+def test_a_break_away_read_too_early_is_flagged_not_silent():
+    """Kinova's light wrist creeps past the reading speed under MuJoCo's soft friction before it
+    breaks free: those joints read low, and exactly those are flagged."""
+    from consistid.simulate import Effects
+
+    kinova = ci.RobotModel.example("kinova")
+    with pytest.warns(UserWarning, match="still rising") as caught:
+        est = ci.estimate_breakaway(kinova, effects=Effects(coulomb=1.0, torque_noise=0.01))
+    flagged = {str(w.message).split(":")[0] for w in caught if "still rising" in str(w.message)}
+    low = {n for n, t in zip(est.joint_names, est.torque) if abs(t - 1.0) > 0.05}
+    assert low and flagged == low

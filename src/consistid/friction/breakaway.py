@@ -296,6 +296,16 @@ def _events(dq: np.ndarray, t: np.ndarray, segment: np.ndarray, threshold: float
     return out, still_found
 
 
+def _still_rising(f: np.ndarray) -> bool:
+    """Whether the friction read over an event's window peaks at its last sample and has risen
+    by more than 2 % of its value over the window's last quarter: the joint crept past the
+    reading speed before breaking free, so the peak was not reached."""
+    if f.size < 8 or int(np.argmax(f)) != f.size - 1:
+        return False
+    quarter = max(f.size // 4, 1)
+    return bool(f[-1] - f[-1 - quarter] > 0.02 * abs(f[-1]))
+
+
 def estimate_breakaway(model: RobotModel | StandardParameterSet, data: Dataset | None = None, *,
                        effects: Effects | None = None, plan: RampPlan | None = None,
                        parameters: np.ndarray | None = None,
@@ -366,6 +376,7 @@ def estimate_breakaway(model: RobotModel | StandardParameterSet, data: Dataset |
     dq, ddq = (data.dq, data.ddq) if inertial else (np.zeros_like(data.dq),) * 2
     segment = data.segment if data.segment is not None else np.zeros(data.n_samples, int)
     events: list[BreakawayEvent] = []
+    rising: dict[int, int] = {}   # events whose friction still rose at the window's end
     notes: list[str] = []
     problems: list[tuple[type, str]] = []
     for j in chosen:
@@ -409,6 +420,7 @@ def estimate_breakaway(model: RobotModel | StandardParameterSet, data: Dataset |
                 f = np.convolve(f, np.full(PEAK_SMOOTHING, 1.0 / PEAK_SMOOTHING), "valid")
             events.append(BreakawayEvent(j, float(data.t[k]), s, float(np.max(f)),
                                          float(abs(data.dq[k, j]))))
+            rising[j] = rising.get(j, 0) + int(_still_rising(f))
     for kind, message in problems:
         if missing == "raise":
             raise kind(message)
@@ -423,7 +435,18 @@ def estimate_breakaway(model: RobotModel | StandardParameterSet, data: Dataset |
             continue
         dirs = np.array([e.direction for e in own])
         torque[j] = float(np.median(values))
-        spread[j] = float(1.4826 * np.median(np.abs(values - torque[j])))
+        spread[j] = (float(1.4826 * np.median(np.abs(values - torque[j])))
+                     if values.size >= 3 else np.nan)
+        if values.size < 3:
+            notes.append(f"{names[j]}: {values.size} event(s) only: no spread (NaN); repeat the "
+                         "ramp (repeats=) for one")
+        if 2 * rising.get(j, 0) > values.size:
+            message = (f"{names[j]}: the friction was still rising at the end of the reading "
+                       f"window in {rising[j]} of {values.size} events (the joint crept past "
+                       f"{PEAK_FACTOR:g}·threshold before it broke free): the break-away torque "
+                       "may read low; raise threshold (and abort_speed for a ramp)")
+            warnings.warn(message, UserWarning, stacklevel=2)
+            notes.append(message)
         pos[j] = float(np.median(values[dirs > 0])) if np.any(dirs > 0) else np.nan
         neg[j] = float(np.median(values[dirs < 0])) if np.any(dirs < 0) else np.nan
         count[j] = values.size
