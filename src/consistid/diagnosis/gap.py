@@ -294,9 +294,12 @@ def gap_breakdown(data: GapData, noise: np.ndarray, max_points: int = 4000,
     edges.append(nyq)
     edges = np.array(edges)
     df = freqs[1] - freqs[0] if freqs.size > 1 else 1.0
-    band_rms = np.array([np.sqrt(psd[(freqs >= a) & (freqs < b) if b < nyq
-                                     else (freqs >= a)].sum(axis=0) * df)
-                         for a, b in zip(edges[:-1], edges[1:])])
+    # a band holding no bin of the spectrum (a short log: coarse Welch resolution) is unknown,
+    # NaN, not a zero that says "nothing there"
+    in_band = [(freqs >= a) & (freqs < b) if b < nyq else (freqs >= a)
+               for a, b in zip(edges[:-1], edges[1:])]
+    band_rms = np.array([np.sqrt(psd[m].sum(axis=0) * df) if m.any()
+                         else np.full(psd.shape[1], np.nan) for m in in_band])
     wt, wm, slope, slope_std = _drift(data.dataset, r)
     rng = np.random.default_rng(seed)
     pick = np.sort(rng.choice(data.n, size=min(max_points, data.n), replace=False))
