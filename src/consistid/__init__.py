@@ -1,6 +1,7 @@
 """consistid: physically consistent inertial parameter identification for robot manipulators.
 
->>> import consistid as ci >>> model = ci.RobotModel.example("panda")
+>>> import consistid as ci
+>>> model = ci.RobotModel.example("panda")
 >>> run = ci.simulate.excitation_run(model, duration=20.0)
 >>> res = ci.identify(model, run.dataset, method="ols")
 

@@ -61,7 +61,6 @@ def run(args: argparse.Namespace) -> int:
     for c in est.changes:
         print(f"  {c} (true change at {sim.change_time:g} s)")
     proj = est.consistent_parameters()
-    proj = est.consistent_parameters()                  # the compiled program is reused
     print(f"  {proj}")
     print()
     runs = adaptive_run(model, periods=args.periods, seed=args.seed)

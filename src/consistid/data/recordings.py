@@ -297,7 +297,7 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
                      f"[{dataset.t[first]:.4f}, {dataset.t[last]:.4f}] s")
         dataset = dataset.select(keep)
     else:
-        steps.append("not trimmed")
+        steps.append("no trim_start/trim_end requested")
     return Recording(dataset, tuple(steps), source, t0)
 
 

@@ -4,8 +4,8 @@ r"""The signal chain's public face: :func:`preprocess` (a robot log to a
 The blocks live in :mod:`consistid.data.filters` (filters, differentiators, outliers, bandwidth),
 :mod:`consistid.data.timestamps` (units, duplicates, gaps, interval-averaged stamps) and
 :mod:`consistid.data.resample` (the one resampler); the chain itself, which returns arrays, is
-:mod:`consistid.data.chain` (its docstring lists the steps in order). They are re-exported here
-so that ``from consistid.data.signals import lowpass`` keeps working.
+:mod:`consistid.data.chain` (its docstring lists the steps in order). They are re-exported here,
+the signal chain's one public face.
 :meth:`Dataset.from_recording` is :func:`preprocess` without the record.
 """
 

@@ -51,7 +51,7 @@ import pinocchio as pin
 
 from ..errors import ExportWarning, InconsistentParametersError, ModelError, check_option
 from .inertia import InertialParameters, body_slice
-from .joint_terms import TERM_COLUMNS
+from .joint_terms import joint_terms_of
 from .urdf import parse_urdf, remove_dynamics, robot_joints, robot_links
 
 if TYPE_CHECKING:
@@ -59,7 +59,6 @@ if TYPE_CHECKING:
 
 MERGED = ("auto", "lump", "subtract")
 #: Per-joint parameter name suffixes (``"<joint>.<suffix>"``); only fc and fv have URDF tags.
-SUFFIXES = tuple(s for suffixes in TERM_COLUMNS.values() for s in suffixes)
 
 
 @dataclass(frozen=True)
@@ -139,26 +138,6 @@ def _links(model: RobotModel, full: pin.Model, root: ET.Element) -> list[_Link]:
     return out
 
 
-def _joint_terms(model: RobotModel, parameters: np.ndarray, names: Sequence[str] | None
-                 ) -> dict[str, dict[str, float]]:
-    """``{joint: {"fc": …, "fv": …, "fo": …, "ps1": …, "pc1": …, "Ia": …}}`` from the entries
-    after the inertial ones."""
-    extra = parameters[model.n_inertial:]
-    if extra.size == 0:
-        return {}
-    if names is None or len(names) != parameters.size:
-        raise ModelError(f"{extra.size} entries after the inertial parameters need "
-                         "parameter_names (e.g. 'panda_joint1.fc') to be placed")
-    out: dict[str, dict[str, float]] = {}
-    for name, value in zip(names[model.n_inertial:], extra):
-        joint, _, term = name.rpartition(".")
-        if joint not in model.joint_names or term not in SUFFIXES:
-            raise ModelError(f"cannot place parameter {name!r}: expected "
-                             f"'<joint>.{'|'.join(SUFFIXES)}'")
-        out.setdefault(joint, {})[term] = float(value)
-    return out
-
-
 def _set_inertial(link: ET.Element, inertia: pin.Inertia | None) -> None:
     for tag in link.findall("inertial"):
         link.remove(tag)
@@ -217,7 +196,7 @@ def write_urdf(model: RobotModel, path: str | Path, parameters: np.ndarray | Non
     if params.ndim != 1 or params.size < model.n_inertial or not np.all(np.isfinite(params)):
         raise ModelError(f"parameters must be a finite vector of at least {model.n_inertial} "
                          f"entries, got shape {params.shape}")
-    terms = _joint_terms(model, params, parameter_names)
+    terms = joint_terms_of(model, params, parameter_names)
     tree = parse_urdf(source)
     root = tree.getroot()
     links = _links(model, _kinematic_model(root), root)

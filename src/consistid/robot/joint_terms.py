@@ -7,6 +7,15 @@ and the results name the same columns the same way.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Sequence
+
+import numpy as np
+
+from ..errors import ModelError
+
+if TYPE_CHECKING:
+    from .model import RobotModel
+
 JOINT_TERMS: tuple[str, ...] = ("coulomb", "viscous", "offset", "position", "armature")
 #: The terms chosen through ``friction=`` (every term but armature).
 FRICTION_TERMS: tuple[str, ...] = JOINT_TERMS[:4]
@@ -18,3 +27,26 @@ TERM_COLUMNS: dict[str, tuple[str, ...]] = {
 DEFAULT_FRICTION: tuple[str, ...] = ("coulomb", "viscous", "offset")
 #: Terms whose values are physically ``≥ 0`` (``offset`` and ``position`` have a free sign).
 NONNEGATIVE_TERMS: tuple[str, ...] = ("coulomb", "viscous", "armature")
+#: Every per-joint column suffix (``fc``, ``fv``, ``fo``, ``ps1``, ``pc1``, ``Ia``).
+SUFFIXES: tuple[str, ...] = tuple(s for suffixes in TERM_COLUMNS.values() for s in suffixes)
+
+
+def joint_terms_of(model: "RobotModel", parameters: np.ndarray,
+                   names: Sequence[str] | None) -> dict[str, dict[str, float]]:
+    """``{joint: {"fc": …, "fv": …, "fo": …, "ps1": …, "pc1": …, "Ia": …}}`` from the entries of
+    ``parameters`` after the ``10·nbodies`` inertial ones, placed by their ``names``
+    (``"<joint>.<suffix>"``); what the URDF and MJCF writers put into each joint."""
+    extra = parameters[model.n_inertial:]
+    if extra.size == 0:
+        return {}
+    if names is None or len(names) != parameters.size:
+        raise ModelError(f"{extra.size} entries after the inertial parameters need "
+                         "parameter_names (e.g. 'panda_joint1.fc') to be placed")
+    out: dict[str, dict[str, float]] = {}
+    for name, value in zip(names[model.n_inertial:], extra):
+        joint, _, term = name.rpartition(".")
+        if joint not in model.joint_names or term not in SUFFIXES:
+            raise ModelError(f"cannot place parameter {name!r}: expected "
+                             f"'<joint>.{'|'.join(SUFFIXES)}'")
+        out.setdefault(joint, {})[term] = float(value)
+    return out

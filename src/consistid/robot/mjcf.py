@@ -33,14 +33,13 @@ import pinocchio as pin
 
 from ..errors import ExportWarning, InconsistentParametersError, ModelError
 from .inertia import check_body
-from .joint_terms import TERM_COLUMNS
+from .joint_terms import joint_terms_of
 
 if TYPE_CHECKING:
     from .model import RobotModel
 
 #: Per-joint parameter suffixes MJCF has an element for, and the joint attribute they set.
 MJCF_TERMS = {"fv": "damping", "fc": "frictionloss", "Ia": "armature"}
-SUFFIXES = tuple(s for suffixes in TERM_COLUMNS.values() for s in suffixes)
 
 
 def joint_axes(model: "RobotModel") -> tuple[list[str], np.ndarray]:
@@ -68,24 +67,6 @@ def joint_axes(model: "RobotModel") -> tuple[list[str], np.ndarray]:
     return kinds, axes
 
 
-def _joint_terms(model: "RobotModel", parameters: np.ndarray,
-                 names: Sequence[str] | None) -> dict[str, dict[str, float]]:
-    extra = parameters[model.n_inertial:]
-    if extra.size == 0:
-        return {}
-    if names is None or len(names) != parameters.size:
-        raise ModelError(f"{extra.size} entries after the inertial parameters need "
-                         "parameter_names (e.g. 'panda_joint1.fv') to be placed")
-    out: dict[str, dict[str, float]] = {}
-    for name, value in zip(names[model.n_inertial:], extra):
-        joint, _, term = name.rpartition(".")
-        if joint not in model.joint_names or term not in SUFFIXES:
-            raise ModelError(f"cannot place parameter {name!r}: expected "
-                             f"'<joint>.{'|'.join(SUFFIXES)}'")
-        out.setdefault(joint, {})[term] = float(value)
-    return out
-
-
 def mjcf_spec(model: "RobotModel", parameters: np.ndarray | None = None,
               parameter_names: Sequence[str] | None = None) -> Any:
     """The ``mujoco.MjSpec`` of ``model`` carrying ``parameters`` (module docstring).
@@ -107,7 +88,7 @@ def mjcf_spec(model: "RobotModel", parameters: np.ndarray | None = None,
     if params.ndim != 1 or params.size < model.n_inertial or not np.all(np.isfinite(params)):
         raise ModelError(f"parameters must be a finite vector of at least {model.n_inertial} "
                          f"entries, got shape {params.shape}")
-    terms = _joint_terms(model, params, parameter_names)
+    terms = joint_terms_of(model, params, parameter_names)
     for body, name in enumerate(model.body_names):
         verdict = check_body(params[10 * body:10 * body + 10], "pseudo-inertia", name)
         if not verdict.ok:
