@@ -29,7 +29,6 @@ same folder and renamed into place.
 
 from __future__ import annotations
 
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -40,12 +39,9 @@ from ..errors import ConfigError, MissingColumnsError, OutputPathError
 from ..kinematics.calibrate import calibrate_kinematics
 from ..kinematics.result import CalibrationResult
 from ..robot.model import RobotModel, model_without_dynamics
+from .config import read_toml
 from .files import atomic_path, check_output
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - Python 3.10 only
-    import tomli as tomllib
 
 MODEL_KEYS = ("urdf", "example", "locked_joints", "gravity", "name", "strip_dynamics")
 CALIBRATE_KEYS = ("data", "frame", "parameters", "sigma", "loss", "f_scale", "outliers",
@@ -164,25 +160,10 @@ def load_calibration_config(path: str | Path, *, urdf: str | Path | None = None,
                             report: str | Path | None = None) -> CalibrationConfig:
     """Parse a ``consistid calibrate`` TOML file (module docstring); ``urdf``/``report``
     override the configured outputs. Unknown tables or keys raise :class:`ConfigError`."""
-    path = Path(path)
-    if not path.is_file():
-        raise ConfigError(f"configuration file {str(path)!r} does not exist")
-    try:
-        with open(path, "rb") as fh:
-            tables = tomllib.load(fh)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{path.name} is not valid TOML: {exc}") from exc
-    root_value = tables.pop("root", ".")
-    if not isinstance(root_value, str):
-        raise ConfigError(f"{path.name}: root must be a path string, got {root_value!r}")
-    unknown = sorted(set(tables) - {"model", "calibrate"})
-    if unknown:
-        raise ConfigError(f"{path.name}: unknown table(s) {unknown}; a calibration has [model] "
-                          "and [calibrate]")
+    path, root, tables = read_toml(path, ("model", "calibrate"))
     for name in ("model", "calibrate"):
         if not isinstance(tables.get(name), dict):
             raise ConfigError(f"{path.name}: missing table [{name}]")
-    root = (path.resolve().parent / root_value).resolve()
     model = _model(dict(tables["model"]), root, path)
     t = dict(tables["calibrate"])
     unknown = sorted(set(t) - set(CALIBRATE_KEYS))

@@ -58,7 +58,7 @@ import inspect
 import sys
 from dataclasses import dataclass, fields
 from pathlib import Path
-from typing import Any, Iterable, Mapping
+from typing import Any, Iterable, Mapping, Sequence
 
 from ..errors import ConfigError
 from ..robot.model import RobotModel
@@ -177,8 +177,11 @@ def _toml(value: Any) -> str:
     return repr(value)
 
 
-def load_config(path: str | Path) -> RunConfig:
-    """Read a TOML configuration (module docstring for the layout)."""
+def read_toml(path: str | Path, allowed: Sequence[str]
+              ) -> tuple[Path, Path, dict[str, Any]]:
+    """``(path, root, tables)`` of a TOML configuration: the file must exist and parse, ``root``
+    (default ``"."``, relative to the file) be a path string, and every other top-level key be
+    one of the ``allowed`` tables — each failure a :class:`ConfigError` naming the file."""
     path = Path(path)
     if not path.is_file():
         raise ConfigError(f"configuration file {str(path)!r} does not exist")
@@ -190,11 +193,16 @@ def load_config(path: str | Path) -> RunConfig:
     root = tables.pop("root", ".")
     if not isinstance(root, str):
         raise ConfigError(f"{path.name}: root must be a path string, got {root!r}")
-    unknown = sorted(set(tables) - set(TABLES))
+    unknown = sorted(set(tables) - set(allowed))
     if unknown:
         raise ConfigError(f"{path.name}: unknown table(s) or top-level key(s) {unknown}; "
-                          f"allowed: root and the tables {list(TABLES)}")
-    return RunConfig(path.resolve(), (path.resolve().parent / root).resolve(), tables)
+                          f"allowed: root and the tables {list(allowed)}")
+    return path.resolve(), (path.resolve().parent / root).resolve(), tables
+
+
+def load_config(path: str | Path) -> RunConfig:
+    """Read a TOML configuration (module docstring for the layout)."""
+    return RunConfig(*read_toml(path, TABLES))
 
 
 def config_inputs(config: RunConfig, model: RobotModel | None = None) -> list[Path]:
