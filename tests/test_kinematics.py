@@ -880,3 +880,20 @@ def test_a_prismatic_joint(tmp_path):
     assert np.abs(err).max() < 1e-9
     with pytest.raises(ci.ModelError, match="joints"):
         model.with_kinematics(ci.RobotModel.example("ur5").pin_model)
+
+
+def test_noise_estimated_from_few_degrees_of_freedom_is_flagged():
+    """Five poses, σ estimated: the ± rest on a handful of residuals and say so."""
+    model = ci.RobotModel.example("ur5")
+    rng = np.random.default_rng(4)
+    q = rng.uniform(-1.5, 1.5, (5, model.nv))
+    positions = np.array([_fk(model, qk) for qk in q])
+    positions += rng.normal(0.0, 1e-4, positions.shape)
+    with pytest.warns(ci.PoorExcitationWarning, match="degrees of freedom"):
+        ci.calibrate_kinematics(model, q, positions, frame="tool0", parameters=["zero"])
+
+
+def _fk(model, q):
+    data = model.pin_model.createData()
+    pin.framesForwardKinematics(model.pin_model, data, model.configuration(q))
+    return data.oMf[model.pin_model.getFrameId("tool0")].translation.copy()

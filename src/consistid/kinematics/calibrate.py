@@ -21,6 +21,7 @@ again, until none is; the result lists every dropped index and its distance.
 from __future__ import annotations
 
 import time
+import warnings
 from typing import Iterable
 
 import numpy as np
@@ -32,11 +33,12 @@ from ..errors import (
     IdentificationError,
     OptionError,
     PoorExcitationError,
+    PoorExcitationWarning,
     check_number,
     check_option,
 )
 from ..excitation.limits import end_effector_frame
-from ..identification.result import SolverReport
+from ..identification.solver import SolverReport
 from ..robot.model import RobotModel, require_model
 from .identifiability import normalised, null_directions, sequential_selection, structural_selection
 from .measurements import (
@@ -162,6 +164,10 @@ def _blocks(kind: str) -> list[tuple[str, slice]]:
     if kind == "position":
         return [("position", slice(0, 3))]
     return [("position", slice(0, 3)), ("orientation", slice(3, 6))]
+
+
+#: Below this many residual degrees of freedom an estimated σ (``sigma=None``) is flagged.
+MIN_SIGMA_DOF = 20
 
 
 def _default_cov(kind: str, n: int) -> np.ndarray:
@@ -407,6 +413,13 @@ def calibrate_kinematics(model: RobotModel, q: object, measurements: object,
     covariance[np.ix_(kept, kept)] = cov_k
     dof = res_w.size - r
     chi2_red = float(res_w @ res_w / dof) if dof > 0 else np.nan
+    if given_cov is None and dof < MIN_SIGMA_DOF:
+        # σ from the residuals with few degrees of freedom: its own relative error is about
+        # 1/√(2·dof), so every ± (and χ²/dof, 1 by construction) is that uncertain
+        warnings.warn(f"the measurement noise was estimated from {int(dof)} residual degrees of "
+                      f"freedom only (relative error ≈ {1 / np.sqrt(2 * max(dof, 1)):.0%}): "
+                      "the standard deviations are that uncertain; give sigma= or measure "
+                      "more poses", PoorExcitationWarning, stacklevel=2)
     unident, null, worst = null_directions(jac_w, kept, names)
 
     all_q = _Problem(chart, qa, meas, whitening(cov), base0, anchor0)
