@@ -837,3 +837,16 @@ def test_mimic_tag_on_a_fixed_joint_is_harmless():
         pytest.skip(f"{path} is not in this example-robot-data")
     assert "<mimic" in path.read_text()
     assert ci.RobotModel.from_urdf(path).nv == 32
+
+
+def test_positions_in_degrees_read_as_radians_are_flagged(panda):
+    """A log whose angles are in degrees, with no unit to say so, leaves the joint limits by
+    far: identify says so (and names the joints) instead of fitting nonsense silently."""
+    run = ci.simulate.excitation_run(panda, duration=3.0, rate=100.0, torque_noise=0.05, seed=1)
+    d = run.dataset
+    in_degrees = ci.Dataset(t=d.t, q=np.degrees(d.q), dq=d.dq, ddq=d.ddq, tau=d.tau)
+    with pytest.warns(ci.DataQualityWarning, match=r"beyond the joint limits: 'panda_joint1'"):
+        ci.identify(panda, in_degrees, method="ols")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ci.DataQualityWarning)
+        ci.identify(panda, d, method="ols")             # the same log in radians: silent

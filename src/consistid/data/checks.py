@@ -127,12 +127,39 @@ def check_glitches(dataset: Dataset, fields: Sequence[str] = ("tau",),
     return found
 
 
-def check_for_identification(dataset: Dataset, joint_names: Sequence[str] | None = None
-                             ) -> None:
+def check_limits(dataset: Dataset, lower: np.ndarray, upper: np.ndarray,
+                 joint_names: Sequence[str] | None = None, stacklevel: int = 4) -> None:
+    """Warn (:class:`DataQualityWarning`) when a joint's positions leave its limits by more than
+    a tenth of its range (at least 0.1 rad or m): a log in degrees (or millimetres) read as SI,
+    an encoder offset, or a log of another robot. Joints without limits are not checked."""
+    lower, upper = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
+    if lower.shape != (dataset.q.shape[1],) or upper.shape != lower.shape:
+        return      # a joint-count mismatch: named by the joint check that follows
+    found = []
+    for j in range(dataset.q.shape[1]):
+        if not (np.isfinite(lower[j]) and np.isfinite(upper[j])):
+            continue
+        slack = max(0.1 * (upper[j] - lower[j]), 0.1)
+        lo, hi = float(dataset.q[:, j].min()), float(dataset.q[:, j].max())
+        if lo < lower[j] - slack or hi > upper[j] + slack:
+            found.append(f"{_joint(dataset, j, joint_names)!r} spans [{lo:.4g}, {hi:.4g}] "
+                         f"against its limits [{lower[j]:.4g}, {upper[j]:.4g}]")
+    if found:
+        warnings.warn(f"positions beyond the joint limits: {'; '.join(found[:5])}. Are they in "
+                      "degrees (name the unit in the log's header, e.g. 'q_<joint> [deg]'), "
+                      "offset, or from another robot? Identification goes on with them as "
+                      "given", DataQualityWarning, stacklevel=stacklevel)
+
+
+def check_for_identification(dataset: Dataset, joint_names: Sequence[str] | None = None,
+                             limits: tuple[np.ndarray, np.ndarray] | None = None) -> None:
     """All of the above, in order, for data about to be identified (needs torques);
-    ``joint_names`` (the model's) name the joints when the dataset does not."""
+    ``joint_names`` (the model's) name the joints when the dataset does not; ``limits``
+    ``(lower, upper)`` per joint (the model's) are checked when given."""
     dataset.require_torque()
     check_magnitudes(dataset, joint_names=joint_names)
     check_motion(dataset)
     check_torque(dataset, joint_names)
     check_glitches(dataset, FIELDS, joint_names=joint_names, stacklevel=5)
+    if limits is not None:
+        check_limits(dataset, *limits, joint_names=joint_names, stacklevel=5)

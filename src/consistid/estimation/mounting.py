@@ -312,7 +312,8 @@ def estimate_mounting(model: RobotModel, dataset: Dataset | DataStream,
     else:
         dataset = as_dataset(dataset)
     if isinstance(dataset, Dataset):  # magnitudes, motion, dead channels, glitches
-        check_for_identification(dataset, model.joint_names)
+        check_for_identification(dataset, model.joint_names,
+                                 (model.limits.lower, model.limits.upper))
     if not np.any(g0):
         raise ModelError(f"{model.name} has zero gravity: there is no mounting tilt to estimate")
     spec = RegressorSpec.make(model, friction, armature)

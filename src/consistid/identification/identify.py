@@ -233,7 +233,9 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
     else:
         dataset = as_dataset(dataset)
         dataset.check_joints(model.nv, model.joint_names)
-        check_for_identification(dataset, model.joint_names)  # magnitudes, motion, glitches
+        # magnitudes, motion, dead channels, glitches, positions beyond the limits
+        check_for_identification(dataset, model.joint_names,
+                                 (model.limits.lower, model.limits.upper))
     if is_nonlinear(friction):  # Stribeck / sigmoid / tanh laws: consistid.friction.fit
         if not isinstance(dataset, Dataset):
             raise OptionError("nonlinear friction laws need the data in memory (a Dataset or a "
