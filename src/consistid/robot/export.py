@@ -51,7 +51,7 @@ import pinocchio as pin
 
 from ..errors import ExportWarning, InconsistentParametersError, ModelError, check_option
 from .inertia import InertialParameters, body_slice
-from .joint_terms import joint_terms_of
+from .joint_terms import export_parameters
 from .urdf import parse_urdf, remove_dynamics, robot_joints, robot_links
 
 if TYPE_CHECKING:
@@ -191,12 +191,7 @@ def write_urdf(model: RobotModel, path: str | Path, parameters: np.ndarray | Non
     if model.source is None or not Path(model.source).is_file():
         raise ModelError(f"{model.name!r} has no source URDF to write parameters into")
     source = Path(model.source)
-    params = (model.prior_parameters if parameters is None
-              else np.asarray(parameters, dtype=float))
-    if params.ndim != 1 or params.size < model.n_inertial or not np.all(np.isfinite(params)):
-        raise ModelError(f"parameters must be a finite vector of at least {model.n_inertial} "
-                         f"entries, got shape {params.shape}")
-    terms = joint_terms_of(model, params, parameter_names)
+    params, terms = export_parameters(model, parameters, parameter_names)
     tree = parse_urdf(source)
     root = tree.getroot()
     links = _links(model, _kinematic_model(root), root)

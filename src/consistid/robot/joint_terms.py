@@ -31,6 +31,20 @@ NONNEGATIVE_TERMS: tuple[str, ...] = ("coulomb", "viscous", "armature")
 SUFFIXES: tuple[str, ...] = tuple(s for suffixes in TERM_COLUMNS.values() for s in suffixes)
 
 
+def export_parameters(model: "RobotModel", parameters: np.ndarray | None,
+                      names: Sequence[str] | None
+                      ) -> tuple[np.ndarray, dict[str, dict[str, float]]]:
+    """What a model writer (URDF, MJCF) writes: the parameter vector (default the model's own
+    inertias), checked finite and at least ``10·nbodies`` long, and its per-joint terms
+    (:func:`joint_terms_of`)."""
+    params = (model.prior_parameters if parameters is None
+              else np.asarray(parameters, dtype=float))
+    if params.ndim != 1 or params.size < model.n_inertial or not np.all(np.isfinite(params)):
+        raise ModelError(f"parameters must be a finite vector of at least {model.n_inertial} "
+                         f"entries, got shape {params.shape}")
+    return params, joint_terms_of(model, params, names)
+
+
 def joint_terms_of(model: "RobotModel", parameters: np.ndarray,
                    names: Sequence[str] | None) -> dict[str, dict[str, float]]:
     """``{joint: {"fc": …, "fv": …, "fo": …, "ps1": …, "pc1": …, "Ia": …}}`` from the entries of

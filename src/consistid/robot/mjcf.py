@@ -32,8 +32,8 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import ExportWarning, InconsistentParametersError, ModelError
-from .inertia import check_body
-from .joint_terms import joint_terms_of
+from .inertia import body_slice, check_body
+from .joint_terms import export_parameters
 
 if TYPE_CHECKING:
     from .model import RobotModel
@@ -83,14 +83,9 @@ def mjcf_spec(model: "RobotModel", parameters: np.ndarray | None = None,
     """
     import mujoco  # heavy: loaded with the first export
 
-    params = (model.prior_parameters if parameters is None
-              else np.asarray(parameters, dtype=float))
-    if params.ndim != 1 or params.size < model.n_inertial or not np.all(np.isfinite(params)):
-        raise ModelError(f"parameters must be a finite vector of at least {model.n_inertial} "
-                         f"entries, got shape {params.shape}")
-    terms = joint_terms_of(model, params, parameter_names)
+    params, terms = export_parameters(model, parameters, parameter_names)
     for body, name in enumerate(model.body_names):
-        verdict = check_body(params[10 * body:10 * body + 10], "pseudo-inertia", name)
+        verdict = check_body(params[body_slice(body)], "pseudo-inertia", name)
         if not verdict.ok:
             raise InconsistentParametersError(f"refusing to write an inconsistent body: "
                                               f"{verdict.reason}")
@@ -122,7 +117,7 @@ def mjcf_spec(model: "RobotModel", parameters: np.ndarray | None = None,
         body = bodies[pm.parents[j]].add_body(
             name=model.body_names[i], pos=np.array(placement.translation),
             quat=np.array([quat.w, quat.x, quat.y, quat.z]))
-        inertia = pin.Inertia.FromDynamicParameters(params[10 * i:10 * i + 10])
+        inertia = pin.Inertia.FromDynamicParameters(params[body_slice(i)])
         ic = np.asarray(inertia.inertia)
         body.explicitinertial = True
         body.mass = float(inertia.mass)
