@@ -217,7 +217,9 @@ def test_breakaway_from_a_simulated_ramp_experiment(panda):
     assert np.all(est.n_events == 6) and np.all(est.spread < 0.1 * FS)
     lo, hi = est.conf_int().T
     assert np.all(lo <= est.torque) and np.all(est.torque <= hi)
-    assert "panda_joint7" in est.summary() and "<pre>" in est._repr_html_()
+    assert "panda_joint7" in est.summary()
+    html = est._repr_html_()                 # a real table, not the text report in a <pre>
+    assert "<table" in html and "panda_joint7" in html and "<pre>" not in html
 
 
 @pytest.mark.parametrize("name, options", [
@@ -389,3 +391,18 @@ def test_a_break_away_read_too_early_is_flagged_not_silent():
     flagged = {str(w.message).split(":")[0] for w in caught if "still rising" in str(w.message)}
     low = {n for n, t in zip(est.joint_names, est.torque) if abs(t - 1.0) > 0.05}
     assert low and flagged == low
+
+
+def test_friction_comparison_reports_a_real_table(tmp_path):
+    from consistid.friction.selection import FrictionComparison
+
+    cmp = FrictionComparison(("j1", "j2"), ("coulomb", "stribeck"),
+                             rms=np.array([[0.2, 0.1], [0.1, 0.1]]),
+                             low_rms=np.array([[0.4, np.nan], [0.1, np.nan]]),
+                             n_low=np.array([30, 0]), train_rms=np.ones((2, 2)), method="ols",
+                             low_speed=0.1, min_speed=0.02)
+    assert cmp.preferred == ("stribeck", "coulomb")
+    text = cmp.report(tmp_path / "laws.html").read_text()
+    assert "<table" in text and "stribeck" in text and "<pre>" not in text
+    with pytest.raises(ci.OptionError, match=".html"):
+        cmp.report(tmp_path / "laws.txt")

@@ -35,18 +35,17 @@ from __future__ import annotations
 import time
 import warnings
 from dataclasses import dataclass
-from html import escape
-from pathlib import Path
 from typing import Sequence
 
 import numpy as np
 import pinocchio as pin
-import scipy.stats
 
 from ..data.dataset import Dataset
 from ..errors import DatasetError, IdentificationError, ModelError, OptionError, check_number
 from ..identification.result import StandardParameterSet
 from ..identification.summary import table
+from ..report.html import Page
+from ..report.result import Reported
 from ..robot.model import RobotModel
 from ..simulate.effects import (Effects, explicit_friction, explicit_friction_slope,
                                 has_explicit_friction)
@@ -77,7 +76,7 @@ class BreakawayEvent:
 
 
 @dataclass(frozen=True, eq=False)
-class BreakawayEstimate:
+class BreakawayEstimate(Reported):
     """Break-away torque per joint (module docstring).
 
     Attributes
@@ -85,7 +84,7 @@ class BreakawayEstimate:
     joint_names : (nv,) names.
     torque : (nv,) median break-away torque (N·m); NaN only for joints not asked for
         (``measured`` False) or, with ``missing="warn"``, without events (the warning names them).
-    spread : (nv,) ``1.4826·MAD`` of the events (N·m; 0 for a single event).
+    spread : (nv,) ``1.4826·MAD`` of the events (N·m; NaN below 3 events, noted).
     positive, negative : (nv,) medians of the events in each direction (NaN if none).
     n_events : (nv,) number of events.
     events : every event.
@@ -112,12 +111,16 @@ class BreakawayEstimate:
     duration: float
     notes: tuple[str, ...] = ()
 
-    def conf_int(self, alpha: float = 0.05) -> np.ndarray:
-        """Approximate ``1 − alpha`` intervals of the medians, (nv, 2): ``± z·1.2533·spread/√n``
-        (the large-sample standard error of a median of normal events)."""
-        z = scipy.stats.norm.ppf(1 - alpha / 2)
-        half = z * 1.2533 * self.spread / np.sqrt(np.maximum(self.n_events, 1))
-        return np.column_stack([self.torque - half, self.torque + half])
+    @property
+    def estimate(self) -> np.ndarray:
+        """The estimated vector: ``torque`` (N·m per joint)."""
+        return self.torque
+
+    @property
+    def std(self) -> np.ndarray:
+        """Standard error of each median, ``1.2533·spread/√n`` (the large-sample standard error
+        of a median of normal events); ``conf_int`` gives the normal intervals from it."""
+        return 1.2533 * self.spread / np.sqrt(np.maximum(self.n_events, 1))
 
     def summary(self) -> str:
         rows = []
@@ -139,15 +142,21 @@ class BreakawayEstimate:
     def __str__(self) -> str:
         return self.summary()
 
-    def _repr_html_(self) -> str:
-        return f"<pre>{escape(self.summary())}</pre>"
-
-    def report(self, path: str | Path) -> Path:
-        """Write the summary as an HTML page (a table per joint) to ``path``."""
-        path = Path(path)
-        path.write_text(f"<!doctype html><meta charset='utf-8'><title>break-away friction"
-                        f"</title>{self._repr_html_()}\n", encoding="utf-8")
-        return path
+    def page(self) -> Page:
+        """The HTML report: per joint the median, spread, directions, events and interval."""
+        page = Page("consistid break-away friction",
+                    f"from {self.source} ({self.duration:.1f} s): first motion after "
+                    f"≥ {self.min_still:g} s below {self.threshold:g} rad/s")
+        ci = self.conf_int()
+        page.table(["joint", "median [N·m]", "spread [N·m]", "median +", "median −", "events",
+                    "95 % interval"],
+                   [(n, t, s, p, m, int(k), f"{lo:.4g} … {hi:.4g}") if ok
+                    else (n, "not measured", "", "", "", "", "")
+                    for n, t, s, p, m, k, (lo, hi), ok in zip(
+                        self.joint_names, self.torque, self.spread, self.positive,
+                        self.negative, self.n_events, ci, self.measured)])
+        page.bullets(self.notes)
+        return page
 
 
 @dataclass(frozen=True, eq=False)

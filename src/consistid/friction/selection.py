@@ -19,8 +19,6 @@ parameters (a law that fits noise does worse on new data).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from html import escape
-from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
@@ -28,6 +26,8 @@ import numpy as np
 from ..data.dataset import Dataset
 from ..errors import OptionError, check_number
 from ..identification.summary import table
+from ..report.html import Page
+from ..report.result import Reported
 from ..robot.model import RobotModel
 from .fit import NonlinearFrictionResult, identify_nonlinear
 from .models import LINEAR, MODELS
@@ -37,7 +37,7 @@ LAWS: tuple[str, ...] = (LINEAR, "stribeck", "sigmoid", "tanh")
 
 
 @dataclass(frozen=True, eq=False)
-class FrictionComparison:
+class FrictionComparison(Reported):
     """Held-out scores of friction laws per joint (module docstring).
 
     Attributes
@@ -97,15 +97,18 @@ class FrictionComparison:
     def __str__(self) -> str:
         return self.summary()
 
-    def _repr_html_(self) -> str:
-        return f"<pre>{escape(self.summary())}</pre>"
-
-    def report(self, path: str | Path) -> Path:
-        """Write the summary as an HTML page to ``path``."""
-        path = Path(path)
-        path.write_text("<!doctype html><meta charset='utf-8'><title>friction laws</title>"
-                        f"{self._repr_html_()}\n", encoding="utf-8")
-        return path
+    def page(self) -> Page:
+        """The HTML report: held-out RMS of each law per joint, overall and at low speed."""
+        page = Page("consistid friction laws",
+                    f"held-out RMS (N·m, method={self.method}) over |q̇| ≥ {self.min_speed:g} "
+                    f"rad/s; low speed: {self.min_speed:g} ≤ |q̇| < {self.low_speed:g} rad/s")
+        page.table(["joint", *[f"RMS {law}" for law in self.laws],
+                    *[f"low {law}" for law in self.laws], "n low", "preferred",
+                    "linear / best", "preferred at low speed"],
+                   [[name, *self.rms[:, j], *self.low_rms[:, j], int(self.n_low[j]),
+                     self.preferred[j], self.gain[j], self.preferred_low_speed[j]]
+                    for j, name in enumerate(self.joint_names)])
+        return page
 
 
 def compare_friction_models(model: RobotModel, train: Dataset, held_out: Dataset,
