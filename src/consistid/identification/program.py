@@ -62,6 +62,17 @@ _CACHE_LOCK = threading.Lock()
 Labelled = Sequence[tuple[cp.Constraint, tuple[str, ...]]]
 
 
+
+def constraint_slacks(con: cp.Constraint, labels: Sequence[str], value: np.ndarray
+                      ) -> list[tuple[str, float]]:
+    """``(label, slack)`` of one constraint whose expression has ``value``: ``−expr`` per entry
+    for inequalities; for an LMI its smallest eigenvalue over ``max(1, largest)`` (relative to
+    the matrix's size: interior-point accuracy is relative)."""
+    if isinstance(con, cp.constraints.PSD):
+        lam = np.linalg.eigvalsh(0.5 * (value + value.T))
+        return [(labels[0], float(lam[0] / max(1.0, abs(lam[-1]))))]
+    return list(zip(labels, (-value).ravel().tolist()))
+
 class CompiledProgram:
     """A program structure in variables ``y`` (``θ = T y``), canonicalised once (module
     docstring).
@@ -155,11 +166,7 @@ class BoundProgram:
                 if self.compiled.unit_rows is not None and k == self.compiled.unit_rows[0]:
                     cols = self.compiled.unit_rows[1]
                     value = value / np.maximum(np.linalg.norm(self.phi[cols], axis=1), 1e-300)
-                if isinstance(con, cp.constraints.PSD):
-                    lam = np.linalg.eigvalsh(0.5 * (value + value.T))
-                    out.append((labels[0], float(lam[0] / max(1.0, abs(lam[-1])))))
-                else:
-                    out += list(zip(labels, (-value).ravel().tolist()))
+                out += constraint_slacks(con, labels, value)
             return out
 
     def standard_form(self) -> tuple[sp.csc_array, np.ndarray, sp.csc_array, np.ndarray,

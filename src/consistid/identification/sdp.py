@@ -698,13 +698,8 @@ class _Program:
         smallest eigenvalue over ``max(1, largest)`` for LMIs (prior-normalised when scaled)."""
         out = []
         for con, labels in self.labelled:
-            value = np.asarray(con.expr.value, dtype=float)
-            if isinstance(con, cp.constraints.PSD):
-                # relative to the matrix's size: interior-point accuracy is relative
-                lam = np.linalg.eigvalsh(0.5 * (value + value.T))
-                out.append((labels[0], float(lam[0] / max(1.0, abs(lam[-1])))))
-            else:
-                out += list(zip(labels, (-value).ravel().tolist()))
+            out += compiled_programs.constraint_slacks(con, labels,
+                                                       np.asarray(con.expr.value, dtype=float))
         return out
 
 
