@@ -2,7 +2,8 @@ r"""Named columns to a log: which column is time, which are each joint's positio
 acceleration and torque — the one column mapping of every tabular format (CSV, Parquet,
 DataFrame, flat MATLAB variables).
 
-Recognised names (case-insensitive; a unit in brackets, ``"q1 [rad]"``, is ignored):
+Recognised names (case-insensitive; a unit in brackets, ``"q1 [rad]"``, or after an underscore,
+``"q1_rad"``, ``"tau1_Nm"``, is read as the column's unit: SI as is, degrees converted):
 
 time
     ``t``, ``time``, ``times``, ``timestamp``, ``stamp``, ``%time`` (``rostopic echo -p``),
@@ -30,7 +31,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from ...errors import DatasetError, MissingColumnsError
+from ...errors import DatasetError, JointNameError, MissingColumnsError
 
 FIELDS = ("q", "dq", "ddq", "tau")
 #: Column-name spellings of each dataset field.
@@ -46,6 +47,22 @@ _UNITS = r"(?:s|ms|us|µs|ns)"
 _UNIT_SUFFIX = re.compile(rf"^(?P<base>.*?)[_\s]*(?:\[(?P<b>{_UNITS})\]|\((?P<p>{_UNITS})\)"
                           r"|_(?P<u>s|sec|ms|us|ns))$")
 _BRACKET_UNIT = re.compile(r"\s+[\[(][^\])]*[\])]\s*$")
+#: Units written as a suffix after an underscore (``q1_rad``, ``q1_deg``, ``tau1_Nm``), and the
+#: bracket spelling each stands for (:func:`column_unit`).
+SUFFIX_UNITS = {"rad": "rad", "deg": "deg", "degree": "deg", "degrees": "deg", "nm": "nm",
+                "rad_s": "rad/s", "deg_s": "deg/s"}
+_SUFFIX_UNIT = re.compile(r"^(?P<base>.+?)_(?P<unit>" + "|".join(
+    sorted(SUFFIX_UNITS, key=len, reverse=True)) + r")$", re.I)
+
+
+def _strip_suffix_unit(name: str) -> tuple[str, str | None]:
+    """``(name without a trailing _<unit>, the unit's bracket spelling)`` when the name ends in
+    one of :data:`SUFFIX_UNITS` and what is left reads as a per-joint column, else
+    ``(name, None)``."""
+    m = _SUFFIX_UNIT.match(name)
+    if m and _parse(m.group("base")):
+        return m.group("base"), SUFFIX_UNITS[m.group("unit").lower()]
+    return name, None
 _SEP = r"[_.\-/: ]"
 
 
@@ -106,9 +123,18 @@ def parse_candidates(name: str) -> list[tuple[str, str | int]]:
     """Every ``(field, joint)`` reading of a per-joint column name (module docstring), most
     likely first; the joint is a name, or a 0-based index for ``q1``-style names. A name such
     as ``q_joint0_effort`` has two readings (``q`` of ``joint0_effort``, ``tau`` of
-    ``q_joint0``): the joints the caller knows decide."""
-    n = _BRACKET_UNIT.sub("", _clean(name))
+    ``q_joint0``): the joints the caller knows decide. A unit in brackets (``q1 [rad]``) or
+    after an underscore (``q1_rad``, ``tau1_Nm``; :data:`SUFFIX_UNITS`) is not part of it."""
     raw = _BRACKET_UNIT.sub("", str(name).strip().strip('"').strip("'"))
+    base, unit = _strip_suffix_unit(raw)
+    if unit is not None:
+        found = _parse(base)
+        return found + [c for c in _parse(raw) if c not in found]
+    return _parse(raw)
+
+
+def _parse(raw: str) -> list[tuple[str, str | int]]:
+    n = raw.lower()
     out: list[tuple[str, str | int]] = []
     m = re.fullmatch(r"([a-z]+)_?(\d+)", n)
     if m and _field_of(m.group(1)):
@@ -256,6 +282,15 @@ def map_columns(names: Sequence[str], source: str, *, joints: Sequence[str] | No
                 if all(j in parsed[f] for j in joints):
                     fields[f] = [parsed[f][j] for j in joints]
     else:
+        if not parsed["q"] and joints:
+            foreign = [n for n in names if n not in used
+                       and re.search(r"joint|^j\d+$", n.strip(), re.I)]
+            if foreign:
+                raise JointNameError(
+                    f"{source}: the columns {foreign[:6]}{' …' if len(foreign) > 6 else ''} "
+                    f"name joints the model does not have; its joints are {list(joints)}. Load "
+                    "the model of the robot that wrote this log, or map the columns by hand "
+                    "(columns={'q': [...], 'tau': [...]}, one column per model joint)")
         if not parsed["q"]:
             raise MissingColumnsError(f"{source}: no joint position columns (q1.., q_<joint>, "
                                       f"<joint>.q, position_<joint>, or joint-name headers){have}"
@@ -319,9 +354,12 @@ DEGREE_UNITS: dict[str, tuple[str, ...]] = {
 
 def column_unit(name: str) -> str | None:
     """The unit written in brackets at the end of a column name (``"q1 [deg]"`` → ``"deg"``),
-    lower case without spaces at the ends, or ``None``."""
+    lower case without spaces at the ends, or after an underscore (``"q1_deg"`` → ``"deg"``,
+    :data:`SUFFIX_UNITS`), or ``None``."""
     m = re.search(r"[\[(]([^\])]*)[\])]\s*$", str(name).strip())
-    return m.group(1).strip().lower() if m and _BRACKET_UNIT.search(str(name).strip()) else None
+    if m and _BRACKET_UNIT.search(str(name).strip()):
+        return m.group(1).strip().lower()
+    return _strip_suffix_unit(str(name).strip().strip('"').strip("'"))[1]
 
 
 def unit_factor(field_name: str, column: str, source: str) -> tuple[float, str | None]:

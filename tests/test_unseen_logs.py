@@ -1,0 +1,156 @@
+"""Loggers with habits nobody tuned to: unit suffixes after an underscore, clocks stepped back,
+stamps in milliseconds at 10 kHz, another robot's joint names (found by probing the loaders as a
+new user; each test failed before its fix)."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+import consistid as ci
+from consistid.data.formats.columns import column_unit, parse_candidates
+from consistid.errors import DataQualityWarning, DatasetError, JointNameError
+
+RATE = 500.0
+NAMES = ["a1", "a2", "a3"]
+
+
+def _log(duration: float = 6.0, rate: float = RATE):
+    """Three joints in smooth motion (peak speeds 0.9–1.6 rad/s) and torques that depend on
+    them: an independent truth for every loader test."""
+    t = np.arange(0.0, duration, 1.0 / rate)
+    q = np.column_stack([0.5 * np.sin(2 * np.pi * f * t + p)
+                         for f, p in ((0.3, 0.0), (0.4, 1.0), (0.5, 2.0))])
+    tau = np.column_stack([3.0 * np.cos(q[:, 0]), 2.0 * q[:, 1] + 1.0, np.sin(q[:, 2])])
+    return t, q, tau
+
+
+def _write(path, header, table):
+    with open(path, "w") as fh:
+        fh.write(",".join(header) + "\n")
+        for row in table:
+            fh.write(",".join(f"{v:.12g}" for v in row) + "\n")
+    return path
+
+
+def _at(t_out, t, x):
+    return np.column_stack([np.interp(t_out, t, c) for c in x.T])
+
+
+# ------------------------------------------------------------------ units after an underscore
+@pytest.mark.parametrize("name, field, joint, unit", [
+    ("q1_rad", "q", 0, "rad"), ("q2_deg", "q", 1, "deg"), ("tau3_Nm", "tau", 2, "nm"),
+    ("q_a1_rad", "q", "a1", "rad"), ("dq1_rad_s", "dq", 0, "rad/s"),
+    ("effort_a2_nm", "tau", "a2", "nm")])
+def test_underscore_unit_suffix_is_a_unit_not_part_of_the_name(name, field, joint, unit):
+    assert parse_candidates(name)[0] == (field, joint)
+    assert column_unit(name) == unit
+
+
+def test_a_joint_name_ending_like_a_unit_is_left_alone():
+    # "rad" after an underscore, but what is left ("wrist") is no per-joint column
+    assert column_unit("wrist_rad") is None
+    assert parse_candidates("q_wrist") == [("q", "wrist")]
+
+
+def test_csv_with_q1_rad_and_tau1_nm_headers_reads_like_the_plain_one(tmp_path):
+    t, q, tau = _log()
+    plain = _write(tmp_path / "plain.csv", ["t", "q1", "q2", "q3", "tau1", "tau2", "tau3"],
+                   np.column_stack([t, q, tau]))
+    styled = _write(tmp_path / "styled.csv",
+                    ["time_s", "q1_rad", "q2_rad", "q3_rad", "tau1 (Nm)", "tau2 (Nm)",
+                     "tau3 (Nm)"], np.column_stack([t, q, tau]))
+    a = ci.load_recording(plain).dataset
+    b = ci.load_recording(styled).dataset
+    assert np.array_equal(a.q, b.q) and np.array_equal(a.tau, b.tau)
+
+
+def test_csv_in_degrees_by_underscore_suffix_is_converted_and_said(tmp_path):
+    t, q, tau = _log()
+    path = _write(tmp_path / "deg.csv", ["time", "q1_deg", "q2_deg", "q3_deg", "tau1_Nm",
+                                         "tau2_Nm", "tau3_Nm"],
+                  np.column_stack([t, np.degrees(q), tau]))
+    rec = ci.load_recording(path)
+    d = rec.dataset
+    assert np.max(np.abs(d.q - _at(d.t, t, q))) < 1e-3          # radians, like the truth
+    assert any("q1_deg" in s and "converted to radians" in s for s in rec.steps)
+
+
+# ------------------------------------------------------------------ clocks
+def test_reversed_stamps_are_not_called_equal():
+    t, q, tau = _log()
+    # a logger that writes newest first: every stamp goes back by one step; sorted silently
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DataQualityWarning)
+        d = ci.Dataset.from_recording(t[::-1].copy(), q[::-1].copy(), tau[::-1].copy())
+    assert np.max(np.abs(d.q - _at(d.t, t, q))) < 1e-3
+
+
+def test_shuffled_rows_are_judged_after_sorting_not_refused_as_milliseconds():
+    t, q, tau = _log()
+    order = np.random.default_rng(0).permutation(t.size)
+    with pytest.warns(DataQualityWarning, match="out of order"):
+        d = ci.Dataset.from_recording(t[order], q[order], tau[order])
+    assert np.max(np.abs(d.q - _at(d.t, t, q))) < 1e-3
+
+
+def test_clock_stepped_back_warns_and_names_where():
+    t, q, tau = _log()
+    t = t.copy()
+    t[1500:] -= 0.02                        # an NTP correction: 10 steps back at index 1500
+    with pytest.warns(DataQualityWarning, match=r"t\[1500\].*cut the log at index 1500"):
+        ci.Dataset.from_recording(t, q, tau)
+
+
+def test_two_rows_out_of_order_do_not_warn():
+    t, q, tau = _log()
+    swap = [2000, 2001]
+    t, q, tau = (a.copy() for a in (t, q, tau))
+    for a in (t, q, tau):
+        a[swap] = a[swap[::-1]]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DataQualityWarning)
+        ci.Dataset.from_recording(t, q, tau)
+
+
+def test_backwards_time_message_shows_plain_numbers(tmp_path):
+    t, q, tau = _log()
+    t = t.copy()
+    t[100] = t[90]
+    path = _write(tmp_path / "back.csv", ["t", "q1", "q2", "q3", "tau1", "tau2", "tau3"],
+                  np.column_stack([t, q, tau]))
+    with pytest.raises(DatasetError, match=r"t\[100\] = 0\.18 is before t\[99\] = 0\.198") as e:
+        ci.load_recording(path)
+    assert "np.float64" not in str(e.value)
+
+
+def test_10_khz_log_stamped_in_ms_warns_with_the_unit():
+    # 0.1 ms steps in ms read as seconds: a plausible "10 Hz" log moving 1000 × too slowly
+    t, q, tau = _log(duration=2.0, rate=10_000.0)
+    with pytest.warns(DataQualityWarning, match=r"quasi-static.*time_unit='ms' \(1e\+04 Hz"):
+        ci.Dataset.from_recording(t * 1e3, q, tau)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DataQualityWarning)
+        d = ci.Dataset.from_recording(t * 1e3, q, tau, time_unit="ms")
+    assert np.max(np.abs(d.q - _at(d.t, t, q))) < 1e-3
+
+
+def test_a_normal_log_is_not_called_quasi_static():
+    t, q, tau = _log()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DataQualityWarning)
+        ci.Dataset.from_recording(t, q, tau)
+
+
+# ------------------------------------------------------------------ another robot's log
+def test_log_of_another_robot_names_both_joint_lists(tmp_path):
+    t, q, tau = _log()
+    path = _write(tmp_path / "other.csv",
+                  ["time", "panda_joint1", "panda_joint2", "panda_joint3",
+                   "panda_joint1_effort", "panda_joint2_effort", "panda_joint3_effort"],
+                  np.column_stack([t, q, tau]))
+    with pytest.raises(JointNameError, match=r"panda_joint1.*does not have; its joints are "
+                                             r"\['a1', 'a2', 'a3'\]"):
+        ci.load_recording(path, joints=NAMES)
