@@ -7,7 +7,9 @@ build itself from it (:meth:`Dataset.from_recording`) without an import cycle;
 chain, in order (each step appears in the record when it did something):
 
 1. **time stamps** (:mod:`consistid.data.timestamps`): units (``time_unit``; implausible stamps
-   are refused, never silently rescaled); sort if needed; samples whose stamps are within
+   are refused, never silently rescaled, and judged after sorting); sort if needed (stamps
+   going back by more than ``CLOCK_STEP_BACK`` median steps warn: a stepped clock, whose
+   stretches sorting interleaves); samples whose stamps are within
    ``duplicate_tol`` median steps merged (``duplicates``; collapsed stamps refused unless a
    policy is given);
 2. **outliers**: a Hampel filter (window 11, 6 robust σ) on ``q`` and ``τ`` replaces spikes by
@@ -48,12 +50,13 @@ chain, in order (each step appears in the record when it did something):
 from __future__ import annotations
 
 import logging
+import warnings
 from dataclasses import asdict, dataclass, fields
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from ..errors import DatasetError, OptionError, check_number, check_option
+from ..errors import DataQualityWarning, DatasetError, OptionError, check_number, check_option
 from .filters import (
     CUTOFF_FACTOR,
     MAX_CUTOFF_FRACTION,
@@ -72,6 +75,7 @@ from .filters import (
 from .resample import check_rate, nominal_rate, resample, supported_rate, uniform_grid
 from .timestamps import (
     DUPLICATES,
+    PLAUSIBLE_STEP,
     TIME_UNITS,
     check_timestamp,
     convert_units,
@@ -94,6 +98,11 @@ GAP_CUTOFF_PERIODS = 0.5
 OUTAGE = 0.1
 #: Fewer samples than this in a segment: dropped.
 MIN_SEGMENT = 16
+#: Stamps going back by more than this many median steps warn (:func:`_warn_clock_steps`).
+CLOCK_STEP_BACK = 2.0
+#: Peak joint speed (rad/s or m/s) below which a moving log warns as quasi-static
+#: (:func:`_warn_quasi_static`); a robot being identified moves 10–100 × faster.
+QUASI_STATIC_SPEED = 0.01
 
 
 @dataclass(frozen=True)
@@ -261,19 +270,71 @@ def _check_inputs(t: np.ndarray, q: np.ndarray, tau: np.ndarray
 
 def _fix_time(t: np.ndarray, x: np.ndarray, o: PreprocessOptions, steps: list[Step]
               ) -> tuple[np.ndarray, np.ndarray]:
-    t, note, _ = convert_units(t, o.time_unit)
-    if note:
-        steps.append(Step("time unit", note))
-    if np.any(np.diff(t) < 0):
+    back = np.flatnonzero(np.diff(t) < 0)
+    raw = t
+    if back.size:                       # sorted first: units are judged on the sorted steps
         order = np.argsort(t, kind="stable")
         moved = int(np.sum(order != np.arange(t.size)))
         t, x = t[order], x[order]
+    t, note, scale = convert_units(t, o.time_unit)
+    if note:
+        steps.append(Step("time unit", note))
+    if back.size:
         steps.append(Step("sort", f"{moved} samples were out of time order; sorted by time"))
+        _warn_clock_steps(raw, back, scale, median_step(t))
     tol = o.duplicate_tol * median_step(t)
     t, merged, note = merge_duplicates(t, {"x": x}, o.duplicates, tol)
     if not note.startswith("no "):
         steps.append(Step("duplicates", note))
     return t, merged["x"]
+
+
+def _warn_clock_steps(t: np.ndarray, back: np.ndarray, scale: float, step: float) -> None:
+    """Warn (:class:`DataQualityWarning`) when the raw stamps ``t`` go back by more than
+    :data:`CLOCK_STEP_BACK` median steps ``step`` (s) anywhere (``back``: the indices ``k``
+    with ``t[k+1] < t[k]``). Rows logged out of order go back by about one step and are sorted
+    silently (the record says so); a larger step back is what a stepped clock (NTP, a
+    controller reboot) leaves, and sorting then interleaves two stretches of the log."""
+    drops = (t[back] - t[back + 1]) * scale
+    big = back[drops > CLOCK_STEP_BACK * step]
+    if not big.size:
+        return
+    k = int(big[0]) + 1
+    first = (f"time goes back {back.size} time(s), by up to {drops.max() * 1e3:.4g} ms "
+             f"({drops.max() / step:.3g} median steps); first by "
+             f"{drops[back == big[0]][0] * 1e3:.4g} ms at t[{k}] = {float(t[k])!r} after "
+             f"t[{k - 1}] = {float(t[k - 1])!r}. The samples were sorted by time")
+    if big.size == 1:
+        advice = (", which interleaves two stretches of the log if the logger's clock was "
+                  f"stepped back (NTP, a reboot): then cut the log at index {k} and load the "
+                  "two parts as separate recordings")
+    else:
+        advice = (f"; {big.size} such steps back: rows written out of order, or several logs "
+                  "(or clocks) mixed in one file? Check that it is one recording")
+    warnings.warn(first + advice, DataQualityWarning, stacklevel=5)
+
+
+def _warn_quasi_static(t: np.ndarray, dq: np.ndarray, step: float,
+                       time_unit: str | None) -> None:
+    """Warn (:class:`DataQualityWarning`) when no joint ever moves faster than
+    :data:`QUASI_STATIC_SPEED` while the positions do change: a quasi-static log informs the
+    gravity terms only — or its stamps are not seconds (a 10 kHz log stamped in milliseconds
+    reads as a plausible 10 Hz log whose motion is a thousand times too slow)."""
+    peak = float(np.max(np.abs(dq))) if dq.size else 0.0
+    if peak == 0.0 or peak >= QUASI_STATIC_SPEED:
+        return                      # no motion at all is refused where it matters (identify)
+    hint = ""
+    if time_unit in (None, "s", "auto"):
+        lo, hi = PLAUSIBLE_STEP
+        other = [f"time_unit={u!r} ({1 / (step * TIME_UNITS[u]):.4g} Hz, peak speed "
+                 f"{peak / TIME_UNITS[u]:.3g} rad/s)" for u in ("ms", "us")
+                 if lo <= step * TIME_UNITS[u] <= hi]
+        if other:
+            hint = (f". If the time stamps are not seconds (a log at {1 / step:.4g} Hz and "
+                    f"{t[-1] - t[0]:.4g} s long?), pass " + " or ".join(other))
+    warnings.warn(f"no joint moves faster than {peak:.3g} rad/s (or m/s) in this log: it is "
+                  "quasi-static and informs the gravity terms only (inertia and friction barely)"
+                  f"{hint}", DataQualityWarning, stacklevel=4)
 
 
 def _outliers(t: np.ndarray, x: np.ndarray, stretches: list[slice], nv: int,
@@ -517,6 +578,7 @@ def run_chain(t: np.ndarray, q: np.ndarray, tau: np.ndarray,
             raise DatasetError("every segment is shorter than twice the edge trim")
 
     arrays = [np.concatenate(a) for a in (out_t, out_q, out_dq, out_ddq, out_tau, out_seg)]
+    _warn_quasi_static(arrays[0], arrays[2], h, o.time_unit)
     if o.decimate > 1:
         keep = np.zeros(arrays[0].size, dtype=bool)
         for s in np.unique(arrays[-1]):

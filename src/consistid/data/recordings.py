@@ -235,8 +235,9 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
     back = np.flatnonzero(np.diff(t) < 0)
     if back.size:
         k = int(back[0]) + 1
-        raise DatasetError(f"{source}: t[{k}] = {t[k]!r} is before t[{k - 1}] = {t[k - 1]!r} "
-                           f"(time goes back {back.size} time(s)); sort the log first")
+        raise DatasetError(f"{source}: t[{k}] = {float(t[k])!r} is before t[{k - 1}] = "
+                           f"{float(t[k - 1])!r} (time goes back {back.size} time(s)); sort the "
+                           "log first, or cut it there if the logger's clock was stepped back")
     t0 = float(t[0])
     t = t - t0
     t, note, scale = convert_units(t, time_unit, source)
