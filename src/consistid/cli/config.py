@@ -56,14 +56,16 @@ from __future__ import annotations
 
 import inspect
 import sys
+import warnings
 from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any, Iterable, Mapping, Sequence
 
-from ..errors import ConfigError
+from ..errors import ConfigError, DataQualityWarning
 from ..robot.model import RobotModel
 from ..data.chain import PreprocessOptions
 from ..data.recordings import Recording, load_recording
+from .files import same_file
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -183,6 +185,10 @@ def read_toml(path: str | Path, allowed: Sequence[str]
     (default ``"."``, relative to the file) be a path string, and every other top-level key be
     one of the ``allowed`` tables — each failure a :class:`ConfigError` naming the file."""
     path = Path(path)
+    if path.is_dir():
+        found = sorted(p.name for p in path.glob("*.toml"))
+        raise ConfigError(f"configuration file {str(path)!r} is a folder, not a TOML file"
+                          + (f"; it holds {found[:6]}" if found else ""))
     if not path.is_file():
         raise ConfigError(f"configuration file {str(path)!r} does not exist")
     try:
@@ -298,6 +304,12 @@ def config_recordings(config: RunConfig, model: RobotModel | None = None
             config.expect("data", key, t[key], kind)
     if not t.get("train"):
         raise ConfigError(f"{config.path.name}: [data] needs train = [\"file.npz\", ...]")
+    for key in ("trim_start", "trim_end"):
+        if key in t and t[key] < 0:
+            raise ConfigError(f"{config.path.name}: [data] {key} must be seconds ≥ 0 (dropped "
+                              f"from each log), got {key} = {_toml(t[key])}")
+    if "dir" in t:
+        _check_folder(config, "dir", t["dir"])
     options = {k: t[k] for k in ("joint_names", "trim_start", "trim_end", "duplicates",
                                  "joints", "columns", "topic", "stamp", "delimiter",
                                  "time_unit", "timestamp", "derivatives") if k in t}
@@ -316,7 +328,40 @@ def config_recordings(config: RunConfig, model: RobotModel | None = None
         return recs[0] if len(recs) == 1 else Recording.concatenate(recs)
 
     held = t.get("held_out")
+    if held:
+        _warn_shared(config, t["train"], held, t.get("dir"))
     return read(t["train"], "train"), (read(held, "held_out") if held else None)
+
+
+def _check_folder(config: RunConfig, key: str, value: str) -> None:
+    """:class:`ConfigError` when ``[data] key`` (a folder under ``root``) is missing or a file,
+    naming ``root`` when that is what is missing."""
+    folder = config.resolve(value)
+    if folder.is_dir():
+        return
+    if folder.exists():
+        raise ConfigError(f"{config.path.name}: [data] {key} = {_toml(value)} is the file "
+                          f"{str(folder)!r}, not a folder (the logs' folder; leave {key} out "
+                          "to read them from root)")
+    where = (f"root {str(config.root)!r} does not exist (root is relative to the "
+             "configuration file's folder)" if not config.root.is_dir()
+             else f"the folder {str(folder)!r} does not exist")
+    raise ConfigError(f"{config.path.name}: [data] {key} = {_toml(value)}: {where}")
+
+
+def _warn_shared(config: RunConfig, train: Any, held: Any, under: str | None) -> None:
+    """Warn (:class:`DataQualityWarning`) when a ``held_out`` log is also a ``train`` log: its
+    score would not be a held-out score."""
+    def paths(v: Any) -> list[Path]:
+        values = [v] if isinstance(v, str) else v if isinstance(v, list) else []
+        return [config.resolve(f, under=under) for f in values if isinstance(f, str)]
+
+    shared = [h for h in paths(held) if any(same_file(h, tr) for tr in paths(train))]
+    if shared:
+        warnings.warn(f"{config.path.name}: [data] held_out names train log(s) "
+                      f"{[p.name for p in shared]}: the model is scored on data it was fitted "
+                      "to, so the held-out RMS says nothing about new data; hold out another "
+                      "recording (or leave held_out out)", DataQualityWarning, stacklevel=3)
 
 
 def identify_keys() -> tuple[str, ...]:
@@ -339,6 +384,13 @@ def config_identify(config: RunConfig) -> dict[str, Any]:
     :class:`~consistid.robot.shapes.Ellipsoid` objects (``ellipsoids = "collision"`` passes on:
     the URDF's collision ellipsoids, :func:`consistid.robot.shapes.collision_ellipsoids`)."""
     options = config.table("identify", identify_keys(), required=False)
+    armature = options.get("armature")
+    if armature is not None and not (
+            isinstance(armature, bool) or (isinstance(armature, list) and all(
+                isinstance(a, (str, int)) and not isinstance(a, bool) for a in armature))):
+        raise ConfigError(f"{config.path.name}: [identify] armature must be true, false or an "
+                          "array of joint names (e.g. armature = [\"joint1\", \"joint2\"]), "
+                          f"got armature = {_toml(armature)}")
     if "neighbourhood" in options:
         from ..identification.priors import Neighbourhood
 

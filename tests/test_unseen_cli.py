@@ -1,0 +1,105 @@
+"""The ``consistid`` command on mistakes a new user makes (found by probing it; each test failed
+before its fix): a folder given as the configuration, a ``[data] dir`` that is a file or under a
+missing ``root``, negative trims, ``armature = "yes"``, and a held-out log that is also a
+training log (scored silently as if it were held out)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import consistid as ci
+from consistid.cli import main
+
+from .conftest import PLANAR_2R, PLANAR_2R_VALUES, random_states
+
+MODEL = """root = ".."
+[model]
+urdf = "data/arm.urdf"
+gravity = [0.0, -9.81, 0.0]
+"""
+
+
+def data_table(train='["run1.npz"]', held_out='["run2.npz"]', extra="", folder='"data"'):
+    return (f'[data]\ndir = {folder}\nkeys = "consistid"\ntrain = {train}\n'
+            f'held_out = {held_out}\n{extra}')
+
+
+IDENTIFY = '[identify]\nmethod = "ols"\nfriction = ["coulomb"]\n'
+
+
+@pytest.fixture()
+def project(tmp_path, planar_2r):
+    data = tmp_path / "data"
+    data.mkdir()
+    (data / "arm.urdf").write_text(PLANAR_2R.format(**PLANAR_2R_VALUES))
+    rng = np.random.default_rng(0)
+    for k in (1, 2):
+        q, dq, ddq = random_states(planar_2r, 300, rng)
+        tau = planar_2r.rnea(q, dq, ddq) + 0.01 * rng.standard_normal(q.shape)
+        ci.Dataset(t=0.005 * np.arange(300), q=q, dq=dq, ddq=ddq, tau=tau).save(
+            data / f"run{k}.npz")
+    (tmp_path / "conf").mkdir()
+    return tmp_path
+
+
+def write(project, text, name="run.toml"):
+    path = project / "conf" / name
+    path.write_text(text)
+    return path
+
+
+def run(args, capsys, code=2):
+    got = main([str(a) for a in args])
+    out = capsys.readouterr()
+    assert got == code, out.err
+    assert "Traceback" not in out.err + out.out
+    return out.err
+
+
+def test_a_folder_given_as_the_configuration_is_called_a_folder(project, capsys):
+    write(project, MODEL + data_table() + IDENTIFY, "identify.toml")
+    err = run(["identify", project / "conf"], capsys)
+    assert "is a folder, not a TOML file" in err and "identify.toml" in err
+    assert "does not exist" not in err
+
+
+def test_data_dir_that_is_a_file_is_named(project, capsys):
+    err = run(["identify", write(project, MODEL + data_table(folder='"data/run1.npz"')
+                                 + IDENTIFY)], capsys)
+    assert '[data] dir = "data/run1.npz" is the file' in err and "not a folder" in err
+
+
+def test_missing_root_is_named_not_the_log(project, capsys):
+    text = (MODEL + data_table() + IDENTIFY).replace('root = ".."', 'root = "../nowhere"')
+    text = text.replace('urdf = "data/arm.urdf"', f'urdf = "{project / "data" / "arm.urdf"}"')
+    err = run(["identify", write(project, text)], capsys)
+    assert "root" in err and "nowhere' does not exist" in err
+
+
+@pytest.mark.parametrize("key", ["trim_start", "trim_end"])
+def test_negative_trim_is_named_in_toml(project, capsys, key):
+    err = run(["identify", write(project, MODEL + data_table(extra=f"{key} = -1\n")
+                                 + IDENTIFY)], capsys)
+    assert f"[data] {key} must be seconds ≥ 0" in err and f"{key} = -1" in err
+
+
+def test_armature_of_the_wrong_type_is_named_in_toml(project, capsys):
+    err = run(["identify", write(project, MODEL + data_table()
+                                 + IDENTIFY + 'armature = "yes"\n')], capsys)
+    assert '[identify] armature must be true, false or an array of joint names' in err
+    assert 'armature = "yes"' in err and "joint = " not in err
+
+
+def test_held_out_that_is_a_training_log_warns(project, capsys):
+    path = write(project, MODEL + data_table(train='["run1.npz", "run2.npz"]',
+                                             held_out='["run2.npz"]') + IDENTIFY)
+    with pytest.warns(ci.errors.DataQualityWarning, match=r"held_out names train log\(s\) "
+                                                          r"\['run2.npz'\]"):
+        assert main(["-q", "identify", str(path), "--output", str(project / "out")]) == 0
+
+
+def test_distinct_held_out_does_not_warn(project, capsys, recwarn):
+    main(["-q", "identify", str(write(project, MODEL + data_table() + IDENTIFY)),
+          "--output", str(project / "out")])
+    assert not [w for w in recwarn if "held_out names train" in str(w.message)]
