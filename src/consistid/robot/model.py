@@ -12,6 +12,8 @@ converts, so datasets stay ``(N, nv)`` for every robot.
 
 from __future__ import annotations
 
+import hashlib
+import re
 import site
 import sys
 import tempfile
@@ -153,13 +155,17 @@ class RobotModel:
 
         Parameters
         ----------
-        path : path to the URDF file. Meshes are not loaded, so ``package://`` URIs need not
-            resolve.
+        path : path to the URDF file, or the URDF text itself (a string starting with ``<``;
+            kept in a temporary file for the session, ``model.source``, so that ``to_urdf``
+            and the collision shapes can read it). Meshes are not loaded, so ``package://``
+            URIs need not resolve.
         locked_joints : joints merged into their parent link (e.g. a gripper's fingers).
         locked_configuration : angle (rad) or position (m) at which to lock each joint, default 0.
-        name : label for reports; default the file stem.
+        name : label for reports; default the file stem (the ``<robot name>`` of URDF text).
         gravity : gravity vector in the base frame, default ``(0, 0, -9.81)``.
         """
+        if isinstance(path, str) and path.lstrip().startswith("<"):
+            path, name = _urdf_text_file(path, name)
         path = Path(path)
         if not path.is_file():
             raise ModelError(f"URDF file {str(path)!r} does not exist")
@@ -170,7 +176,11 @@ class RobotModel:
         try:
             full = pin.buildModelFromUrdf(str(path))
         except Exception as exc:  # Pinocchio raises plain RuntimeError / ValueError
-            check_urdf(path, list(locked_joints))   # a named cause, when there is one
+            try:
+                check_urdf(path, list(locked_joints))   # a named cause, when there is one
+            except ModelError as named:
+                raise ModelError(f"Pinocchio could not read URDF {str(path)!r}: "
+                                 f"{named}") from exc
             raise ModelError(f"Pinocchio could not read URDF {str(path)!r}: {exc}") from exc
         locked = list(locked_joints)
         config = dict(locked_configuration or {})
@@ -236,7 +246,12 @@ class RobotModel:
             raise ModelError(f"bodies {massless} have mass 0 but a non-zero first moment m·c: "
                              "no centre of mass represents that (c = m·c / m)")
         model = self.pin_model.copy()
-        for j, inertia in enumerate(inertias_from_vector(parameters[: self.n_inertial]), start=1):
+        for j, (inertia, p) in enumerate(zip(inertias_from_vector(inertial),
+                                             inertial.reshape(-1, 10)), start=1):
+            if p[0] == 0:   # massless (m·c = 0 checked above): no CoM, c = m·c/m would be NaN;
+                xx, xy, yy, xz, yz, zz = p[4:]      # its rotational inertia is the same anywhere
+                inertia = pin.Inertia(0.0, np.zeros(3), np.array([[xx, xy, xz], [xy, yy, yz],
+                                                                  [xz, yz, zz]]))
             model.inertias[j] = inertia
         return RobotModel(model, name=self.name, source=self.source,
                           locked_joints=self.locked_joints,
@@ -398,6 +413,23 @@ class RobotModel:
         for k in range(q.shape[0]):
             out[k] = pin.rnea(self.pin_model, data, self.configuration(q[k]), dq[k], ddq[k])
         return out
+
+
+_TEXT_DIR: list[tempfile.TemporaryDirectory] = []
+
+
+def _urdf_text_file(text: str, name: str | None) -> tuple[Path, str]:
+    """URDF text written to a file in a folder removed when the interpreter exits, and the
+    model's name (``name``, else the ``<robot name>``, else ``"robot"``)."""
+    found = re.search(r"<robot\b[^>]*\bname\s*=\s*[\"']([^\"']+)[\"']", text)
+    label = name or (found.group(1) if found else "robot")
+    if not _TEXT_DIR:
+        _TEXT_DIR.append(tempfile.TemporaryDirectory(prefix="consistid-urdf-"))
+    digest = hashlib.sha1(text.encode()).hexdigest()[:10]
+    safe = re.sub(r"[^A-Za-z0-9_.-]", "_", label)
+    path = Path(_TEXT_DIR[0].name) / f"{safe}-{digest}.urdf"
+    path.write_text(text)
+    return path, label
 
 
 def require_model(model: object) -> RobotModel:

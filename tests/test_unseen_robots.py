@@ -1,0 +1,123 @@
+"""Robots nobody tuned to, built from URDF text: the text itself given to ``from_urdf``, a
+massless link, malformed trees (a loop, two roots, a revolute joint without ``<limit>`` …), and
+continuous / prismatic / fixed-in-the-middle joints identified against their own RNEA (each of
+the first three groups failed before its fix)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import consistid as ci
+from consistid.errors import ModelError
+
+from .conftest import PLANAR_2R, PLANAR_2R_VALUES, random_states
+
+
+def link(name, m=1.0, c=(0.1, 0.0, 0.0), inertia=(0.01, 0.01, 0.01)):
+    if m is None:
+        return f'<link name="{name}"/>'
+    return (f'<link name="{name}"><inertial><origin xyz="{c[0]} {c[1]} {c[2]}"/>'
+            f'<mass value="{m}"/><inertia ixx="{inertia[0]}" ixy="0" ixz="0" '
+            f'iyy="{inertia[1]}" iyz="0" izz="{inertia[2]}"/></inertial></link>')
+
+
+def joint(name, parent, child, kind="revolute", axis="0 0 1", xyz="0 0 0", limit=True):
+    lim = ('<limit lower="-3" upper="3" velocity="5" effort="100"/>'
+           if limit and kind in ("revolute", "prismatic") else "")
+    ax = f'<axis xyz="{axis}"/>' if kind != "fixed" else ""
+    return (f'<joint name="{name}" type="{kind}"><parent link="{parent}"/>'
+            f'<child link="{child}"/><origin xyz="{xyz}"/>{ax}{lim}</joint>')
+
+
+def robot(*elements, name="arm"):
+    return f'<?xml version="1.0"?><robot name="{name}">' + "".join(elements) + "</robot>"
+
+
+TWO_R = [link("base", None), link("l1", 2.0, (0.4, 0, 0), (0.01, 0.045, 0.05)),
+         link("l2", 1.5, (0.3, 0, 0), (0.01, 0.03, 0.035)),
+         joint("j1", "base", "l1"), joint("j2", "l1", "l2", xyz="0.8 0 0")]
+
+
+# ------------------------------------------------------------------ URDF text
+def test_urdf_text_builds_the_same_model_as_the_file(tmp_path):
+    text = PLANAR_2R.format(**PLANAR_2R_VALUES)
+    (tmp_path / "arm.urdf").write_text(text)
+    from_file = ci.RobotModel.from_urdf(tmp_path / "arm.urdf")
+    from_text = ci.RobotModel.from_urdf(text)
+    assert from_text.name == "planar2r"                      # the <robot name>
+    assert from_text.joint_names == from_file.joint_names
+    assert np.array_equal(from_text.prior_parameters, from_file.prior_parameters)
+    q, dq, ddq = random_states(from_file, 20, 0)
+    assert np.allclose(from_text.rnea(q, dq, ddq), from_file.rnea(q, dq, ddq), atol=1e-12)
+    # the text stays readable for the writers that re-read the source
+    out = tmp_path / "out.urdf"
+    from_text.to_urdf(out)
+    again = ci.RobotModel.from_urdf(out)
+    assert np.allclose(again.prior_parameters, from_file.prior_parameters)
+
+
+def test_bad_urdf_text_is_named_not_called_a_missing_file():
+    with pytest.raises(ModelError, match="no <limit>") as err:
+        ci.RobotModel.from_urdf(robot(link("base", None), link("l1"),
+                                      joint("j1", "base", "l1", limit=False)))
+    assert "does not exist" not in str(err.value)
+
+
+# ------------------------------------------------------------------ massless links
+@pytest.mark.parametrize("massless", [link("l1", None), link("l1", 0.0, (0, 0, 0), (0, 0, 0)),
+                                      link("l1", 0.0, (0, 0, 0), (0.01, 0.02, 0.03))])
+def test_a_massless_link_survives_its_own_parameters(massless):
+    model = ci.RobotModel.from_urdf(robot(TWO_R[0], massless, *TWO_R[2:]))
+    again = model.with_parameters(model.prior_parameters)       # was: "mx = nan"
+    assert np.array_equal(again.prior_parameters, model.prior_parameters)
+    q, dq, ddq = random_states(model, 20, 1)
+    assert np.allclose(again.rnea(q, dq, ddq), model.rnea(q, dq, ddq), atol=1e-12)
+
+
+# ------------------------------------------------------------------ malformed trees
+MALFORMED = {
+    "loop": (robot(*TWO_R, joint("j3", "l2", "l1")),
+             r"link 'l1' is the child of joints 'j1' and 'j3'"),
+    "two roots": (robot(*TWO_R, link("spare")), r"2 root links \['base', 'spare'\]"),
+    "duplicate joint": (robot(*TWO_R, link("l3"), joint("j2", "l2", "l3")),
+                        r"joint name\(s\) \['j2'\] defined more than once"),
+    "missing link": (robot(*TWO_R[:2], joint("j1", "base", "l1"), joint("j2", "l1", "nope")),
+                     r"joint 'j2' has <child link='nope'>, which is not a <link>"),
+    "no limit": (robot(*TWO_R[:3], joint("j1", "base", "l1"),
+                       joint("j2", "l1", "l2", kind="prismatic", limit=False)),
+                 r"prismatic joint 'j2' has no <limit>"),
+    "not a robot": ('<sdf version="1.6"><model name="m"/></sdf>', r"root element is <sdf>"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(MALFORMED))
+def test_a_malformed_tree_is_named(case):
+    text, message = MALFORMED[case]
+    with pytest.raises(ModelError, match=message):
+        ci.RobotModel.from_urdf(text)
+
+
+# ------------------------------------------------------------------ joint kinds
+KINDS = {
+    "continuous": robot(*TWO_R[:4], joint("j2", "l1", "l2", kind="continuous", axis="0 1 0",
+                                          xyz="0.8 0 0")),
+    "prismatic": robot(*TWO_R[:4], joint("j2", "l1", "l2", kind="prismatic", axis="1 0 0",
+                                         xyz="0.8 0 0")),
+    "fixed in the middle": robot(link("base", None), link("l1", 2.0, (0.4, 0, 0)),
+                                 link("mid", 0.5, (0, 0, 0.05)), link("l2", 1.5, (0.3, 0, 0)),
+                                 joint("j1", "base", "l1", axis="0 1 0"),
+                                 joint("jf", "l1", "mid", kind="fixed", xyz="0.4 0 0"),
+                                 joint("j2", "mid", "l2", axis="0 1 0", xyz="0.4 0 0")),
+}
+
+
+@pytest.mark.parametrize("kind", sorted(KINDS))
+def test_ols_reproduces_rnea_on_other_joint_kinds(kind):
+    model = ci.RobotModel.from_urdf(KINDS[kind])
+    assert model.nv == 2
+    q, dq, ddq = random_states(model, 400, 2)
+    tau = model.rnea(q, dq, ddq)
+    data = ci.Dataset(t=0.005 * np.arange(400), q=q, dq=dq, ddq=ddq, tau=tau)
+    res = ci.identify(model, data, method="ols", friction=None)
+    assert np.max(res.rms(data)) < 1e-8 * np.max(np.abs(tau))
