@@ -70,6 +70,7 @@ def check_urdf(path: str | Path, locked_joints: Sequence[str] = ()) -> None:
     locked = set(locked_joints)
     path = Path(path)
     root = parse_urdf(path).getroot()
+    check_tree(root, path.name)
     for link in root.iter("link"):
         inertial = link.find("inertial")
         if inertial is None:
@@ -110,6 +111,57 @@ def check_urdf(path: str | Path, locked_joints: Sequence[str] = ()) -> None:
             raise ModelError(f"{path.name}: joint {name!r} has <axis xyz={text!r}>: a {kind} "
                              "joint needs 3 finite numbers, not all zero (the direction it "
                              "moves along)")
+
+
+def check_tree(root: ET.Element, source: str) -> None:
+    """Refuse (:class:`ModelError`, naming the element) a URDF that is not one tree of links:
+    no ``<robot>`` root element, duplicate link or joint names, a joint whose parent or child
+    link is not defined, a link that is the child of two joints (a closed loop), several root
+    links, and a revolute or prismatic joint without ``<limit>`` (which URDF requires).
+    Pinocchio's parser refuses these too, with a message that names none of them."""
+    if root.tag != "robot":
+        raise ModelError(f"{source}: the root element is <{root.tag}>, not <robot>: not a URDF "
+                         "(an SDF or MJCF file? MJCF: pinocchio.buildModelFromMJCF)")
+    links = [link.get("name", "") for link in robot_links(root)]
+    joints = robot_joints(root)
+    for kind, elements in (("link", robot_links(root)), ("joint", joints)):
+        unnamed = [k for k, e in enumerate(elements) if not e.get("name")]
+        if unnamed:
+            raise ModelError(f"{source}: <{kind}> number {unnamed[0] + 1} (in file order) has no "
+                             "name attribute; every link and joint needs one")
+    for kind, names in (("link", links), ("joint", [j.get("name", "") for j in joints])):
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if dup:
+            raise ModelError(f"{source}: {kind} name(s) {dup} defined more than once; every "
+                             f"{kind} needs its own name")
+    parent_of: dict[str, str] = {}
+    for joint in joints:
+        name, kind = joint.get("name", "?"), joint.get("type", "?")
+        ends = {}
+        for end in ("parent", "child"):
+            tag = joint.find(end)
+            ends[end] = None if tag is None else tag.get("link")
+            if ends[end] not in links:
+                raise ModelError(f"{source}: joint {name!r} has <{end} link="
+                                 f"{ends[end]!r}>, which is not a <link> of the file; links are "
+                                 f"{links[:12]}{' …' if len(links) > 12 else ''}")
+        child = ends["child"]
+        if child in parent_of:
+            raise ModelError(f"{source}: link {child!r} is the child of joints "
+                             f"{parent_of[child]!r} and {name!r}: a closed kinematic loop, which "
+                             "a URDF (a tree) cannot hold; remove one of the joints")
+        parent_of[child] = name
+        if kind in ("revolute", "prismatic") and joint.find("limit") is None:
+            raise ModelError(f"{source}: {kind} joint {name!r} has no <limit>, which URDF "
+                             "requires for it: add <limit lower=\"…\" upper=\"…\" effort=\"…\" "
+                             "velocity=\"…\"/>" + (", or make it type=\"continuous\" if it "
+                                                 "turns without end" if kind == "revolute"
+                                                 else ""))
+    roots = [link for link in links if link not in parent_of]
+    if len(roots) > 1:
+        raise ModelError(f"{source}: {len(roots)} root links {roots[:8]} (links that no joint "
+                         "attaches): a URDF is one tree; attach each of them by a joint, or "
+                         "remove the unused ones")
 
 
 def _float(text: str) -> float:
