@@ -1,15 +1,18 @@
 """Robots nobody tuned to, built from URDF text: the text itself given to ``from_urdf``, a
 massless link, malformed trees (a loop, two roots, a revolute joint without ``<limit>`` …), and
-continuous / prismatic / fixed-in-the-middle joints identified against their own RNEA (each of
-the first three groups failed before its fix)."""
+continuous / prismatic / fixed-in-the-middle joints identified against their own RNEA, and a
+body whose URDF inertia no physical body has (each group but the joint kinds failed before its
+fix)."""
 
 from __future__ import annotations
+
+import warnings
 
 import numpy as np
 import pytest
 
 import consistid as ci
-from consistid.errors import ModelError
+from consistid.errors import ModelError, ModelWarning
 
 from .conftest import PLANAR_2R, PLANAR_2R_VALUES, random_states
 
@@ -121,3 +124,20 @@ def test_ols_reproduces_rnea_on_other_joint_kinds(kind):
     data = ci.Dataset(t=0.005 * np.arange(400), q=q, dq=dq, ddq=ddq, tau=tau)
     res = ci.identify(model, data, method="ols", friction=None)
     assert np.max(res.rms(data)) < 1e-8 * np.max(np.abs(tau))
+
+
+# ------------------------------------------------------------------ non-physical inertia
+@pytest.mark.parametrize("inertia, reason", [((0.01, 0.01, 0.1), "triangle inequality"),
+                                             ((-0.01, 0.01, 0.01), "not positive definite")])
+def test_a_non_physical_urdf_inertia_warns_on_load(inertia, reason):
+    text = robot(TWO_R[0], link("l1", 2.0, (0.4, 0, 0), inertia), *TWO_R[2:])
+    with pytest.warns(ModelWarning, match=rf"1 of 2 bodies .*l1: .*{reason}"):
+        ci.RobotModel.from_urdf(text)
+
+
+@pytest.mark.parametrize("text", [robot(*TWO_R), robot(TWO_R[0], link("l1", None), *TWO_R[2:]),
+                                  PLANAR_2R.format(**PLANAR_2R_VALUES)])
+def test_physical_and_massless_bodies_load_without_a_model_warning(text):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ModelWarning)
+        ci.RobotModel.from_urdf(text)

@@ -186,3 +186,9 @@ class ExportWarning(UserWarning):
 class TrackingWarning(UserWarning):
     """A simulated robot did not follow its reference: the tracking error exceeds the bound of
     :func:`consistid.simulate.record` (``max_tracking_error``)."""
+
+
+class ModelWarning(UserWarning):
+    """A robot model loads but is suspicious: a URDF body whose inertia no physical body has
+    (negative principal moment, triangle inequality violated); names the bodies and what will
+    refuse them (MuJoCo, the log-det prior)."""

@@ -17,6 +17,7 @@ import re
 import site
 import sys
 import tempfile
+import warnings
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -25,9 +26,9 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 import pinocchio as pin
 
-from ..errors import DatasetError, JointCountError, ModelError, check_option
+from ..errors import DatasetError, JointCountError, ModelError, ModelWarning, check_option
 from .export import write_urdf
-from .inertia import INERTIAL_NAMES, inertias_from_vector
+from .inertia import INERTIAL_NAMES, check_body, inertias_from_vector
 from .urdf import JointDynamics, check_urdf, joint_dynamics, strip_dynamics
 
 #: Gravity (m/s², base frame) of a level base: what a URDF implies.
@@ -208,8 +209,10 @@ class RobotModel:
             model = pin.buildReducedModel(full, [full.getJointId(j) for j in locked], q_ref)
         if g is not None:
             model.gravity.linear = g
-        return cls(model, name=name or path.stem, source=path, locked_joints=locked,
-                   locked_configuration=config)
+        robot = cls(model, name=name or path.stem, source=path, locked_joints=locked,
+                    locked_configuration=config)
+        _warn_unphysical(robot, path.name)
+        return robot
 
     @classmethod
     def example(cls, name: str) -> "RobotModel":
@@ -413,6 +416,30 @@ class RobotModel:
         for k in range(q.shape[0]):
             out[k] = pin.rnea(self.pin_model, data, self.configuration(q[k]), dq[k], ddq[k])
         return out
+
+
+#: Round-off forgiven by :func:`_warn_unphysical` (kg·m²).
+UNPHYSICAL_TOL = 1e-9
+
+
+def _warn_unphysical(robot: RobotModel, source: str) -> None:
+    """Warn (:class:`ModelWarning`) about bodies of a loaded URDF whose inertia no physical body
+    has (a principal moment below 0, or the triangle inequality violated, beyond
+    :data:`UNPHYSICAL_TOL`). Massless bodies (virtual links) are left to what needs a mass."""
+    found = []
+    for i, body in enumerate(robot.body_names):
+        p = robot.prior_parameters[10 * i:10 * i + 10]
+        if p[0] > 0:
+            verdict = check_body(p, "triangle", body, tol=UNPHYSICAL_TOL)
+            if not verdict.ok:
+                found.append(verdict.reason)
+    if found:
+        warnings.warn(f"{source}: {len(found)} of {robot.n_bodies} bodies have an inertia no "
+                      f"physical body has ({'; '.join(found[:3])}{' …' if len(found) > 3 else ''}"
+                      "). MuJoCo refuses them (consistid.simulate), identify(method='sdp') with "
+                      "the default log-det prior refuses them as a prior (prior='euclidean' or "
+                      "None does not), and a diagnosis measures against a robot that cannot "
+                      "exist", ModelWarning, stacklevel=3)
 
 
 _TEXT_DIR: list[tempfile.TemporaryDirectory] = []
