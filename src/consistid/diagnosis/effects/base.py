@@ -31,7 +31,7 @@ import numpy as np
 import scipy.optimize
 
 from ...robot.inertia import INERTIAL_NAMES
-from ..gapdata import GapData
+from ..gapdata import GapData, lowpass_segments
 
 if TYPE_CHECKING:
     from ..candidates import EffectLibrary
@@ -155,8 +155,17 @@ class Effect:
                 for j in range(library.model.nv)]
 
     def columns(self, library: "EffectLibrary", atom: Atom, data: GapData) -> np.ndarray:
-        """The atom's columns on ``data``, shape ``(N, nv, n_parameters)``."""
-        raise NotImplementedError(f"effect {self.name!r} defines no columns")
+        """The atom's columns on ``data``, shape ``(N, nv, n_parameters)``. Default, for an
+        effect seen through the torques' low-pass (one that defines :meth:`unfiltered`): that
+        signal through the filter at the atom's cut-off, on the atom's joint row."""
+        return on_row(data, atom.joint, lowpass_segments(
+            data.dataset, self.unfiltered(library, atom, data), atom.cutoff, data.segments))
+
+    def unfiltered(self, library: "EffectLibrary", atom: Atom, data: GapData) -> np.ndarray:
+        """For an effect on one joint seen through the torques' low-pass ``L`` (Coulomb steps,
+        ripple): its signal before ``L``, ``(N, n_parameters)`` (the row of its joint; the
+        cut-off tuning, :func:`tune_cutoffs`, filters it at each trial cut-off)."""
+        raise NotImplementedError(f"effect {self.name!r} has no unfiltered signal")
 
     def tune(self, library: "EffectLibrary", data: GapData, residual: np.ndarray,
              atom: Atom) -> Atom:
@@ -191,26 +200,59 @@ def tune_cutoff(effect: Effect, library: "EffectLibrary", data: GapData, residua
                 atom: Atom) -> tuple[Atom, float]:
     """The atom (one joint) with the cut-off of :data:`FILTER_CUTOFFS` (below the Nyquist
     frequency), refined between its grid neighbours, whose columns explain most of ``residual``
-    (N,) by least squares; and that explained sum of squares."""
-    nyquist = 0.5 / float(np.median(np.diff(data.dataset.t)))
+    (N,) by least squares; and that explained sum of squares (:func:`tune_cutoffs` of one
+    atom)."""
+    return tune_cutoffs(effect, library, data, residual, [atom])[0]
 
-    def explained(fc: float) -> float:
-        a = effect.columns(library, replace(atom, cutoff=fc), data)[:, atom.joint, :]
-        g, c = a.T @ a, a.T @ residual
-        if np.linalg.cond(g) > 1e12:
-            return -np.inf
-        return float(c @ np.linalg.solve(g, c))
 
+def _explained(a: np.ndarray, residual: np.ndarray) -> float:
+    """``cᵀG⁻¹c`` with ``G = aᵀa``, ``c = aᵀr``: what columns ``a`` (N, k) explain of ``r`` by
+    least squares; ``−inf`` when ``G`` is singular (condition number above 1e12)."""
+    g, c = a.T @ a, a.T @ residual
+    if np.linalg.cond(g) > 1e12:
+        return -np.inf
+    return float(c @ np.linalg.solve(g, c))
+
+
+def tune_cutoffs(effect: Effect, library: "EffectLibrary", data: GapData, residual: np.ndarray,
+                 atoms: list[Atom]) -> list[tuple[Atom, float]]:
+    """:func:`tune_cutoff` of each of ``atoms`` (on one joint, e.g. one per smoothing speed).
+
+    For each atom, the cut-off of :data:`FILTER_CUTOFFS` below ``0.9 ×`` the Nyquist frequency
+    whose filtered :meth:`Effect.unfiltered` signal explains most of ``residual`` (N,) by least
+    squares, refined between its grid neighbours (bounded Brent on ``log f_c``, ``xatol``
+    1e-3); with that explained sum of squares. The unfiltered signals are built once, and each
+    grid cut-off filters all atoms' signals in one pass (the filter acts column by column: the
+    same numbers as one atom at a time).
+    """
+    nyquist = 0.5 / data.step
+    raw = [np.asarray(effect.unfiltered(library, a, data), dtype=float).reshape(data.n, -1)
+           for a in atoms]
+    edges = np.cumsum([0] + [r.shape[1] for r in raw])
+    stacked = np.concatenate(raw, axis=1)
     grid = [fc for fc in FILTER_CUTOFFS if not (np.isfinite(fc) and fc >= 0.9 * nyquist)]
-    scores = [explained(fc) for fc in grid]
-    i = int(np.argmax(scores))
-    if not np.isfinite(grid[i]):
-        return replace(atom, cutoff=np.inf), scores[i]
-    lo = grid[i + 1] if i + 1 < len(grid) else grid[i] / 2
-    hi = grid[i - 1] if np.isfinite(grid[i - 1]) else min(2 * grid[i], nyquist)
-    res = scipy.optimize.minimize_scalar(lambda x: -explained(float(np.exp(x))),
-                                         bounds=(np.log(lo), np.log(hi)), method="bounded",
-                                         options={"xatol": 1e-3})
-    if -res.fun > scores[i]:
-        return replace(atom, cutoff=float(np.exp(res.x))), float(-res.fun)
-    return replace(atom, cutoff=grid[i]), scores[i]
+    scores = np.empty((len(atoms), len(grid)))
+    for m, fc in enumerate(grid):
+        seen = lowpass_segments(data.dataset, stacked, fc, data.segments)
+        for i in range(len(atoms)):
+            scores[i, m] = _explained(seen[:, edges[i]:edges[i + 1]], residual)
+    out = []
+    for atom, signal, row in zip(atoms, raw, scores):
+        def explained(fc: float, signal: np.ndarray = signal) -> float:
+            return _explained(lowpass_segments(data.dataset, signal, fc, data.segments),
+                              residual)
+
+        i = int(np.argmax(row))
+        if not np.isfinite(grid[i]):
+            out.append((replace(atom, cutoff=np.inf), float(row[i])))
+            continue
+        lo = grid[i + 1] if i + 1 < len(grid) else grid[i] / 2
+        hi = grid[i - 1] if np.isfinite(grid[i - 1]) else min(2 * grid[i], nyquist)
+        res = scipy.optimize.minimize_scalar(lambda x: -explained(float(np.exp(x))),
+                                             bounds=(np.log(lo), np.log(hi)), method="bounded",
+                                             options={"xatol": 1e-3})
+        if -res.fun > row[i]:
+            out.append((replace(atom, cutoff=float(np.exp(res.x))), float(-res.fun)))
+        else:
+            out.append((replace(atom, cutoff=grid[i]), float(row[i])))
+    return out

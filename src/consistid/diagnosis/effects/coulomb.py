@@ -13,8 +13,8 @@ from dataclasses import replace
 import numpy as np
 
 from ...identification.regressor import TERM_COLUMNS
-from ..gapdata import lowpass_segments, smooth_sign
-from .base import Effect, EffectParameter, on_row, tune_cutoff
+from ..gapdata import smooth_sign
+from .base import Effect, EffectParameter, tune_cutoffs
 
 #: Smoothing speeds (rad/s) tried for the ``coulomb`` atom; 0 is the sign function.
 COULOMB_SPEEDS: tuple[float, ...] = (0.0, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1)
@@ -31,16 +31,15 @@ class Coulomb(Effect):
     nonnegative = (0,)
     tuned = True
 
-    def columns(self, library, atom, data) -> np.ndarray:
-        col = smooth_sign(data.dataset.dq[:, atom.joint], atom.setting or 0.0)
-        return on_row(data, atom.joint, lowpass_segments(data.dataset, col, atom.cutoff))
+    def unfiltered(self, library, atom, data) -> np.ndarray:
+        return smooth_sign(data.dataset.dq[:, atom.joint], atom.setting or 0.0)
 
     def tune(self, library, data, residual, atom):
         """The smoothing speed of :data:`COULOMB_SPEEDS` and the cut-off
-        (:func:`~consistid.diagnosis.effects.base.tune_cutoff`) that together explain most of
+        (:func:`~consistid.diagnosis.effects.base.tune_cutoffs`) that together explain most of
         ``residual`` (N,)."""
-        trials = [tune_cutoff(self, library, data, residual, replace(atom, setting=v))
-                  for v in COULOMB_SPEEDS]
+        trials = tune_cutoffs(self, library, data, residual,
+                              [replace(atom, setting=v) for v in COULOMB_SPEEDS])
         return max(trials, key=lambda t: t[1])[0]
 
     def parameters(self, library, atom, theta, std, joint, fit) -> list[EffectParameter]:

@@ -14,8 +14,7 @@ from dataclasses import replace
 import numpy as np
 
 from ...friction.models import MODELS
-from ..gapdata import lowpass_segments
-from .base import Effect, EffectParameter, on_row, tune_cutoff
+from .base import Effect, EffectParameter, tune_cutoffs
 
 #: Stribeck speeds ``v_s`` (rad/s) tried: a hump within the low-velocity range.
 STRIBECK_SPEEDS: tuple[float, ...] = (0.005, 0.01, 0.02, 0.05, 0.1, 0.2)
@@ -34,17 +33,16 @@ class StribeckHump(Effect):
     nonnegative = (0,)
     tuned = True
 
-    def columns(self, library, atom, data) -> np.ndarray:
+    def unfiltered(self, library, atom, data) -> np.ndarray:
         speed = atom.setting or STRIBECK_SPEEDS[0]
-        hump = MODELS["stribeck"].columns(data.dataset.dq[:, atom.joint],
+        return MODELS["stribeck"].columns(data.dataset.dq[:, atom.joint],
                                           np.array([speed, STRIBECK_EXPONENT]))[:, 1]
-        return on_row(data, atom.joint, lowpass_segments(data.dataset, hump, atom.cutoff))
 
     def tune(self, library, data, residual, atom):
         """The speed of :data:`STRIBECK_SPEEDS` and the cut-off that explain most of
-        ``residual`` (N,)."""
-        trials = [tune_cutoff(self, library, data, residual, replace(atom, setting=v))
-                  for v in STRIBECK_SPEEDS]
+        ``residual`` (N,) (:func:`~consistid.diagnosis.effects.base.tune_cutoffs`)."""
+        trials = tune_cutoffs(self, library, data, residual,
+                              [replace(atom, setting=v) for v in STRIBECK_SPEEDS])
         return max(trials, key=lambda t: t[1])[0]
 
     def parameters(self, library, atom, theta, std, joint, fit) -> list[EffectParameter]:
