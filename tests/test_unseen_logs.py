@@ -11,6 +11,7 @@ import pytest
 
 import consistid as ci
 from consistid.data.formats.columns import column_unit, parse_candidates
+from consistid.data.recordings import from_arrays
 from consistid.errors import DataQualityWarning, DatasetError, JointNameError
 
 RATE = 500.0
@@ -154,3 +155,38 @@ def test_log_of_another_robot_names_both_joint_lists(tmp_path):
     with pytest.raises(JointNameError, match=r"panda_joint1.*does not have; its joints are "
                                              r"\['a1', 'a2', 'a3'\]"):
         ci.load_recording(path, joints=NAMES)
+
+
+# ------------------------------------------------------------------ .mat without joint names
+def test_mat_without_joint_names_reads_in_the_models_order(tmp_path, planar_2r):
+    scipy_io = pytest.importorskip("scipy.io")
+    t, q, tau = _log()
+    q, tau = q[:, :2], tau[:, :2]
+    scipy_io.savemat(tmp_path / "run.mat", {"t": t, "q": q, "tau": tau})
+    scipy_io.savemat(tmp_path / "rows.mat", {"t": t[None], "q": q.T, "tau": tau.T})
+    for name in ("run.mat", "rows.mat"):         # joints along columns, or along rows
+        rec = ci.load_recording(tmp_path / name, model=planar_2r)   # was: "no joint_names"
+        d = rec.dataset
+        assert d.joint_names == tuple(planar_2r.joint_names)
+        assert np.max(np.abs(d.q - _at(d.t, t, q))) < 1e-3
+        assert any("no joint_names variable" in s for s in rec.steps)
+    scipy_io.savemat(tmp_path / "three.mat", {"t": t, "q": _log()[1], "tau": _log()[2]})
+    with pytest.raises(ci.errors.MissingColumnsError, match=r"names 2 joints.*3 columns"):
+        ci.load_recording(tmp_path / "three.mat", model=planar_2r)
+
+
+# ------------------------------------------------------------------ what a loader returns
+def test_a_recording_stands_for_its_dataset_and_a_dataframe_is_explained(planar_2r):
+    pd = pytest.importorskip("pandas")
+    t = np.arange(0.0, 6.0, 1.0 / RATE)
+    q = np.column_stack([0.8 * np.sin(2 * np.pi * 0.3 * t), 0.6 * np.sin(2 * np.pi * 0.5 * t)])
+    dq = np.gradient(q, t, axis=0)
+    tau = planar_2r.rnea(q, dq, np.gradient(dq, t, axis=0))
+    rec = from_arrays(t, q, tau, model=planar_2r)
+    a = ci.identify(planar_2r, rec.dataset, method="ols", friction=None)
+    b = ci.identify(planar_2r, rec, method="ols", friction=None)     # was: "got Recording"
+    assert np.array_equal(a.rms(rec.dataset), b.rms(rec.dataset))
+    frame = pd.DataFrame({"t": t, "q1": q[:, 0], "q2": q[:, 1], "tau1": tau[:, 0],
+                          "tau2": tau[:, 1]})
+    with pytest.raises(DatasetError, match=r"pandas DataFrame.*from_frame"):
+        ci.diagnose(planar_2r, frame)                         # was: "dataset[0] is a str"

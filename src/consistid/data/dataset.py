@@ -331,11 +331,25 @@ def open_npz(path: Path):
     return archive
 
 
+def _unwrap(data: object) -> object:
+    """A loader's :class:`~consistid.data.recordings.Recording` (anything holding a Dataset in
+    ``.dataset``) as its dataset; anything else unchanged."""
+    inner = getattr(data, "dataset", None)
+    return inner if isinstance(inner, Dataset) and not isinstance(data, Dataset) else data
+
+
 def as_dataset(data: "Dataset | Sequence[Dataset]", name: str = "dataset") -> Dataset:
     """``data`` itself, or several recordings stacked as segments (:meth:`Dataset.concatenate`);
-    anything else raises :class:`DatasetError` naming ``name`` and what it got."""
+    a loader's :class:`~consistid.data.recordings.Recording` stands for its ``.dataset``.
+    Anything else raises :class:`DatasetError` naming ``name`` and what it got (a pandas
+    DataFrame: how to read it)."""
+    data = _unwrap(data)
     if isinstance(data, Dataset):
         return data
+    if type(data).__name__ == "DataFrame":
+        raise DatasetError(f"{name} is a pandas DataFrame, not a Dataset: read it with "
+                           "consistid.data.recordings.from_frame(df, model=model).dataset (its "
+                           "columns are matched by name, dq/ddq estimated when absent)")
     try:
         if isinstance(data, (str, bytes)):
             raise TypeError
@@ -345,6 +359,7 @@ def as_dataset(data: "Dataset | Sequence[Dataset]", name: str = "dataset") -> Da
                            f"{type(data).__name__} {data!r:.60}") from None
     if not parts:
         raise DatasetError(f"{name} is an empty list: give at least one Dataset")
+    parts = [_unwrap(d) for d in parts]
     for k, d in enumerate(parts):
         if not isinstance(d, Dataset):
             raise DatasetError(f"{name}[{k}] is a {type(d).__name__}, not a Dataset")

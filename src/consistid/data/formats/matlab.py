@@ -90,10 +90,16 @@ def read_mat(path: str | Path, *, joints: Sequence[str] | None = None,
             raise DatasetError(f"{source}: joint_names has {len(names)} names for {nv} columns")
         notes = [f"read {source}: arrays " + ", ".join(f"{f}←{k!r}" for f, k in
                                                      [("t", time), *matrix.items()] if k)]
+        if joints is not None and names is None:
+            if len(joints) != nv:
+                raise MissingColumnsError(f"{source}: joints= (or the model) names "
+                                          f"{len(joints)} joints {list(joints)}, the file has "
+                                          f"{nv} columns and no joint_names variable to select "
+                                          "them by; add joint_names to the file")
+            names = tuple(joints)   # as an .npz without names: the columns in joints= order
+            notes.append(f"no joint_names variable: its {nv} columns taken in the order "
+                         f"{list(joints)}")
         if joints is not None:
-            if names is None:
-                raise MissingColumnsError(f"{source}: joints= selects by name but the file has "
-                                          "no joint_names variable")
             missing = [j for j in joints if j not in names]
             if missing:
                 raise MissingColumnsError(f"{source}: joint(s) {missing} not in its joint_names "
