@@ -190,3 +190,21 @@ def test_a_recording_stands_for_its_dataset_and_a_dataframe_is_explained(planar_
                           "tau2": tau[:, 1]})
     with pytest.raises(DatasetError, match=r"pandas DataFrame.*from_frame"):
         ci.diagnose(planar_2r, frame)                         # was: "dataset[0] is a str"
+
+
+def test_a_column_of_nan_is_called_unrecorded_not_a_bad_row(tmp_path):
+    t, q, tau = _log()
+    tau = tau.copy()
+    tau[:, 1] = np.nan
+    path = _write(tmp_path / "nan.csv", ["t", "q1", "q2", "q3", "tau1", "tau2", "tau3"],
+                  np.column_stack([t, q, tau]))
+    with pytest.raises(DatasetError, match=r"column 'tau2': every one of its 3000 values is "
+                                           r"empty or NaN") as err:
+        ci.load_recording(path)
+    assert "drop those rows" not in str(err.value)
+    tau[:, 1] = 1.0
+    tau[7, 1] = np.nan                                     # one bad row: named by its line
+    path = _write(tmp_path / "one.csv", ["t", "q1", "q2", "q3", "tau1", "tau2", "tau3"],
+                  np.column_stack([t, q, tau]))
+    with pytest.raises(DatasetError, match=r"line 9, column 'tau2'"):
+        ci.load_recording(path)

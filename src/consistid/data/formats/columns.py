@@ -400,6 +400,11 @@ def log_from_columns(get, cmap: ColumnMap, source: str, n_rows: int,
                                        "number") from None
             raise
         bad = np.flatnonzero(~np.isfinite(a))
+        if bad.size and bad.size == a.size and a.size > 1:
+            raise DatasetError(f"{source}, column {name!r}: every one of its {a.size} values is "
+                               "empty or NaN: the logger did not record it. Log that signal, or "
+                               "leave the joint out (joints=[...]; a model with that joint "
+                               "locked)")
         if bad.size:
             k = int(bad[0])
             where = f"line {int(rows[k])}" if rows is not None else f"row {k}"
