@@ -208,3 +208,34 @@ def test_a_column_of_nan_is_called_unrecorded_not_a_bad_row(tmp_path):
                   np.column_stack([t, q, tau]))
     with pytest.raises(DatasetError, match=r"line 9, column 'tau2'"):
         ci.load_recording(path)
+
+
+def test_collapsed_stamps_message_shows_plain_numbers():
+    t, q, tau = _log()
+    t = t[np.arange(t.size) // 2 * 2]                      # a clock at half the sampling rate
+    with pytest.raises(DatasetError, match=r"collapsed time stamps.*t\[1\] = 0\.0;") as err:
+        ci.Dataset.from_recording(t, q, tau)
+    assert "np.float64" not in str(err.value)
+
+
+def test_joints_split_over_two_message_kinds_in_a_bag_are_explained(tmp_path):
+    pytest.importorskip("rosbags")
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    state = store.types["sensor_msgs/msg/JointState"]
+    header, stamp = store.types["std_msgs/msg/Header"], store.types["builtin_interfaces/msg/Time"]
+    t, q, tau = _log(duration=1.0)
+    with Writer(tmp_path / "split", version=9, storage_plugin=StoragePlugin.MCAP) as bag:
+        conn = bag.add_connection("/joint_states", state.__msgtype__, typestore=store)
+        for k in range(t.size):
+            ns = int(round(t[k] * 1e9))
+            part = [0, 1] if k % 2 == 0 else [2]          # two drivers, one topic
+            msg = state(header=header(stamp=stamp(sec=ns // 10**9, nanosec=ns % 10**9),
+                                      frame_id=""),
+                        name=[NAMES[j] for j in part], position=q[k, part],
+                        velocity=np.zeros(0), effort=tau[k, part])
+            bag.write(conn, ns, store.serialize_cdr(msg, state.__msgtype__))
+    with pytest.raises(DatasetError, match=r"missing everywhere: \[\].*in separate messages"):
+        ci.load_recording(tmp_path / "split", joints=NAMES)

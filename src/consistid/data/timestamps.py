@@ -153,8 +153,9 @@ def merge_duplicates(t: np.ndarray, arrays: dict[str, np.ndarray], policy: str |
     first_dup = int(np.flatnonzero(np.diff(group) == 0)[0]) + 1
     within = "" if tol == 0 else f" (within {tol:.3g} s)"
     if policy == "error":
-        raise DatasetError(f"{source}: t[{first_dup}] = {t[first_dup]!r} repeats t[{first_dup - 1}]"
-                           f"{within} ({n_dup} duplicated stamp(s)); pass duplicates='average', "
+        raise DatasetError(f"{source}: t[{first_dup}] = {float(t[first_dup])!r} repeats "
+                           f"t[{first_dup - 1}]{within} ({n_dup} duplicated stamp(s)); pass "
+                           "duplicates='average', "
                            "'first' or 'spread'")
     counts = np.bincount(group)
     collapsed = n_dup > COLLAPSED_FRACTION * t.size
@@ -162,9 +163,9 @@ def merge_duplicates(t: np.ndarray, arrays: dict[str, np.ndarray], policy: str |
         res = median_step(t)
         raise DatasetError(
             f"{source}: collapsed time stamps: {n_dup} of {t.size} samples share their stamp with "
-            f"the previous one (first at t[{first_dup}] = {t[first_dup]!r}; up to {counts.max()} "
-            f"samples per stamp, stamps {res:.4g} apart): the clock is coarser than the "
-            "sampling. Pass duplicates='spread' to place the samples of each stamp evenly "
+            f"the previous one (first at t[{first_dup}] = {float(t[first_dup])!r}; up to "
+            f"{counts.max()} samples per stamp, stamps {res:.4g} apart): the clock is coarser "
+            "than the sampling. Pass duplicates='spread' to place the samples of each stamp evenly "
             "until the next stamp (assumes uniform sampling), 'average' to merge each group "
             "into one sample, or give the real stamps")
     n_groups = int(group[-1]) + 1

@@ -127,8 +127,13 @@ def read_bag(path: str | Path, *, joints: Sequence[str] | None = None, topic: st
         raise DatasetError(f"{source}: topic {topic!r} has no messages")
     if not pos:
         missing = sorted(set(selected or []) - seen)
+        hint = ("" if missing else ": every selected joint is published, but in separate "
+                "messages (one per controller or driver, each with some of the joints). "
+                "consistid reads one message per sample with every joint: merge them onto common "
+                "stamps first (e.g. into a CSV or DataFrame), or select the joints of one "
+                "message (joints=[...] with a model that locks the others)")
         raise DatasetError(f"{source}: no {topic} message has every selected joint (missing "
-                           f"everywhere: {missing}; names seen: {sorted(seen)})")
+                           f"everywhere: {missing}; names seen: {sorted(seen)}){hint}")
     if any(e is None for e in eff):
         k = next(i for i, e in enumerate(eff) if e is None)
         raise MissingColumnsError(f"{source}: {topic} message {k} (of the kept ones) has no "
