@@ -84,7 +84,10 @@ def test_prior_weight_and_sigma_change_without_a_new_compile(ur5):
     weights = (sdp.default_prior_weight() * 0.1, sdp.default_prior_weight() * 10)
     answers = [sdp.identify_sdp(ur5, prob, base, spec, prior_weight=w) for w in weights]
     answers.append(sdp.identify_sdp(ur5, prob, base, spec, sigma=np.full(ur5.nv, 0.3)))
-    assert program.cache_info() == {"programs": 1, "solves": 3}
+    # one compiled structure served every solve (a pass that ends optimal_inaccurate is
+    # refined by one more solve of the same structure: which passes do depends on round-off)
+    refinements = sum(a.details["passes"]["refinements"] for a in answers)
+    assert program.cache_info() == {"programs": 1, "solves": 3 + refinements}
     # a larger weight pulls the answer towards the prior: the divergence falls
     assert (answers[1].details["fit"]["prior_divergence"]
             < answers[0].details["fit"]["prior_divergence"])

@@ -27,7 +27,9 @@ from scipy.linalg import lapack
 from ..data.dataset import Dataset
 from ..errors import OptionError
 from ..robot.model import RobotModel
-from .regressor import RegressorSpec, column_support, iter_regressor
+from .base import BaseParameters
+from .regressor import (RegressorSpec, check_states, column_support, joint_signal,
+                        rigid_body_regressor)
 
 #: Per-joint σ is floored at this fraction of the joint's torque RMS (noise-free data).
 SIGMA_FLOOR = 1e-6
@@ -95,7 +97,8 @@ class CompressedProblem:
 
 
 def compress(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
-             chunk: int | None = None, weights: np.ndarray | None = None) -> CompressedProblem:
+             chunk: int | None = None, weights: np.ndarray | None = None,
+             base: BaseParameters | None = None) -> CompressedProblem:
     """Accumulate the per-joint R factors of ``[Y_j | τ_j]`` over a dataset (O(p²) memory).
 
     ``chunk`` samples per regressor buffer; default 4096, fewer (≥ 1024) when that buffer would
@@ -103,21 +106,111 @@ def compress(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
     costs more than the QR's larger share of stacked R rows at 1024).
     ``weights`` (N, nv) ≥ 0 scale each row's squared residual (row ``k`` of joint ``j`` is
     multiplied by ``√w_kj``), as iteratively re-weighted least squares needs.
+
+    The data pass, per chunk: the rigid-body regressor written into one reused buffer
+    ``(chunk, nv, 10·nbodies)``, then per joint its supported columns
+    (:func:`~consistid.identification.regressor.column_support`: rigid-body columns gathered,
+    its own per-joint signals computed, the torque) written once into a column-major block and
+    folded into that joint's compact factor by :func:`update_factor`. The compact factors are
+    scattered into ``(p + 1) × (p + 1)`` ones at the end (upper triangular, zero rows at the
+    structurally zero columns: see :func:`accumulate`).
+
+    ``base``: the base parameters of ``(model, spec)`` (same gravity). Then each joint's QR runs
+    on its supported *independent* columns only (about half the flops on the Panda and on
+    Talos): the dependent columns are linear combinations of the independent ones in every row,
+    ``Y = Y_b B`` (:mod:`consistid.identification.base`), so joint ``j``'s rows satisfy
+    ``Y_j = Y_{j,I} B_I`` with ``I`` its supported independent columns and ``B_I`` those rows of
+    ``B``, and ``[Y_j | τ_j]``'s factor is that of ``[Y_{j,I} | τ_j]`` times
+    ``diag(B_I, 1)``, brought back to upper triangular form by a QR of ``k × (p + 1)``
+    (:func:`expand_factor`). ``R̄ᵀR̄`` is the Gram matrix of all columns, exact on the
+    independent ones, and to ``B``'s round-off on the dependent ones.
     """
     if chunk is None:
-        row_bytes = 8 * model.nv * (model.n_inertial + spec.n_joint_columns)
+        row_bytes = 8 * model.nv * (model.n_inertial + spec.n_joint_columns + 1)
         chunk = int(min(4096, max(1024, CHUNK_BYTES // row_bytes)))
     tau = dataset.require_torque()
+    dataset.check_joints(model.nv, model.joint_names)
     if weights is not None:
         weights = np.asarray(weights, dtype=float)
         if weights.shape != tau.shape or not np.all(np.isfinite(weights)) or np.any(weights < 0):
             raise OptionError(f"row weights must be finite, ≥ 0 and of shape {tau.shape}, got "
                               f"shape {weights.shape}")
+        root = np.sqrt(weights)
     support = column_support(model, spec)
-    factors = np.zeros((model.nv, support.shape[1] + 1, support.shape[1] + 1))
-    for s, y in iter_regressor(model, dataset, spec, chunk):
-        accumulate(factors, y, tau[s], None if weights is None else weights[s], support)
-    return CompressedProblem(factors, dataset.n_samples, np.sum(tau ** 2, axis=0))
+    p = support.shape[1]
+    if base is not None:
+        if base.n_standard != p:
+            raise OptionError(f"base parameters of {base.n_standard} columns given for a "
+                              f"regressor of {p}: compute them for this model and spec")
+        independent = np.zeros(p, dtype=bool)
+        independent[base.independent] = True
+        support = support & independent
+    keeps = [np.append(np.flatnonzero(support[j]), p) for j in range(model.nv)]
+    n_in = model.n_inertial
+    # per joint: its kept rigid-body columns, and its kept per-joint columns (signal suffixes)
+    rigid_cols = [keep[keep < n_in] for keep in keeps]
+    signals = [[spec.columns[c - n_in][2] for c in keep[(keep >= n_in) & (keep < p)]]
+               for keep in keeps]
+    compact = [np.zeros((k.size, k.size), order="F") for k in keeps]
+    n_total = dataset.n_samples
+    rigid = np.empty((min(chunk, max(n_total, 1)), model.nv, n_in))   # one reused buffer
+    for start in range(0, n_total, chunk):
+        s = slice(start, min(start + chunk, n_total))
+        q, dq, ddq = check_states(model, dataset.q[s], dataset.dq[s], dataset.ddq[s])
+        y = rigid_body_regressor(model, q, dq, ddq, out=rigid[: s.stop - s.start])
+        for j, keep in enumerate(keeps):
+            # joint j's rows of [Y | τ], kept columns only, column-major for LAPACK
+            block = np.empty((y.shape[0], keep.size), order="F")
+            r = rigid_cols[j].size
+            block[:, :r] = y[:, j, rigid_cols[j]]
+            for i, suffix in enumerate(signals[j]):
+                block[:, r + i] = joint_signal(suffix, q[:, j], dq[:, j], ddq[:, j])
+            block[:, -1] = tau[s, j]
+            if weights is not None:
+                block *= root[s, j][:, None]
+            compact[j] = update_factor(compact[j], block)
+    factors = np.zeros((model.nv, p + 1, p + 1))
+    for j, keep in enumerate(keeps):
+        if base is None:
+            factors[j][np.ix_(keep, keep)] = np.triu(compact[j])
+        else:
+            factors[j] = expand_factor(np.triu(compact[j]), keep, base)
+    return CompressedProblem(factors, n_total, np.sum(tau ** 2, axis=0))
+
+
+def expand_factor(r: np.ndarray, keep: np.ndarray, base: BaseParameters) -> np.ndarray:
+    """The ``(p + 1) × (p + 1)`` upper triangular factor of ``[Y_j | τ_j]`` from ``r``, that of
+    ``[Y_{j,I} | τ_j]`` with ``I = keep[:-1]`` independent columns (``keep[-1] = p``, the
+    torque): ``r · diag(B_I, 1)`` (``B_I`` the rows of ``B`` whose independent column is in
+    ``I``, so that ``Y_j = Y_{j,I} B_I``) brought to upper triangular form by a QR, zero rows
+    below ``keep.size``. See :func:`compress`."""
+    p = base.n_standard
+    rows = np.searchsorted(base.independent, keep[:-1])      # B's row of each kept column
+    expanded = np.zeros((keep.size, p + 1))
+    expanded[:, :p] = r[:, :-1] @ base.matrix[rows]
+    expanded[:, p] = r[:, -1]
+    out = np.zeros((p + 1, p + 1))
+    out[:keep.size] = np.linalg.qr(expanded, mode="r")     # keep.size ≤ p + 1 rows
+    return out
+
+
+#: Inner block size of ``dtpqrt`` (LAPACK's ``nb``).
+QR_NB = 16
+
+
+def update_factor(r: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """The upper triangular ``R'`` of ``[R; rows]``: ``R'ᵀR' = RᵀR + rowsᵀrows``.
+
+    ``r`` (k, k) upper triangular, column-major (it is overwritten and returned), ``rows``
+    (n, k), column-major to avoid a copy (it is overwritten too). LAPACK's ``dtpqrt``, the QR
+    of a triangle stacked on a rectangle (blocked Householder, Golub & Van Loan §5.2, that
+    skips the triangle's zeros).
+    """
+    r, _, _, info = lapack.dtpqrt(0, min(QR_NB, r.shape[0]), r, rows, overwrite_a=1,
+                                  overwrite_b=1)
+    if info != 0:
+        raise ValueError(f"LAPACK dtpqrt failed (info {info})")
+    return r
 
 
 def accumulate(factors: np.ndarray, columns: np.ndarray, tau: np.ndarray,

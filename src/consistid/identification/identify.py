@@ -244,7 +244,7 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
                                   covariance, **options)
     spec = RegressorSpec.make(model, friction, armature)
     base = base_parameters_of(model, spec)
-    problem = compress_data(model, dataset, spec)
+    problem = compress_data(model, dataset, spec, base)
     if method in ("ols", "wls"):
         result = least_squares(model, problem, base, spec, weighted=method == "wls")
     else:

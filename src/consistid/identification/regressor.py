@@ -210,7 +210,7 @@ def prior_vector(model: RobotModel, spec: RegressorSpec) -> np.ndarray:
     return np.concatenate([model.prior_parameters, np.zeros(spec.n_joint_columns)])
 
 
-def _signal(suffix: str, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> np.ndarray:
+def joint_signal(suffix: str, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> np.ndarray:
     """The per-joint signal multiplying the coefficient ``suffix``, for samples ``(n,)``."""
     if suffix == "fc":
         return np.sign(dq)
@@ -236,7 +236,7 @@ def joint_columns(q: np.ndarray, dq: np.ndarray, ddq: np.ndarray,
     else:
         out[...] = 0.0
     for c, (_, j, suffix) in enumerate(spec.columns):
-        out[:, j, c] = _signal(suffix, q[:, j], dq[:, j], ddq[:, j])
+        out[:, j, c] = joint_signal(suffix, q[:, j], dq[:, j], ddq[:, j])
     return out
 
 
@@ -247,7 +247,7 @@ def joint_torque(q: np.ndarray, dq: np.ndarray, ddq: np.ndarray, spec: Regressor
     out = np.zeros(dq.shape)
     for c, (_, j, suffix) in enumerate(spec.columns):
         if coefficients[c] != 0.0:
-            out[:, j] += coefficients[c] * _signal(suffix, q[:, j], dq[:, j], ddq[:, j])
+            out[:, j] += coefficients[c] * joint_signal(suffix, q[:, j], dq[:, j], ddq[:, j])
     return out
 
 
@@ -261,11 +261,53 @@ def rigid_body_regressor(model: RobotModel, q: np.ndarray, dq: np.ndarray, ddq: 
     m, data = model.pin_model, model.pin_model.createData()
     n = q.shape[0]
     out = np.empty((n, model.nv, model.n_inertial)) if out is None else out
-    same = m.nq == m.nv
-    for k in range(n):
-        qk = q[k] if same else model.configuration(q[k])
-        out[k] = pin.computeJointTorqueRegressor(m, data, qk, dq[k], ddq[k])
+    if m.nq != m.nv:
+        q = np.array([model.configuration(row) for row in q])
+    # one Pinocchio call and one copy per sample: rows of q, dq, ddq and out iterated together
+    # (no per-sample indexing), the function looked up once
+    fill = pin.computeJointTorqueRegressor
+    for qk, dqk, ddqk, row in zip(q, dq, ddq, out):
+        row[...] = fill(m, data, qk, dqk, ddqk)
     return out
+
+
+def check_states(model: RobotModel, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(q, dq, ddq)`` as float arrays ``(N, nv)`` (one sample may be 1-D), checked: joint
+    count, equal shapes, finite values within ``±MAX_ABS``. Raises :class:`JointCountError` or
+    :class:`DatasetError` naming the array, sample and joint."""
+    q, dq, ddq = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (q, dq, ddq))
+    if q.shape[1] != model.nv:
+        raise JointCountError(f"q has {q.shape[1]} joints but {model.name} has {model.nv}")
+    for name, a in (("dq", dq), ("ddq", ddq)):
+        if a.shape != q.shape:
+            raise JointCountError(f"{name} has shape {a.shape} but q has {q.shape}")
+    for name, a in (("q", q), ("dq", dq), ("ddq", ddq)):
+        if np.all(np.abs(a) <= MAX_ABS):       # the common case: one reduction, no index list
+            continue
+        bad = np.argwhere(~(np.abs(a) <= MAX_ABS))     # NaN, ±inf, or beyond MAX_ABS
+        k, j = (int(i) for i in bad[0])
+        raise DatasetError(f"{name}[{k}, {model.joint_names[j]!r}] = {a[k, j]:.3g}: not a "
+                           f"finite joint value within ±{MAX_ABS:.0e} (SI units); "
+                           f"{len(bad)} such value(s) in {name}")
+    return q, dq, ddq
+
+
+def fill_regressor(model: RobotModel, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray,
+                   spec: RegressorSpec, out: np.ndarray, joint_zeroed: bool = False) -> None:
+    """Write the regressor of checked samples (:func:`check_states`) into ``out[:, :, :p]``
+    (``out`` of shape ``(N, nv, ≥ p)``, e.g. a reused buffer with room for the torques).
+    ``joint_zeroed``: the per-joint block's structurally zero entries are already 0 (a buffer
+    this function filled before), so only the ``(joint, column)`` entries that carry a signal
+    are written."""
+    n_in = model.n_inertial
+    rigid_body_regressor(model, q, dq, ddq, out=out[:, :, :n_in])
+    if not spec.n_joint_columns:
+        return
+    if not joint_zeroed:
+        out[:, :, n_in:n_in + spec.n_joint_columns] = 0.0
+    for c, (_, j, suffix) in enumerate(spec.columns):
+        out[:, j, n_in + c] = joint_signal(suffix, q[:, j], dq[:, j], ddq[:, j])
 
 
 def regressor(model: RobotModel, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray,
@@ -278,25 +320,11 @@ def regressor(model: RobotModel, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray,
     spec : which per-joint columns to append; default rigid body only.
     out : optional preallocated ``(N, nv, p)`` array to fill (avoids a copy for large N).
     """
-    q, dq, ddq = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (q, dq, ddq))
-    if q.shape[1] != model.nv:
-        raise JointCountError(f"q has {q.shape[1]} joints but {model.name} has {model.nv}")
-    for name, a in (("dq", dq), ("ddq", ddq)):
-        if a.shape != q.shape:
-            raise JointCountError(f"{name} has shape {a.shape} but q has {q.shape}")
-    for name, a in (("q", q), ("dq", dq), ("ddq", ddq)):
-        bad = np.argwhere(~(np.abs(a) <= MAX_ABS))     # NaN, ±inf, or beyond MAX_ABS
-        if bad.size:
-            k, j = (int(i) for i in bad[0])
-            raise DatasetError(f"{name}[{k}, {model.joint_names[j]!r}] = {a[k, j]:.3g}: not a "
-                               f"finite joint value within ±{MAX_ABS:.0e} (SI units); "
-                               f"{len(bad)} such value(s) in {name}")
+    q, dq, ddq = check_states(model, q, dq, ddq)
     spec = spec or RegressorSpec.make(model, friction=None)
     n, p = q.shape[0], model.n_inertial + spec.n_joint_columns
     y = np.empty((n, model.nv, p)) if out is None else out
-    rigid_body_regressor(model, q, dq, ddq, out=y[:, :, :model.n_inertial])
-    if spec.n_joint_columns:
-        joint_columns(q, dq, ddq, spec, out=y[:, :, model.n_inertial:])
+    fill_regressor(model, q, dq, ddq, spec, y)
     return y.reshape(n * model.nv, p)
 
 
@@ -311,7 +339,9 @@ def iter_regressor(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
                    chunk: int = 4096) -> Iterator[tuple[slice, np.ndarray]]:
     """Yield ``(sample slice, Y_chunk)`` with ``Y_chunk`` of shape ``(n, nv, p)``: O(chunk) memory.
 
-    The chunks share one buffer: each yielded array is overwritten by the next one.
+    The chunks share one buffer: each yielded array is overwritten by the next one (read it,
+    do not write into it: the structurally zero entries of its per-joint block are written
+    once, for the first chunk).
     """
     dataset.check_joints(model.nv, model.joint_names)
     buffer = np.empty((min(chunk, dataset.n_samples), model.nv,
@@ -319,7 +349,8 @@ def iter_regressor(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
     for start in range(0, dataset.n_samples, chunk):
         s = slice(start, min(start + chunk, dataset.n_samples))
         y = buffer[: s.stop - s.start]
-        regressor(model, dataset.q[s], dataset.dq[s], dataset.ddq[s], spec, out=y)
+        q, dq, ddq = check_states(model, dataset.q[s], dataset.dq[s], dataset.ddq[s])
+        fill_regressor(model, q, dq, ddq, spec, y, joint_zeroed=start > 0)
         yield s, y
 
 

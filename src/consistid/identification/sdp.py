@@ -379,7 +379,7 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
         t0 = time.perf_counter()
         if loss == "huber":
             sig, row_weights = _huber_weights(model, dataset, spec, theta, huber_c, problem)
-            work = compress(model, dataset, spec, weights=row_weights)
+            work = compress(model, dataset, spec, weights=row_weights, base=base)
             source = "huber"
         else:
             sig = floor_sigma(joint_sigma(problem.sum_squares(theta), n, base.n_base), problem)

@@ -45,6 +45,7 @@ from ..data.checks import check_magnitudes
 from ..data.dataset import Dataset
 from ..errors import DatasetError, OptionError
 from ..robot.model import RobotModel
+from .base import BaseParameters
 from .compression import CompressedProblem, compress
 from .regressor import RegressorSpec, predict_torque
 from .statistics import autocovariance_sum, integrated_time
@@ -211,12 +212,14 @@ class DataStream:
                     raise type(exc)(f"{label}: {exc}") from exc
             yield label, data
 
-    def compress(self, model: RobotModel, spec: RegressorSpec) -> CompressedProblem:
+    def compress(self, model: RobotModel, spec: RegressorSpec,
+                 base: BaseParameters | None = None) -> CompressedProblem:
         """The compressed problem of every part: one pass, each part compressed and merged
-        (:func:`merge`); memory that of one part plus ``O(nv·p²)``."""
+        (:func:`merge`); memory that of one part plus ``O(nv·p²)``. ``base``: see
+        :func:`~consistid.identification.compression.compress`."""
         problem = None
         for _, data in self.parts(model):
-            part = compress(model, data, spec)
+            part = compress(model, data, spec, base=base)
             problem = part if problem is None else merge(problem, part)
         if problem is None:
             raise DatasetError("the data stream is empty: it yielded no Dataset or file")
@@ -276,12 +279,13 @@ def as_stream(data: Any, covariance: str = "iid", loss: str | None = None) -> Da
     return stream
 
 
-def compress_data(model: RobotModel, data: Dataset | DataStream,
-                  spec: RegressorSpec) -> CompressedProblem:
-    """The compressed problem of an in-memory dataset or of a stream."""
+def compress_data(model: RobotModel, data: Dataset | DataStream, spec: RegressorSpec,
+                  base: BaseParameters | None = None) -> CompressedProblem:
+    """The compressed problem of an in-memory dataset or of a stream (``base``: the QR on each
+    joint's independent columns only, :func:`~consistid.identification.compression.compress`)."""
     if isinstance(data, DataStream):
-        return data.compress(model, spec)
-    return compress(model, data, spec)
+        return data.compress(model, spec, base)
+    return compress(model, data, spec, base=base)
 
 
 def residual_statistics(model: RobotModel, spec: RegressorSpec, theta: np.ndarray,
