@@ -103,3 +103,34 @@ def test_distinct_held_out_does_not_warn(project, capsys, recwarn):
     main(["-q", "identify", str(write(project, MODEL + data_table() + IDENTIFY)),
           "--output", str(project / "out")])
     assert not [w for w in recwarn if "held_out names train" in str(w.message)]
+
+
+@pytest.mark.parametrize("inertial, reason", [
+    ("", "l1: mass 0 kg"),
+    ('<inertial><mass value="2"/><inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" '
+     'izz="0.1"/></inertial>', "l1: triangle inequality violated")])
+def test_demo_names_the_body_it_cannot_use_before_making_a_folder(tmp_path, capsys, inertial,
+                                                                   reason):
+    text = PLANAR_2R.format(**PLANAR_2R_VALUES)
+    start = text.index('<link name="link1">')
+    end = text.index("</link>", start) + len("</link>")
+    urdf = tmp_path / "arm.urdf"
+    urdf.write_text(text[:start] + f'<link name="l1">{inertial}</link>' + text[end:]
+                    .replace('<child link="link1"/>', '<child link="l1"/>')
+                    .replace('<parent link="link1"/>', '<parent link="l1"/>'))
+    err = run(["demo", "--urdf", urdf, "--duration", "2", "--output", tmp_path / "out"], capsys)
+    assert "every moving body needs a positive mass and a physical inertia" in err
+    assert reason in err                 # was: "mass 0 ≤ 0: the centre of mass is undefined"
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("name", ["plot.txt", "plot"])
+def test_simulate_plot_that_is_no_image_is_refused_before_the_run(tmp_path, capsys,
+                                                                   monkeypatch, name):
+    from consistid.cli import residual_demo
+
+    def reached(*args, **kwargs):
+        raise AssertionError("the simulation ran although --plot cannot be written")
+    monkeypatch.setattr(residual_demo, "run", reached)
+    err = run(["simulate", "--robot", "ur5", "--plot", tmp_path / name], capsys)
+    assert "is not an image format; name a .png file" in err   # was: matplotlib's ValueError

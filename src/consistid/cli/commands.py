@@ -97,6 +97,7 @@ def demo(args: argparse.Namespace) -> int:
                                          ("--noise", args.noise, 0, False)):
         check_number(name, value, minimum, strict=strict)   # before any folder is made
     model = _cli_model(args)
+    _check_demo_bodies(model, args.urdf)                 # before any folder is made
     folder = _fresh_dir(args.output, f"consistid-demo-{model.name}")
     try:
         return _demo(args, model, folder)
@@ -104,6 +105,27 @@ def demo(args: argparse.Namespace) -> int:
         if folder.is_dir() and not any(folder.iterdir()):
             folder.rmdir()                         # a failed demo leaves no empty folder
         raise
+
+
+def _check_demo_bodies(model: "ci.RobotModel", urdf: str | None) -> None:
+    """:class:`ConfigError` naming the bodies the demo cannot use: it draws its "true" robot
+    around the URDF's bodies (±20 %, which needs a mass and a centre of mass) and uses them as
+    the SDP's log-det prior (which needs realisable bodies)."""
+    from consistid.robot.inertia import check_body
+
+    bad = []
+    for i, body in enumerate(model.body_names):
+        verdict = check_body(model.prior_parameters[10 * i:10 * i + 10], "triangle", body,
+                             tol=1e-9)
+        if not verdict.ok:
+            bad.append(verdict.reason)
+    if bad:
+        source = f"--urdf {urdf}" if urdf else model.name
+        raise ConfigError(f"{source}: the demo simulates a robot around the URDF's bodies and "
+                          "uses them as the SDP's prior, so every moving body needs a positive "
+                          f"mass and a physical inertia; not so: {'; '.join(bad[:4])}. Fix the "
+                          "<inertial> of those links (or run `consistid identify` on your logs, "
+                          "with prior = \"euclidean\" in [identify])")
 
 
 def _demo(args: argparse.Namespace, model: "ci.RobotModel", folder: Path) -> int:
@@ -237,11 +259,19 @@ def excite(args: argparse.Namespace) -> int:
     return 0
 
 
+#: Image formats ``--plot`` writes (matplotlib's, by the file's suffix).
+PLOT_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg", ".tif", ".tiff", ".webp", ".eps")
+
+
 def simulate(args: argparse.Namespace) -> int:
     """A MuJoCo arm with effects the nominal model lacks; the nominal residual per joint
     (:mod:`consistid.cli.residual_demo`)."""
     from consistid.cli.residual_demo import DEFAULT_EFFECTS, run
 
+    if args.plot and Path(args.plot).suffix.lower() not in PLOT_SUFFIXES:
+        raise OutputPathError(f"--plot {args.plot!r}: {Path(args.plot).suffix or 'no suffix'} "
+                              "is not an image format; name a .png file (or "
+                              f"{', '.join(s for s in PLOT_SUFFIXES if s != '.png')})")
     plot = (check_output(args.plot, force=args.force, what="--plot") if args.plot else None)
     demo_run = run(_cli_model(args), args.effect or DEFAULT_EFFECTS, duration=args.duration,
                    torque_noise=args.noise, seed=args.seed, progress=_log)
