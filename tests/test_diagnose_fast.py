@@ -13,7 +13,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from consistid.data.dataset import Dataset
-from consistid.data.filters import _butterworth
 from consistid.data.signals import lowpass
 from consistid.diagnosis.candidates import Atom, EffectLibrary, GapData
 from consistid.diagnosis.effects.base import tune_cutoff, tune_cutoffs
@@ -26,13 +25,19 @@ RATE = 500.0
 
 
 @settings(max_examples=200, deadline=None)
-@given(order=st.integers(1, 8), rate=st.floats(50.0, 5000.0),
-       fraction=st.floats(1e-3, 0.499))
-def test_butterworth_design_is_scipys_bit_for_bit(order, rate, fraction):
-    _butterworth.cache_clear()
-    mine = _butterworth(order, fraction * rate, rate)
-    assert np.array_equal(mine, scipy.signal.butter(order, fraction * rate, fs=rate,
-                                                    output="sos"))
+@given(order=st.integers(1, 8), rate=st.floats(50.0, 5000.0), fraction=st.floats(1e-3, 0.499),
+       n=st.integers(1, 400), columns=st.sampled_from([None, 1, 3]), seed=st.integers(0, 99))
+def test_lowpass_is_scipys_sosfiltfilt_of_butter_bit_for_bit(order, rate, fraction, n, columns,
+                                                             seed):
+    """The chain's low-pass (its own Butterworth pairing and cached initial conditions) against
+    ``scipy.signal.sosfiltfilt`` of ``scipy.signal.butter``'s sections with the same padding."""
+    rng = np.random.default_rng(seed)
+    x = rng.standard_normal(n if columns is None else (n, columns)).cumsum(axis=0)
+    cutoff = fraction * rate
+    pad = min(int(np.ceil(6.0 * rate / cutoff)), n - 1)
+    sos = scipy.signal.butter(order, cutoff, fs=rate, output="sos")
+    expected = scipy.signal.sosfiltfilt(sos, x, axis=0, padlen=pad)
+    assert np.array_equal(lowpass(x, cutoff, rate, order), expected)
 
 
 def _jittered(n_segments: int, n: int, jitter: bool, seed: int) -> Dataset:
@@ -144,3 +149,26 @@ def test_rnea_derivatives_mass_matrix_is_crba(panda):
         assert np.array_equal(mass[k], mass[k].T)
         dq_ref, dv_ref, _ = pin.computeRNEADerivatives(m, data, run.q[k], run.dq[k], run.ddq[k])
         assert np.array_equal(d_q[k], dq_ref) and np.array_equal(d_v[k], dv_ref)
+
+
+def test_gravity_torques_by_rnea_equal_the_regressor(panda):
+    """``GapData.gravity``/``tilt_gravity`` (Pinocchio's RNEA at rest with the nominal inertias)
+    against the regressor at rest times the nominal parameters; a nominal body without mass takes
+    the regressor path itself."""
+    from consistid.diagnosis.gapdata import tilt_directions
+    from consistid.identification.regressor import rigid_body_regressor
+
+    run = excitation_run(panda, duration=0.4, rate=RATE, torque_noise=0.0, seed=8).dataset
+    zero = np.zeros_like(run.q)
+    pi0 = panda.prior_parameters
+    ref = rigid_body_regressor(panda, run.q, zero, zero) @ pi0
+    gap = GapData(panda, run, pi0)
+    assert np.allclose(gap.gravity, ref, rtol=0, atol=1e-10)
+    for k, dg in enumerate(tilt_directions(panda.gravity)):
+        tilted = rigid_body_regressor(panda.with_gravity(dg), run.q, zero, zero) @ pi0
+        assert np.allclose(gap.tilt_gravity[..., k], tilted, rtol=0, atol=1e-10)
+    massless = pi0.copy()
+    massless[-10:] = 0.0
+    ref = rigid_body_regressor(panda, run.q, zero, zero) @ massless
+    assert np.all(np.isfinite(GapData(panda, run, massless).gravity))
+    assert np.array_equal(GapData(panda, run, massless).gravity, ref)

@@ -32,22 +32,26 @@ def ripple_order(data: GapData, residual: np.ndarray, joint: int,
     if k_hi < k_lo:
         return None
     r = residual - residual.mean()
+    n = q.size
+    sum_r = float(r.sum())
     best_k, best = None, -np.inf
-    # sin, cos of (k₀ + m) q for a block of 64 orders by the angle-addition formulas from
-    # those of k₀q and of mq (m < 64, evaluated once): four products instead of two
-    # transcendental functions per entry, equal to rounding (~k·1e-16)
-    offsets = np.arange(min(64, k_hi + 1 - k_lo))
-    sin_m, cos_m = np.sin(np.outer(q, offsets)), np.cos(np.outer(q, offsets))
+    # e^{ikq} for a block of 64 orders k = k₀ + m as e^{ik₀q}·e^{imq} (the table of e^{imq},
+    # m < 64, made once): one complex product per entry instead of a sine and a cosine. The
+    # centred sums of the 2×2 least squares per k follow from three sums over the samples,
+    # Σe^{ikq}, Σr e^{ikq} and Σe^{2ikq}:  Σs² = n/2 − ½ Re Σe^{2ikq},  Σc² = n/2 + ½ Re Σe^{2ikq},
+    # Σsc = ½ Im Σe^{2ikq}, each minus n × the product of the means; r·(s − s̄) = r·s − s̄ Σr.
+    table = np.exp(1j * np.outer(q, np.arange(min(64, k_hi + 1 - k_lo))))
     for start in range(k_lo, k_hi + 1, 64):
         ks = np.arange(start, min(start + 64, k_hi + 1))
-        s0, c0 = np.sin(start * q)[:, None], np.cos(start * q)[:, None]
-        sm, cm = sin_m[:, :ks.size], cos_m[:, :ks.size]
-        s = s0 * cm + c0 * sm
-        c = c0 * cm - s0 * sm
-        s -= s.mean(axis=0)
-        c -= c.mean(axis=0)
-        ss, cc, sc = (s * s).sum(0), (c * c).sum(0), (s * c).sum(0)
-        rs, rc = r @ s, r @ c
+        e = np.exp(1j * start * q)[:, None] * table[:, :ks.size]
+        mean = e.mean(axis=0)
+        s_bar, c_bar = mean.imag, mean.real
+        double = np.einsum("ij,ij->j", e, e)
+        ss = 0.5 * n - 0.5 * double.real - n * s_bar ** 2
+        cc = 0.5 * n + 0.5 * double.real - n * c_bar ** 2
+        sc = 0.5 * double.imag - n * s_bar * c_bar
+        proj = (r @ e.view(float)).reshape(ks.size, 2)   # (B, 2): r·cos kq, r·sin kq
+        rc, rs = proj[:, 0] - c_bar * sum_r, proj[:, 1] - s_bar * sum_r
         det = ss * cc - sc ** 2
         ok = det > 1e-9 * ss * cc
         explained = np.where(ok, (cc * rs ** 2 - 2 * sc * rs * rc + ss * rc ** 2)
