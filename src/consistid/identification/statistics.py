@@ -17,6 +17,7 @@ Used by :mod:`consistid.diagnose` (selection tests and parameter ±) and
 from __future__ import annotations
 
 import numpy as np
+import scipy.fft
 
 from ..data.dataset import Dataset
 
@@ -45,10 +46,15 @@ def autocovariance_sum(dataset: Dataset, residual: np.ndarray, max_lag: int = 20
         idx = np.flatnonzero(dataset.segment == s)
         if idx.size < 16:
             continue
-        x = residual[idx] - residual[idx].mean(axis=0)
-        n = x.shape[0]
-        f = np.fft.rfft(x, n=2 * n, axis=0)
-        acov = np.fft.irfft(np.abs(f) ** 2, axis=0)[: min(n, max_lag + 1)]
+        part = (residual[idx[0]:idx[-1] + 1] if idx[-1] - idx[0] + 1 == idx.size
+                else residual[idx])                     # a recording is usually one run
+        # one joint per row (contiguous transforms), zero-padded to ≥ 2n − 1 points: the
+        # circular autocorrelation is then the linear one at lags 0 … n − 1
+        x = np.ascontiguousarray((part - part.mean(axis=0)).T)
+        n = x.shape[1]
+        size = scipy.fft.next_fast_len(2 * n - 1, real=True)
+        f = scipy.fft.rfft(x, n=size, axis=1)
+        acov = scipy.fft.irfft(f.real ** 2 + f.imag ** 2, n=size, axis=1)[:, :min(n, max_lag + 1)].T
         acf_sum = acov if acf_sum is None else acf_sum[: acov.shape[0]] + acov[: acf_sum.shape[0]]
     return acf_sum
 
