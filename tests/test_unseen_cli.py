@@ -1,15 +1,19 @@
 """The ``consistid`` command on mistakes a new user makes (found by probing it; each test failed
 before its fix): a folder given as the configuration, a ``[data] dir`` that is a file or under a
-missing ``root``, negative trims, ``armature = "yes"``, and a held-out log that is also a
-training log (scored silently as if it were held out)."""
+missing ``root``, negative trims, ``armature = "yes"``, a held-out log that is also a training
+log (scored silently as if it were held out), a demo URDF with a massless body, a ``--plot``
+that is no image, and calibration CSVs with semicolons, units, degrees or millimetres."""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 import consistid as ci
 from consistid.cli import main
+from consistid.cli.calibrate import read_calibration_data
 
 from .conftest import PLANAR_2R, PLANAR_2R_VALUES, random_states
 
@@ -134,3 +138,51 @@ def test_simulate_plot_that_is_no_image_is_refused_before_the_run(tmp_path, caps
     monkeypatch.setattr(residual_demo, "run", reached)
     err = run(["simulate", "--robot", "ur5", "--plot", tmp_path / name], capsys)
     assert "is not an image format; name a .png file" in err   # was: matplotlib's ValueError
+
+
+# ------------------------------------------------------------------ calibration data files
+POSES = Path(__file__).resolve().parents[1] / "examples" / "panda" / "calibration_poses.csv"
+
+
+def _poses():
+    lines = POSES.read_text().splitlines()
+    return lines[0].split(","), np.array([[float(v) for v in ln.split(",")] for ln in lines[1:]])
+
+
+def _write_poses(path, header, table, sep=",", comma=False, bom=False, eol="\n"):
+    rows = [sep.join(header)] + [sep.join((f"{v:.12g}".replace(".", ",") if comma
+                                           else f"{v:.12g}") for v in r) for r in table]
+    path.write_text(eol.join(rows) + eol, encoding="utf-8-sig" if bom else "utf-8")
+    return path
+
+
+def test_calibration_csv_in_other_habits_reads_like_the_plain_one(tmp_path, panda):
+    header, table = _poses()
+    q0, m0 = read_calibration_data(_write_poses(tmp_path / "plain.csv", header, table), panda)
+    variants = {
+        "semicolon, decimal comma": _write_poses(tmp_path / "a.csv", header, table, sep=";",
+                                                 comma=True),
+        "BOM and CRLF": _write_poses(tmp_path / "b.csv", header, table, bom=True, eol="\r\n"),
+        "units in brackets": _write_poses(
+            tmp_path / "c.csv", [h + " [deg]" if k < 7 else h + " [mm]" if k < 10 else h
+                                 for k, h in enumerate(header)],
+            np.column_stack([np.degrees(table[:, :7]), 1e3 * table[:, 7:10], table[:, 10:]]))}
+    for what, path in variants.items():          # were: not numeric / no joint columns
+        q, m = read_calibration_data(path, panda)
+        assert np.allclose(q, q0, atol=1e-9) and np.allclose(m, m0, atol=1e-9), what
+
+
+def test_calibration_csv_in_degrees_or_mm_without_a_unit_warns(tmp_path, panda):
+    header, table = _poses()
+    deg = _write_poses(tmp_path / "deg.csv", header,
+                       np.column_stack([np.degrees(table[:, :7]), table[:, 7:]]))
+    with pytest.warns(ci.errors.DataQualityWarning, match=r"'panda_joint1' spans.*degrees"):
+        read_calibration_data(deg, panda)
+    mm = _write_poses(tmp_path / "mm.csv", header,
+                      np.column_stack([table[:, :7], 1e3 * table[:, 7:10], table[:, 10:]]))
+    with pytest.warns(ci.errors.DataQualityWarning, match=r"in millimetres\?"):
+        read_calibration_data(mm, panda)
+    odd = _write_poses(tmp_path / "odd.csv", [h + " [in]" if h == "x" else h for h in header],
+                       table)
+    with pytest.raises(ci.errors.ConfigError, match=r"column 'x \[in\]': unit \[in\]"):
+        read_calibration_data(odd, panda)

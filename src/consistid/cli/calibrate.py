@@ -29,13 +29,15 @@ same folder and renamed into place.
 
 from __future__ import annotations
 
+import re
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from ..errors import ConfigError, MissingColumnsError, OutputPathError
+from ..errors import ConfigError, DataQualityWarning, MissingColumnsError, OutputPathError
 from ..kinematics.calibrate import calibrate_kinematics
 from ..kinematics.result import CalibrationResult
 from ..robot.model import RobotModel, model_without_dynamics
@@ -130,30 +132,107 @@ def read_calibration_data(path: Path, model: RobotModel) -> tuple[np.ndarray, np
             return np.array(f["q"], dtype=float), np.array(f[found[0]], dtype=float)
     if path.suffix.lower() != ".csv":
         raise ConfigError(f"{path.name}: calibration data must be .csv or .npz")
-    with open(path, encoding="utf-8") as fh:
-        header = [h.strip() for h in fh.readline().split(",")]
-    try:
-        table = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
-    except ValueError as exc:
-        raise ConfigError(f"{path.name}: not a numeric CSV after the header ({exc})") from exc
-    if table.shape[1] != len(header):
-        raise ConfigError(f"{path.name}: {len(header)} header names but {table.shape[1]} "
-                          "columns")
-    index = {h: i for i, h in enumerate(header)}
+    header, table = _read_table(path)
+    index = {re.sub(r"\s*\[[^\]]*\]$", "", h): i for i, h in enumerate(header)}
     joints = list(model.joint_names)
     if not all(j in index for j in joints):
         joints = [f"q{i + 1}" for i in range(model.nv)]
     missing = [j for j in joints if j not in index]
     if missing:
         raise MissingColumnsError(f"{path.name}: no joint columns {missing} (name them after the "
-                                  f"model's joints {model.joint_names} or q1 … q{model.nv})")
+                                  f"model's joints {model.joint_names} or q1 … q{model.nv}; a "
+                                  "unit may follow in brackets: 'q1 [deg]')")
+    q = table[:, [index[j] for j in joints]] * [_unit(path, header[index[j]], ANGLE_UNITS)
+                                                for j in joints]
+    _check_q(path, q, model)
     for kind, cols in MEASUREMENT_COLUMNS.items():
         if all(c in index for c in cols):
-            values = table[:, [index[c] for c in cols]]
-            return table[:, [index[j] for j in joints]], (values[:, 0] if kind == "distance"
-                                                          else values)
+            scale = [_unit(path, header[index[c]], LENGTH_UNITS if c in "xyzd" else {"": 1.0})
+                     for c in cols]
+            values = table[:, [index[c] for c in cols]] * scale
+            _check_lengths(path, values[:, :3])
+            return q, (values[:, 0] if kind == "distance" else values)
     raise MissingColumnsError(f"{path.name}: no measurement columns: give x, y, z "
                               "(positions), x, y, z, qx, qy, qz, qw (poses) or d (distances)")
+
+
+#: Units a calibration CSV header may give in brackets (``q1 [deg]``, ``x [mm]``): to SI.
+ANGLE_UNITS = {"": 1.0, "rad": 1.0, "deg": np.pi / 180.0, "degree": np.pi / 180.0,
+               "degrees": np.pi / 180.0, "°": np.pi / 180.0}
+LENGTH_UNITS = {"": 1.0, "m": 1.0, "mm": 1e-3, "cm": 1e-2}
+#: Measured positions farther than this (m) from the measurement frame's origin warn
+#: (millimetres read as metres).
+MAX_REACH = 20.0
+
+
+def _read_table(path: Path) -> tuple[list[str], np.ndarray]:
+    """Header names (units kept) and numbers of a calibration CSV: the delimiter sniffed as for
+    logs (``;`` with decimal commas too), a UTF-8 byte-order mark ignored."""
+    from ..data.formats.csv import sniff_delimiter
+
+    with open(path, encoding="utf-8-sig") as fh:
+        text = fh.read()
+    lines = [ln for ln in text.splitlines() if ln.strip()]
+    if not lines:
+        raise ConfigError(f"{path.name} is empty")
+    delimiter = sniff_delimiter("\n".join(lines[:20]), path.name)
+    header = [h.strip().strip('"') for h in lines[0].split(delimiter)]
+    rows = lines[1:]
+    if delimiter == ";":
+        rows = [ln.replace(",", ".") for ln in rows]
+    try:
+        table = np.loadtxt(rows, delimiter=delimiter, ndmin=2)
+    except ValueError as exc:
+        raise ConfigError(f"{path.name}: not a numeric CSV after the header (delimiter "
+                          f"{delimiter!r}; {exc})") from exc
+    if table.shape[0] == 0:
+        raise ConfigError(f"{path.name}: a header but no rows")
+    if table.shape[1] != len(header):
+        raise ConfigError(f"{path.name}: {len(header)} header names but {table.shape[1]} "
+                          "columns")
+    return header, table
+
+
+def _unit(path: Path, name: str, units: dict[str, float]) -> float:
+    """The factor to SI of the unit in brackets at the end of column ``name`` (none: 1);
+    :class:`ConfigError` for a unit not in ``units``."""
+    m = re.search(r"\[([^\]]*)\]$", name)
+    unit = m.group(1).strip().lower() if m else ""
+    if unit not in units:
+        raise ConfigError(f"{path.name}, column {name!r}: unit [{unit}] is not one of "
+                          f"{[u for u in units if u] or 'none (a unitless column)'}; convert "
+                          "the column")
+    return units[unit]
+
+
+def _check_q(path: Path, q: np.ndarray, model: RobotModel) -> None:
+    """Warn (DataQualityWarning) when joint positions leave the model's limits by more than a
+    tenth of the range (at least 0.1): degrees read as radians?"""
+    lim = model.limits
+    found = []
+    for j, name in enumerate(model.joint_names):
+        lo, hi = lim.lower[j], lim.upper[j]
+        if not (np.isfinite(lo) and np.isfinite(hi)):
+            continue
+        slack = max(0.1 * (hi - lo), 0.1)
+        if q[:, j].min() < lo - slack or q[:, j].max() > hi + slack:
+            found.append(f"{name!r} spans [{q[:, j].min():.4g}, {q[:, j].max():.4g}] against "
+                         f"its limits [{lo:.4g}, {hi:.4g}]")
+    if found:
+        warnings.warn(f"{path.name}: joint positions beyond the limits: {'; '.join(found[:4])}"
+                      f"{' …' if len(found) > 4 else ''}. Are they in degrees? Name the unit in "
+                      f"the header ('{model.joint_names[0]} [deg]') or convert them to radians",
+                      DataQualityWarning, stacklevel=4)
+
+
+def _check_lengths(path: Path, xyz: np.ndarray) -> None:
+    """Warn (DataQualityWarning) when measured positions lie beyond :data:`MAX_REACH`."""
+    far = float(np.max(np.abs(xyz))) if xyz.size else 0.0
+    if far > MAX_REACH:
+        warnings.warn(f"{path.name}: measured positions reach {far:.4g} m from the measurement "
+                      f"frame (more than {MAX_REACH:g} m): are they in millimetres? Name the "
+                      "unit in the header ('x [mm]') or convert them to metres",
+                      DataQualityWarning, stacklevel=4)
 
 
 def load_calibration_config(path: str | Path, *, urdf: str | Path | None = None,
