@@ -172,3 +172,25 @@ def test_gravity_torques_by_rnea_equal_the_regressor(panda):
     ref = rigid_body_regressor(panda, run.q, zero, zero) @ massless
     assert np.all(np.isfinite(GapData(panda, run, massless).gravity))
     assert np.array_equal(GapData(panda, run, massless).gravity, ref)
+
+
+def test_candidate_matrix_is_the_concatenated_columns(panda):
+    """``EffectLibrary.matrix`` (row-only atoms written row by row) against the concatenation of
+    every atom's full ``(N, nv, k)`` columns, bit for bit; a row-only effect's columns are zero off
+    its joint's row."""
+    from consistid.diagnosis.effects import REGISTRY
+
+    run = excitation_run(panda, duration=1.0, rate=200.0, torque_noise=0.05, seed=9).dataset
+    gap = GapData(panda, run, panda.prior_parameters)
+    lib = EffectLibrary(panda)
+    atoms = lib.atoms(gap, gap.residual)
+    atoms = [a if a.effect not in ("coulomb", "ripple") else
+             Atom(a.effect, a.joint, a.parameter_names, a.units, a.setting, 15.0, a.setting_name)
+             for a in atoms]                                    # a filtered row too
+    assert {a.effect for a in atoms} >= {"coulomb", "delay", "elasticity", "inertia", "position"}
+    full = [lib.columns(a, gap) for a in atoms]
+    assert np.array_equal(lib.matrix(atoms, gap), np.concatenate(full, axis=2))
+    for a, cols in zip(atoms, full):
+        if REGISTRY[a.effect].row_only and a.joint is not None:
+            off = np.delete(cols, a.joint, axis=1)
+            assert not off.any(), a

@@ -110,6 +110,23 @@ class EffectLibrary:
         """The atom's columns on ``data``, shape ``(N, nv, n_parameters)``."""
         return REGISTRY[atom.effect].columns(self, atom, data)
 
+    def matrix(self, atoms: list[Atom], data: GapData) -> np.ndarray:
+        """Every atom's columns side by side, ``(N, nv, Σ n_parameters)``: the concatenation of
+        :meth:`columns` along the last axis, filled in place; a ``row_only`` effect's atom
+        writes only its joint's row (:meth:`Effect.row`) into the zeros, not ``nv − 1`` rows of
+        zeros too (a seventh of the memory traffic on a 7-joint arm)."""
+        sizes = [a.n_parameters for a in atoms]
+        out = np.zeros((data.n, data.nv, sum(sizes)))
+        o = 0
+        for a, k in zip(atoms, sizes):
+            eff = REGISTRY[a.effect]
+            if eff.row_only and a.joint is not None:
+                out[:, a.joint, o:o + k] = np.reshape(eff.row(self, a, data), (data.n, k))
+            else:
+                out[:, :, o:o + k] = eff.columns(self, a, data)
+            o += k
+        return out
+
     # ----------------------------------------------------------------------------- tuning
     def tune_cutoff(self, data: GapData, residual: np.ndarray, atom: Atom
                     ) -> tuple[Atom, float]:

@@ -756,8 +756,7 @@ def _tuned_atoms(library: EffectLibrary, train: GapData, floor: np.ndarray
     atoms = EffectLibrary(model, tuple(plain), base=library.base).atoms()
     if not atoms:
         return [], np.zeros((train.n, model.nv, 0))
-    blocks = [library.columns(a, train) for a in atoms]
-    phi_tr = np.concatenate(blocks, axis=2)
+    phi_tr = library.matrix(atoms, train)
     if not searched and not any(REGISTRY[e].tuned for e in plain):
         return atoms, phi_tr
     g = _Grams.build(phi_tr, train.residual)
@@ -770,17 +769,15 @@ def _tuned_atoms(library: EffectLibrary, train: GapData, floor: np.ndarray
     for i, a in enumerate(atoms):
         if REGISTRY[a.effect].tuned and a.joint is not None:
             own = theta[offsets[i]:offsets[i + 1]]
-            tuned_part[a.joint] = tuned_part.get(a.joint, 0.0) + blocks[i][:, a.joint, :] @ own
+            tuned_part[a.joint] = (tuned_part.get(a.joint, 0.0)
+                                   + phi_tr[:, a.joint, offsets[i]:offsets[i + 1]] @ own)
     for i, a in enumerate(atoms):
         if REGISTRY[a.effect].tuned and a.joint is not None:
             atoms[i] = library.tune(train, rest[:, a.joint] + tuned_part[a.joint], a)
-            blocks[i] = library.columns(atoms[i], train)
     if searched:
-        for a in EffectLibrary(model, tuple(searched), base=library.base,
-                               ripple_orders=library.ripple_orders).atoms(train, rest):
-            atoms.append(a)
-            blocks.append(library.columns(a, train))
-    return atoms, np.concatenate(blocks, axis=2)
+        atoms += EffectLibrary(model, tuple(searched), base=library.base,
+                               ripple_orders=library.ripple_orders).atoms(train, rest)
+    return atoms, library.matrix(atoms, train)
 
 
 # --------------------------------------------------------------------------------- main
@@ -866,8 +863,7 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     library = EffectLibrary(model, tuple(effects))
 
     atoms, phi_tr = _tuned_atoms(library, train, floor)
-    phi_ho = np.concatenate([library.columns(a, held) for a in atoms], axis=2) if atoms \
-        else np.zeros((held.n, model.nv, 0))
+    phi_ho = library.matrix(atoms, held)
     slices, o = [], 0
     for a in atoms:
         slices.append(np.arange(o, o + a.n_parameters))
@@ -879,8 +875,9 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     library_floor = np.sqrt(prob.held.sse(everything_cols, theta_all) / held.n)
     # Rows are not independent when the residual is coloured (filtered noise): count effective
     # samples with the autocorrelation time of what no candidate explains.
-    saturated = train.residual - phi_tr[..., everything_cols] @ theta_all if atoms \
-        else train.residual
+    theta_full = np.zeros(phi_tr.shape[2])          # every column (no copy of phi_tr)
+    theta_full[everything_cols] = theta_all
+    saturated = train.residual - phi_tr @ theta_full
     prob.tau_corr = autocorrelation_time(train.dataset, saturated)
     names = model.joint_names
     callback = progress if callable(progress) and not isinstance(progress, bool) else None

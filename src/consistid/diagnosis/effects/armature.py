@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...identification.regressor import TERM_COLUMNS
-from .base import Effect, on_row
+from .base import Effect
 
 
 class Armature(Effect):
@@ -18,9 +18,10 @@ class Armature(Effect):
     suffix = TERM_COLUMNS["armature"][0]
     wording = "armature"
     nonnegative = (0,)
+    row_only = True
 
-    def columns(self, library, atom, data) -> np.ndarray:
-        return on_row(data, atom.joint, data.dataset.ddq[:, atom.joint])
+    def row(self, library, atom, data) -> np.ndarray:
+        return data.dataset.ddq[:, atom.joint]
 
 
 EFFECT = Armature()

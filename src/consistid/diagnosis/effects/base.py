@@ -132,6 +132,8 @@ class Effect:
     scope : ``"joint"`` (one atom per joint), ``"arm"`` (one arm-wide atom) or ``"both"``.
     tuned : its atoms carry a nonlinear setting chosen by :meth:`tune` on training data.
     searched : its atoms are found on the training residual (:meth:`atoms` needs it).
+    row_only : an atom on joint ``j`` acts on row ``j`` alone (its columns are zero on the other
+        joints' rows; :meth:`row` gives that row): the candidate matrix is filled row by row.
     """
 
     name: ClassVar[str] = ""
@@ -145,6 +147,7 @@ class Effect:
     scope: ClassVar[str] = "joint"
     tuned: ClassVar[bool] = False
     searched: ClassVar[bool] = False
+    row_only: ClassVar[bool] = False
 
     # ------------------------------------------------------------------ candidates
     def atoms(self, library: "EffectLibrary", tuning: GapData | None = None,
@@ -155,11 +158,16 @@ class Effect:
                 for j in range(library.model.nv)]
 
     def columns(self, library: "EffectLibrary", atom: Atom, data: GapData) -> np.ndarray:
-        """The atom's columns on ``data``, shape ``(N, nv, n_parameters)``. Default, for an
-        effect seen through the torques' low-pass (one that defines :meth:`unfiltered`): that
-        signal through the filter at the atom's cut-off, on the atom's joint row."""
-        return on_row(data, atom.joint, lowpass_segments(
-            data.dataset, self.unfiltered(library, atom, data), atom.cutoff, data.segments))
+        """The atom's columns on ``data``, shape ``(N, nv, n_parameters)``. Default: :meth:`row`
+        on the atom's joint row, zeros elsewhere."""
+        return on_row(data, atom.joint, self.row(library, atom, data))
+
+    def row(self, library: "EffectLibrary", atom: Atom, data: GapData) -> np.ndarray:
+        """For a ``row_only`` effect, the atom's columns on its joint's row, ``(N, k)`` or
+        ``(N,)``. Default, for an effect seen through the torques' low-pass (one that defines
+        :meth:`unfiltered`): that signal through the filter at the atom's cut-off."""
+        return lowpass_segments(data.dataset, self.unfiltered(library, atom, data), atom.cutoff,
+                                data.segments)
 
     def unfiltered(self, library: "EffectLibrary", atom: Atom, data: GapData) -> np.ndarray:
         """For an effect on one joint seen through the torques' low-pass ``L`` (Coulomb steps,

@@ -26,6 +26,7 @@ class Coulomb(Effect):
     signature = "a step at q̇ = 0 in residual-versus-velocity"
     equation = "`f_c L[tanh(q̇_j/v_s)]`, `v_s` and the filter `L` tuned"
     unit = "N·m"
+    row_only = True
     suffix = TERM_COLUMNS["coulomb"][0]
     wording = "Coulomb friction"
     nonnegative = (0,)

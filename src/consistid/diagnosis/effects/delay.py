@@ -30,6 +30,7 @@ class Delay(Effect):
     wording = "delay"
     scope = "both"
     nonnegative = (0,)
+    row_only = True
 
     def unphysical(self, atom, theta, resolution=None):
         why = super().unphysical(atom, theta, resolution)
@@ -46,10 +47,12 @@ class Delay(Effect):
                 *super().atoms(library, tuning, residual)]
 
     def columns(self, library, atom, data) -> np.ndarray:
-        rate = data.tau_nom_derivatives[1]
         if atom.joint is None:
-            return -rate[:, :, None]
-        return on_row(data, atom.joint, -rate[:, atom.joint])
+            return -data.tau_nom_derivatives[1][:, :, None]
+        return on_row(data, atom.joint, self.row(library, atom, data))
+
+    def row(self, library, atom, data) -> np.ndarray:
+        return -data.tau_nom_derivatives[1][:, atom.joint]
 
 
 EFFECT = Delay()

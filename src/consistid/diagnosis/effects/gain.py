@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import Effect, on_row
+from .base import Effect
 
 
 class Gain(Effect):
@@ -14,10 +14,11 @@ class Gain(Effect):
     signature = "proportional to the joint's own torque"
     equation = "`g_j τ_nom,j`"
     suffix = "gain"
+    row_only = True
     wording = "torque gain error"
 
-    def columns(self, library, atom, data) -> np.ndarray:
-        return on_row(data, atom.joint, data.tau_nom[:, atom.joint])
+    def row(self, library, atom, data) -> np.ndarray:
+        return data.tau_nom[:, atom.joint]
 
 
 EFFECT = Gain()

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...identification.regressor import TERM_COLUMNS
-from .base import Effect, on_row
+from .base import Effect
 
 
 class Offset(Effect):
@@ -16,10 +16,11 @@ class Offset(Effect):
     equation = "`f_o`"
     unit = "N·m"
     suffix = TERM_COLUMNS["offset"][0]
+    row_only = True
     wording = "torque offset"
 
-    def columns(self, library, atom, data) -> np.ndarray:
-        return on_row(data, atom.joint, np.ones(data.n))
+    def row(self, library, atom, data) -> np.ndarray:
+        return np.ones(data.n)
 
 
 EFFECT = Offset()

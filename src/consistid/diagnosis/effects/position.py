@@ -29,10 +29,15 @@ class Position(Effect):
         return [Atom(self.name, j, tuple(f"{names[j]}.{c}" for c in TERM_COLUMNS[self.name]),
                      (self.unit,) * 2) for j in range(library.model.nv)]
 
+    row_only = True
+
     def columns(self, library, atom, data) -> np.ndarray:
         d = data.dataset
         spec = RegressorSpec.make(library.model, {"position": [atom.joint]})
         return joint_columns(d.q, d.dq, d.ddq, spec)
+
+    def row(self, library, atom, data) -> np.ndarray:
+        return self.columns(library, atom, data)[:, atom.joint, :]
 
 
 EFFECT = Position()

@@ -69,6 +69,7 @@ class Ripple(Effect):
     equation = ("`L[a sin(k q_j) + b cos(k q_j)]`, integer `k ≥ 2` found by periodogram, at "
                 "least two periods over the joint's range")
     unit = "N·m"
+    row_only = True
     searched = True
 
     def atoms(self, library, tuning=None, residual=None) -> list[Atom]:

@@ -28,6 +28,7 @@ class StribeckHump(Effect):
     signature = "a step at q̇ = 0 that decays within ±v_s (a hump beside the Coulomb step)"
     equation = "`Δf L[sign(q̇_j) exp(−(q̇_j/v_s)²)]`, `Δf = f_s − f_c`, `v_s` and `L` tuned"
     unit = "N·m"
+    row_only = True
     suffix = "dfs"
     wording = "Stribeck excess of static over Coulomb friction"
     nonnegative = (0,)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...identification.regressor import TERM_COLUMNS
-from .base import Effect, on_row
+from .base import Effect
 
 
 class Viscous(Effect):
@@ -18,9 +18,10 @@ class Viscous(Effect):
     suffix = TERM_COLUMNS["viscous"][0]
     wording = "viscous friction"
     nonnegative = (0,)
+    row_only = True
 
-    def columns(self, library, atom, data) -> np.ndarray:
-        return on_row(data, atom.joint, data.dataset.dq[:, atom.joint])
+    def row(self, library, atom, data) -> np.ndarray:
+        return data.dataset.dq[:, atom.joint]
 
 
 EFFECT = Viscous()
