@@ -217,6 +217,9 @@ def _explained(a: np.ndarray, residual: np.ndarray) -> float:
     """``cᵀG⁻¹c`` with ``G = aᵀa``, ``c = aᵀr``: what columns ``a`` (N, k) explain of ``r`` by
     least squares; ``−inf`` when ``G`` is singular (condition number above 1e12)."""
     g, c = a.T @ a, a.T @ residual
+    if g.shape == (1, 1) and 0 < g[0, 0] < np.inf:
+        # one column: condition number 1, and LAPACK's solve of a 1×1 system is c / g
+        return float(c[0] * (c[0] / g[0, 0]))
     if np.linalg.cond(g) > 1e12:
         return -np.inf
     return float(c @ np.linalg.solve(g, c))

@@ -40,7 +40,14 @@ def ripple_order(data: GapData, residual: np.ndarray, joint: int,
     # centred sums of the 2×2 least squares per k follow from three sums over the samples,
     # Σe^{ikq}, Σr e^{ikq} and Σe^{2ikq}:  Σs² = n/2 − ½ Re Σe^{2ikq},  Σc² = n/2 + ½ Re Σe^{2ikq},
     # Σsc = ½ Im Σe^{2ikq}, each minus n × the product of the means; r·(s − s̄) = r·s − s̄ Σr.
-    table = np.exp(1j * np.outer(q, np.arange(min(64, k_hi + 1 - k_lo))))
+    width = min(64, k_hi + 1 - k_lo)
+    table = np.empty((n, width), dtype=complex)      # e^{imq}, m < width, by doubling:
+    table[:, 0] = 1.0                                 # columns [h, 2h) = [0, h) · e^{ihq}
+    h = 1
+    while h < width:
+        step = min(h, width - h)
+        table[:, h:h + step] = table[:, :step] * np.exp(1j * h * q)[:, None]
+        h += step
     for start in range(k_lo, k_hi + 1, 64):
         ks = np.arange(start, min(start + 64, k_hi + 1))
         e = np.exp(1j * start * q)[:, None] * table[:, :ks.size]
