@@ -239,3 +239,33 @@ def test_joints_split_over_two_message_kinds_in_a_bag_are_explained(tmp_path):
             bag.write(conn, ns, store.serialize_cdr(msg, state.__msgtype__))
     with pytest.raises(DatasetError, match=r"missing everywhere: \[\].*in separate messages"):
         ci.load_recording(tmp_path / "split", joints=NAMES)
+
+
+# ------------------------------------------------------------------ wrapped angles
+def test_angles_wrapped_into_2pi_are_unwrapped_with_a_warning(planar_2r):
+    t = np.arange(0.0, 8.0, 1.0 / RATE)
+    q = np.column_stack([2.6 + 1.2 * np.sin(2 * np.pi * 0.25 * t),        # crosses π
+                         0.7 * np.sin(2 * np.pi * 0.4 * t + 1.0)])
+    dq = np.gradient(q, t, axis=0)
+    tau = planar_2r.rnea(q, dq, np.gradient(dq, t, axis=0))
+    wrapped = (q + np.pi) % (2 * np.pi) - np.pi                         # a ROS driver's habit
+    assert np.abs(np.diff(wrapped[:, 0])).max() > 6
+    plain = ci.Dataset.from_recording(t, q, tau)
+    with pytest.warns(DataQualityWarning, match=r"jump by ±2π.*q\[:, 0\]"):
+        fixed = ci.Dataset.from_recording(t, wrapped, tau)
+    # the same dynamics: sin and cos of the angles agree, velocities and accelerations too
+    assert np.allclose(np.sin(fixed.q), np.sin(plain.q), atol=1e-9)
+    assert np.allclose(fixed.dq, plain.dq, atol=1e-9)
+    assert np.allclose(fixed.ddq, plain.ddq, atol=1e-7)
+    res = ci.identify(planar_2r, fixed, method="ols", friction=None)
+    assert np.max(res.rms(fixed)) < 1e-3 * np.max(np.abs(tau))
+
+
+def test_a_fast_but_real_motion_is_not_unwrapped():
+    t, q, tau = _log()
+    q = q.copy()
+    q[1000, 0] += 4.0                                   # a glitch, not a 2π wrap
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DataQualityWarning)
+        d = ci.Dataset.from_recording(t, q, tau)        # Hampel deals with the spike
+    assert np.max(np.abs(d.q - _at(d.t, t, _log()[1]))) < 1e-2

@@ -11,7 +11,8 @@ chain, in order (each step appears in the record when it did something):
    going back by more than ``CLOCK_STEP_BACK`` median steps warn: a stepped clock, whose
    stretches sorting interleaves); samples whose stamps are within
    ``duplicate_tol`` median steps merged (``duplicates``; collapsed stamps refused unless a
-   policy is given);
+   policy is given); positions that jump by ±2π between two samples (a logger that wraps angles)
+   unwrapped, with a warning;
 2. **outliers**: a Hampel filter (window 11, 6 robust σ) on ``q`` and ``τ`` replaces spikes by
    the running median, on the raw samples, per *stretch* (the parts between outages: steps
    longer than both ``gap`` median steps and :data:`OUTAGE` s);
@@ -103,6 +104,9 @@ CLOCK_STEP_BACK = 2.0
 #: Peak joint speed (rad/s or m/s) below which a moving log warns as quasi-static
 #: (:func:`_warn_quasi_static`); a robot being identified moves 10–100 × faster.
 QUASI_STATIC_SPEED = 0.01
+#: A position step within this (rad) of ±2π, where every other step is below π, is a wrap
+#: (:func:`_unwrap`).
+WRAP_TOL = 0.5
 
 
 @dataclass(frozen=True)
@@ -314,6 +318,30 @@ def _warn_clock_steps(t: np.ndarray, back: np.ndarray, scale: float, step: float
     warnings.warn(first + advice, DataQualityWarning, stacklevel=5)
 
 
+def _unwrap(t: np.ndarray, x: np.ndarray, nv: int, steps: list[Step]) -> np.ndarray:
+    """Positions that jump by ±2π (within :data:`WRAP_TOL`) between two samples, and by less
+    than π everywhere else, come from a logger that wraps angles into a 2π interval (ROS drivers
+    do, for continuous joints): no joint turns half a revolution in one sample. Those columns
+    are unwrapped (``numpy.unwrap``: multiples of 2π added after each jump), which changes no
+    sine or cosine of them; said in the record and warned (:class:`DataQualityWarning`)."""
+    d = np.diff(x[:, :nv], axis=0)
+    big = np.abs(d) > np.pi
+    cols = [j for j in range(nv) if big[:, j].any() and np.all(
+        np.abs(np.abs(d[big[:, j], j]) - 2 * np.pi) < WRAP_TOL)]
+    if not cols:
+        return x
+    x = x.copy()
+    x[:, cols] = np.unwrap(x[:, cols], axis=0)
+    what = "; ".join(f"q[:, {j}] {int(big[:, j].sum())} time(s), first at t = "
+                     f"{t[int(np.flatnonzero(big[:, j])[0]) + 1]:.4g} s" for j in cols)
+    steps.append(Step("unwrap", f"angles wrapped into a 2π interval unwrapped ({what})"))
+    warnings.warn(f"positions jump by ±2π between two samples ({what}): the logger wraps the "
+                  "angles into a 2π interval. They were unwrapped (multiples of 2π added after "
+                  "each jump), which the dynamics do not see; joint limits, if checked, see the "
+                  "unwrapped angles", DataQualityWarning, stacklevel=4)
+    return x
+
+
 def _warn_quasi_static(t: np.ndarray, dq: np.ndarray, step: float,
                        time_unit: str | None) -> None:
     """Warn (:class:`DataQualityWarning`) when no joint ever moves faster than
@@ -459,6 +487,7 @@ def run_chain(t: np.ndarray, q: np.ndarray, tau: np.ndarray,
     nv = q.shape[1]
     steps: list[Step] = []
     t, x = _fix_time(t, np.hstack([q, tau]), o, steps)
+    x = _unwrap(t, x, nv, steps)
     h = median_step(t)
     stretches = _split(t, max(GAP_FACTOR * h, OUTAGE) if o.gap is None else o.gap * h)
     if o.rate is not None:
