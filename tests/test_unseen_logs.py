@@ -269,3 +269,47 @@ def test_a_fast_but_real_motion_is_not_unwrapped():
         warnings.simplefilter("error", DataQualityWarning)
         d = ci.Dataset.from_recording(t, q, tau)        # Hampel deals with the spike
     assert np.max(np.abs(d.q - _at(d.t, t, _log()[1]))) < 1e-2
+
+
+# ------------------------------------------------------------------ torques against the model
+def _ur5_log():
+    """A UR5 excitation through MuJoCo with Coulomb and viscous friction and sensor noise."""
+    from consistid.simulate import Effects, record
+
+    model = ci.RobotModel.example("ur5")
+    traj = ci.FourierTrajectory.random(model, harmonics=5, period=10.0, seed=1)
+    sim = record(model, traj, Effects(coulomb=1.0, viscous=0.5, torque_noise=0.05),
+                 duration=8.0, rate=500.0, seed=1)
+    return model, sim
+
+
+@pytest.fixture(scope="module")
+def ur5_log():
+    return _ur5_log()
+
+
+@pytest.mark.parametrize("factor, message", [
+    (1000.0, r"'shoulder_lift_joint' \(1\.0\de\+03 × the model's\).*mN·m"),
+    (-1.0, r"'shoulder_lift_joint' \(correlation -1\.00\).*opposite sign"),
+    (np.array([1, 1, -1, 1, 1, 1.0]), r"torque of 'elbow_joint' \(correlation -0\.\d\d\) is")])
+def test_torques_in_other_units_or_sign_warn_against_the_urdf(ur5_log, factor, message):
+    model, sim = ur5_log
+    with pytest.warns(DataQualityWarning, match=message):
+        rec = from_arrays(sim.t, sim.q, sim.tau * factor, model=model)
+    assert any("RNEA torque" in s for s in rec.steps)
+
+
+def test_a_right_log_of_a_robot_near_its_urdf_does_not_warn(ur5_log):
+    model, sim = ur5_log
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DataQualityWarning)
+        from_arrays(sim.t, sim.q, sim.tau, model=model)
+
+
+def test_real_kuka_logs_against_the_cad_urdf_do_not_warn(kuka_dir):
+    # its wrists' torques correlate at -0.7 with the CAD model's (friction and offsets dominate
+    # them): not a flipped sign, and not judged
+    model = ci.RobotModel.from_urdf(kuka_dir / "kuka_lwr4.urdf")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DataQualityWarning)
+        ci.load_recording(kuka_dir / "measurements_1.npz", model=model)

@@ -40,11 +40,15 @@ what was done:
    explicit arguments (0 by default) and always recorded. For the KUKA LWR4+ logs the tutorial
    measures it (``docs/tutorials/real_kuka.md``: a model fitted on the steady part leaves 2–5×
    its steady residual during the first 2 s): 2 s.
+6. **Torques against the model** (with a model): on the joints whose measured torque follows
+   the URDF's RNEA torque closely (``|correlation| > 0.9``), a flipped sign or a scale beyond
+   10× (other units) warns (:class:`~consistid.errors.DataQualityWarning`) and is recorded.
 """
 
 from __future__ import annotations
 
 import html
+import warnings
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
@@ -52,7 +56,8 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from ..errors import DatasetError, JointNameError, MissingColumnsError, check_option
+from ..errors import (DataQualityWarning, DatasetError, JointNameError, MissingColumnsError,
+                      check_option)
 from ..progress import ProgressArg
 from ..robot.model import RobotModel
 from .chain import PreprocessOptions, run_chain
@@ -299,7 +304,61 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
         dataset = dataset.select(keep)
     else:
         steps.append("no trim_start/trim_end requested")
+    if model is not None:
+        _check_against_model(dataset, model, source, steps)
     return Recording(dataset, tuple(steps), source, t0)
+
+
+#: Joints whose measured torque follows the model's RNEA with |correlation| above this are
+#: compared in sign and scale (:func:`_check_against_model`).
+MODEL_CORRELATION = 0.9
+#: RMS ratio (measured / model) beyond which such a joint's torque is in other units.
+MODEL_SCALE = 10.0
+#: Samples at most used for the comparison (evenly spaced).
+MODEL_SAMPLES = 20_000
+
+
+def _check_against_model(dataset: Dataset, model: RobotModel, source: str,
+                         steps: list[str]) -> None:
+    """Warn (:class:`DataQualityWarning`) about torque channels that are the model's torque
+    with the wrong sign or in other units: per joint, the correlation ``r`` of the measured τ
+    with the URDF's RNEA torque and their RMS ratio. Only joints the model's torque explains
+    (``|r| > MODEL_CORRELATION``: the gravity-loaded ones; friction-dominated wrists are not
+    judged) are compared — ``r < −0.9`` is a flipped sign, a ratio beyond ``MODEL_SCALE`` (or
+    below its inverse) other units (mN·m: 1000). A URDF within tens of percent of the robot
+    gives ``r ≈ 1`` and a ratio near 1 on those joints."""
+    if dataset.tau is None or dataset.n_samples < 10 or dataset.nv != model.nv:
+        return
+    pick = np.unique(np.linspace(0, dataset.n_samples - 1,
+                                 min(dataset.n_samples, MODEL_SAMPLES)).astype(int))
+    u = model.rnea(dataset.q[pick], dataset.dq[pick], dataset.ddq[pick])
+    y = dataset.tau[pick]
+    flipped, scaled = [], []
+    for j, name in enumerate(model.joint_names):
+        su, sy = float(np.std(u[:, j])), float(np.std(y[:, j]))
+        if su == 0 or sy == 0:
+            continue
+        r = float(np.corrcoef(u[:, j], y[:, j])[0, 1])
+        ratio = float(np.sqrt(np.mean(y[:, j] ** 2) / np.mean(u[:, j] ** 2)))
+        if r < -MODEL_CORRELATION:
+            flipped.append(f"{name!r} (correlation {r:.2f})")
+        elif r > MODEL_CORRELATION and not 1 / MODEL_SCALE < ratio < MODEL_SCALE:
+            scaled.append(f"{name!r} ({ratio:.3g} × the model's)")
+    found = []
+    if flipped:
+        found.append(f"the torque of {', '.join(flipped)} is the model's torque with the opposite "
+                     "sign: a driver that logs the reaction torque, or a joint axis flipped "
+                     "between the log and the URDF; negate those columns")
+    if scaled:
+        found.append(f"the torque of {', '.join(scaled)} follows the model's in shape but not "
+                     "in size: other units (mN·m reads 1000 ×), or a gear ratio left in; "
+                     "convert those columns to N·m")
+    if found:
+        text = f"{source}: compared with {model.name}'s RNEA torque (URDF inertias): " \
+               + "; ".join(found)
+        steps.append(text)
+        warnings.warn(text + ". Identification would fit them as they are",
+                      DataQualityWarning, stacklevel=3)
 
 
 def _shift_logged(t: np.ndarray, arrays: dict[str, np.ndarray], shifts: Mapping[str, str],
