@@ -28,13 +28,11 @@ from ..data.dataset import Dataset
 from ..errors import OptionError
 from ..robot.model import RobotModel
 from .base import BaseParameters
-from .regressor import (RegressorSpec, check_states, column_support, joint_signal,
+from .regressor import (RegressorSpec, check_states, column_support, default_chunk, joint_signal,
                         rigid_body_regressor)
 
 #: Per-joint σ is floored at this fraction of the joint's torque RMS (noise-free data).
 SIGMA_FLOOR = 1e-6
-#: Byte budget of :func:`compress`'s default regressor buffer.
-CHUNK_BYTES = 64 * 2 ** 20
 
 
 def _r_factor(a: np.ndarray, size: int) -> np.ndarray:
@@ -101,9 +99,8 @@ def compress(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
              base: BaseParameters | None = None) -> CompressedProblem:
     """Accumulate the per-joint R factors of ``[Y_j | τ_j]`` over a dataset (O(p²) memory).
 
-    ``chunk`` samples per regressor buffer; default 4096, fewer (≥ 1024) when that buffer would
-    exceed :data:`CHUNK_BYTES` (a 32-body robot's 4096 samples are 436 MB, whose first touch
-    costs more than the QR's larger share of stacked R rows at 1024).
+    ``chunk`` samples per regressor buffer; default
+    :func:`~consistid.identification.regressor.default_chunk` (4096, fewer for a large robot).
     ``weights`` (N, nv) ≥ 0 scale each row's squared residual (row ``k`` of joint ``j`` is
     multiplied by ``√w_kj``), as iteratively re-weighted least squares needs.
 
@@ -125,9 +122,7 @@ def compress(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
     (:func:`expand_factor`). ``R̄ᵀR̄`` is the Gram matrix of all columns, exact on the
     independent ones, and to ``B``'s round-off on the dependent ones.
     """
-    if chunk is None:
-        row_bytes = 8 * model.nv * (model.n_inertial + spec.n_joint_columns + 1)
-        chunk = int(min(4096, max(1024, CHUNK_BYTES // row_bytes)))
+    chunk = default_chunk(model, spec) if chunk is None else chunk
     tau = dataset.require_torque()
     dataset.check_joints(model.nv, model.joint_names)
     if weights is not None:

@@ -335,15 +335,29 @@ def dataset_regressor(model: RobotModel, dataset: Dataset,
     return regressor(model, dataset.q, dataset.dq, dataset.ddq, spec)
 
 
+#: Byte budget of a regressor buffer (:func:`default_chunk`).
+CHUNK_BYTES = 64 * 2 ** 20
+
+
+def default_chunk(model: RobotModel, spec: RegressorSpec) -> int:
+    """Samples per regressor buffer: 4096, fewer (≥ 1024) when ``(chunk, nv, p)`` doubles would
+    exceed :data:`CHUNK_BYTES` (a 32-body robot's 4096 samples are 436 MB, whose first touch
+    costs more than a smaller buffer's extra chunks)."""
+    row_bytes = 8 * model.nv * (model.n_inertial + spec.n_joint_columns)
+    return int(min(4096, max(1024, CHUNK_BYTES // max(row_bytes, 1))))
+
+
 def iter_regressor(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
-                   chunk: int = 4096) -> Iterator[tuple[slice, np.ndarray]]:
-    """Yield ``(sample slice, Y_chunk)`` with ``Y_chunk`` of shape ``(n, nv, p)``: O(chunk) memory.
+                   chunk: int | None = None) -> Iterator[tuple[slice, np.ndarray]]:
+    """Yield ``(sample slice, Y_chunk)`` with ``Y_chunk`` of shape ``(n, nv, p)``: O(chunk) memory
+    (default :func:`default_chunk`).
 
     The chunks share one buffer: each yielded array is overwritten by the next one (read it,
     do not write into it: the structurally zero entries of its per-joint block are written
     once, for the first chunk).
     """
     dataset.check_joints(model.nv, model.joint_names)
+    chunk = default_chunk(model, spec) if chunk is None else chunk
     buffer = np.empty((min(chunk, dataset.n_samples), model.nv,
                        model.n_inertial + spec.n_joint_columns))
     for start in range(0, dataset.n_samples, chunk):
@@ -405,7 +419,7 @@ def batch_rnea(model: RobotModel, carrier: pin.Model, q: np.ndarray, dq: np.ndar
 
 
 def predict_torque(model: RobotModel, dataset: Dataset, spec: RegressorSpec, theta: np.ndarray,
-                   chunk: int = 4096) -> np.ndarray:
+                   chunk: int | None = None) -> np.ndarray:
     """``Y(q, q̇, q̈) θ`` for a dataset's samples, shape (N, nv).
 
     The rigid-body part is ``pinocchio.rnea`` of the model carrying ``θ``'s inertias (armature
