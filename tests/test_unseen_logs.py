@@ -313,3 +313,33 @@ def test_real_kuka_logs_against_the_cad_urdf_do_not_warn(kuka_dir):
     with warnings.catch_warnings():
         warnings.simplefilter("error", DataQualityWarning)
         ci.load_recording(kuka_dir / "measurements_1.npz", model=model)
+
+
+# ------------------------------------------------------------------ time written as text
+@pytest.mark.parametrize("style", ["iso", "iso+tz", "T and Z", "clock"])
+def test_time_column_written_as_date_times_or_clock_times(tmp_path, style):
+    t, q, tau = _log()
+    base = np.datetime64("2025-11-24T16:00:00", "ns") + (t * 1e9).astype("timedelta64[ns]")
+    text = np.datetime_as_string(base, unit="us")             # 2025-11-24T16:00:00.002000
+    cells = {"iso": [c.replace("T", " ") for c in text],
+             "iso+tz": [c.replace("T", " ") + "+01:00" for c in text],
+             "T and Z": [c + "Z" for c in text],
+             "clock": [c.split("T")[1] for c in text]}[style]
+    path = tmp_path / "run.csv"
+    with open(path, "w") as fh:
+        fh.write("time,q1,q2,q3,tau1,tau2,tau3\n")
+        for k, cell in enumerate(cells):
+            fh.write(cell + "," + ",".join(f"{v:.12g}" for v in (*q[k], *tau[k])) + "\n")
+    rec = ci.load_recording(path)                     # was: "'2025-11-24 …' is not a number"
+    d = rec.dataset
+    assert np.max(np.abs(d.q - _at(d.t, t - t[0], q))) < 1e-3
+    assert abs(d.t[-1] - d.t[0] - (t[-1] - t[0])) < 1.0     # the trimmed span, in seconds
+    assert any("read as" in s for s in rec.steps)
+
+
+def test_a_bad_date_time_names_its_row(tmp_path):
+    path = tmp_path / "bad.csv"
+    path.write_text("time,q1,tau1\n2025-11-24 16:00:00.000,0.1,1.0\n2025-11-24 16:00:00.002,"
+                    "0.2,1.1\nyesterday,0.3,1.2\n")
+    with pytest.raises(DatasetError, match=r"data row 3 .*'yesterday' is not an ISO date-time"):
+        ci.load_recording(path)

@@ -2,7 +2,9 @@ r"""CSV (and other delimited text) logs: one header line naming the columns, one
 
 The delimiter is sniffed from the first lines (``,``, ``;``, tab, ``|`` or spaces; Python's
 ``csv.Sniffer``), and said in the record; with ``;`` a decimal comma (``1,25``) is read as
-``1.25``. Lines starting with ``#`` are comments (before the header too). The columns are
+``1.25``. Lines starting with ``#`` are comments (before the header too). A time column
+written as ISO 8601 date-times (``2025-11-24 16:00:00.002``, pandas' ``to_csv`` of a datetime
+column) or as times of day (``16:00:00.002``) is parsed. The columns are
 matched by name (:mod:`consistid.data.formats.columns`). Numbers are parsed by ``numpy.loadtxt``;
 a broken file is re-read line by line to name the line and column of the first bad value
 (:class:`~consistid.errors.DatasetError`).
@@ -12,6 +14,7 @@ from __future__ import annotations
 
 import csv
 import io
+import re
 from pathlib import Path
 from typing import Mapping, Sequence
 
@@ -115,10 +118,18 @@ def read_csv(path: str | Path, *, joints: Sequence[str] | None = None,
     usecols = sorted({names.index(c) for c in wanted})
     with open(path, encoding="utf-8-sig") as fh:
         text = fh.read()
-    if decimal_comma:
-        text = text.replace(",", ".")
     if not data_lines:
         raise DatasetError(f"{source}: a header ({len(names)} columns) but no data rows")
+    time_idx = names.index(cmap.time)
+    clock = _time_kind(_cells(data_lines[0], delimiter)[time_idx:time_idx + 1])
+    if clock:                       # date-times or times of day: read apart, the rest as numbers
+        body = [ln for ln in text.splitlines()[k + 1:] if ln.strip()
+                and not ln.lstrip().startswith("#")]
+        stamps = _parse_times([(_cells(ln, delimiter) + [""] * (time_idx + 1))[time_idx]
+                               for ln in body], clock, cmap.time, k, source)
+        usecols = [c for c in usecols if c != time_idx]
+    if decimal_comma:
+        text = text.replace(",", ".")
     try:
         table = np.loadtxt(io.StringIO(text), delimiter=None if delimiter == " " else delimiter,
                            skiprows=k + 1, comments="#", ndmin=2, dtype=float, usecols=usecols,
@@ -136,7 +147,54 @@ def read_csv(path: str | Path, *, joints: Sequence[str] | None = None,
     col = {names[c]: table[:, i] for i, c in enumerate(usecols)}
     note = (f"delimiter {delimiter!r} ({how})" + (", decimal comma" if decimal_comma else "")
             + f", {table.shape[0]} rows")
+    if clock:
+        if stamps.size != table.shape[0]:
+            raise DatasetError(f"{source}: {stamps.size} time stamps but {table.shape[0]} rows "
+                               "of numbers")
+        col[cmap.time] = stamps
+        note += (f"; column {cmap.time!r} read as {CLOCKS[clock]}")
     return log_from_columns(col.__getitem__, cmap, source, table.shape[0], rows, (note,))
+
+
+#: Time columns written as text that the reader parses, and how the record names them.
+CLOCKS = {"datetime": "ISO 8601 date-times (time zone offset dropped: only differences matter)",
+          "clock": "times of day hh:mm:ss[.f] (seconds since midnight; a log across midnight "
+                   "goes back in time and is refused)"}
+_DATETIME = re.compile(r"^\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}(:\d{2}(\.\d+)?)?"
+                       r"(Z|[+-]\d{2}:?\d{2})?$")
+_CLOCK = re.compile(r"^\d{1,2}:\d{2}:\d{2}(\.\d+)?$")
+
+
+def _cells(line: str, delimiter: str) -> list[str]:
+    cells = next(csv.reader([line], delimiter=delimiter, skipinitialspace=delimiter == " "))
+    return [c.strip() for c in cells if not (delimiter == " " and c == "")]
+
+
+def _time_kind(cells: list[str]) -> str | None:
+    """``"datetime"``, ``"clock"`` or ``None`` (a number, or anything else) for a time cell."""
+    if not cells or _is_number(cells[0]):
+        return None
+    if _DATETIME.match(cells[0]):
+        return "datetime"
+    return "clock" if _CLOCK.match(cells[0]) else None
+
+
+def _parse_times(cells: list[str], kind: str, column: str, header: int,
+                 source: str) -> np.ndarray:
+    """The time cells as ``datetime64[ns]`` (``"datetime"``) or seconds since midnight
+    (``"clock"``); :class:`DatasetError` naming the line of the first cell that is not one."""
+    pattern = _DATETIME if kind == "datetime" else _CLOCK
+    for n, cell in enumerate(cells):
+        if not pattern.match(cell):
+            raise DatasetError(f"{source}, data row {n + 1} (after the header on line "
+                               f"{header + 1}), column {column!r}: {cell!r} is not "
+                               f"{'an ISO date-time' if kind == 'datetime' else 'hh:mm:ss'} like "
+                               f"the first row's")
+    if kind == "datetime":
+        bare = [re.sub(r"(Z|[+-]\d{2}:?\d{2})$", "", c).replace(" ", "T") for c in cells]
+        return np.array(bare, dtype="datetime64[ns]")
+    parts = np.array([c.split(":") for c in cells], dtype=float)
+    return parts[:, 0] * 3600.0 + parts[:, 1] * 60.0 + parts[:, 2]
 
 
 def _is_number(text: str) -> bool:
