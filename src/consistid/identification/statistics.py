@@ -48,13 +48,15 @@ def autocovariance_sum(dataset: Dataset, residual: np.ndarray, max_lag: int = 20
             continue
         part = (residual[idx[0]:idx[-1] + 1] if idx[-1] - idx[0] + 1 == idx.size
                 else residual[idx])                     # a recording is usually one run
-        # one joint per row (contiguous transforms), zero-padded to ≥ 2n − 1 points: the
-        # circular autocorrelation is then the linear one at lags 0 … n − 1
+        # one joint per row (contiguous transforms), zero-padded to n + L points: the circular
+        # autocorrelation is the linear one at lags 0 … L (a wrapped product pairs a sample
+        # with the padding), L = min(n − 1, max_lag)
         x = np.ascontiguousarray((part - part.mean(axis=0)).T)
         n = x.shape[1]
-        size = scipy.fft.next_fast_len(2 * n - 1, real=True)
+        lags = min(n - 1, max_lag)
+        size = scipy.fft.next_fast_len(n + lags, real=True)
         f = scipy.fft.rfft(x, n=size, axis=1)
-        acov = scipy.fft.irfft(f.real ** 2 + f.imag ** 2, n=size, axis=1)[:, :min(n, max_lag + 1)].T
+        acov = scipy.fft.irfft(f.real ** 2 + f.imag ** 2, n=size, axis=1)[:, :lags + 1].T
         acf_sum = acov if acf_sum is None else acf_sum[: acov.shape[0]] + acov[: acf_sum.shape[0]]
     return acf_sum
 
