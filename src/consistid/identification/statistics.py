@@ -42,12 +42,10 @@ def autocovariance_sum(dataset: Dataset, residual: np.ndarray, max_lag: int = 20
     added to ``pooled`` (the sums of other data, e.g. earlier chunks of a stream; lags beyond the
     shorter of the two are dropped). ``None`` when nothing was pooled."""
     acf_sum = pooled
-    for s in np.unique(dataset.segment):
-        idx = np.flatnonzero(dataset.segment == s)
-        if idx.size < 16:
+    for idx in _recordings(np.asarray(dataset.segment)):
+        part = residual[idx]
+        if part.shape[0] < 16:
             continue
-        part = (residual[idx[0]:idx[-1] + 1] if idx[-1] - idx[0] + 1 == idx.size
-                else residual[idx])                     # a recording is usually one run
         # one joint per row (contiguous transforms), zero-padded to n + L points: the circular
         # autocorrelation is the linear one at lags 0 … L (a wrapped product pairs a sample
         # with the padding), L = min(n − 1, max_lag)
@@ -59,6 +57,18 @@ def autocovariance_sum(dataset: Dataset, residual: np.ndarray, max_lag: int = 20
         acov = scipy.fft.irfft(f.real ** 2 + f.imag ** 2, n=size, axis=1)[:, :lags + 1].T
         acf_sum = acov if acf_sum is None else acf_sum[: acov.shape[0]] + acov[: acf_sum.shape[0]]
     return acf_sum
+
+
+def _recordings(segment: np.ndarray) -> list[slice | np.ndarray]:
+    """The samples of each recording, in increasing label order: slices when the labels never
+    decrease (the usual layout: one run after another), index arrays otherwise."""
+    if segment.size == 0:
+        return []
+    if np.all(segment[1:] >= segment[:-1]):
+        edges = np.concatenate([[0], np.flatnonzero(segment[1:] != segment[:-1]) + 1,
+                                [segment.size]])
+        return [slice(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:])]
+    return [np.flatnonzero(segment == s) for s in np.unique(segment)]
 
 
 def integrated_time(acf_sum: np.ndarray | None, nv: int, c: float = 5.0) -> np.ndarray:
