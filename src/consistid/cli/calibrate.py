@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from ..data.formats.csv import sniff_delimiter
 from ..errors import ConfigError, DataQualityWarning, MissingColumnsError, OutputPathError
 from ..kinematics.calibrate import calibrate_kinematics
 from ..kinematics.result import CalibrationResult
@@ -168,8 +169,6 @@ MAX_REACH = 20.0
 def _read_table(path: Path) -> tuple[list[str], np.ndarray]:
     """Header names (units kept) and numbers of a calibration CSV: the delimiter sniffed as for
     logs (``;`` with decimal commas too), a UTF-8 byte-order mark ignored."""
-    from ..data.formats.csv import sniff_delimiter
-
     with open(path, encoding="utf-8-sig") as fh:
         text = fh.read()
     lines = [ln for ln in text.splitlines() if ln.strip()]
