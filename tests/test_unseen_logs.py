@@ -343,3 +343,28 @@ def test_a_bad_date_time_names_its_row(tmp_path):
                     "0.2,1.1\nyesterday,0.3,1.2\n")
     with pytest.raises(DatasetError, match=r"data row 3 .*'yesterday' is not an ISO date-time"):
         ci.load_recording(path)
+
+
+# ------------------------------------------------------------------ float32 stamps
+def test_float32_stamps_that_cannot_resolve_their_steps_are_refused(tmp_path):
+    pd = pytest.importorskip("pandas")
+    pytest.importorskip("pyarrow")
+    t, q, tau = _log()
+    frame = pd.DataFrame({"q1": q[:, 0], "q2": q[:, 1], "tau1": tau[:, 0], "tau2": tau[:, 1]})
+    for offset, what in ((1.764e9, "every stamp collapses"), (5 * 3600.0, "of the median step")):
+        frame.insert(0, "time", (t + offset).astype(np.float32))
+        frame.to_parquet(tmp_path / "run.parquet")
+        frame = frame.drop(columns="time")
+        with pytest.raises(DatasetError, match=rf"column 'time': the time stamps are float32.*"
+                                               rf"{what}.*float64"):
+            ci.load_recording(tmp_path / "run.parquet")      # was: "all equal" / 512 Hz
+        with pytest.raises(DatasetError, match=r"float32"):
+            ci.Dataset.from_recording((t + offset).astype(np.float32), q, tau)
+
+
+def test_float32_stamps_of_a_short_log_are_fine():
+    t, q, tau = _log()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DataQualityWarning)
+        d = ci.Dataset.from_recording(t.astype(np.float32), q, tau)
+    assert np.max(np.abs(d.q - _at(d.t, t, q))) < 1e-3

@@ -78,6 +78,7 @@ from .timestamps import (
     DUPLICATES,
     PLAUSIBLE_STEP,
     TIME_UNITS,
+    check_resolution,
     check_timestamp,
     convert_units,
     interval_centres,
@@ -253,6 +254,7 @@ def _split(t: np.ndarray, limit: float) -> list[slice]:
 
 def _check_inputs(t: np.ndarray, q: np.ndarray, tau: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    check_resolution(t)
     t = np.asarray(t, dtype=float)
     if t.ndim != 1:
         raise DatasetError(f"t must be 1-D (N,), got shape {t.shape}")

@@ -42,6 +42,9 @@ PLAUSIBLE_STEP = (1e-5, 0.5)
 COLLAPSED_FRACTION = 0.1
 DUPLICATES = ("average", "first", "error", "spread")
 TIMESTAMPS = ("centre", "start", "end")
+#: Stamps of a narrow float type whose spacing exceeds this fraction of the median step are
+#: refused (:func:`check_resolution`).
+MAX_QUANTUM = 0.05
 
 
 def median_step(t: np.ndarray) -> float:
@@ -55,12 +58,38 @@ def median_step(t: np.ndarray) -> float:
     return float(np.median(positive))
 
 
+def check_resolution(t: np.ndarray, source: str = "t") -> None:
+    """:class:`DatasetError` when stamps stored as a narrow float (``float32``, ``float16``)
+    cannot resolve their own steps: the spacing of that type at the largest stamp exceeds
+    :data:`MAX_QUANTUM` of the median step (``float32`` Unix seconds are 128 s apart; five hours
+    into a session, 2 ms apart — a 500 Hz log then reads as 512 Hz with steps of 2 or 4 ms)."""
+    a = np.asarray(t)
+    if a.dtype.kind != "f" or a.dtype.itemsize >= 8 or a.size < 2:
+        return
+    finite = a[np.isfinite(a)]
+    if finite.size < 2:
+        return
+    quantum = float(np.spacing(np.max(np.abs(finite))))
+    dt = np.diff(np.sort(finite.astype(float)))
+    positive = dt[dt > 0]
+    step = float(np.median(positive)) if positive.size else 0.0
+    if step == 0.0 or quantum > MAX_QUANTUM * step:
+        what = (f"{quantum / step:.3g} of the median step {step:.4g}" if step
+                else "every stamp collapses onto one value")
+        raise DatasetError(f"{source}: the time stamps are {a.dtype}, whose resolution at "
+                           f"{float(np.max(np.abs(finite))):.6g} is {quantum:.3g}: {what}, so "
+                           "the stamps are quantised. Store time as float64 (or integer "
+                           "nanoseconds) where the log is written or converted")
+
+
 def check_stamps(t: np.ndarray, source: str = "t") -> np.ndarray:
-    """``t`` as a 1-D float array of finite stamps; names the first bad index otherwise."""
+    """``t`` as a 1-D float array of finite stamps; names the first bad index otherwise (and
+    refuses stamps a narrow float type cannot resolve, :func:`check_resolution`)."""
     a = np.asarray(t)
     if a.ndim != 1 or a.size == 0:
         raise DatasetError(f"{source}: time stamps must be a non-empty 1-D array, got shape "
                            f"{a.shape}")
+    check_resolution(a, source)
     if a.dtype.kind == "M":                                 # numpy datetime64
         a = (a - a[0]) / np.timedelta64(1, "ns") * 1e-9
     try:

@@ -32,6 +32,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ...errors import DatasetError, JointNameError, MissingColumnsError
+from ..timestamps import check_resolution
 
 FIELDS = ("q", "dq", "ddq", "tau")
 #: Column-name spellings of each dataset field.
@@ -413,6 +414,7 @@ def log_from_columns(get, cmap: ColumnMap, source: str, n_rows: int,
                                f"non-finite value(s) in that column); repair or drop those rows")
         return a
 
+    check_resolution(np.asarray(get(cmap.time)), f"{source}, column {cmap.time!r}")
     t = column(cmap.time)
     fields, unit_notes = {}, []
     for f, cols in cmap.fields.items():
