@@ -368,3 +368,39 @@ def test_float32_stamps_of_a_short_log_are_fine():
         warnings.simplefilter("error", DataQualityWarning)
         d = ci.Dataset.from_recording(t.astype(np.float32), q, tau)
     assert np.max(np.abs(d.q - _at(d.t, t, q))) < 1e-3
+
+
+# ------------------------------------------------------------------ logged derivatives
+def _logged():
+    t, q, tau = _log()
+    w = 2 * np.pi * np.array([0.3, 0.4, 0.5])
+    phase = np.array([0.0, 1.0, 2.0])
+    dq = 0.5 * w * np.cos(w * t[:, None] + phase)
+    ddq = -0.5 * w ** 2 * np.sin(w * t[:, None] + phase)
+    return t, q, dq, ddq, tau
+
+
+@pytest.mark.parametrize("case, message", [
+    ("ddq zero", r"ddq\[:, 'a1'\] is 0 in every sample while d\(dq\)/dt"),
+    ("dq in deg/s", r"dq\[:, 'a2'\] is 57\.3 × d\(q\)/dt \(deg/s against rad\?\)"),
+    ("ddq of another joint", r"ddq\[:, 'a3'\] does not follow d\(dq\)/dt")])
+def test_logged_derivatives_that_do_not_derive_warn(case, message):
+    t, q, dq, ddq, tau = _logged()
+    dq, ddq = dq.copy(), ddq.copy()
+    if case == "ddq zero":
+        ddq[:] = 0.0                                  # a driver that fills the field
+    elif case == "dq in deg/s":
+        dq[:, 1] = np.degrees(dq[:, 1])
+    else:
+        ddq[:, 2] = ddq[::-1, 0]
+    with pytest.warns(DataQualityWarning, match=message):
+        rec = from_arrays(t, q, tau, dq, ddq, joint_names=NAMES)
+    assert any("logged derivatives" in s for s in rec.steps)
+
+
+def test_right_logged_derivatives_and_the_real_kuka_logs_do_not_warn(kuka_dir):
+    t, q, dq, ddq, tau = _logged()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DataQualityWarning)
+        from_arrays(t, q, tau, dq, ddq, joint_names=NAMES)
+        ci.load_recording(kuka_dir / "measurements_2.npz")     # FloBaRoID's logged dq, ddq

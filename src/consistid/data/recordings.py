@@ -282,6 +282,7 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
                      "uses samples, not a time grid)")
         dataset = Dataset(t=t, q=arrays["q"], dq=arrays["dq"], ddq=arrays["ddq"],
                           tau=arrays["tau"], joint_names=names)
+        _check_logged(t, arrays, names, source, steps)
     else:
         options = PreprocessOptions.from_kwargs({"timestamp": timestamp,
                                                  "duplicates": duplicates, **signal_options})
@@ -307,6 +308,61 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
     if model is not None:
         _check_against_model(dataset, model, source, steps)
     return Recording(dataset, tuple(steps), source, t0)
+
+
+#: Logged derivatives are compared with differences of what they derive over about this many
+#: seconds (:func:`_check_logged`).
+DERIVATIVE_WINDOW = 0.01
+
+
+def _check_logged(t: np.ndarray, arrays: Mapping[str, np.ndarray],
+                  names: Sequence[str] | None, source: str, steps: list[str]) -> None:
+    """Warn (:class:`DataQualityWarning`) when logged velocities or accelerations are not the
+    derivatives of what they derive from: per joint, logged ``dq`` against central differences
+    of ``q`` and logged ``ddq`` against those of the logged ``dq`` (over
+    :data:`DERIVATIVE_WINDOW`, which keeps sensor noise out). A column of zeros while the joint
+    moves (a driver that fills the field), a slope far from 1 (deg/s against rad: 57.3) or no
+    correlation is named; ``derivatives="estimate"`` derives them from ``q`` instead."""
+    if t.size < 8:
+        return
+    pos = np.diff(t)
+    h = float(np.median(pos[pos > 0])) if np.any(pos > 0) else 0.0
+    if h == 0.0:
+        return
+    stride = max(1, int(round(DERIVATIVE_WINDOW / h)))
+    sub = slice(None, None, stride)
+    ts = t[sub]
+    if ts.size < 5 or np.any(np.diff(ts) <= 0):
+        return
+    found = []
+    for field, of in (("dq", "q"), ("ddq", "dq")):
+        logged, base = arrays[field][sub], arrays[of][sub]
+        numeric = np.gradient(base, ts, axis=0)
+        for j in range(logged.shape[1]):
+            x, y = numeric[2:-2, j], logged[2:-2, j]
+            scale = float(np.sqrt(np.mean(x ** 2)))
+            if scale == 0.0 or not np.isfinite(scale):
+                continue                                      # this joint does not move
+            joint = names[j] if names is not None and j < len(names) else j
+            if not np.any(y):
+                found.append(f"{field}[:, {joint!r}] is 0 in every sample while d({of})/dt has "
+                             f"RMS {scale:.3g}")
+                continue
+            r = float(np.corrcoef(x, y)[0, 1]) if np.std(y) > 0 else 0.0
+            slope = float(np.dot(x, y) / np.dot(x, x))
+            if r < 0.5:
+                found.append(f"{field}[:, {joint!r}] does not follow d({of})/dt (correlation "
+                             f"{r:.2f})")
+            elif not 0.5 < slope < 2.0:
+                unit = " (deg/s against rad?)" if 50 < slope < 65 and field == "dq" else ""
+                found.append(f"{field}[:, {joint!r}] is {slope:.3g} × d({of})/dt{unit}")
+    if found:
+        text = (f"{source}: logged derivatives that are not the derivatives of the logged "
+                f"signals: {'; '.join(found[:6])}{' …' if len(found) > 6 else ''}")
+        steps.append(text)
+        warnings.warn(text + ". Identification would use them as logged: fix the columns, or "
+                      "leave them out (derivatives=\"estimate\" derives them from q)",
+                      DataQualityWarning, stacklevel=3)
 
 
 #: Joints whose measured torque follows the model's RNEA with |correlation| above this are
