@@ -11,7 +11,10 @@ An :class:`Effect` subclass states, in one module of :mod:`consistid.diagnosis.e
 * ``signature``: how it shows in the residual, and ``equation``: its model of the residual;
 * its *atoms* (:meth:`Effect.atoms`): the effect on one joint or on the whole arm, each with
   parameter names and units;
-* its *columns* ``Φ`` on a :class:`~consistid.diagnosis.gapdata.GapData` (:meth:`Effect.columns`);
+* its *columns* ``Φ`` on a :class:`~consistid.diagnosis.gapdata.GapData` (:meth:`Effect.columns`),
+  or, for an effect whose per-joint atom acts on its own joint alone (``row_only = True``), that
+  joint's row (:meth:`Effect.row`; the candidate matrix is then filled row by row), itself the
+  signal before the torques' low-pass (:meth:`Effect.unfiltered`) for an effect seen through it;
 * its *physical sign rules* (``nonnegative``: parameters that must be ≥ 0, e.g. friction, a
   delay); a candidate fitted against them is not selected;
 * its *wording*: how a parameter reads in the report (:meth:`Effect.parameters`);
@@ -158,8 +161,10 @@ class Effect:
                 for j in range(library.model.nv)]
 
     def columns(self, library: "EffectLibrary", atom: Atom, data: GapData) -> np.ndarray:
-        """The atom's columns on ``data``, shape ``(N, nv, n_parameters)``. Default: :meth:`row`
-        on the atom's joint row, zeros elsewhere."""
+        """The atom's columns on ``data``, shape ``(N, nv, n_parameters)``. Default, for a
+        ``row_only`` effect: :meth:`row` on the atom's joint row, zeros elsewhere."""
+        if not self.row_only:
+            raise NotImplementedError(f"effect {self.name!r} defines no columns")
         return on_row(data, atom.joint, self.row(library, atom, data))
 
     def row(self, library: "EffectLibrary", atom: Atom, data: GapData) -> np.ndarray:
