@@ -291,11 +291,15 @@ def ur5_log():
 @pytest.mark.parametrize("factor, message", [
     (1000.0, r"'shoulder_lift_joint' \(1\.0\de\+03 × the model's\).*mN·m"),
     (-1.0, r"'shoulder_lift_joint' \(correlation -1\.00\).*opposite sign"),
-    (np.array([1, 1, -1, 1, 1, 1.0]), r"torque of 'elbow_joint' \(correlation -0\.\d\d\) is")])
-def test_torques_in_other_units_or_sign_warn_against_the_urdf(ur5_log, factor, message):
+    (np.array([1, 1, -1, 1, 1, 1.0]), r"torque of 'elbow_joint' \(correlation -0\.\d\d\) is"),
+    ([1, 0, 2, 3, 4, 5], r"column of 'shoulder_pan_joint' follows 'shoulder_lift_joint''s.*"
+                         r"another joint order"),
+    ([0, 2, 1, 3, 4, 5], r"column of 'shoulder_lift_joint' follows 'elbow_joint''s")])
+def test_torques_in_other_units_sign_or_order_warn_against_the_urdf(ur5_log, factor, message):
     model, sim = ur5_log
+    tau = sim.tau[:, factor] if isinstance(factor, list) else sim.tau * factor
     with pytest.warns(DataQualityWarning, match=message):
-        rec = from_arrays(sim.t, sim.q, sim.tau * factor, model=model)
+        rec = from_arrays(sim.t, sim.q, tau, model=model)
     assert any("RNEA torque" in s for s in rec.steps)
 
 

@@ -374,6 +374,10 @@ MODEL_SCALE = 10.0
 MODEL_SAMPLES = 20_000
 
 
+def _correlation(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.corrcoef(a, b)[0, 1]) if np.std(a) > 0 and np.std(b) > 0 else 0.0
+
+
 def _check_against_model(dataset: Dataset, model: RobotModel, source: str,
                          steps: list[str]) -> None:
     """Warn (:class:`DataQualityWarning`) about torque channels that are the model's torque
@@ -381,7 +385,9 @@ def _check_against_model(dataset: Dataset, model: RobotModel, source: str,
     with the URDF's RNEA torque and their RMS ratio. Only joints the model's torque explains
     (``|r| > MODEL_CORRELATION``: the gravity-loaded ones; friction-dominated wrists are not
     judged) are compared — ``r < −0.9`` is a flipped sign, a ratio beyond ``MODEL_SCALE`` (or
-    below its inverse) other units (mN·m: 1000). A URDF within tens of percent of the robot
+    below its inverse) other units (mN·m: 1000) — and a channel that follows another joint's
+    model torque (``r > 0.9``, better than that joint's own channel) but not its own
+    (``|r| < 0.5``) is a column of another joint. A URDF within tens of percent of the robot
     gives ``r ≈ 1`` and a ratio near 1 on those joints."""
     if dataset.tau is None or dataset.n_samples < 10 or dataset.nv != model.nv:
         return
@@ -389,18 +395,30 @@ def _check_against_model(dataset: Dataset, model: RobotModel, source: str,
                                  min(dataset.n_samples, MODEL_SAMPLES)).astype(int))
     u = model.rnea(dataset.q[pick], dataset.dq[pick], dataset.ddq[pick])
     y = dataset.tau[pick]
-    flipped, scaled = [], []
-    for j, name in enumerate(model.joint_names):
+    flipped, scaled, swapped = [], [], []
+    names = model.joint_names
+    moving = [k for k in range(model.nv) if np.std(u[:, k]) > 0]
+    for j, name in enumerate(names):
         su, sy = float(np.std(u[:, j])), float(np.std(y[:, j]))
         if su == 0 or sy == 0:
             continue
         r = float(np.corrcoef(u[:, j], y[:, j])[0, 1])
+        others = {k: float(np.corrcoef(u[:, k], y[:, j])[0, 1]) for k in moving if k != j}
+        best = max(others, key=lambda k: others[k], default=None)
+        if best is not None and abs(r) < 0.5 and others[best] > MODEL_CORRELATION \
+                and others[best] > _correlation(u[:, best], y[:, best]):
+            swapped.append(f"{name!r} follows {names[best]!r}'s (correlation "
+                           f"{others[best]:.2f}, with its own {r:.2f})")
+            continue
         ratio = float(np.sqrt(np.mean(y[:, j] ** 2) / np.mean(u[:, j] ** 2)))
         if r < -MODEL_CORRELATION:
             flipped.append(f"{name!r} (correlation {r:.2f})")
         elif r > MODEL_CORRELATION and not 1 / MODEL_SCALE < ratio < MODEL_SCALE:
             scaled.append(f"{name!r} ({ratio:.3g} × the model's)")
     found = []
+    if swapped:
+        found.append(f"the torque column of {', '.join(swapped)}: the columns are in another "
+                     "joint order than the model's; name them after the joints, or reorder them")
     if flipped:
         found.append(f"the torque of {', '.join(flipped)} is the model's torque with the opposite "
                      "sign: a driver that logs the reaction torque, or a joint axis flipped "
