@@ -408,3 +408,31 @@ def test_right_logged_derivatives_and_the_real_kuka_logs_do_not_warn(kuka_dir):
         warnings.simplefilter("error", DataQualityWarning)
         from_arrays(t, q, tau, dq, ddq, joint_names=NAMES)
         ci.load_recording(kuka_dir / "measurements_2.npz")     # FloBaRoID's logged dq, ddq
+
+
+# ------------------------------------------------------------------ a logger stopped mid-write
+@pytest.mark.parametrize("cut, why", [(-37, r"\d+ of 7 fields"), (-5, r"its last field '.*' has")])
+def test_a_last_line_cut_short_is_dropped_with_a_warning(tmp_path, cut, why):
+    t, q, tau = _log()
+    full = _write(tmp_path / "full.csv", ["t", "q1", "q2", "q3", "tau1", "tau2", "tau3"],
+                  np.column_stack([t, q, tau])).read_text()
+    last = full.rstrip("\n").rsplit("\n", 1)[1]
+    cut_at = len(full.rstrip("\n")) + cut if cut < -10 else len(full.rstrip("\n")) - \
+        len(last.rsplit(",", 1)[1]) + 2                      # inside the last field
+    (tmp_path / "cut.csv").write_text(full[:cut_at])
+    with pytest.warns(DataQualityWarning, match=rf"line 3001: {why}.*cut short"):
+        rec = ci.load_recording(tmp_path / "cut.csv")       # was: "line 3001: 5 fields …"
+    assert any("cut short" in s for s in rec.steps)
+    d = rec.dataset
+    assert np.max(np.abs(d.q - _at(d.t, t, q))) < 1e-3
+
+
+def test_a_whole_last_line_without_a_line_break_is_kept(tmp_path):
+    t, q, tau = _log()
+    full = _write(tmp_path / "full.csv", ["t", "q1", "q2", "q3", "tau1", "tau2", "tau3"],
+                  np.column_stack([t, q, tau])).read_text()
+    (tmp_path / "nolf.csv").write_text(full.rstrip("\n"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DataQualityWarning)
+        a = ci.load_recording(tmp_path / "nolf.csv")
+    assert a.dataset.n_samples == ci.load_recording(tmp_path / "full.csv").dataset.n_samples

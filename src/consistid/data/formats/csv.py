@@ -4,7 +4,9 @@ The delimiter is sniffed from the first lines (``,``, ``;``, tab, ``|`` or space
 ``csv.Sniffer``), and said in the record; with ``;`` a decimal comma (``1,25``) is read as
 ``1.25``. Lines starting with ``#`` are comments (before the header too). A time column
 written as ISO 8601 date-times (``2025-11-24 16:00:00.002``, pandas' ``to_csv`` of a datetime
-column) or as times of day (``16:00:00.002``) is parsed. The columns are
+column) or as times of day (``16:00:00.002``) is parsed. A last line cut short by a logger
+stopped mid-write (no line break after it; too few fields, or a last field under half its
+usual length) is dropped with a warning. The columns are
 matched by name (:mod:`consistid.data.formats.columns`). Numbers are parsed by ``numpy.loadtxt``;
 a broken file is re-read line by line to name the line and column of the first bad value
 (:class:`~consistid.errors.DatasetError`).
@@ -15,12 +17,13 @@ from __future__ import annotations
 import csv
 import io
 import re
+import warnings
 from pathlib import Path
 from typing import Mapping, Sequence
 
 import numpy as np
 
-from ...errors import DatasetError, MissingColumnsError
+from ...errors import DataQualityWarning, DatasetError, MissingColumnsError
 from .columns import Log, log_from_columns, map_columns
 
 DELIMITERS = ",;\t| "
@@ -120,6 +123,7 @@ def read_csv(path: str | Path, *, joints: Sequence[str] | None = None,
         text = fh.read()
     if not data_lines:
         raise DatasetError(f"{source}: a header ({len(names)} columns) but no data rows")
+    text, cut = _drop_cut_last_line(text, k, delimiter, len(names), source)
     time_idx = names.index(cmap.time)
     clock = _time_kind(_cells(data_lines[0], delimiter)[time_idx:time_idx + 1])
     if clock:                       # date-times or times of day: read apart, the rest as numbers
@@ -147,6 +151,8 @@ def read_csv(path: str | Path, *, joints: Sequence[str] | None = None,
     col = {names[c]: table[:, i] for i, c in enumerate(usecols)}
     note = (f"delimiter {delimiter!r} ({how})" + (", decimal comma" if decimal_comma else "")
             + f", {table.shape[0]} rows")
+    if cut:
+        note += f"; {cut}"
     if clock:
         if stamps.size != table.shape[0]:
             raise DatasetError(f"{source}: {stamps.size} time stamps but {table.shape[0]} rows "
@@ -154,6 +160,35 @@ def read_csv(path: str | Path, *, joints: Sequence[str] | None = None,
         col[cmap.time] = stamps
         note += (f"; column {cmap.time!r} read as {CLOCKS[clock]}")
     return log_from_columns(col.__getitem__, cmap, source, table.shape[0], rows, (note,))
+
+
+def _drop_cut_last_line(text: str, header: int, delimiter: str, n_names: int,
+                        source: str) -> tuple[str, str | None]:
+    """``text`` without its last data line when that line was cut short — the file does not
+    end with a line break, and the line has fewer fields than the header or its last field is
+    under half as long as in the lines before it (a logger stopped mid-write) — and the sentence
+    that says so (also warned, :class:`DataQualityWarning`); else ``(text, None)``."""
+    if text.endswith(("\n", "\r")):
+        return text, None
+    lines = text.splitlines()
+    rows = [n for n, ln in enumerate(lines) if n > header and ln.strip()
+            and not ln.lstrip().startswith("#")]
+    if len(rows) < 2:
+        return text, None
+    last = lines[rows[-1]]
+    cells = _cells(last, delimiter)
+    before = [_cells(lines[n], delimiter) for n in rows[-51:-1]]
+    typical = float(np.median([len(c[-1]) if c else 0 for c in before]))
+    short = len(cells) < n_names
+    if not (short or (cells and len(cells[-1]) < 0.5 * typical)):
+        return text, None
+    why = (f"{len(cells)} of {n_names} fields" if short
+           else f"its last field {cells[-1]!r} has {len(cells[-1])} characters where the lines "
+                f"before have {typical:.0f}")
+    sentence = (f"its last line (line {rows[-1] + 1}: {why}, no line break after it) was cut "
+                "short, as by a logger stopped mid-write: dropped")
+    warnings.warn(f"{source}: {sentence}", DataQualityWarning, stacklevel=5)
+    return "\n".join(lines[:rows[-1]]) + "\n", sentence
 
 
 #: Time columns written as text that the reader parses, and how the record names them.
