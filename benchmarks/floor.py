@@ -7,7 +7,9 @@ Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/floor.py [--samples 100000]
 The floor of a regressor-based method is ``pinocchio.rnea`` over the same samples (a Python loop
 of ``pin.rnea`` calls, as a user would write it): every ratio below divides a time by the rnea
 time measured in the same run on the same samples, just before it (medians over ``--repeat``
-pairs), so the load of a shared machine cancels as far as it can. Rows:
+pairs), so the load of a shared machine cancels as far as it can; each ratio is printed for
+wall-clock times and, in parentheses, for the CPU times of this process (``time.process_time``:
+one thread, so the same when the machine is idle, and less disturbed by other jobs). Rows:
 
 * ``consistid.regressor``: the streamed regressor (4096-sample buffer, rigid body + Coulomb,
   viscous, offset), and the Pinocchio call alone (``computeJointTorqueRegressor`` in a loop);
@@ -79,16 +81,32 @@ def timed(fn, repeat: int):
     return statistics.median(times), out
 
 
+class Ratio:
+    """A time ratio, wall clock and CPU time of this process (``time.process_time``, less
+    sensitive to other jobs on a shared machine); formats as ``"wall (CPU cpu)"``."""
+
+    def __init__(self, wall: float, cpu: float) -> None:
+        self.wall, self.cpu = wall, cpu
+
+    def __format__(self, spec: str) -> str:
+        return f"{self.wall:{spec}} (CPU {self.cpu:{spec}})"
+
+
 def paired(fn, floor, repeat: int):
     """Median time of ``fn`` and median of its ratios to ``floor`` timed just before it, each
-    repetition a pair (a shared machine's load drifts less within a pair than over a run)."""
-    times, ratios, out = [], [], None
+    repetition a pair (a shared machine's load drifts less within a pair than over a run); the
+    ratio as a :class:`Ratio` of wall-clock and of CPU times."""
+    times, walls, cpus, out = [], [], [], None
     for _ in range(repeat):
+        c0 = time.process_time()
         t_floor, _ = timed(floor, 1)
+        c1 = time.process_time()
         t, out = timed(fn, 1)
+        c2 = time.process_time()
         times.append(t)
-        ratios.append(t / t_floor)
-    return statistics.median(times), statistics.median(ratios), out
+        walls.append(t / t_floor)
+        cpus.append((c2 - c1) / max(c1 - c0, 1e-9))
+    return statistics.median(times), Ratio(statistics.median(walls), statistics.median(cpus)), out
 
 
 def talos() -> ci.RobotModel:
