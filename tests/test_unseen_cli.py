@@ -186,3 +186,13 @@ def test_calibration_csv_in_degrees_or_mm_without_a_unit_warns(tmp_path, panda):
                        table)
     with pytest.raises(ci.errors.ConfigError, match=r"column 'x \[in\]': unit \[in\]"):
         read_calibration_data(odd, panda)
+
+
+def test_online_change_after_the_run_is_refused_not_moved(capsys, monkeypatch):
+    from consistid.online import scenario
+
+    def reached(*args, **kwargs):
+        raise AssertionError("the run started although --change lies after it")
+    monkeypatch.setattr(scenario, "payload_change_run", reached)
+    err = run(["online", "--robot", "ur5", "--duration", "2", "--change", "5"], capsys)
+    assert "--change 5 s is not within the run of --duration 2 s" in err   # was: moved to 1.6 s

@@ -16,15 +16,16 @@ import time
 import numpy as np
 
 import consistid as ci
-from consistid.errors import check_number
+from consistid.errors import OptionError, check_number
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", default="panda", help="example-robot-data arm (default panda)")
     parser.add_argument("--duration", type=float, default=30.0,
                         help="seconds of the recursive-estimation run at 1 kHz")
-    parser.add_argument("--change", type=float, default=20.0,
-                        help="when the payload is attached in that run (s)")
+    parser.add_argument("--change", type=float, default=None,
+                        help="when the payload is attached in that run (s; default 20, or "
+                             "0.8 × --duration when that is sooner)")
     parser.add_argument("--noise", type=float, default=0.1, help="torque noise σ in N·m")
     parser.add_argument("--forgetting", type=float, default=0.9999, help="RLS forgetting λ")
     parser.add_argument("--periods", type=int, default=8,
@@ -39,8 +40,15 @@ def run(args: argparse.Namespace) -> int:
     model = ci.RobotModel.example(args.robot)
     check_number("--periods", args.periods, 1, integer=True)       # every option before the work
     est = ci.RecursiveEstimator(model, forgetting=args.forgetting)
-    check_number("duration", args.duration, 0, strict=True)
-    change_time = min(args.change, 0.8 * args.duration)
+    check_number("--duration", args.duration, 0, strict=True)
+    if args.change is None:
+        change_time = min(20.0, 0.8 * args.duration)
+    else:
+        change_time = check_number("--change", args.change, 0, strict=True)
+        if change_time >= args.duration:
+            raise OptionError(f"--change {change_time:g} s is not within the run of --duration "
+                              f"{args.duration:g} s: the payload would never be attached; give "
+                              "a --change below --duration (or leave it out)")
     sim = payload_change_run(model, duration=args.duration, change_time=change_time,
                              torque_noise=args.noise, seed=args.seed)
     d = sim.dataset
