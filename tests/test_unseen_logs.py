@@ -436,3 +436,18 @@ def test_a_whole_last_line_without_a_line_break_is_kept(tmp_path):
         warnings.simplefilter("error", DataQualityWarning)
         a = ci.load_recording(tmp_path / "nolf.csv")
     assert a.dataset.n_samples == ci.load_recording(tmp_path / "full.csv").dataset.n_samples
+
+
+# ------------------------------------------------------------------ joints named by numbers
+def test_joints_named_by_numbers_in_another_order_make_q1_ambiguous(tmp_path):
+    t, q, tau = _log()
+    path = _write(tmp_path / "num.csv", ["t", "q_1", "q_2", "q_3", "tau_1", "tau_2", "tau_3"],
+                  np.column_stack([t, q, tau]))
+    with pytest.raises(ci.errors.MissingColumnsError, match=r"'q_1' is ambiguous: by number it "
+                                                            r"is the q of joint 1 \('3'\)"):
+        ci.load_recording(path, joints=["3", "1", "2"])   # was: read by name, joints swapped
+    same = ci.load_recording(path, joints=["1", "2", "3"]).dataset     # names = numbers: fine
+    d = ci.load_recording(path, joints=["3", "1", "2"],
+                          columns={"q": ["q_1", "q_2", "q_3"], "tau": ["tau_1", "tau_2",
+                                                                        "tau_3"]}).dataset
+    assert np.array_equal(d.q, same.q)

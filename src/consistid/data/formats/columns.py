@@ -256,6 +256,8 @@ def map_columns(names: Sequence[str], source: str, *, joints: Sequence[str] | No
             continue
         bare = n.strip()
         found = parse_candidates(n)
+        if joints:
+            _check_number_names(n, found, joints, by_name, source)
         if joints and bare in joints:
             p = ("q", bare)                           # a joint's own name: its position
         elif joints and any(isinstance(j, str) and j.lower() in by_name for _, j in found):
@@ -340,6 +342,23 @@ def map_columns(names: Sequence[str], source: str, *, joints: Sequence[str] | No
     read = {time} | {c for cols in fields.values() for c in cols} | set(dropped)
     ignored = tuple(n for n in names if n not in read)
     return ColumnMap(time, fields, names_out, unit, tuple(dropped), ignored)
+
+
+def _check_number_names(column: str, found: list[tuple[str, str | int]], joints: list[str],
+                        by_name: Mapping[str, str], source: str) -> None:
+    """:class:`MissingColumnsError` when ``column`` reads as two different joints: by number
+    (``q_1``: the first joint) and by name (a joint called ``"1"`` that is not the first)."""
+    for f, j in found:
+        if not isinstance(j, int) or not 0 <= j < len(joints):
+            continue
+        named = [by_name[str(k).lower()] for g, k in found
+                 if g == f and isinstance(k, str) and str(k).lower() in by_name]
+        if named and named[0] != joints[j]:
+            raise MissingColumnsError(
+                f"{source}: column {column!r} is ambiguous: by number it is the {f} of joint "
+                f"{j + 1} ({joints[j]!r}), by name the {f} of joint {named[0]!r}; the joints' "
+                "names are numbers in another order. Map the columns by hand: columns={"
+                f"'{f}': [...]}} in the joints' order {joints}")
 
 
 #: SI spellings of each field's unit in a ``name [unit]`` header: read as they are.
