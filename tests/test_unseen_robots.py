@@ -141,3 +141,52 @@ def test_physical_and_massless_bodies_load_without_a_model_warning(text):
     with warnings.catch_warnings():
         warnings.simplefilter("error", ModelWarning)
         ci.RobotModel.from_urdf(text)
+
+
+# ------------------------------------------------------------------ the model's own API
+def test_configuration_takes_a_batch_of_samples_for_continuous_joints():
+    kinova = ci.RobotModel.example("kinova")                 # continuous joints: nq = 9, nv = 6
+    q = np.random.default_rng(0).uniform(-3, 3, (4, 6))
+    batch = kinova.configuration(q)                          # was: ValueError from numpy
+    assert batch.shape == (4, 9)
+    assert np.array_equal(batch, np.array([kinova.configuration(qk) for qk in q]))
+    with pytest.raises(ci.errors.JointCountError, match=r"not \(6,\) or \(N, 6\)"):
+        kinova.configuration(np.zeros(5))
+
+
+@pytest.mark.parametrize("bad, message", [(None, "needs the URDF's path or its XML text"),
+                                          ("", "needs the URDF's path or its XML text")])
+def test_from_urdf_without_a_path_is_named(bad, message):
+    with pytest.raises(ModelError, match=message):           # None was a raw TypeError
+        ci.RobotModel.from_urdf(bad)
+
+
+def test_from_urdf_of_a_folder_or_bytes(tmp_path):
+    (tmp_path / "arm.urdf").write_text(robot(*TWO_R))
+    with pytest.raises(ModelError, match=r"is a folder, not a file; it holds \['arm.urdf'\]"):
+        ci.RobotModel.from_urdf(tmp_path)
+    from_bytes = ci.RobotModel.from_urdf((tmp_path / "arm.urdf").read_bytes())
+    assert from_bytes.joint_names == ["j1", "j2"]
+
+
+def test_to_urdf_never_writes_over_its_source(tmp_path):
+    source = tmp_path / "arm.urdf"
+    source.write_text(robot(*TWO_R))
+    model = ci.RobotModel.from_urdf(source)
+    with pytest.raises(ModelError, match="would write over the URDF"):
+        model.to_urdf(source)                                 # was: overwritten silently
+    assert source.read_text() == robot(*TWO_R)
+    model.to_urdf(tmp_path / "copy.urdf")
+
+
+def test_gravity_in_mm_and_a_lock_in_degrees_warn():
+    model = ci.RobotModel.from_urdf(robot(*TWO_R))
+    with pytest.warns(ModelWarning, match=r"magnitude 9810 m/s².*mm/s²"):
+        model.with_gravity((0.0, 0.0, -9810.0))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ModelWarning)
+        model.with_gravity((0.0, 0.0, -9.81))
+        model.with_gravity((0.0, 0.0, 0.0))                   # zero-g: legitimate
+    with pytest.warns(ModelWarning, match=r"'j2' at 90 outside \[-3, 3\].*degrees"):
+        ci.RobotModel.from_urdf(robot(*TWO_R), locked_joints=["j2"],
+                                locked_configuration={"j2": 90.0})

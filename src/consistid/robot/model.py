@@ -64,8 +64,9 @@ def example_robot_data_dir() -> Path:
     )
 
 
-def _check_gravity(gravity: object) -> np.ndarray:
-    """``gravity`` as 3 finite floats (m/s², base frame), else :class:`ModelError`."""
+def _check_gravity(gravity: object, warn: bool = True) -> np.ndarray:
+    """``gravity`` as 3 finite floats (m/s², base frame), else :class:`ModelError`; a magnitude
+    beyond :data:`MAX_GRAVITY` warns (:class:`ModelWarning`) when ``warn``."""
     try:
         g = np.asarray(gravity, dtype=float)
     except (TypeError, ValueError):
@@ -73,7 +74,15 @@ def _check_gravity(gravity: object) -> np.ndarray:
     if g.shape != (3,) or not np.all(np.isfinite(g)):
         raise ModelError(f"gravity must be 3 finite numbers (m/s², base frame), got "
                          f"{gravity!r}")
+    if warn and np.linalg.norm(g) > MAX_GRAVITY:
+        warnings.warn(f"gravity {[float(v) for v in g]} has magnitude {np.linalg.norm(g):.4g} "
+                      f"m/s², more than {MAX_GRAVITY:g}: in mm/s² (or g's) rather than m/s²? "
+                      "Every torque of the model scales with it", ModelWarning, stacklevel=3)
     return g
+
+
+#: Gravity magnitudes beyond this (m/s²) warn (:func:`_check_gravity`): 9.81 in mm/s² reads 9810.
+MAX_GRAVITY = 30.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -135,7 +144,7 @@ class RobotModel:
                 k = int(np.flatnonzero(~np.isfinite(values))[0])
                 raise ModelError(f"robot {name!r}: the body of joint {model.names[j]!r} has "
                                  f"{INERTIAL_NAMES[k]} = {values[k]} (not finite)")
-        _check_gravity(model.gravity.linear)
+        _check_gravity(model.gravity.linear, warn=False)
         self.pin_model = model
         self.name = name
         self.source = Path(source) if source is not None else None
@@ -165,9 +174,21 @@ class RobotModel:
         name : label for reports; default the file stem (the ``<robot name>`` of URDF text).
         gravity : gravity vector in the base frame, default ``(0, 0, -9.81)``.
         """
+        if isinstance(path, bytes):
+            try:
+                path = path.decode("utf-8")
+            except UnicodeDecodeError:
+                raise ModelError("from_urdf got bytes that are not UTF-8 text; pass the URDF's "
+                                 "path or its text") from None
         if isinstance(path, str) and path.lstrip().startswith("<"):
             path, name = _urdf_text_file(path, name)
+        if not isinstance(path, (str, Path)) or (isinstance(path, str) and not path.strip()):
+            raise ModelError(f"from_urdf needs the URDF's path or its XML text, got {path!r}")
         path = Path(path)
+        if path.is_dir():
+            found = sorted(p.name for p in path.glob("*.urdf"))
+            raise ModelError(f"URDF file {str(path)!r} is a folder, not a file"
+                             + (f"; it holds {found[:6]}" if found else ""))
         if not path.is_file():
             raise ModelError(f"URDF file {str(path)!r} does not exist")
         if isinstance(locked_joints, (str, bytes)):
@@ -201,11 +222,21 @@ class RobotModel:
         model = full
         if locked:
             q_ref = pin.neutral(full)
+            outside = []
             for joint in locked:
                 jid = full.getJointId(joint)
                 if full.joints[jid].nq != 1:
                     raise ModelError(f"cannot lock joint {joint!r}: only 1-coordinate joints")
-                q_ref[full.joints[jid].idx_q] = config.get(joint, 0.0)
+                iq = full.joints[jid].idx_q
+                q_ref[iq] = config.get(joint, 0.0)
+                lo, hi = full.lowerPositionLimit[iq], full.upperPositionLimit[iq]
+                if joint in config and lo < hi and not lo - 1e-9 <= q_ref[iq] <= hi + 1e-9:
+                    outside.append(f"{joint!r} at {q_ref[iq]:g} outside [{lo:.4g}, {hi:.4g}]")
+            if outside:
+                warnings.warn(f"{path.name}: locked_configuration puts {'; '.join(outside)} (its "
+                              "URDF limits): in degrees rather than radians (or mm rather than "
+                              "m)? The merged body is built at that position",
+                              ModelWarning, stacklevel=2)
             model = pin.buildReducedModel(full, [full.getJointId(j) for j in locked], q_ref)
         if g is not None:
             model.gravity.linear = g
@@ -294,8 +325,13 @@ class RobotModel:
         friction entries named by ``parameter_names``); see
         :func:`consistid.robot.export.write_urdf`.
 
-        Refuses (``InconsistentParametersError``) to write a physically inconsistent body.
+        Refuses (``InconsistentParametersError``) to write a physically inconsistent body, and
+        (:class:`ModelError`) to write over the URDF the model was read from.
         """
+        if self.source is not None and Path(self.source).exists() and Path(path).exists() \
+                and Path(path).resolve().samefile(Path(self.source).resolve()):
+            raise ModelError(f"to_urdf({str(path)!r}) would write over the URDF {self.name!r} was "
+                             "read from (its source); write to another path")
         return write_urdf(self, path, parameters, parameter_names, merged)
 
     # ----------------------------------------------------------------------------- description
@@ -378,19 +414,23 @@ class RobotModel:
 
     # ----------------------------------------------------------------------------- kinematics
     def configuration(self, q: np.ndarray) -> np.ndarray:
-        """Pinocchio configuration (``nq``) from joint angles (``nv``)."""
+        """Pinocchio configuration (``nq``) from joint angles (``nv``): ``(nv,) → (nq,)``, or
+        ``(N, nv) → (N, nq)`` sample by sample."""
         q = np.asarray(q, dtype=float)
         m = self.pin_model
+        if q.ndim not in (1, 2) or q.shape[-1] != self.nv:
+            raise JointCountError(f"q has shape {q.shape}, not ({self.nv},) or (N, {self.nv}) "
+                                  f"for the {self.nv} joints of {self.name}")
         if m.nq == m.nv:
             return q
-        out = np.empty(m.nq)
+        out = np.empty(q.shape[:-1] + (m.nq,))
         for j in range(1, m.njoints):
             joint = m.joints[j]
             if joint.nq == 1:
-                out[joint.idx_q] = q[joint.idx_v]
+                out[..., joint.idx_q] = q[..., joint.idx_v]
             else:  # unbounded revolute: (cos, sin)
-                out[joint.idx_q] = np.cos(q[joint.idx_v])
-                out[joint.idx_q + 1] = np.sin(q[joint.idx_v])
+                out[..., joint.idx_q] = np.cos(q[..., joint.idx_v])
+                out[..., joint.idx_q + 1] = np.sin(q[..., joint.idx_v])
         return out
 
     def rnea(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> np.ndarray:
