@@ -451,3 +451,15 @@ def test_joints_named_by_numbers_in_another_order_make_q1_ambiguous(tmp_path):
                           columns={"q": ["q_1", "q_2", "q_3"], "tau": ["tau_1", "tau_2",
                                                                         "tau_3"]}).dataset
     assert np.array_equal(d.q, same.q)
+
+
+def test_a_10_khz_log_in_ms_is_not_blamed_on_torque_units(ur5_log):
+    model, sim = ur5_log
+    t = np.arange(sim.t[0], sim.t[0] + 3.0, 1e-4)
+    q, tau = _at(t, sim.t, sim.q), _at(t, sim.t, sim.tau)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        from_arrays(t * 1e3, q, tau, model=model)            # a "10 Hz" log, 1000 × too slow
+    said = [str(w.message) for w in caught if w.category is DataQualityWarning]
+    assert any("quasi-static" in m and "time_unit='ms'" in m for m in said)
+    assert not any("RNEA" in m for m in said)   # was: "shoulder_pan_joint (1.18e+06 × …) mN·m"

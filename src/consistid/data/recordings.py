@@ -370,6 +370,8 @@ def _check_logged(t: np.ndarray, arrays: Mapping[str, np.ndarray],
 MODEL_CORRELATION = 0.9
 #: RMS ratio (measured / model) beyond which such a joint's torque is in other units.
 MODEL_SCALE = 10.0
+#: Joints whose model torque RMS is below this fraction of the largest joint's are not judged.
+MODEL_NEGLIGIBLE = 1e-3
 #: Samples at most used for the comparison (evenly spaced).
 MODEL_SAMPLES = 20_000
 
@@ -398,10 +400,11 @@ def _check_against_model(dataset: Dataset, model: RobotModel, source: str,
     flipped, scaled, swapped = [], [], []
     names = model.joint_names
     moving = [k for k in range(model.nv) if np.std(u[:, k]) > 0]
+    size = np.sqrt(np.mean(u ** 2, axis=0))
     for j, name in enumerate(names):
         su, sy = float(np.std(u[:, j])), float(np.std(y[:, j]))
-        if su == 0 or sy == 0:
-            continue
+        if su == 0 or sy == 0 or size[j] < MODEL_NEGLIGIBLE * size.max():
+            continue                # the model puts (next to) no torque there: nothing to judge
         r = float(np.corrcoef(u[:, j], y[:, j])[0, 1])
         others = {k: float(np.corrcoef(u[:, k], y[:, j])[0, 1]) for k in moving if k != j}
         best = max(others, key=lambda k: others[k], default=None)
