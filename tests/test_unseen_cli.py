@@ -196,3 +196,14 @@ def test_online_change_after_the_run_is_refused_not_moved(capsys, monkeypatch):
     monkeypatch.setattr(scenario, "payload_change_run", reached)
     err = run(["online", "--robot", "ur5", "--duration", "2", "--change", "5"], capsys)
     assert "--change 5 s is not within the run of --duration 2 s" in err   # was: moved to 1.6 s
+
+
+def test_a_folder_where_a_calibration_file_is_expected_is_called_a_folder(tmp_path, panda):
+    with pytest.raises(ci.errors.ConfigError, match="is a folder; \\[calibrate\\] data names"):
+        read_calibration_data(tmp_path, panda)                 # was: "does not exist"
+
+
+def test_a_folder_as_recover_coefficients_is_called_a_folder(project, capsys):
+    text = MODEL + data_table() + '[recover]\ncoefficients = "data"\n'
+    err = run(["recover", write(project, text)], capsys)
+    assert "[recover] coefficients = 'data'" in err and "is a folder" in err

@@ -120,6 +120,9 @@ def _model(table: dict[str, Any], root: Path, source: Path) -> RobotModel:
 def read_calibration_data(path: Path, model: RobotModel) -> tuple[np.ndarray, np.ndarray]:
     """``(q, measurements)`` from a CSV or NPZ file (module docstring for the columns);
     :class:`MissingColumnsError` names what is missing."""
+    if path.is_dir():
+        raise ConfigError(f"calibration data file {str(path)!r} is a folder; [calibrate] data "
+                          "names the .csv or .npz file of poses in it")
     if not path.is_file():
         raise ConfigError(f"calibration data file {str(path)!r} does not exist")
     if path.suffix.lower() == ".npz":

@@ -338,6 +338,9 @@ def _coefficients(path, written: str
                   ) -> tuple[np.ndarray, np.ndarray | None, list[str] | None]:
     """``beta``, the optional ``covariance`` and the optional ``base_names`` (the regrouping each
     coefficient stands for) of a ``[recover] coefficients`` .npz file."""
+    if path.is_dir():
+        raise ConfigError(f"[recover] coefficients = {written!r}: {str(path)!r} is a folder, not "
+                          "the .npz file of coefficients")
     if not path.is_file():
         raise ConfigError(f"[recover] coefficients = {written!r}: file {str(path)!r} does not "
                           "exist")
