@@ -463,3 +463,14 @@ def test_a_10_khz_log_in_ms_is_not_blamed_on_torque_units(ur5_log):
     said = [str(w.message) for w in caught if w.category is DataQualityWarning]
     assert any("quasi-static" in m and "time_unit='ms'" in m for m in said)
     assert not any("RNEA" in m for m in said)   # was: "shoulder_pan_joint (1.18e+06 × …) mN·m"
+
+
+def test_independent_states_are_not_judged_as_a_trajectory(planar_2r):
+    from .conftest import random_states
+
+    q, dq, ddq = random_states(planar_2r, 300, 0)
+    tau = planar_2r.rnea(q, dq, ddq)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DataQualityWarning)
+        rec = from_arrays(0.005 * np.arange(300), q, tau, dq, ddq, model=planar_2r)
+    assert any("independent states" in s for s in rec.steps)
