@@ -214,17 +214,18 @@ def diagnose_rows() -> list[tuple]:
 
     model = ci.RobotModel.example("panda")
     traj = FourierTrajectory.random(model, 5, 10.0, np.random.default_rng(4))
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     rec = record(model, traj, Effects(coulomb=1.0, torque_noise=0.05), duration=30.0, rate=500.0)
-    t_sim = time.perf_counter() - t0
+    t_sim, c_sim = time.perf_counter() - t0, time.process_time() - c0
     data = ci.Dataset.from_recording(rec.t, rec.q, rec.tau)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     diag = ci.diagnose(model, data)
-    t_diag = time.perf_counter() - t0
+    t_diag, c_diag = time.perf_counter() - t0, time.process_time() - c0
     top = diag.effects[0].name if diag.effects else "none"
     return [("Panda, 30 s at 500 Hz (MuJoCo, Coulomb 1 N·m)", "MuJoCo simulation of the log",
              f"{t_sim:.3f}", "1.00"),
-            ("", f"diagnose (top effect: {top})", f"{t_diag:.3f}", f"{t_diag / t_sim:.1f}")]
+            ("", f"diagnose (top effect: {top}; target ≤ 3 s)",
+             f"{t_diag:.3f} (CPU {c_diag:.3f})", f"{Ratio(t_diag / t_sim, c_diag / c_sim):.1f}")]
 
 
 MOUNTING = textwrap.dedent("""
