@@ -334,15 +334,17 @@ output = "report"
 
 
 def test_gap_data_concatenate_stacks_the_rigid_regressor(panda):
-    """GapData.concatenate hands the parts' stacked regressor to the constructor
-    (``rigid_regressor``): equal to recomputing it on the stacked samples, with the derived
-    signals (nominal torque, tilted gravity) too; a regressor of the wrong shape is refused."""
+    """GapData.concatenate keeps its parts and stacks their nominal torque and (when needed)
+    their regressor: equal to recomputing them on the stacked samples, with the derived signals
+    (tilted gravity) too; a regressor of the wrong shape is refused."""
     parts = [GapData(panda, excitation_run(panda, duration=0.1, rate=RATE, torque_noise=0.0,
                                            seed=s).dataset, panda.prior_parameters)
              for s in (8, 9)]
     both = GapData.concatenate(parts)
     fresh = GapData(panda, both.dataset, panda.prior_parameters)
-    assert both.rigid_regressor is not None and fresh.rigid_regressor is None
+    assert both.parts == tuple(parts) and not fresh.parts
+    np.testing.assert_array_equal(both.tau_nom, np.concatenate([p.tau_nom for p in parts]))
+    assert "rigid" not in vars(both)          # the nominal torque needed no regressor of the whole
     np.testing.assert_allclose(both.rigid, fresh.rigid, rtol=0, atol=1e-12)
     np.testing.assert_allclose(both.tau_nom, fresh.tau_nom, rtol=0, atol=1e-10)
     np.testing.assert_allclose(both.tilt_gravity, fresh.tilt_gravity, rtol=0, atol=1e-10)

@@ -128,8 +128,10 @@ class GapData:
         of an :class:`~consistid.IdentificationResult` used as nominal), or ``None``.
     derivative_window : Savitzky–Golay window (s) for ``τ̇_nom`` and ``τ̈_nom``.
     rigid_regressor : the rigid-body regressor of ``dataset``'s samples, (N, nv, 10·nbodies), if
-        already computed (e.g. stacked from parts by :meth:`concatenate`); default computed on
-        first use of :attr:`rigid`. Not checked against the samples, only its shape.
+        already computed; default computed on first use of :attr:`rigid`. Not checked against
+        the samples, only its shape.
+    parts : the parts this one stacks (:meth:`concatenate`): the nominal torque and, when first
+        needed, the regressor are stacked from theirs instead of recomputed.
 
     Raises
     ------
@@ -142,6 +144,7 @@ class GapData:
     nominal_extra: np.ndarray | None = None
     derivative_window: float = DERIVATIVE_WINDOW
     rigid_regressor: np.ndarray | None = field(default=None, repr=False)
+    parts: tuple["GapData", ...] = field(default=(), repr=False)
 
     def __post_init__(self) -> None:
         expected = (self.dataset.n_samples, self.model.nv, self.model.n_inertial)
@@ -153,9 +156,10 @@ class GapData:
     @classmethod
     def concatenate(cls, parts: Sequence["GapData"]) -> "GapData":
         """The parts stacked as :meth:`Dataset.concatenate` stacks their datasets (same model,
-        nominal parameters and derivative window), with the rigid-body regressor of the parts
-        (computed once each) stacked and passed as ``rigid_regressor`` instead of recomputed on
-        every sample (it is per sample, so stacking equals recomputing)."""
+        nominal parameters and derivative window), kept as :attr:`parts`: the nominal torque is
+        the parts' stacked, and the rigid-body regressor, if ever needed, the parts' (computed
+        once each) stacked instead of recomputed on every sample (it is per sample, so stacking
+        equals recomputing)."""
         first = parts[0]
         if any(p.model is not first.model or not np.array_equal(p.nominal, first.nominal)
                or p.derivative_window != first.derivative_window
@@ -165,8 +169,7 @@ class GapData:
         extra = (None if first.nominal_extra is None
                  else np.concatenate([p.nominal_extra for p in parts]))
         return cls(first.model, Dataset.concatenate([p.dataset for p in parts]), first.nominal,
-                   extra, first.derivative_window,
-                   rigid_regressor=np.concatenate([p.rigid for p in parts]))
+                   extra, first.derivative_window, parts=tuple(parts))
 
     @property
     def n(self) -> int:
@@ -192,16 +195,21 @@ class GapData:
 
     @cached_property
     def rigid(self) -> np.ndarray:
-        """Rigid-body regressor ``(N, nv, 10·nbodies)``: ``rigid_regressor`` if given, else
-        computed (once)."""
+        """Rigid-body regressor ``(N, nv, 10·nbodies)``: ``rigid_regressor`` if given, else the
+        :attr:`parts`' stacked, else computed (once)."""
         if self.rigid_regressor is not None:
             return np.asarray(self.rigid_regressor, dtype=float)
+        if self.parts:
+            return np.concatenate([p.rigid for p in self.parts])
         d = self.dataset
         return rigid_body_regressor(self.model, d.q, d.dq, d.ddq)
 
     @cached_property
     def tau_nom(self) -> np.ndarray:
-        """Nominal torque ``Y π₀`` (+ ``nominal_extra``), (N, nv)."""
+        """Nominal torque ``Y π₀`` (+ ``nominal_extra``), (N, nv); the :attr:`parts`' stacked
+        when this one stacks parts (no regressor of the whole)."""
+        if self.parts and self.rigid_regressor is None:
+            return np.concatenate([p.tau_nom for p in self.parts])
         tau = self.rigid @ self.nominal
         return tau if self.nominal_extra is None else tau + self.nominal_extra
 
