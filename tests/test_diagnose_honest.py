@@ -16,9 +16,10 @@ import consistid as ci
 from consistid.data.dataset import Dataset
 from consistid.data.signals import preprocess
 from consistid.diagnosis.candidates import EffectLibrary, GapData
-from consistid.diagnosis.diagnose import diagnose
+from consistid.diagnosis.diagnose import GapModel, diagnose
 from consistid.diagnosis.effects import EFFECT_NAMES, REGISTRY, Atom, effect, effects_table
 from consistid.diagnosis.noise import estimate_noise_floor, find_period, repetition_floor
+from consistid.diagnosis.remainder import analyse_remainder, dry_friction_at_rest
 from consistid.errors import OptionError, TrackingWarning
 from consistid.excitation import FourierTrajectory
 from consistid.simulate import ar1_noise, record
@@ -231,3 +232,74 @@ def test_delay_rule_is_monotone(d, h):
     atom = Atom("delay", None, ("delay",), ("s",))
     ok = effect("delay").unphysical(atom, np.array([d]), h) is None
     assert ok == (d >= 0.55 * h)
+
+
+# ------------------------------------------------------------------------------ set-valued friction
+def test_dry_friction_at_rest_is_the_distance_to_the_cone(planar_2r):
+    """At rest a joint with dry friction f_c holds any torque within ±f_c: the remainder there
+    is the distance of the residual without the friction to that cone (closed form); moving
+    samples and joints without dry friction are unchanged."""
+    n = 400
+    t = np.arange(n) * 0.01
+    dq = np.column_stack([np.sin(t), np.cos(t)])
+    dq[100:150, 0] = 0.0                      # joint 1 held still for 0.5 s
+    ds = Dataset(t, np.zeros((n, 2)), dq, np.zeros((n, 2)), np.zeros((n, 2)))
+    data = GapData(planar_2r, ds, planar_2r.prior_parameters)
+    rng = np.random.default_rng(0)
+    fc = 0.8
+    dry = np.column_stack([fc * np.sign(dq[:, 0]), np.zeros(n)])
+    left = rng.normal(0, 0.5, (n, 2))
+    left[100:150, 0] = np.linspace(-1.5, 1.5, 50)   # held torque − 0 (sign(0) = 0)
+    out = dry_friction_at_rest(data, left, dry, np.array([fc, 0.0]))
+    rest = np.abs(dq[:, 0]) < 0.05 * np.percentile(np.abs(dq[:, 0]), 99)
+    assert rest[100:150].all()
+    e0 = left[rest, 0] + dry[rest, 0]
+    expected = np.sign(e0) * np.maximum(np.abs(e0) - fc, 0.0)
+    np.testing.assert_allclose(out[rest, 0], expected, atol=1e-12)
+    np.testing.assert_array_equal(out[~rest, 0], left[~rest, 0])
+    np.testing.assert_array_equal(out[:, 1], left[:, 1])
+    assert np.abs(out[100:150, 0]).max() == pytest.approx(1.5 - fc)
+
+
+def test_a_delayed_channel_delays_every_effect(planar_2r):
+    """A delay on the torque channel shifts the whole predicted torque, the other effects'
+    corrections with the nominal one: ``τ̂(t − d) − τ_nom(t)`` by interpolation, checked
+    against ``np.interp`` directly."""
+    n = 500
+    t = np.arange(n) * 0.002
+    q = np.column_stack([np.sin(2 * t), 0.5 * np.cos(3 * t)])
+    dq = np.column_stack([2 * np.cos(2 * t), -1.5 * np.sin(3 * t)])
+    ddq = np.column_stack([-4 * np.sin(2 * t), -4.5 * np.cos(3 * t)])
+    ds = Dataset(t, q, dq, ddq, np.zeros((n, 2)))
+    library = EffectLibrary(planar_2r, ("viscous", "delay"))
+    viscous = Atom("viscous", 1, ("j2.fv",), ("N·m·s/rad",))
+    delay = Atom("delay", None, ("delay",), ("s",))
+    fit = GapModel(planar_2r, library, planar_2r.prior_parameters, (viscous, delay),
+                   (np.array([0.7]), np.array([0.01])), {1: 0.01})
+    data = fit.data(ds)
+    shifted = data.tau_nom + np.column_stack([np.zeros(n), 0.7 * dq[:, 1]])
+    expected = np.column_stack([np.interp(t - 0.01, t, shifted[:, j]) for j in range(2)])
+    np.testing.assert_allclose(data.tau_nom + fit.correction(data), expected, atol=1e-12)
+
+
+def test_samples_the_model_cannot_predict_are_left_out_of_the_verdict(planar_2r):
+    """A residual at the noise level but for a transient in the first samples (a delayed
+    channel's torque from before the recording began): flagged as a remainder when those samples
+    count, explained when they are marked unknown; the RMS is then over the known samples."""
+    n = 2000
+    t = np.arange(n) * 0.002
+    q = np.column_stack([np.sin(t), np.cos(t)])
+    ds = Dataset(t, q, np.cos(t)[:, None] * [1, -1], np.zeros((n, 2)),
+                 np.column_stack([10 * np.sin(t), 5 * np.cos(t)]))
+    data = GapData(planar_2r, ds, planar_2r.prior_parameters)
+    rng = np.random.default_rng(1)
+    sigma = 0.01
+    e = rng.normal(0, sigma, (n, 2))
+    e[:10, 0] += 1.0                             # 20 ms at the start on joint 1
+    unknown = np.zeros((n, 2), dtype=bool)
+    unknown[:10, 0] = True
+    args = (data, e, np.full(2, sigma), np.ones(2), np.array([0.0, 5.0, 50.0, 250.0]))
+    assert analyse_remainder(*args).flagged == (planar_2r.joint_names[0],)
+    judged = analyse_remainder(*args, unknown=unknown)
+    assert judged.flagged == ()
+    assert judged.joints[0].rms == pytest.approx(np.sqrt(np.mean(e[10:, 0] ** 2)))

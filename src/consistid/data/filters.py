@@ -146,6 +146,23 @@ def lowpass(x: np.ndarray, cutoff: float, rate: float, order: int = 4) -> np.nda
     return scipy.signal.sosfiltfilt(sos.copy(), x, axis=0, padlen=pad)  # scipy wants it writable
 
 
+@functools.lru_cache(maxsize=64)
+def settling_time(cutoff: float, rate: float, order: int = 4, energy: float = 0.99) -> float:
+    """Half-width (s) of the zero-phase low-pass's impulse response (:func:`lowpass`) that holds
+    ``energy`` of its energy: within that time of a recording's ends the filtered signal depends
+    on samples before or after the recording, which its odd-reflection padding only guesses."""
+    n = int(np.ceil(40 * rate / cutoff)) | 1
+    impulse = np.zeros(n)
+    impulse[n // 2] = 1.0
+    h = lowpass(impulse, cutoff, rate, order)
+    power = h ** 2
+    # symmetric about the centre: grow the window until it holds the fraction asked for
+    centre = n // 2
+    cumulative = power[centre] + 2 * np.cumsum(power[centre + 1:])
+    k = int(np.searchsorted(cumulative, energy * power.sum()))
+    return (k + 1) / rate
+
+
 def central_difference(x: np.ndarray, rate: float) -> tuple[np.ndarray, np.ndarray]:
     """First and second derivatives of uniformly sampled ``x`` by central differences.
 

@@ -63,6 +63,7 @@ import scipy.stats
 
 from ..data.checks import check_for_identification
 from ..data.dataset import Dataset, as_dataset
+from ..data.filters import settling_time
 from ..errors import ModelError, OptionError, check_number, check_option
 from ..identification.regressor import joint_columns
 from ..identification.statistics import autocorrelation_time, coloured_covariance
@@ -73,7 +74,7 @@ from .candidates import EFFECT_NAMES, SIGNATURES, Atom, EffectLibrary, GapData
 from .effects import REGISTRY, EffectParameter
 from .gap import GapBreakdown, gap_breakdown, residual_spectra
 from .noise import NoiseFloor, estimate_noise_floor, fine_spectra, spectral_floor
-from .remainder import Remainder, analyse_remainder
+from .remainder import Remainder, analyse_remainder, dry_friction_at_rest
 
 #: A held-out shrink below this fraction does not list a joint under an arm-wide effect.
 JOINT_SHRINK_FLOOR = 0.05
@@ -82,6 +83,9 @@ JOINT_SHRINK_FLOOR = 0.05
 CLOSE_MARGIN = 0.2
 #: Held-out corrections with at least this cosine explain the same residual (rivals).
 RIVAL_COSINE = 0.5
+#: Effects that are dry friction: set-valued at rest (judged against their cone there, see
+#: :func:`consistid.diagnosis.remainder.dry_friction_at_rest`).
+DRY_FRICTION = ("coulomb", "stribeck")
 
 
 # --------------------------------------------------------------------------------- results
@@ -186,12 +190,14 @@ class GapModel:
         out = np.zeros((data.n, data.nv))
         for i, (atom, th) in enumerate(zip(self.atoms, self.theta)):
             if i in self.delays:
-                out += exact_delay(data, atom, self.delays[i])
-            elif atom.effect == "inertia" and self.inertial is not None:
+                continue
+            if atom.effect == "inertia" and self.inertial is not None:
                 out += data.rigid @ (self.inertial - self.nominal)
             else:
                 out += self.library.columns(atom, data) @ th
-        return out
+        # A delayed channel delays all of its torque: the other effects' too.
+        return out + sum((exact_delay(data, self.atoms[i], d, out)
+                          for i, d in self.delays.items()), np.zeros_like(out))
 
     def predict(self, dataset: Dataset) -> np.ndarray:
         data = self.data(dataset)
@@ -355,18 +361,28 @@ class _Grams:
         return g, w @ self.c[:, cols]
 
 
-def exact_delay(data: GapData, atom: Atom, d: float) -> np.ndarray:
-    """Correction ``τ_nom(t − d) − τ_nom(t)`` of a delay atom (its joint, or all joints), by linear
-    interpolation within each recording segment (held at the ends)."""
-    out = np.zeros((data.n, data.nv))
-    joints = range(data.nv) if atom.joint is None else [atom.joint]
+def exact_delay(data: GapData, atom: Atom, d: float, others: np.ndarray | None = None
+                ) -> np.ndarray:
+    """Correction ``τ̂(t − d) − τ̂(t)`` of a delay atom (its joint, or all joints), ``τ̂ = τ_nom``
+    plus ``others`` (N, nv), the other effects' corrections (a delayed channel delays all of
+    its torque), by linear interpolation within each recording segment (held at the ends)."""
+    signal = data.tau_nom if others is None else data.tau_nom + others
+    return _delayed(data, signal, d, atom.joint) - signal
+
+
+def _delayed(data: GapData, x: np.ndarray, d: float, joint: int | None) -> np.ndarray:
+    """``x`` (N, nv[, p]) with joint ``joint``'s rows (all joints for ``None``) replaced by
+    ``x(t − d)``, linearly interpolated within each recording segment (held at the ends)."""
+    out = x.copy()
+    joints = range(data.nv) if joint is None else [joint]
     ds = data.dataset
     for s in np.unique(ds.segment):
         idx = np.flatnonzero(ds.segment == s)
         t = ds.t[idx]
         for j in joints:
-            x = data.tau_nom[idx, j]
-            out[idx, j] = np.interp(t - d, t, x) - x
+            rows = x[idx, j].reshape(idx.size, -1)
+            out[idx, j] = np.column_stack([np.interp(t - d, t, c) for c in rows.T]
+                                          ).reshape(out[idx, j].shape)
     return out
 
 
@@ -667,29 +683,32 @@ def _refit(prob: _Problem, chosen: Sequence[int], train: GapData, model: RobotMo
     r = train.residual
 
     def contribution(k: int) -> np.ndarray:
-        if k in delay_idx:
-            return exact_delay(train, atoms[k], delays[k])
         if k in inertia_idx and inertial is not None:
             return train.rigid @ (inertial - nominal)
         return phi[k] @ thetas[k]
 
     def others(skip: Sequence[int]) -> np.ndarray:
-        return sum((contribution(m) for m in range(len(atoms)) if m not in skip),
-                   np.zeros_like(r))
+        """Every correction but ``skip``'s; the delays shift the others' torque too."""
+        plain = sum((contribution(m) for m in range(len(atoms))
+                     if m not in skip and m not in delay_idx), np.zeros_like(r))
+        return plain + sum((exact_delay(train, atoms[m], delays[m], plain)
+                            for m in delay_idx if m not in skip), np.zeros_like(r))
 
     if linear:
         a_mat = np.concatenate([phi[k] for k in linear], axis=2)
-        gl = np.einsum("j,njp,njq->pq", w, a_mat, a_mat)
     # Block coordinate descent started from the joint least-squares fit (where the linearised
     # delay and the unconstrained inertia already sit near the answer).
     for _ in range(3):
         for k in delay_idx:
-            target = r - others([k])
+            rest = others([k])
+            target = r - rest
             d0 = delays[k]
             span = max(3 * abs(d0), 5 * float(np.median(np.diff(train.dataset.t))))
 
-            def cost(d: float, k: int = k, target: np.ndarray = target) -> float:
-                return float(w @ np.sum((target - exact_delay(train, atoms[k], d)) ** 2, axis=0))
+            def cost(d: float, k: int = k, target: np.ndarray = target,
+                     rest: np.ndarray = rest) -> float:
+                return float(w @ np.sum((target - exact_delay(train, atoms[k], d, rest)) ** 2,
+                                        axis=0))
 
             res = scipy.optimize.minimize_scalar(cost, bounds=(d0 - span, d0 + span),
                                                  method="bounded", options={"xatol": 1e-6})
@@ -700,7 +719,12 @@ def _refit(prob: _Problem, chosen: Sequence[int], train: GapData, model: RobotMo
             if note not in notes:
                 notes.append(note)
         if linear:
-            cl = np.einsum("j,njp,nj->p", w, a_mat, r - others(linear))
+            # The delayed joints see the linear atoms' columns delayed too.
+            shifted = a_mat
+            for m in delay_idx:
+                shifted = _delayed(train, shifted, delays[m], atoms[m].joint)
+            gl = np.einsum("j,njp,njq->pq", w, shifted, shifted)
+            cl = np.einsum("j,njp,nj->p", w, shifted, r - others(linear))
             th, _, _ = _solve(gl, cl)
             o = 0
             for k in linear:
@@ -986,10 +1010,12 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     # (training) ones for a repetition floor — a held-out recording the chain filtered at
     # another cut-off holds another noise level — else the held-out data.
     tested = train if any(m == "repetition" for m in noise.method) else held
-    left = tested.residual - fit.correction(tested)
+    dry, cone = _dry_friction(fit, tested)
+    left = dry_friction_at_rest(tested, tested.residual - fit.correction(tested), dry, cone)
     remainder = analyse_remainder(tested, left, floor, autocorrelation_time(tested.dataset, left),
                                   where.band_edges, reliable=noise.reliable,
-                                  source="training" if tested is train else "held-out")
+                                  source="training" if tested is train else "held-out",
+                                  cone=cone, unknown=_unpredictable(fit, tested))
     if not noise.reliable.all():
         notes.append("the noise floor cannot be seen on "
                      + ", ".join(names[j] for j in np.flatnonzero(~noise.reliable))
@@ -998,6 +1024,54 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     return Diagnosis(model.name, tuple(names), tuple(findings), where, floor, noise_source,
                      rms_nominal, rms_final, library_floor, held_source, tuple(steps), fit,
                      tuple(notes), remainder, noise)
+
+
+def _unpredictable(fit: GapModel, data: GapData) -> np.ndarray:
+    """(N, nv) samples whose corrected torque the model cannot form: within the first ``d``
+    seconds of their recording on a channel delayed by ``d`` (they hold torque from before it
+    began), and within the low-pass's settling time
+    (:func:`~consistid.data.filters.settling_time`, 99.9 % of its impulse response's energy) of
+    a recording's ends on a joint whose effect was seen through that filter (the filter there
+    depends on torque outside the recording)."""
+    out = np.zeros((data.n, data.nv), dtype=bool)
+    ds = data.dataset
+    since, until = np.zeros(data.n), np.zeros(data.n)
+    segments = [np.flatnonzero(ds.segment == s) for s in np.unique(ds.segment)]
+    for idx in segments:
+        since[idx] = ds.t[idx] - ds.t[idx[0]]
+        until[idx] = ds.t[idx[-1]] - ds.t[idx]
+    for i, atom in enumerate(fit.atoms):
+        cols = slice(None) if atom.joint is None else atom.joint
+        if i in fit.delays:
+            edge = since < fit.delays[i]
+        elif np.isfinite(atom.cutoff):
+            width = np.zeros(data.n)
+            for idx in segments:
+                rate = 1.0 / float(np.median(np.diff(ds.t[idx]))) if idx.size > 1 else 0.0
+                if atom.cutoff < 0.45 * rate:   # else lowpass_segments leaves it unfiltered
+                    width[idx] = settling_time(atom.cutoff, rate, energy=0.999)
+            edge = (since < width) | (until < width)
+        else:
+            continue
+        out[:, cols] |= edge[:, None] if atom.joint is None else edge
+    return out
+
+
+def _dry_friction(fit: GapModel, data: GapData) -> tuple[np.ndarray, np.ndarray]:
+    """The selected dry friction's correction on ``data`` (N, nv) — its Coulomb and Stribeck
+    atoms — and the half-width of its cone at rest per joint (nv,): ``f_c + Δf``, the fitted
+    static friction; 0 on joints where a term was seen through a low-pass (the arguments of
+    :func:`~consistid.diagnosis.remainder.dry_friction_at_rest`)."""
+    dry, cone = np.zeros((data.n, data.nv)), np.zeros(data.nv)
+    filtered = np.zeros(data.nv, dtype=bool)
+    for atom, th in zip(fit.atoms, fit.theta):
+        if atom.effect in DRY_FRICTION and atom.joint is not None:
+            dry += fit.library.columns(atom, data) @ th
+            cone[atom.joint] += max(float(th[0]), 0.0)
+            filtered[atom.joint] |= bool(np.isfinite(atom.cutoff))
+    cone[filtered] = 0.0
+    dry[:, filtered] = 0.0
+    return dry, cone
 
 
 def _prune_nested(prob: _Problem, chosen: list[int], alts: list, bics: list, pvals: list,

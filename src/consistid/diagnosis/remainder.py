@@ -40,6 +40,16 @@ noise level; the held-out recordings otherwise); the noise floor
 
 The largest of these, measured as the fraction of the remainder's mean square each accounts
 for, is named in the verdict. These are pointers for an engineer, not fitted effects.
+
+**Dry friction at rest is set-valued.** Coulomb friction is ``τ_f ∈ f_c Sign(q̇)`` with
+``Sign(0) = [−1, 1]`` (Olsson, Åström, Canudas de Wit, Gäfvert, Lischinsky, *Friction models
+and friction compensation*, Eur. J. Control 4, 1998, §2): a joint at rest holds any torque
+within ``±f_c`` (``±f_s`` with a Stribeck excess ``Δf = f_s − f_c`` on top), which no law of
+``q̇`` predicts. Where the diagnosis selected dry friction on a joint,
+:func:`dry_friction_at_rest` judges its samples near standstill by their distance to that
+cone instead of to the single-valued ``f_c sign(q̇)``; a held torque beyond it (stiction above
+the fitted static friction) still counts. Not where the torques were low-pass filtered: the
+filter spreads a held torque beyond the samples at rest.
 """
 
 from __future__ import annotations
@@ -91,6 +101,8 @@ class JointRemainder:
         fraction of its mean square that this explains (``shift_share``).
     growth : RMS of the remainder over the last third of each recording divided by that over
         the first third.
+    cone : half-width (N·m) of the dry-friction cone its samples at rest were judged against
+        (:func:`dry_friction_at_rest`; 0: no dry friction selected on this joint).
     pointers : the patterns that account for most of the remainder's mean square, largest
         first, as text.
     """
@@ -114,10 +126,13 @@ class JointRemainder:
     growth: float = 1.0
     shift: float = 0.0
     shift_share: float = 0.0
+    cone: float = 0.0
 
     def __str__(self) -> str:
         head = (f"{self.joint}: {self.rms:.3g} N·m left = {self.ratio:.2f} × the noise floor "
                 f"{self.floor:.3g}")
+        if self.cone > 0:
+            head += f" (at rest: judged against the dry-friction cone ±{self.cone:.3g} N·m)"
         if not self.determined:
             return head + " — UNDETERMINED (the noise floor cannot be seen: pass sigma)"
         if not self.flagged:
@@ -244,25 +259,58 @@ def _bands(data: GapData, e: np.ndarray, edges: np.ndarray) -> np.ndarray:
     return np.sqrt(power / total) if total else np.zeros(edges.size - 1)
 
 
+def standstill_mask(dq: np.ndarray) -> np.ndarray:
+    """Samples near standstill, per joint: ``|q̇_j|`` below :data:`STANDSTILL` of its 99th
+    percentile (``dq`` (N, nv) → (N, nv) bool)."""
+    return np.abs(dq) < STANDSTILL * np.percentile(np.abs(dq), 99, axis=0)
+
+
+def dry_friction_at_rest(data: GapData, remainder: np.ndarray, dry: np.ndarray,
+                         cone: np.ndarray) -> np.ndarray:
+    r"""``remainder`` (N, nv) with each joint's dry friction at rest taken as set-valued.
+
+    ``dry`` (N, nv) is the selected dry friction's correction as fitted (Coulomb and Stribeck
+    terms), ``cone`` (nv,) its half-width ``f_c + Δf`` (0 where no dry friction was selected, or
+    where the torques were seen through a low-pass: see below). At rest
+    (:func:`standstill_mask`) the friction is any ``f ∈ [−c, c]``, so the residual there
+    becomes the distance of ``e_0 = r + τ_dry`` to the cone, ``e_0 − clip(e_0, −c, c)``.
+
+    Not applied where the diagnosis saw the dry friction through the signal chain's low-pass:
+    the filter spreads a held torque beyond the samples at rest (and smears the velocity that
+    says which samples are at rest), so a point-wise cone would not bound the remainder there."""
+    out = remainder.copy()
+    rest = standstill_mask(data.dataset.dq) & (cone > 0)
+    e0 = remainder + dry
+    out[rest] = (e0 - np.clip(e0, -cone, cone))[rest]
+    return out
+
+
 def analyse_remainder(data: GapData, remainder: np.ndarray, floor: np.ndarray,
                       tau_corr: np.ndarray, band_edges: np.ndarray,
                       alpha: float = REMAINDER_ALPHA,
                       relevance: float = REMAINDER_RELEVANCE,
-                      reliable: np.ndarray | None = None, source: str = "held-out"
+                      reliable: np.ndarray | None = None, source: str = "held-out",
+                      cone: np.ndarray | None = None, unknown: np.ndarray | None = None
                       ) -> Remainder:
     """The :class:`Remainder` of ``remainder`` (N, nv), the residual after every selected
     effect on ``data`` (``source``: which data), against ``floor`` (nv,); ``tau_corr`` (nv,)
     the residual's
-    autocorrelation time (samples), ``band_edges`` the frequency bands (Hz)."""
+    autocorrelation time (samples), ``band_edges`` the frequency bands (Hz); ``cone`` (nv,) the
+    dry-friction cone ``remainder`` was judged against at rest (:func:`dry_friction_at_rest`),
+    reported per joint; ``unknown`` (N, nv) the samples whose prediction the model cannot form
+    (a delayed channel's first ``d`` seconds of each recording hold torque from before it
+    began): left out of the verdict (zero in the pointers' spectra and bins)."""
     names = data.model.joint_names
     ds = data.dataset
     tau = data.tau
     out = []
     for j in range(data.nv):
-        e = remainder[:, j]
-        rms = float(np.sqrt(np.mean(e ** 2)))
+        known = np.ones(data.n, dtype=bool) if unknown is None else ~unknown[:, j]
+        e = np.where(known, remainder[:, j], 0.0)
+        n_known = max(int(known.sum()), 1)
+        rms = float(np.sqrt(np.sum(e ** 2) / n_known))
         sig = float(floor[j])
-        n_eff = max(data.n / max(float(tau_corr[j]), 1.0), 1.0)
+        n_eff = max(n_known / max(float(tau_corr[j]), 1.0), 1.0)
         p = float(scipy.stats.chi2.sf(n_eff * rms ** 2 / sig ** 2, n_eff))
         excess = float(np.sqrt(max(rms ** 2 - sig ** 2, 0.0)))
         scale = float(np.sqrt(np.mean(tau[:, j] ** 2)))
@@ -270,7 +318,7 @@ def analyse_remainder(data: GapData, remainder: np.ndarray, floor: np.ndarray,
         flagged = bool(determined and rms > REMAINDER_RATIO * sig and p < alpha
                        and excess >= relevance * scale)
         v = ds.dq[:, j]
-        slow = np.abs(v) < STANDSTILL * np.percentile(np.abs(v), 99)
+        slow = standstill_mask(v)
         rev = _reversal_mask(data, j)
 
         def rms_of(m: np.ndarray) -> float:
@@ -343,5 +391,6 @@ def analyse_remainder(data: GapData, remainder: np.ndarray, floor: np.ndarray,
                         if share > 0.1]
         out.append(JointRemainder(names[j], rms, sig, excess, rms / sig, p, flagged, regimes,
                                   spread, hysteresis, best, bands, band_edges, drift,
-                                  tuple(pointers), determined, growth, shift, shift_share))
+                                  tuple(pointers), determined, growth, shift, shift_share,
+                                  0.0 if cone is None else float(cone[j])))
     return Remainder(tuple(out), source)
