@@ -107,10 +107,11 @@ def sigmoid_run(panda):
     return record(panda, traj, eff, duration=30.0, rate=500.0).true_dataset().split(0.7)
 
 
-def _low_speed_rms(result, held) -> np.ndarray:
-    """Per-joint held-out RMS over the moving low-speed samples, MIN_SPEED ≤ |q̇| < 0.1."""
-    e = result.residual(held)
-    low = (np.abs(held.dq) < 0.1) & (np.abs(held.dq) >= MIN_SPEED)
+def _low_speed_rms(result, held, floor: float = MIN_SPEED, at_rest: str = "point"
+                   ) -> np.ndarray:
+    """Per-joint held-out RMS over the low-speed samples, floor ≤ |q̇| < 0.1."""
+    e = result.residual(held, at_rest=at_rest)
+    low = (np.abs(held.dq) < 0.1) & (np.abs(held.dq) >= floor)
     assert np.all(low.sum(axis=0) > 20)
     return np.array([np.sqrt(np.mean(e[low[:, j], j] ** 2)) for j in range(held.nv)])
 
@@ -152,6 +153,12 @@ def test_nonlinear_fit_recovers_the_simulated_law(panda, stribeck_run, sigmoid_r
     assert abs(z[worst]) < 3.0, f"{worst}: {z[worst]:.2f} σ from the truth"
     ratio = _low_speed_rms(res, held) / NOISE
     ratio_linear = _low_speed_rms(linear, held) / NOISE
+    assert np.all(ratio <= 1.1), ratio
+    assert np.all(ratio_linear >= 2.0), ratio_linear
+    # The whole band |q̇| < 0.1, standstill included, each joint at rest judged against its
+    # friction cone (stiction holds it with any torque up to f_s).
+    ratio = _low_speed_rms(res, held, 0.0, "cone") / NOISE
+    ratio_linear = _low_speed_rms(linear, held, 0.0, "cone") / NOISE
     assert np.all(ratio <= 1.1), ratio
     assert np.all(ratio_linear >= 2.0), ratio_linear
     assert law in res.summary() and "± std" in res.friction_table()
@@ -406,3 +413,33 @@ def test_friction_comparison_reports_a_real_table(tmp_path):
     assert "<table" in text and "stribeck" in text and "<pre>" not in text
     with pytest.raises(ci.OptionError, match=".html"):
         cmp.report(tmp_path / "laws.txt")
+
+
+def test_residual_at_rest_is_the_distance_to_the_friction_cone(planar_2r):
+    """``residual(at_rest="cone")``: samples with |q̇_j| < rest_speed hold any dry friction in
+    ±f_c, so their residual is the distance of τ − (τ̂ − f_c sign q̇) to that interval (closed
+    form); moving samples keep the point residual; bad options are named."""
+    rng = np.random.default_rng(3)
+    n = 300
+    q = rng.uniform(-1, 1, (n, 2))
+    dq = rng.choice([-1, 1], (n, 2)) * rng.uniform(0.1, 1, (n, 2))
+    dq[:100, 0] = rng.uniform(-0.01, 0.01, 100)            # joint 1 at rest
+    ddq = rng.uniform(-1, 1, (n, 2))
+    truth = np.concatenate([planar_2r.prior_parameters, [0.6, 0.3]])  # fc joint 1, fc joint 2
+    spec = ci.identification.regressor.RegressorSpec.make(planar_2r, {"coulomb": [0, 1]})
+    tau = ci.identification.regressor.predict_torque(
+        planar_2r, ci.Dataset(np.arange(n) * 0.01, q, dq, ddq), spec, truth)
+    tau[:100, 0] += rng.uniform(-1.2, 1.2, 100) - 0.6 * np.sign(dq[:100, 0])  # held: any torque
+    data = ci.Dataset(np.arange(n) * 0.01, q, dq, ddq, tau + rng.normal(0, 1e-3, (n, 2)))
+    res = ci.identify(planar_2r, data, friction=("coulomb",), method="ols")
+    point, cone = res.residual(data), res.residual(data, at_rest="cone")
+    fc = res.static_friction
+    assert fc.shape == (2,) and np.all(fc > 0)
+    e0 = point[:100, 0] + fc[0] * np.sign(dq[:100, 0])
+    np.testing.assert_allclose(cone[:100, 0], e0 - np.clip(e0, -fc[0], fc[0]), atol=1e-12)
+    np.testing.assert_array_equal(cone[100:], point[100:])
+    np.testing.assert_array_equal(cone[:, 1], point[:, 1])
+    with pytest.raises(ci.errors.OptionError, match="at_rest"):
+        res.residual(data, at_rest="interval")
+    with pytest.raises(ci.errors.OptionError, match="rest_speed"):
+        res.residual(data, at_rest="cone", rest_speed=-1.0)

@@ -46,10 +46,10 @@ from ..identification.result import StandardParameterSet
 from ..identification.summary import table
 from ..report.html import Page
 from ..report.result import Reported
+from ..robot.joint_terms import STANDSTILL_SPEED
 from ..robot.model import RobotModel
 from ..simulate.effects import (Effects, explicit_friction, explicit_friction_slope,
                                 has_explicit_friction)
-from .models import STANDSTILL_SPEED
 from .ramp import RampPlan, ramp_plan
 
 #: Default detection threshold ``v_th`` (rad/s) and standstill before an event (s).

@@ -68,8 +68,9 @@ from ..identification.result import IdentificationResult
 from ..identification.solver import SolverReport
 from ..identification.statistics import autocorrelation_time
 from ..identification.summary import table
+from ..robot.joint_terms import STANDSTILL_SPEED
 from ..robot.model import RobotModel
-from .models import LINEAR, MODELS, STANDSTILL_SPEED, get_model
+from .models import LINEAR, MODELS, get_model
 
 #: Linear per-joint terms that come with a nonlinear selection given as a name or a mapping.
 DEFAULT_LINEAR: tuple[str, ...] = ("viscous", "offset")
@@ -216,6 +217,27 @@ class NonlinearFrictionResult(IdentificationResult):
             out[:, j] = m.value(dq[:, j], amps[offset:offset + k], eta)
             offset += k
         return out
+
+    @property
+    def static_friction(self) -> np.ndarray:
+        """(nv,) N·m: the torque dry friction holds a joint at rest with, up to — each law's
+        limit ``max |C(±0; η̂) ĉ|`` (``f_s`` for Stribeck; 0 for the continuous sigmoid and tanh
+        laws), the linear ``f_c`` on ``"coulomb"`` joints."""
+        tiny = np.full((1, self.model.nv), 1e-12)
+        limit = np.maximum(np.abs(self.friction_torque(tiny)),
+                           np.abs(self.friction_torque(-tiny)))[0]
+        return np.where(self._dry_laws(), limit, 0.0) + super().static_friction
+
+    def dry_friction(self, dq: np.ndarray) -> np.ndarray:
+        """The friction the prediction holds at velocities ``dq`` that a joint at rest replaces
+        by its cone (N, nv): a dry law's torque (Stribeck), ``f_c sign(q̇)`` on ``"coulomb"``
+        joints; nothing for the continuous laws (sigmoid, tanh)."""
+        return super().dry_friction(dq) + np.where(self._dry_laws(), self.friction_torque(dq),
+                                                   0.0)
+
+    def _dry_laws(self) -> np.ndarray:
+        """(nv,) joints whose law steps at ``q̇ = 0``."""
+        return np.array([law != LINEAR and MODELS[law].dry for law in self.laws])
 
     def predict(self, dataset: Dataset) -> np.ndarray:
         """``Y(q, q̇, q̈) θ + C(q̇; η̂) ĉ`` for a dataset's samples, (N, nv)."""
@@ -519,7 +541,7 @@ def identify_nonlinear(model: RobotModel, dataset: Dataset, method: str, frictio
         (weight 0), everything else unchanged: at standstill stiction holds the joint with any
         torque up to the break-away, which no law of ``q̇`` predicts (the seed lecture's advice:
         discard near-zero velocities unless the friction model covers them). Default
-        :data:`~consistid.friction.models.STANDSTILL_SPEED` (0.02 rad/s); 0 keeps every row.
+        :data:`~consistid.robot.joint_terms.STANDSTILL_SPEED` (0.02 rad/s); 0 keeps every row.
         ``details["rows_used"]`` gives the count per joint.
     **options : options of :func:`consistid.identification.sdp.identify_sdp` (SDP only;
         ``loss="huber"`` is refused: its re-weighting re-compresses without the nonlinear

@@ -69,6 +69,9 @@ class FrictionModel:
     #: (lower, upper) of each shape parameter for the search (natural units): wide, only to
     #: keep a column from vanishing (``v_s → ∞`` flattens a Stribeck hump into nothing)
     bounds: ClassVar[tuple[tuple[float, float], ...]] = ()
+    #: A step at ``q̇ = 0`` (``sign``): at rest such a law holds any torque within its limit
+    #: ``|C(±0; η) a|`` (set-valued); a continuous law (sigmoid, tanh) is 0 there.
+    dry: ClassVar[bool] = False
 
     # ------------------------------------------------------------------ coordinates
     def to_internal(self, eta: np.ndarray) -> np.ndarray:
@@ -131,6 +134,7 @@ class Stribeck(FrictionModel):
     shape_units: ClassVar[tuple[str, ...]] = ("rad/s", "")
     positive: ClassVar[tuple[bool, ...]] = (True, True)
     bounds: ClassVar[tuple[tuple[float, float], ...]] = ((1e-4, 10.0), (0.25, 10.0))
+    dry: ClassVar[bool] = True
 
     def columns(self, dq: np.ndarray, eta: np.ndarray) -> np.ndarray:
         vs, delta = eta
@@ -212,10 +216,6 @@ class TanhCoulomb(FrictionModel):
 
 
 #: name → model; the names ``identify(..., friction=...)`` accepts for a joint's nonlinear law.
-#: Below this joint speed (rad/s) a joint is taken to stand still: stiction holds it with any
-#: torque up to the break-away, which no law of ``q̇`` predicts. The nonlinear fits leave such rows
-#: out by default and the break-away estimate detects motion above it.
-STANDSTILL_SPEED = 0.02
 
 MODELS: dict[str, FrictionModel] = {m.name: m for m in (Stribeck(), GazSigmoid(), TanhCoulomb())}
 #: The name of the linear law (``fc·sign q̇``, the ``coulomb`` column) in per-joint selections.

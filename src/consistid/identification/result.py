@@ -15,10 +15,12 @@ from . import persistence
 from .base import BaseParameters
 from ..data.checks import check_magnitudes
 from ..data.dataset import Dataset, as_dataset
+from ..errors import check_number, check_option
 from ..robot.export import write_urdf
 from ..robot.mjcf import write_mjcf
 from ..robot.model import RobotModel
 from ..robot.inertia import ConsistencyReport, is_physically_consistent
+from ..robot.joint_terms import STANDSTILL_SPEED, joint_terms_of
 from .regressor import RegressorSpec, predict_torque
 from .solver import SolverReport
 from .report import identification_page, standard_set_page
@@ -165,9 +167,45 @@ class IdentificationResult(StandardParameterSet):
         check_magnitudes(dataset, ("q", "dq", "ddq"), self.model.joint_names)
         return predict_torque(self.model, dataset, self.spec, self.parameters)
 
-    def residual(self, dataset: Dataset) -> np.ndarray:
-        """Measured minus predicted torque, (N, nv)."""
-        return dataset.require_torque() - self.predict(dataset)
+    def residual(self, dataset: Dataset, *, at_rest: str = "point",
+                 rest_speed: float = STANDSTILL_SPEED) -> np.ndarray:
+        r"""Measured minus predicted torque, (N, nv).
+
+        ``at_rest="cone"``: at samples where a joint stands still (``|q̇_j| < rest_speed``,
+        rad/s), its dry friction is any torque in ``[−f_s, f_s]`` (:attr:`static_friction`; the
+        set-valued Coulomb law, Olsson et al., *Friction models and friction compensation*,
+        Eur. J. Control 4, 1998), which no law of ``q̇`` predicts: the residual there is the
+        distance of ``e_0 = τ − (τ̂ − τ_dry(q̇))`` to that interval,
+        ``e_0 − clip(e_0, −f_s, f_s)`` (:meth:`dry_friction`). ``"point"`` (default): the
+        single-valued prediction everywhere."""
+        check_option("at_rest", at_rest, ("point", "cone"))
+        rest_speed = check_number("rest_speed", rest_speed, 0)
+        e = dataset.require_torque() - self.predict(dataset)
+        if at_rest == "point":
+            return e
+        cone = self.static_friction
+        rest = (np.abs(dataset.dq) < rest_speed) & (cone > 0)
+        e0 = e + self.dry_friction(dataset.dq)
+        e[rest] = (e0 - np.clip(e0, -cone, cone))[rest]
+        return e
+
+    @property
+    def static_friction(self) -> np.ndarray:
+        """(nv,) N·m: the largest torque dry friction holds a joint at rest with — the
+        Coulomb ``f_c`` of the ``coulomb`` column here (0 without one; a negative ``f_c`` counts
+        as 0), the friction laws' limit as ``q̇ → 0`` in a nonlinear-friction result."""
+        return np.maximum(self._coulomb(), 0.0)
+
+    def dry_friction(self, dq: np.ndarray) -> np.ndarray:
+        """The dry (velocity-sign) friction the prediction holds at velocities ``dq`` (N, nv):
+        ``f_c sign(q̇)``."""
+        return self._coulomb() * np.sign(np.atleast_2d(dq))
+
+    def _coulomb(self) -> np.ndarray:
+        """(nv,) the ``coulomb`` column's ``f_c`` per joint (0 without one)."""
+        p = self.model.n_inertial + self.spec.n_joint_columns
+        terms = joint_terms_of(self.model, self.parameters[:p], self.parameter_names[:p])
+        return np.array([terms.get(j, {}).get("fc", 0.0) for j in self.model.joint_names])
 
     def rms(self, dataset: Dataset) -> np.ndarray:
         """Per-joint RMS of the residual on a dataset, (nv,)."""

@@ -29,6 +29,11 @@ DEFAULT_FRICTION: tuple[str, ...] = ("coulomb", "viscous", "offset")
 NONNEGATIVE_TERMS: tuple[str, ...] = ("coulomb", "viscous", "armature")
 #: Every per-joint column suffix (``fc``, ``fv``, ``fo``, ``ps1``, ``pc1``, ``Ia``).
 SUFFIXES: tuple[str, ...] = tuple(s for suffixes in TERM_COLUMNS.values() for s in suffixes)
+#: Below this joint speed (rad/s) a joint is taken to stand still: stiction holds it with any
+#: torque up to the break-away, which no law of ``q̇`` predicts. The nonlinear friction fits
+#: leave such rows out by default, the break-away estimate detects motion above it, and a
+#: result's ``residual(..., at_rest="cone")`` judges such samples against the friction cone.
+STANDSTILL_SPEED = 0.02
 
 
 def export_parameters(model: "RobotModel", parameters: np.ndarray | None,
