@@ -463,15 +463,20 @@ def _rows_of(atom: Atom, nv: int) -> np.ndarray:
 def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: float, tie: float,
             max_steps: int, progress: Callable[[str], None] | None
             ) -> tuple[list[int], list[tuple[str, ...]], list[Step], list[float], list[float],
-                       list[tuple[str, float]]]:
+                       list[tuple[str, float]], list[int]]:
     """Greedy forward selection; returns chosen atom indices, their alternatives, the steps, the
-    ΔBIC and p-value at entry of each chosen atom, and its rival: the best other candidate whose
+    ΔBIC and p-value at entry of each chosen atom, its rival: the best other candidate whose
     held-out correction has cosine ≥ :data:`RIVAL_COSINE` with its own, as ``(label, margin)``,
-    ``margin = 1 − gain_rival / gain`` (``("", 1.0)`` without a rival)."""
+    ``margin = 1 − gain_rival / gain`` (``("", 1.0)`` without a rival), and the *nuisance*
+    atoms: a delay that explains most but lies within the time-stamp resolution (a logger's
+    stamping, :mod:`consistid.diagnosis.effects.delay`) is kept in every later fit, so that no
+    effect (viscous friction, whose torque shares the shift's ``q̇`` terms) stands in for it,
+    and is never a finding."""
     nv = prob.w.size
     n_tr_j, n_ho_j = prob.train.n / prob.tau_corr, prob.held.n / prob.tau_corr
     nominal_ho = prob.held.s * prob.w
     chosen: list[int] = []
+    nuisance: list[int] = []
     alternatives: list[tuple[str, ...]] = []
     bics: list[float] = []
     pvals: list[float] = []
@@ -542,6 +547,22 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
                 passing = sc
                 break
         table = _cand_table(prob, scores, joint_names)
+        best = scores[0]
+        if not nuisance and best[1] > 0 and verdicts[best[0]][0] != "accepted" \
+                and REGISTRY[prob.atoms[best[0]].effect].stamping(best[6], prob.resolution):
+            # The largest gain is a shift within the time-stamp resolution: the logger's
+            # stamping, not an effect. Kept in every fit from now on (so that no effect stands
+            # in for it), never reported as a finding.
+            nuisance.append(best[0])
+            chosen.append(best[0])
+            steps.append(Step(prob.atoms[best[0]].label(joint_names), best[1],
+                              float(verdicts[best[0]][1]), verdicts[best[0]][2], False,
+                              "kept as the logger's time stamping (not an effect): "
+                              + verdicts[best[0]][0], table))
+            if progress is not None:
+                progress(f"step {len(steps)}: {steps[-1].reason}")
+            (cols, theta, rank), sse_tr, sse_ho = best[7], best[3], best[4]
+            continue
         if passing is None:
             best = scores[0]
             steps.append(Step(prob.atoms[best[0]].label(joint_names), best[1],
@@ -599,7 +620,8 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
         rivals.append(rival)
         # The fit of chosen + [i] was made when scoring it.
         (cols, theta, rank), sse_tr, sse_ho = pick[7], pick[3], pick[4]
-    return chosen, alternatives, steps, bics, pvals, rivals
+    return [i for i in chosen if i not in nuisance], alternatives, steps, bics, pvals, rivals, \
+        nuisance
 
 
 def _cand_table(prob: _Problem, scores: list, joint_names: list[str], top: int = 8
@@ -912,8 +934,8 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
             if callback is not None:
                 callback(line)
 
-        chosen, alts, steps, bics, pvals, rivals = _select(prob, names, alpha, min_gain, tie,
-                                                           max_steps, tell)
+        chosen, alts, steps, bics, pvals, rivals, nuisance = _select(
+            prob, names, alpha, min_gain, tie, max_steps, tell)
 
     notes: list[str] = []
     chosen, alts, bics, pvals, rivals = _prune_nested(prob, chosen, alts, bics, pvals, rivals,
@@ -921,20 +943,32 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     # Group the atoms by effect and rank the groups by how much the held-out residual grows
     # when the group is removed from all the selected atoms; add them one by one in that order.
     groups = list(dict.fromkeys(prob.atoms[i].effect for i in chosen))
-    cols_all, th_all, _ = prob.fit(chosen)
+    cols_all, th_all, _ = prob.fit(nuisance + chosen)
     sse_all = float(prob.w @ prob.held.sse(cols_all, th_all))
     importance = {}
     for g in groups:
         rest = [i for i in chosen if prob.atoms[i].effect != g]
-        c, th, _ = prob.fit(rest)
+        c, th, _ = prob.fit(nuisance + rest)
         importance[g] = float(prob.w @ prob.held.sse(c, th)) - sse_all
     order = sorted(groups, key=lambda g: -importance[g])
     rms_nominal = np.sqrt(np.mean(held.residual ** 2, axis=0))
     before = rms_nominal
     findings: list[EffectFinding] = []
     fit = GapModel(model, library, pi0, (), (), {}, None, extra_fn)
-    cumulative: list[int] = []
+    cumulative: list[int] = list(nuisance)
     final_stds: list[np.ndarray] = []
+    if nuisance:
+        # The logger's time stamping, fitted exactly before any effect and never reported.
+        fit, final_stds, _ = _refit(prob, nuisance, train, model, pi0, extra_fn, inertia_solver)
+        before = np.sqrt(np.mean((held.residual - fit.correction(held)) ** 2, axis=0))
+        shift = 1e3 * float(fit.theta[0][0])
+        notes.append(f"the torques {'lag' if shift > 0 else 'lead'} the positions by "
+                     f"{abs(shift):.3g} ms, within the time-stamp resolution (half a "
+                     f"{1e3 * prob.resolution:.3g} ms sample): taken as the logger's stamping "
+                     "(one that averages each interval and stamps its "
+                     f"{'end' if shift > 0 else 'start'}), kept in the fit, not an effect; "
+                     f"load with timestamp=\"{'end' if shift > 0 else 'start'}\" to correct it "
+                     "at the source")
     for name in order:
         members = [k for k, i in enumerate(chosen) if prob.atoms[i].effect == name]
         trial = cumulative + [chosen[k] for k in members]

@@ -103,6 +103,8 @@ class JointRemainder:
         the first third.
     cone : half-width (N·m) of the dry-friction cone its samples at rest were judged against
         (:func:`dry_friction_at_rest`; 0: no dry friction selected on this joint).
+    tolerated : why a residual above ``REMAINDER_RATIO`` × the floor is not flagged (the excess
+        is below ``REMAINDER_RELEVANCE`` of the joint's torque RMS, or not significant), or "".
     pointers : the patterns that account for most of the remainder's mean square, largest
         first, as text.
     """
@@ -127,6 +129,7 @@ class JointRemainder:
     shift: float = 0.0
     shift_share: float = 0.0
     cone: float = 0.0
+    tolerated: str = ""
 
     def __str__(self) -> str:
         head = (f"{self.joint}: {self.rms:.3g} N·m left = {self.ratio:.2f} × the noise floor "
@@ -135,6 +138,8 @@ class JointRemainder:
             head += f" (at rest: judged against the dry-friction cone ±{self.cone:.3g} N·m)"
         if not self.determined:
             return head + " — UNDETERMINED (the noise floor cannot be seen: pass sigma)"
+        if not self.flagged and self.tolerated:
+            return head + f" — explained within tolerance ({self.tolerated})"
         if not self.flagged:
             return head + " — explained"
         return (head + f" — REMAINDER {self.excess:.3g} N·m unexplained"
@@ -317,6 +322,11 @@ def analyse_remainder(data: GapData, remainder: np.ndarray, floor: np.ndarray,
         determined = True if reliable is None else bool(reliable[j])
         flagged = bool(determined and rms > REMAINDER_RATIO * sig and p < alpha
                        and excess >= relevance * scale)
+        tolerated = ""
+        if determined and not flagged and rms > REMAINDER_RATIO * sig:
+            tolerated = (f"the excess {excess:.3g} N·m is below {relevance:.1%} of the joint's "
+                         f"torque RMS {scale:.3g} N·m" if excess < relevance * scale else
+                         f"not significant, p = {p:.2g} ≥ {alpha:g}")
         v = ds.dq[:, j]
         slow = standstill_mask(v)
         rev = _reversal_mask(data, j)
@@ -392,5 +402,5 @@ def analyse_remainder(data: GapData, remainder: np.ndarray, floor: np.ndarray,
         out.append(JointRemainder(names[j], rms, sig, excess, rms / sig, p, flagged, regimes,
                                   spread, hysteresis, best, bands, band_edges, drift,
                                   tuple(pointers), determined, growth, shift, shift_share,
-                                  0.0 if cone is None else float(cone[j])))
+                                  0.0 if cone is None else float(cone[j]), tolerated))
     return Remainder(tuple(out), source)

@@ -197,6 +197,11 @@ class Effect:
                         f"{atom.effect}")
         return None
 
+    def stamping(self, theta: np.ndarray, resolution: float | None) -> bool:
+        """Whether the fitted ``theta`` is an artefact of how the log was time-stamped rather
+        than an effect (a shift within the time-stamp resolution; only time effects)."""
+        return False
+
     def parameters(self, library: "EffectLibrary", atom: Atom, theta: np.ndarray,
                    std: np.ndarray, joint: str | None, fit) -> list[EffectParameter]:
         """Readable parameters of a fitted atom (``fit``: the

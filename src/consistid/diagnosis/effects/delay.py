@@ -8,7 +8,10 @@ time-stamp resolution: a logger that averages torques over each sample interval 
 stamps the average at the interval's end shifts them by ``Δt/2`` (the mean of a signal over an
 interval is its value at the centre, to second order), which is not a delay of the channel (the
 loader's ``timestamp=`` option corrects it). A delay is named only when it exceeds that half
-sample by :data:`HALF_SAMPLE_MARGIN` of it."""
+sample by :data:`HALF_SAMPLE_MARGIN` of it; a shift within it (either sign: a logger stamping
+the interval's start leads by half a sample) that explains more than any effect is kept in the
+diagnosis' fit as the logger's stamping (:meth:`Delay.stamping`), so that no effect stands in
+for it, and reported in a note, not as a finding."""
 
 from __future__ import annotations
 
@@ -41,6 +44,13 @@ class Delay(Effect):
                     "logger averaging over each interval shifts torques by half a sample; not "
                     "named a delay")
         return why
+
+    def stamping(self, theta, resolution) -> bool:
+        """A shift of either sign within half a sample (+ the margin): what a logger that
+        averages each interval leaves when it stamps the interval's end (a lag) or start (a
+        lead). The diagnosis keeps such a shift in its fit without naming it."""
+        return bool(resolution) and abs(float(theta[0])) < 0.5 * (1 + HALF_SAMPLE_MARGIN) \
+            * float(resolution)
 
     def atoms(self, library, tuning=None, residual=None) -> list[Atom]:
         return [Atom(self.name, None, ("delay",), ("s",)),
