@@ -72,6 +72,9 @@ STANDSTILL = 0.05
 #: Seconds around a velocity sign change counted as a reversal.
 REVERSAL_WINDOW = 0.1
 POSITION_BINS = 10
+#: What a remainder concentrated in a velocity regime suggests, appended to its pointer.
+REGIME_HINTS = {"standstill": " (stiction holding the joint beyond the fitted friction?)",
+                "reversal": " (stick-slip as the joint reverses, backlash?)"}
 
 
 @dataclass(frozen=True)
@@ -388,7 +391,8 @@ def analyse_remainder(data: GapData, remainder: np.ndarray, floor: np.ndarray,
                                      rev & ~slow if name == "reversal" else ~slow & ~rev))
                 if np.isfinite(val) and frac > 0:
                     cand.append((frac * val ** 2 / ms, f"{name} ({100 * frac:.0f} % of samples) "
-                                                       f"holds RMS {val:.3g} N·m"))
+                                                       f"holds RMS {val:.3g} N·m"
+                                 + REGIME_HINTS.get(name, "")))
             k_band = int(np.argmax(bands))
             cand.append((bands[k_band] ** 2 / ms,
                          f"mostly in {band_edges[k_band]:g}–{band_edges[k_band + 1]:.3g} Hz"))
