@@ -50,7 +50,7 @@ from __future__ import annotations
 import time
 import warnings
 from dataclasses import dataclass, field, replace
-from typing import Any, Mapping, Sequence
+from typing import Any, ClassVar, Mapping, Sequence
 
 import numpy as np
 import scipy.linalg
@@ -189,6 +189,21 @@ class NonlinearFrictionResult(IdentificationResult):
     shape_std: np.ndarray = field(default_factory=lambda: np.zeros(0))
     amplitude_names: tuple[str, ...] = ()
     search: tuple[dict[str, Any], ...] = ()
+
+    kind: ClassVar[str] = "nonlinear_friction"
+
+    def persisted_fields(self) -> dict[str, Any]:
+        """The laws, shapes, amplitude names and search reports, as ``save`` writes them."""
+        return {"laws": list(self.laws), "shape_names": list(self.shape_names),
+                "shape_parameters": self.shape_parameters, "shape_std": self.shape_std,
+                "amplitude_names": list(self.amplitude_names), "search": list(self.search)}
+
+    def __post_init__(self) -> None:
+        # Read back from a file (save/load): the tuples and arrays of the constructor.
+        for name in ("laws", "shape_names", "amplitude_names", "search"):
+            object.__setattr__(self, name, tuple(getattr(self, name)))
+        for name in ("shape_parameters", "shape_std"):
+            object.__setattr__(self, name, np.asarray(getattr(self, name), dtype=float))
 
     @property
     def amplitudes(self) -> np.ndarray:

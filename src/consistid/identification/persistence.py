@@ -30,6 +30,11 @@ literals, readable by ``jq`` or any language) with these top-level keys:
 ``provenance``
     when and with what it was computed: package versions, platform, the input files (path,
     size, SHA-256) and the run configuration.
+``kind``, ``extra``
+    which result class wrote it (``"identification"``, or ``"nonlinear_friction"`` for
+    :class:`consistid.friction.NonlinearFrictionResult`) and the fields that class adds (its
+    friction laws, shape parameters and their σ): ``load`` gives back that class, so its
+    ``predict`` equals the original's.
 
 Arrays are nested lists; a value JSON cannot hold is tagged: ``{"__ndarray__": …, "dtype": …}``
 for an array inside ``details``, ``{"__float__": "inf"}`` for a non-finite number, ``{"__tuple__":
@@ -305,7 +310,8 @@ def result_dict(res: "IdentificationResult") -> dict[str, Any]:
         "uninformed": list(getattr(res, "uninformed", ())),
         "consistency": consistency_dict(res), "spec": spec_dict(res.spec),
         "model": model_dict(res.model), "details": encode(dict(res.details)),
-        "provenance": encode(make_provenance(res.provenance))}
+        "provenance": encode(make_provenance(res.provenance)),
+        "kind": res.kind, "extra": encode(res.persisted_fields())}
 
 
 def write_result(res: "IdentificationResult", path: str | Path) -> Path:
@@ -335,7 +341,8 @@ def _array(doc: Mapping[str, Any], key: str, where: str, shape: tuple[int, ...])
 
 def read_result_fields(path: str | Path, model: RobotModel | None = None,
                        urdf: str | Path | None = None) -> dict[str, Any]:
-    """The constructor arguments of the result saved at ``path`` (:func:`write_result`).
+    """The constructor arguments of the result saved at ``path`` (:func:`write_result`), with
+    its ``kind`` and the ``extra`` fields of that kind.
 
     Raises
     ------
@@ -379,7 +386,8 @@ def read_result_fields(path: str | Path, model: RobotModel | None = None,
                             float(s.get("compile_time", 0.0)), s.get("iterations")),
         details=decode(doc.get("details", {})),
         uninformed=tuple(doc.get("uninformed", ())),
-        provenance=decode(doc.get("provenance", {})))
+        provenance=decode(doc.get("provenance", {})),
+        kind=str(doc.get("kind", "identification")), extra=decode(doc.get("extra", {})))
 
 
 # ----------------------------------------------------------------------------- CSV

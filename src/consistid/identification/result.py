@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import dataclasses
+import importlib
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any, ClassVar, Mapping, Sequence
 
 import numpy as np
 import scipy.stats
@@ -15,7 +16,7 @@ from . import persistence
 from .base import BaseParameters
 from ..data.checks import check_magnitudes
 from ..data.dataset import Dataset, as_dataset
-from ..errors import check_number, check_option
+from ..errors import ResultFileError, check_number, check_option
 from ..robot.export import write_urdf
 from ..robot.mjcf import write_mjcf
 from ..robot.model import RobotModel
@@ -73,6 +74,14 @@ class StandardParameterSet:
         return write_mjcf(self.model, path, self.parameters, self.parameter_names)
 
 
+#: Result classes by the ``kind`` their saved files carry (filled as each class is defined).
+RESULT_KINDS: dict[str, type] = {}
+#: Where the kinds defined above this package live: :meth:`IdentificationResult.load` imports
+#: the module of a kind not yet defined in this session (a plug-in registry, not an import
+#: of the layer above).
+KIND_MODULES = {"nonlinear_friction": "consistid.friction"}
+
+
 @dataclass(frozen=True, eq=False)
 class IdentificationResult(StandardParameterSet):
     """Identified parameters of a robot, with the numbers needed to trust them.
@@ -118,6 +127,19 @@ class IdentificationResult(StandardParameterSet):
     details: dict[str, Any] = field(default_factory=dict)
     provenance: dict[str, Any] = field(default_factory=dict)
     uninformed: tuple[str, ...] = ()
+
+    #: What a saved file calls this kind of result (``"kind"`` in its JSON); each subclass names
+    #: its own and :meth:`load` gives back that class.
+    kind: ClassVar[str] = "identification"
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        RESULT_KINDS[cls.kind] = cls
+
+    def persisted_fields(self) -> dict[str, Any]:
+        """The fields a subclass adds, as :meth:`save` writes them (``"extra"`` in the JSON);
+        its constructor takes them back."""
+        return {}
 
     # ----------------------------------------------------------------------------- uncertainty
     @cached_property
@@ -275,8 +297,20 @@ class IdentificationResult(StandardParameterSet):
         field that is missing or wrong.
         """
         fields = persistence.read_result_fields(path, model, urdf)
-        known = {f.name for f in dataclasses.fields(cls)}
-        return cls(**{k: v for k, v in fields.items() if k in known})
+        kind, extra = fields.pop("kind"), fields.pop("extra")
+        if kind not in RESULT_KINDS and kind in KIND_MODULES:
+            importlib.import_module(KIND_MODULES[kind])   # defines (and registers) the class
+        target = RESULT_KINDS.get(kind)
+        if target is None:
+            raise ResultFileError(f"{path}: it holds a {kind!r} result, a kind this consistid "
+                                  f"does not know (known: {', '.join(sorted(RESULT_KINDS))}); "
+                                  "was it written by a newer version?")
+        if not issubclass(target, cls):
+            raise ResultFileError(f"{path}: it holds a {kind!r} result; {cls.__name__}.load "
+                                  f"reads {cls.kind!r} results: use {target.__name__}.load "
+                                  "(or IdentificationResult.load, which reads every kind)")
+        known = {f.name for f in dataclasses.fields(target)}
+        return target(**{k: v for k, v in {**fields, **extra}.items() if k in known})
 
     def to_csv(self, path: str | Path) -> Path:
         """The parameter table as CSV: base parameters ± σ with their groupings, then every
@@ -285,3 +319,6 @@ class IdentificationResult(StandardParameterSet):
 
     def __str__(self) -> str:
         return self.summary(max_rows=20)
+
+
+RESULT_KINDS[IdentificationResult.kind] = IdentificationResult
