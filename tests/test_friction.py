@@ -172,7 +172,8 @@ def test_per_joint_laws_on_a_planar_arm(planar_2r, tmp_path):
     data = run.dataset
     sig, tanh = MODELS["sigmoid"], MODELS["tanh"]
     tau = data.tau + np.column_stack([sig.value(data.dq[:, 0], [0.6], [8.0, 0.05]),
-                                      tanh.value(data.dq[:, 1], [0.4], [0.03])])
+                                      tanh.value(data.dq[:, 1], [0.4], [0.03])]) \
+        + 0.3 * data.dq                                   # viscous, so that URDF damping ≥ 0
     res = ci.identify(planar_2r, data.with_torque(tau), method="wls",
                       friction={"joint1": "sigmoid", "joint2": "tanh"}, covariance="iid")
     assert res.laws == ("sigmoid", "tanh")
@@ -188,6 +189,19 @@ def test_per_joint_laws_on_a_planar_arm(planar_2r, tmp_path):
     assert type(back) is type(res) and back.laws == res.laws and back.search == res.search
     np.testing.assert_array_equal(back.shape_parameters, res.shape_parameters)
     np.testing.assert_array_equal(back.predict(data), res.predict(data))
+    # URDF/MJCF hold a Coulomb level only: each law's (tanh: f_c; sigmoid: its larger
+    # asymptote), with a warning naming the shapes left out; the CSV keeps the shapes.
+    with pytest.warns(ci.errors.ExportWarning, match="joint1 \\(sigmoid: phi2, phi3\\)"):
+        values, names = res.exported_terms()
+    fc = dict(zip(names, values))
+    assert fc["joint2.fc"] == pytest.approx(res.amplitudes[1])
+    phi1, (phi2, phi3) = res.amplitudes[0], res.shape_parameters[:2]
+    assert fc["joint1.fc"] == pytest.approx(max(phi1 - phi1 / (1 + np.exp(-phi2 * phi3)),
+                                                phi1 / (1 + np.exp(-phi2 * phi3))))
+    with pytest.warns(ci.errors.ExportWarning, match="Coulomb level only"):
+        assert res.to_urdf(tmp_path / "laws.urdf").is_file()
+    rows = (tmp_path / "laws.csv").read_text() if res.to_csv(tmp_path / "laws.csv") else ""
+    assert "shape,joint1.phi2," in rows and "shape,joint2.vs," in rows
     plain = ci.identify(planar_2r, data, method="ols").save(tmp_path / "plain.json")
     with pytest.raises(ci.errors.ResultFileError, match="NonlinearFrictionResult.load reads"):
         type(res).load(plain)

@@ -58,7 +58,7 @@ import scipy.optimize
 import scipy.stats
 
 from ..data.dataset import Dataset
-from ..errors import (InaccurateSolutionWarning, OptionError, PoorExcitationError,
+from ..errors import (ExportWarning, InaccurateSolutionWarning, OptionError, PoorExcitationError,
                       PoorExcitationWarning, check_number, check_option)
 from ..identification.base import RANK_RTOL, BaseParameters, compute_base_parameters
 from ..identification.compression import SIGMA_FLOOR, CompressedProblem, accumulate
@@ -197,6 +197,41 @@ class NonlinearFrictionResult(IdentificationResult):
         return {"laws": list(self.laws), "shape_names": list(self.shape_names),
                 "shape_parameters": self.shape_parameters, "shape_std": self.shape_std,
                 "amplitude_names": list(self.amplitude_names), "search": list(self.search)}
+
+    def shape_rows(self) -> list[tuple[str, float, float, str]]:
+        """Each law's shape parameters with σ and unit (the CSV's ``shape`` rows)."""
+        out = []
+        for name, v, sd in zip(self.shape_names, self.shape_parameters, self.shape_std):
+            law = MODELS[self.laws[self.model.joint_names.index(name.split(".", 1)[0])]]
+            out.append((name, float(v), float(sd),
+                        law.shape_units[law.shapes.index(name.split(".", 1)[1])]))
+        return out
+
+    def exported_terms(self) -> tuple[np.ndarray, tuple[str, ...]]:
+        """The linear terms, and for each law joint its Coulomb level ``f_c`` — the law's
+        ``max |C(±∞)|``: Stribeck's and tanh's ``f_c``, the sigmoid's larger asymptote — which
+        is all URDF ``<dynamics friction>`` and MJCF ``frictionloss`` hold. Warns
+        :class:`~consistid.errors.ExportWarning` naming what is left out (the laws' shapes, the
+        static friction)."""
+        p = self.model.n_inertial + self.spec.n_joint_columns
+        names, values = list(self.parameter_names[:p]), list(self.parameters[:p])
+        far = np.full((1, self.model.nv), 1e6)
+        level = np.maximum(np.abs(self.friction_torque(far)),
+                           np.abs(self.friction_torque(-far)))[0]
+        lost = []
+        for j, law in enumerate(self.laws):
+            if law == LINEAR:
+                continue
+            joint = self.model.joint_names[j]
+            names.append(f"{joint}.fc")
+            values.append(float(level[j]))
+            lost.append(f"{joint} ({law}: {', '.join(MODELS[law].shapes)}"
+                        + (", fs" if law == "stribeck" else "") + ")")
+        if lost:
+            warnings.warn(ExportWarning(
+                "URDF/MJCF friction holds a Coulomb level only: written as each law's f_c; left "
+                "out: " + "; ".join(lost) + ". Keep the laws with res.save (JSON)"), stacklevel=3)
+        return np.array(values), tuple(names)
 
     def __post_init__(self) -> None:
         # Read back from a file (save/load): the tuples and arrays of the constructor.

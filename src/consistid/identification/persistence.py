@@ -398,8 +398,9 @@ def write_csv(res: "IdentificationResult", path: str | Path) -> Path:
     """The parameter table as CSV (``CSV_COLUMNS``): one row per base parameter (``kind =
     base``: value ± std, relative std in %, the prior's value, its grouping as ``definition``),
     then one per standard parameter (``kind = standard``: value and prior; ``std`` is empty,
-    since only base parameters have a standard deviation from the data). Numbers carry 17
-    significant digits."""
+    since only base parameters have a standard deviation from the data), then one per shape
+    parameter of a nonlinear friction law (``kind = shape``: value ± std, its unit as
+    ``definition``). Numbers carry 17 significant digits."""
     path = Path(path)
     prior_beta = res.base.project(res.prior)
 
@@ -414,4 +415,7 @@ def write_csv(res: "IdentificationResult", path: str | Path) -> Path:
                         num(res.relative_std[i]), num(prior_beta[i]), grouping])
         for name, value, prior in zip(res.parameter_names, res.parameters, res.prior):
             w.writerow(["standard", name, num(value), "", "", num(prior), ""])
+        for name, value, std, unit in res.shape_rows():
+            w.writerow(["shape", name, num(value), num(std),
+                        num(100 * std / abs(value)) if value else "", "", unit])
     return path

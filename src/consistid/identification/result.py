@@ -58,10 +58,16 @@ class StandardParameterSet:
         """The robot model carrying these inertial parameters."""
         return self.model.with_parameters(self.inertial_parameters)
 
+    def exported_terms(self) -> tuple[np.ndarray, tuple[str, ...]]:
+        """The standard vector and its names as the URDF and MJCF writers take them (10 per
+        body, then per-joint terms those formats hold); a subclass with terms they cannot hold
+        maps or drops them, and says so."""
+        return self.parameters, self.parameter_names
+
     def to_urdf(self, path: str | Path, merged: str = "auto") -> Path:
         """Write the model's URDF with these inertias and Coulomb/viscous friction
         (:func:`consistid.robot.export.write_urdf`); refuses an inconsistent body."""
-        return write_urdf(self.model, path, self.parameters, self.parameter_names, merged)
+        return write_urdf(self.model, path, *self.exported_terms(), merged)
 
     def _repr_html_(self) -> str:
         """Jupyter: each body's consistency and margin, the per-joint terms, the summary."""
@@ -71,7 +77,7 @@ class StandardParameterSet:
         """Write an MJCF of the model with these inertias, Coulomb friction (``frictionloss``),
         viscous friction (``damping``) and armature, built through MuJoCo's ``MjSpec``
         (:func:`consistid.robot.mjcf.write_mjcf`); refuses an inconsistent body."""
-        return write_mjcf(self.model, path, self.parameters, self.parameter_names)
+        return write_mjcf(self.model, path, *self.exported_terms())
 
 
 #: Result classes by the ``kind`` their saved files carry (filled as each class is defined).
@@ -140,6 +146,11 @@ class IdentificationResult(StandardParameterSet):
         """The fields a subclass adds, as :meth:`save` writes them (``"extra"`` in the JSON);
         its constructor takes them back."""
         return {}
+
+    def shape_rows(self) -> list[tuple[str, float, float, str]]:
+        """``(name, value, std, unit)`` of each parameter outside the linear model (a friction
+        law's shape; none here), for :meth:`to_csv`."""
+        return []
 
     # ----------------------------------------------------------------------------- uncertainty
     @cached_property
