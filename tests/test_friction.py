@@ -15,6 +15,8 @@ import consistid as ci
 from consistid.errors import DatasetError, IdentificationError, ModelError, OptionError
 from consistid.friction import MODELS, estimate_breakaway, ramp_plan, simulate_ramps
 from consistid.friction.fit import Projection, identify_nonlinear, parse_friction
+from consistid.identification.regressor import RegressorSpec, predict_torque
+from consistid.identification.result import IdentificationResult
 from consistid.simulate import Effects, record
 from consistid.simulate.effects import explicit_friction, friction_torque
 
@@ -185,7 +187,7 @@ def test_per_joint_laws_on_a_planar_arm(planar_2r, tmp_path):
     # Saved and loaded back: the same class, laws, shapes and predictions (the laws were lost
     # on load before, a plain result predicting up to 1 N·m off, silently).
     path = res.save(tmp_path / "laws.json")
-    back = ci.identification.result.IdentificationResult.load(path)
+    back = IdentificationResult.load(path)
     assert type(back) is type(res) and back.laws == res.laws and back.search == res.search
     np.testing.assert_array_equal(back.shape_parameters, res.shape_parameters)
     np.testing.assert_array_equal(back.predict(data), res.predict(data))
@@ -450,8 +452,8 @@ def test_residual_at_rest_is_the_distance_to_the_friction_cone(planar_2r):
     dq[:100, 0] = rng.uniform(-0.01, 0.01, 100)            # joint 1 at rest
     ddq = rng.uniform(-1, 1, (n, 2))
     truth = np.concatenate([planar_2r.prior_parameters, [0.6, 0.3]])  # fc joint 1, fc joint 2
-    spec = ci.identification.regressor.RegressorSpec.make(planar_2r, {"coulomb": [0, 1]})
-    tau = ci.identification.regressor.predict_torque(
+    spec = RegressorSpec.make(planar_2r, {"coulomb": [0, 1]})
+    tau = predict_torque(
         planar_2r, ci.Dataset(np.arange(n) * 0.01, q, dq, ddq), spec, truth)
     tau[:100, 0] += rng.uniform(-1.2, 1.2, 100) - 0.6 * np.sign(dq[:100, 0])  # held: any torque
     data = ci.Dataset(np.arange(n) * 0.01, q, dq, ddq, tau + rng.normal(0, 1e-3, (n, 2)))
