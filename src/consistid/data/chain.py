@@ -214,6 +214,9 @@ class ChainResult:
     Attributes
     ----------
     t : (N,) s; q, dq, ddq, tau : (N, nv); segment : (N,) gap-free stretch index.
+    dq_sign : (N, nv) ``sign(q̇)`` through the torque's filter (the regressor's Coulomb column
+        for these torques, :attr:`consistid.data.dataset.Dataset.dq_sign`), or ``None`` when
+        the torques were not filtered.
     steps : the :class:`Step` s applied, in order.
     rate : sampling rate of the result (Hz), after resampling/decimation.
     cutoff : low-pass cut-off used (Hz).
@@ -227,6 +230,7 @@ class ChainResult:
     ddq: np.ndarray
     tau: np.ndarray
     segment: np.ndarray
+    dq_sign: np.ndarray | None
     steps: tuple[Step, ...]
     rate: float
     cutoff: float
@@ -551,7 +555,7 @@ def run_chain(t: np.ndarray, q: np.ndarray, tau: np.ndarray,
                                       f"{worst:.1%} off {1e3 / rate:.4g} ms); resampled {n_in} → "
                                       f"{n_out} samples at {rate:.6g} Hz by cubic spline"))
 
-    out_t, out_q, out_dq, out_ddq, out_tau, out_seg = [], [], [], [], [], []
+    out_t, out_q, out_dq, out_ddq, out_tau, out_seg, out_sign = [], [], [], [], [], [], []
     if o.derivative == "fourier":
         ts, xs = pieces[0]
         mean, n_periods = period_average(xs, o.period, rate)
@@ -559,6 +563,8 @@ def run_chain(t: np.ndarray, q: np.ndarray, tau: np.ndarray,
         qf, dqf, ddqf = fourier_derivatives(mean[:, :nv], rate, o.period, harmonics)
         tauf = (fourier_derivatives(mean[:, nv:], rate, o.period, harmonics)[0]
                 if o.filter_torque else mean[:, nv:])
+        # the Coulomb column through the torque's filter (Dataset.dq_sign)
+        signf = fourier_derivatives(np.sign(dqf), rate, o.period, harmonics)[0]
         p = mean.shape[0]
         steps.append(Step("fourier", f"averaged {n_periods} period(s) of {o.period:g} s "
                                      f"({p} samples; {xs.shape[0] - n_periods * p} trailing "
@@ -567,7 +573,7 @@ def run_chain(t: np.ndarray, q: np.ndarray, tau: np.ndarray,
                                      f"{' and τ' if o.filter_torque else ''}, differentiated in "
                                      "the frequency domain"))
         out_t.append(ts[:p]), out_q.append(qf), out_dq.append(dqf), out_ddq.append(ddqf)
-        out_tau.append(tauf), out_seg.append(np.zeros(p, dtype=int))
+        out_tau.append(tauf), out_seg.append(np.zeros(p, dtype=int)), out_sign.append(signf)
     else:
         trim = TRIM_PERIODS / cutoff if o.trim is None else float(o.trim)
         both = " and τ" if o.filter_torque else ""
@@ -587,10 +593,12 @@ def run_chain(t: np.ndarray, q: np.ndarray, tau: np.ndarray,
                 qf = lowpass(qs, cutoff, rate, o.order)
                 dqf, ddqf = central_difference(qf, rate)
                 tauf = lowpass(taus, cutoff, rate, o.order) if o.filter_torque else taus
+                signf = lowpass(np.sign(dqf), cutoff, rate, o.order)
             else:
                 qf, dqf, ddqf = savgol_derivatives(qs, rate, window, o.polyorder)
                 tauf = (savgol_derivatives(taus, rate, window, o.polyorder)[0]
                         if o.filter_torque else taus)
+                signf = savgol_derivatives(np.sign(dqf), rate, window, o.polyorder)[0]
             tol = 1e-3 / rate                   # float stamps (Unix seconds) are not exact
             keep = (ts >= ts[0] + trim - tol) & (ts <= ts[-1] - trim + tol)
             if not keep.any():
@@ -598,7 +606,7 @@ def run_chain(t: np.ndarray, q: np.ndarray, tau: np.ndarray,
                 continue
             out_t.append(ts[keep]), out_q.append(qf[keep]), out_dq.append(dqf[keep])
             out_ddq.append(ddqf[keep]), out_tau.append(tauf[keep])
-            out_seg.append(np.full(int(keep.sum()), seg_id))
+            out_seg.append(np.full(int(keep.sum()), seg_id)), out_sign.append(signf[keep])
         if too_short:
             steps.append(Step("short segment", f"{too_short} segment(s) shorter than twice the "
                                                f"{trim:.3g} s trim dropped"))
@@ -608,12 +616,13 @@ def run_chain(t: np.ndarray, q: np.ndarray, tau: np.ndarray,
         if not out_t:
             raise DatasetError("every segment is shorter than twice the edge trim")
 
-    arrays = [np.concatenate(a) for a in (out_t, out_q, out_dq, out_ddq, out_tau, out_seg)]
+    arrays = [np.concatenate(a) for a in (out_t, out_q, out_dq, out_ddq, out_tau, out_seg,
+                                          out_sign)]
     _warn_quasi_static(arrays[0], arrays[2], h, o.time_unit)
     if o.decimate > 1:
         keep = np.zeros(arrays[0].size, dtype=bool)
-        for s in np.unique(arrays[-1]):
-            keep[np.flatnonzero(arrays[-1] == s)[::o.decimate]] = True
+        for s in np.unique(arrays[5]):
+            keep[np.flatnonzero(arrays[5] == s)[::o.decimate]] = True
         arrays = [a[keep] for a in arrays]
         rate = rate / o.decimate
         steps.append(Step("decimate", f"kept every {o.decimate}-th sample → {rate:.6g} Hz"))
@@ -627,4 +636,6 @@ def run_chain(t: np.ndarray, q: np.ndarray, tau: np.ndarray,
                                        f"where some |q̇| < {o.min_speed} rad/s"))
     for step in steps:
         LOG.info("%s", step)
+    if not o.filter_torque:
+        arrays[-1] = None          # unfiltered torques: the Coulomb column is sign(dq)
     return ChainResult(*arrays, tuple(steps), float(rate), float(cutoff), bandwidth, o)

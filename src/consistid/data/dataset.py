@@ -55,6 +55,12 @@ class Dataset:
         measurements (e.g. a designed excitation).
     joint_names : optional names, used in error messages and reports.
     segment : (N,) integer recording index; default all zeros.
+    dq_sign : (N, nv) ``sign(q̇)`` as the torque channel sees it, when the signal chain low-pass
+        filtered the torques: the same filter applied to ``sign(q̇)`` (set by the chain,
+        :mod:`consistid.data.chain`). The regressor's Coulomb column is this signal, so that
+        both sides of ``τ = Y θ`` went through the same filter (parallel filtering; without it
+        the sharp ``sign`` of the filtered ``q̇`` against the smoothed step in the filtered
+        torque biases ``f_c`` low by ~10 % at a 5 Hz cut-off); ``None``: ``sign(dq)``.
 
     Raises
     ------
@@ -69,6 +75,7 @@ class Dataset:
     tau: np.ndarray | None = None
     joint_names: tuple[str, ...] | None = None
     segment: np.ndarray | None = field(default=None)
+    dq_sign: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         t = np.asarray(self.t, dtype=float)
@@ -113,6 +120,15 @@ class Dataset:
                                    "recording index")
             seg = seg.astype(int)
         object.__setattr__(self, "segment", seg)
+        if self.dq_sign is not None:
+            sign = np.asarray(self.dq_sign, dtype=float)
+            if sign.ndim == 1:
+                sign = sign[:, None]
+            if sign.shape != self.dq.shape:
+                raise DatasetError(f"dataset.dq_sign has shape {sign.shape}; expected "
+                                   f"{self.dq.shape} like dq")
+            _check_finite("dq_sign", sign, names)
+            object.__setattr__(self, "dq_sign", sign)
         same = seg[1:] == seg[:-1]
         bad = np.flatnonzero(same & (np.diff(t) <= 0))
         if bad.size:
@@ -157,7 +173,8 @@ class Dataset:
         """The samples at ``index`` (boolean mask, integer array or slice)."""
         return replace(self, t=self.t[index], q=self.q[index], dq=self.dq[index],
                        ddq=self.ddq[index], tau=None if self.tau is None else self.tau[index],
-                       segment=self.segment[index])
+                       segment=self.segment[index],
+                       dq_sign=None if self.dq_sign is None else self.dq_sign[index])
 
     def with_torque(self, tau: np.ndarray) -> "Dataset":
         return replace(self, tau=tau)
@@ -209,24 +226,30 @@ class Dataset:
             tau=np.concatenate([d.tau for d in datasets]) if has_tau else None,
             joint_names=datasets[0].joint_names,
             segment=np.concatenate([p[2] for p in parts]),
+            dq_sign=None if all(d.dq_sign is None for d in datasets) else np.concatenate(
+                [np.sign(d.dq) if d.dq_sign is None else d.dq_sign for d in datasets]),
         )
 
     # ----------------------------------------------------------------------------- files
     def columns(self) -> dict[str, np.ndarray]:
-        """Named columns ``t, q1.., dq1.., ddq1.., tau1.., segment`` (CSV layout)."""
+        """Named columns ``t, q1.., dq1.., ddq1.., tau1.., segment`` (CSV layout), then
+        ``dq_sign1..`` when the dataset has them."""
         cols = {"t": self.t}
         for name in FIELDS:
             a = getattr(self, name)
             if a is not None:
                 cols.update({f"{name}{j + 1}": a[:, j] for j in range(self.nv)})
         cols["segment"] = self.segment.astype(float)
+        if self.dq_sign is not None:
+            cols.update({f"dq_sign{j + 1}": self.dq_sign[:, j] for j in range(self.nv)})
         return cols
 
     def save(self, path: str | Path) -> None:
         """Write NPZ or CSV, chosen by the file suffix."""
         path = Path(path)
         if path.suffix == ".npz":
-            arrays = {k: getattr(self, k) for k in ("t", *FIELDS) if getattr(self, k) is not None}
+            arrays = {k: getattr(self, k) for k in ("t", *FIELDS, "dq_sign")
+                      if getattr(self, k) is not None}
             if self.joint_names is not None:
                 arrays["joint_names"] = np.array(self.joint_names)
             np.savez(path, segment=self.segment, **arrays)
@@ -258,7 +281,7 @@ class Dataset:
                    ) -> "Dataset":
         """The dataset of the signal chain's arrays (:func:`consistid.data.chain.run_chain`)."""
         return cls(t=result.t, q=result.q, dq=result.dq, ddq=result.ddq, tau=result.tau,
-                   segment=result.segment,
+                   segment=result.segment, dq_sign=result.dq_sign,
                    joint_names=tuple(joint_names) if joint_names is not None else None)
 
     @classmethod
@@ -273,7 +296,7 @@ class Dataset:
                 if missing:
                     raise MissingColumnsError(f"{path.name} lacks arrays {missing}; it has "
                                               f"{sorted(f.files)}")
-                arrays = {k: f[k] for k in f.files if k in ("t", *FIELDS, "segment")}
+                arrays = {k: f[k] for k in f.files if k in ("t", *FIELDS, "segment", "dq_sign")}
                 stored = tuple(str(n) for n in f["joint_names"]) if "joint_names" in f else None
             if joint_names is not None and stored is not None and tuple(joint_names) != stored:
                 raise JointNameError(f"{path.name} names its joints {list(stored)}, not "
@@ -313,8 +336,11 @@ class Dataset:
                 raise MissingColumnsError(f"{path.name} has some torque columns but lacks "
                                           f"{missing_tau}")
             tau = None if missing_tau else np.column_stack([col[c] for c in tau_cols])
+            sign = [f"dq_sign{j + 1}" for j in range(nv)]
             return cls(t=col["t"], tau=tau, joint_names=joint_names,
-                       segment=col.get("segment"), **stack)
+                       segment=col.get("segment"), **stack,
+                       dq_sign=np.column_stack([col[c] for c in sign])
+                       if all(c in col for c in sign) else None)
         raise DatasetError(f"unknown dataset format {path.suffix!r}; use .npz or .csv")
 
 

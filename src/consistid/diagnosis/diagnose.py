@@ -404,7 +404,8 @@ def _resolve_nominal(model: RobotModel, nominal) -> tuple[np.ndarray, Callable |
 
         def extra(ds: Dataset) -> np.ndarray:
             # Its prediction minus the rigid body: the per-joint columns (friction, armature).
-            return joint_columns(ds.q, ds.dq, ds.ddq, nominal.spec) @ theta_joint
+            return joint_columns(ds.q, ds.dq, ds.ddq, nominal.spec,
+                                 dq_sign=ds.dq_sign) @ theta_joint
 
         return pi0, extra
     pi0 = np.asarray(nominal, dtype=float)

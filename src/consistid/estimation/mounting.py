@@ -200,7 +200,8 @@ def _compress(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
         s = slice(start, min(start + chunk, dataset.n_samples))
         q, dq, ddq = dataset.q[s], dataset.dq[s], dataset.ddq[s]
         rest = np.zeros_like(dq)
-        blocks = [regressor(weightless, q, dq, ddq, spec).reshape(-1, model.nv, p)]
+        blocks = [regressor(weightless, q, dq, ddq, spec, dq_sign=None if dataset.dq_sign is None
+                            else dataset.dq_sign[s]).reshape(-1, model.nv, p)]
         blocks += [rigid_body_regressor(m, q, rest, rest) for m in unit]
         accumulate(factors, np.concatenate(blocks, axis=2), tau[s])
     return factors

@@ -296,7 +296,8 @@ class NonlinearFrictionResult(IdentificationResult):
         linear = np.empty((dataset.n_samples, self.model.nv))
         for start in range(0, dataset.n_samples, 4096):
             s = slice(start, min(start + 4096, dataset.n_samples))
-            y = regressor(self.model, dataset.q[s], dataset.dq[s], dataset.ddq[s], self.spec)
+            y = regressor(self.model, dataset.q[s], dataset.dq[s], dataset.ddq[s], self.spec,
+                          dq_sign=None if dataset.dq_sign is None else dataset.dq_sign[s])
             linear[s] = (y @ self.parameters[:p]).reshape(-1, self.model.nv)
         return linear + self.friction_torque(dataset.dq)
 
@@ -608,7 +609,8 @@ def identify_nonlinear(model: RobotModel, dataset: Dataset, method: str, frictio
     base = compute_base_parameters(model, spec)
     tau = dataset.require_torque()
     n, nv = tau.shape
-    y = regressor(model, dataset.q, dataset.dq, dataset.ddq, spec).reshape(n, nv, -1)
+    y = regressor(model, dataset.q, dataset.dq, dataset.ddq, spec,
+                  dq_sign=dataset.dq_sign).reshape(n, nv, -1)
     x = np.ascontiguousarray(y[:, :, base.independent])
     b = base.n_base
     min_speed = (STANDSTILL_SPEED if min_speed is None

@@ -160,7 +160,9 @@ def compress(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
             for a in range(0, y.shape[0], GATHER_ROWS):   # gathered and transposed in cache
                 block[a:a + GATHER_ROWS, :r] = y[a:a + GATHER_ROWS, j, rigid_cols[j]]
             for i, suffix in enumerate(signals[j]):
-                block[:, r + i] = joint_signal(suffix, q[:, j], dq[:, j], ddq[:, j])
+                block[:, r + i] = joint_signal(
+                    suffix, q[:, j], dq[:, j], ddq[:, j],
+                    None if dataset.dq_sign is None else dataset.dq_sign[s, j])
             block[:, -1] = tau[s, j]
             if weights is not None:
                 block *= root[s, j][:, None]

@@ -210,10 +210,16 @@ def prior_vector(model: RobotModel, spec: RegressorSpec) -> np.ndarray:
     return np.concatenate([model.prior_parameters, np.zeros(spec.n_joint_columns)])
 
 
-def joint_signal(suffix: str, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> np.ndarray:
-    """The per-joint signal multiplying the coefficient ``suffix``, for samples ``(n,)``."""
+def joint_signal(suffix: str, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray,
+                 sign: np.ndarray | None = None) -> np.ndarray:
+    """The per-joint signal multiplying the coefficient ``suffix``, for samples ``(n,)``.
+
+    ``sign``: the Coulomb signal ``sign(q̇)`` as the torque channel sees it, when the signal
+    chain low-pass filtered the torques (:attr:`consistid.data.dataset.Dataset.dq_sign`, the
+    same filter applied to ``sign(q̇)``: parallel filtering, Gautier 1997); ``None``:
+    ``sign(dq)``."""
     if suffix == "fc":
-        return np.sign(dq)
+        return np.sign(dq) if sign is None else sign
     if suffix == "fv":
         return dq
     if suffix == "fo":
@@ -225,10 +231,16 @@ def joint_signal(suffix: str, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) ->
     return ddq                                                     # "Ia"
 
 
+def _sign_of(dq_sign: np.ndarray | None, j: int) -> np.ndarray | None:
+    return None if dq_sign is None else dq_sign[:, j]
+
+
 def joint_columns(q: np.ndarray, dq: np.ndarray, ddq: np.ndarray,
-                  spec: RegressorSpec, out: np.ndarray | None = None) -> np.ndarray:
+                  spec: RegressorSpec, out: np.ndarray | None = None,
+                  dq_sign: np.ndarray | None = None) -> np.ndarray:
     """The per-joint blocks for samples ``(N, nv)`` as an array ``(N, nv, n_joint_columns)``
-    (``out``: a preallocated one to fill). Each signal is computed for its joint's column only:
+    (``out``: a preallocated one to fill; ``dq_sign``: the Coulomb signal, see
+    :func:`joint_signal`). Each signal is computed for its joint's column only:
     ``(N, nv, c)`` zeros plus one strided copy per column, no per-term ``(N, nv)`` arrays."""
     n, nv = dq.shape
     if out is None:
@@ -236,18 +248,20 @@ def joint_columns(q: np.ndarray, dq: np.ndarray, ddq: np.ndarray,
     else:
         out[...] = 0.0
     for c, (_, j, suffix) in enumerate(spec.columns):
-        out[:, j, c] = joint_signal(suffix, q[:, j], dq[:, j], ddq[:, j])
+        out[:, j, c] = joint_signal(suffix, q[:, j], dq[:, j], ddq[:, j], _sign_of(dq_sign, j))
     return out
 
 
 def joint_torque(q: np.ndarray, dq: np.ndarray, ddq: np.ndarray, spec: RegressorSpec,
-                 coefficients: np.ndarray) -> np.ndarray:
+                 coefficients: np.ndarray, dq_sign: np.ndarray | None = None) -> np.ndarray:
     """``Σ_c coefficient_c · signal_c`` of the per-joint columns, shape ``(N, nv)``: their part
-    of ``Y θ`` without building the ``(N, nv, n_joint_columns)`` block."""
+    of ``Y θ`` without building the ``(N, nv, n_joint_columns)`` block (``dq_sign``: the
+    Coulomb signal, see :func:`joint_signal`)."""
     out = np.zeros(dq.shape)
     for c, (_, j, suffix) in enumerate(spec.columns):
         if coefficients[c] != 0.0:
-            out[:, j] += coefficients[c] * joint_signal(suffix, q[:, j], dq[:, j], ddq[:, j])
+            out[:, j] += coefficients[c] * joint_signal(suffix, q[:, j], dq[:, j], ddq[:, j],
+                                                        _sign_of(dq_sign, j))
     return out
 
 
@@ -294,12 +308,13 @@ def check_states(model: RobotModel, q: np.ndarray, dq: np.ndarray, ddq: np.ndarr
 
 
 def fill_regressor(model: RobotModel, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray,
-                   spec: RegressorSpec, out: np.ndarray, joint_zeroed: bool = False) -> None:
+                   spec: RegressorSpec, out: np.ndarray, joint_zeroed: bool = False,
+                   dq_sign: np.ndarray | None = None) -> None:
     """Write the regressor of checked samples (:func:`check_states`) into ``out[:, :, :p]``
     (``out`` of shape ``(N, nv, ≥ p)``, e.g. a reused buffer with room for the torques).
     ``joint_zeroed``: the per-joint block's structurally zero entries are already 0 (a buffer
     this function filled before), so only the ``(joint, column)`` entries that carry a signal
-    are written."""
+    are written. ``dq_sign``: the Coulomb signal (:func:`joint_signal`)."""
     n_in = model.n_inertial
     rigid_body_regressor(model, q, dq, ddq, out=out[:, :, :n_in])
     if not spec.n_joint_columns:
@@ -307,11 +322,13 @@ def fill_regressor(model: RobotModel, q: np.ndarray, dq: np.ndarray, ddq: np.nda
     if not joint_zeroed:
         out[:, :, n_in:n_in + spec.n_joint_columns] = 0.0
     for c, (_, j, suffix) in enumerate(spec.columns):
-        out[:, j, n_in + c] = joint_signal(suffix, q[:, j], dq[:, j], ddq[:, j])
+        out[:, j, n_in + c] = joint_signal(suffix, q[:, j], dq[:, j], ddq[:, j],
+                                           _sign_of(dq_sign, j))
 
 
 def regressor(model: RobotModel, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray,
-              spec: RegressorSpec | None = None, out: np.ndarray | None = None) -> np.ndarray:
+              spec: RegressorSpec | None = None, out: np.ndarray | None = None,
+              dq_sign: np.ndarray | None = None) -> np.ndarray:
     """The stacked regressor ``Y``, shape ``(N·nv, p)``, rows sample-major.
 
     Parameters
@@ -319,12 +336,14 @@ def regressor(model: RobotModel, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray,
     q, dq, ddq : (N, nv) joint angles, velocities, accelerations (one sample may be 1-D).
     spec : which per-joint columns to append; default rigid body only.
     out : optional preallocated ``(N, nv, p)`` array to fill (avoids a copy for large N).
+    dq_sign : (N, nv) the Coulomb signal as the torques see it (:func:`joint_signal`); default
+        ``sign(dq)``.
     """
     q, dq, ddq = check_states(model, q, dq, ddq)
     spec = spec or RegressorSpec.make(model, friction=None)
     n, p = q.shape[0], model.n_inertial + spec.n_joint_columns
     y = np.empty((n, model.nv, p)) if out is None else out
-    fill_regressor(model, q, dq, ddq, spec, y)
+    fill_regressor(model, q, dq, ddq, spec, y, dq_sign=dq_sign)
     return y.reshape(n * model.nv, p)
 
 
@@ -332,7 +351,7 @@ def dataset_regressor(model: RobotModel, dataset: Dataset,
                       spec: RegressorSpec | None = None) -> np.ndarray:
     """:func:`regressor` of a dataset's samples (checks the joint count)."""
     dataset.check_joints(model.nv, model.joint_names)
-    return regressor(model, dataset.q, dataset.dq, dataset.ddq, spec)
+    return regressor(model, dataset.q, dataset.dq, dataset.ddq, spec, dq_sign=dataset.dq_sign)
 
 
 #: Byte budget of a regressor buffer (:func:`default_chunk`).
@@ -364,7 +383,8 @@ def iter_regressor(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
         s = slice(start, min(start + chunk, dataset.n_samples))
         y = buffer[: s.stop - s.start]
         q, dq, ddq = check_states(model, dataset.q[s], dataset.dq[s], dataset.ddq[s])
-        fill_regressor(model, q, dq, ddq, spec, y, joint_zeroed=start > 0)
+        fill_regressor(model, q, dq, ddq, spec, y, joint_zeroed=start > 0,
+                       dq_sign=None if dataset.dq_sign is None else dataset.dq_sign[s])
         yield s, y
 
 
@@ -440,7 +460,7 @@ def predict_torque(model: RobotModel, dataset: Dataset, spec: RegressorSpec, the
         out = batch_rnea(model, carrier, dataset.q, dataset.dq, dataset.ddq)
         if spec.n_joint_columns:
             out += joint_torque(dataset.q, dataset.dq, dataset.ddq, spec,
-                                theta[model.n_inertial:])
+                                theta[model.n_inertial:], dataset.dq_sign)
         return out
     out = np.empty((dataset.n_samples, model.nv))
     for s, y in iter_regressor(model, dataset, spec, chunk):
