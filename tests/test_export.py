@@ -77,6 +77,14 @@ def test_merged_links(panda, truth, tmp_path):
         write_urdf(panda, tmp_path / "x.urdf", light, merged="subtract")
     out = write_urdf(panda, tmp_path / "light.urdf", light, merged="lump")
     assert np.max(np.abs(_reload(panda, out).prior_parameters - light)) < 1e-9
+    # a body lighter than the two fingers (0.015 kg each) cannot keep them (auto subtracts the
+    # locked fingers): auto lumps them, and says so
+    lighter = truth.copy()
+    lighter[60:70] = from_mass_com_inertia(0.02, [0.0, 0.0, 0.1], np.diag([2e-5, 2e-5, 1e-5]))
+    with pytest.warns(ExportWarning, match="merged='auto' lumped them"):
+        out = write_urdf(panda, tmp_path / "light_auto.urdf", lighter)
+    assert _inertial(out, "panda_leftfinger") is None
+    assert np.max(np.abs(_reload(panda, out).prior_parameters - lighter)) < 1e-9
 
 
 def test_friction_tags_round_trip(panda, truth, tmp_path):

@@ -25,7 +25,9 @@ merged by ``buildReducedModel``). Only their sum is identified; how to split it 
     links below **fixed** joints are lumped into the joint's child link (their ``<inertial>`` is
     removed: nothing can move them apart, and Pinocchio and MuJoCo fuse them anyway); links below
     **locked** joints keep their source inertial (they are movable in the URDF, and a simulator
-    needs their mass there) and are subtracted from the identified total.
+    needs their mass there) and are subtracted from the identified total — unless that leaves
+    the child link inconsistent (the identified body lighter or thinner than the URDF's locked
+    links along some axis): then they are lumped too, with an :class:`ExportWarning`.
 ``"lump"``
     every merged link is lumped into the child link (locked children become massless).
 ``"subtract"``
@@ -33,8 +35,8 @@ merged by ``buildReducedModel``). Only their sum is identified; how to split it 
     them.
 
 The written child link must itself be physically consistent (``check_body``, pseudo-inertia
-level); if a subtraction leaves it inconsistent, :class:`InconsistentParametersError` names the
-link and suggests ``merged="lump"``. Loading the written file with the same locked joints gives
+level); if a subtraction with ``merged="subtract"`` leaves it inconsistent,
+:class:`InconsistentParametersError` names the link and suggests ``merged="lump"``. Loading the written file with the same locked joints gives
 back the identified parameters (to rounding, 17 significant digits are written).
 """
 
@@ -217,7 +219,16 @@ def write_urdf(model: RobotModel, path: str | Path, parameters: np.ndarray | Non
             if own is not None:
                 rest = rest - InertialParameters.from_pinocchio(ln.placement.act(own))
         verdict = rest.consistent(name=child[0].name)
-        if not verdict.ok:
+        if not verdict.ok and merged == "auto":
+            # The identified body cannot hold the URDF's locked links as they are: lump them
+            # (the body stays whole and consistent), and say so.
+            warnings.warn(f"body {name!r}: subtracting the source inertials of "
+                          f"{[ln.name for ln in keep]} would leave link {child[0].name!r} "
+                          f"inconsistent ({verdict.reason}); merged='auto' lumped them into "
+                          f"it instead (merged='subtract' refuses)", ExportWarning,
+                          stacklevel=2)
+            lump, keep, rest = lump + keep, [], inertial
+        elif not verdict.ok:
             raise InconsistentParametersError(
                 f"body {name!r}: after subtracting the source inertials of "
                 f"{[ln.name for ln in keep]}, link {child[0].name!r} would be inconsistent "
