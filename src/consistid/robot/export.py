@@ -36,8 +36,9 @@ merged by ``buildReducedModel``). Only their sum is identified; how to split it 
 
 The written child link must itself be physically consistent (``check_body``, pseudo-inertia
 level); if a subtraction with ``merged="subtract"`` leaves it inconsistent,
-:class:`InconsistentParametersError` names the link and suggests ``merged="lump"``. Loading the written file with the same locked joints gives
-back the identified parameters (to rounding, 17 significant digits are written).
+:class:`InconsistentParametersError` names the link and suggests ``merged="lump"``. Loading the
+written file with the same locked joints gives back the identified parameters (to rounding, 17
+significant digits are written).
 """
 
 from __future__ import annotations
