@@ -231,3 +231,25 @@ def test_coloured_covariance_refuses_unknown_choice_and_huber(panda, runs):
         ci.identify(panda, train, method="sdp", loss="huber", covariance="coloured")
     huber = ci.identify(panda, train, method="sdp", loss="huber")    # default: iid for Huber
     assert huber.details["covariance"].startswith("iid")
+
+
+def test_results_read_a_recording_and_name_a_dataframe(tmp_path):
+    """A loader's Recording stands for its dataset in a result's residual/rms/relative_error
+    (raw AttributeError before); a pandas DataFrame given to identify is named, with how to read
+    it (was "dataset file 't' does not exist"); a result never writes over its source URDF."""
+    pd = pytest.importorskip("pandas")
+    from consistid.data.recordings import from_arrays
+
+    model = ci.RobotModel.example("ur5")
+    run = ci.simulate.excitation_run(model, duration=4.0, rate=200.0, torque_noise=0.05, seed=2)
+    data = run.dataset
+    res = ci.identify(model, data, friction=None, covariance="iid")
+    rec = from_arrays(data.t, data.q, data.tau, data.dq, data.ddq, model=model)
+    np.testing.assert_array_equal(res.rms(rec), res.rms(rec.dataset))
+    assert res.relative_error(rec)[1] == res.relative_error(rec.dataset)[1]
+    with pytest.raises(ci.errors.DatasetError, match="DataFrame.*from_frame"):
+        ci.identify(model, pd.DataFrame(data.columns()))
+    with pytest.raises(ci.errors.ModelError, match="would write over the URDF"):
+        res.to_urdf(model.source)
+    with pytest.raises(ci.errors.ModelError, match="would write over the URDF"):
+        res.to_mjcf(model.source)

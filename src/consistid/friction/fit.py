@@ -57,7 +57,7 @@ import scipy.linalg
 import scipy.optimize
 import scipy.stats
 
-from ..data.dataset import Dataset
+from ..data.dataset import Dataset, as_dataset
 from ..errors import (ExportWarning, InaccurateSolutionWarning, OptionError, PoorExcitationError,
                       PoorExcitationWarning, check_number, check_option)
 from ..identification.base import RANK_RTOL, BaseParameters, compute_base_parameters
@@ -292,6 +292,7 @@ class NonlinearFrictionResult(IdentificationResult):
     def predict(self, dataset: Dataset) -> np.ndarray:
         """``Y(q, q̇, q̈) θ + C(q̇; η̂) ĉ`` for a dataset's samples, (N, nv)."""
         p = self.model.n_inertial + self.spec.n_joint_columns
+        dataset = as_dataset(dataset)
         dataset.check_joints(self.model.nv, self.model.joint_names)
         linear = np.empty((dataset.n_samples, self.model.nv))
         for start in range(0, dataset.n_samples, 4096):

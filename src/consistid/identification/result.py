@@ -213,6 +213,7 @@ class IdentificationResult(StandardParameterSet):
         single-valued prediction everywhere."""
         check_option("at_rest", at_rest, ("point", "cone"))
         rest_speed = check_number("rest_speed", rest_speed, 0)
+        dataset = as_dataset(dataset)
         e = dataset.require_torque() - self.predict(dataset)
         if at_rest == "point":
             return e
@@ -246,6 +247,7 @@ class IdentificationResult(StandardParameterSet):
 
     def relative_error(self, dataset: Dataset) -> tuple[np.ndarray, float]:
         """Per-joint and total relative error ``‖τ − τ̂‖ / ‖τ‖`` on a dataset."""
+        dataset = as_dataset(dataset)
         r, tau = self.residual(dataset), dataset.require_torque()
         return (np.linalg.norm(r, axis=0) / np.linalg.norm(tau, axis=0),
                 float(np.linalg.norm(r) / np.linalg.norm(tau)))

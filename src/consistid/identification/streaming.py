@@ -245,7 +245,8 @@ def is_stream(data: Any) -> bool:
     Dataset (a generator, a ``map``, …). A list or tuple of Datasets is not (it is stacked)."""
     if isinstance(data, DataStream):
         return True
-    if isinstance(data, (Dataset, str, bytes, os.PathLike)):
+    if isinstance(data, (Dataset, str, bytes, os.PathLike)) or type(data).__name__ in (
+            "DataFrame", "Recording"):          # as_dataset names (or unwraps) these
         return False
     if isinstance(data, (list, tuple)):
         return any(isinstance(d, (str, os.PathLike)) for d in data)

@@ -162,6 +162,18 @@ def _set_inertial(link: ET.Element, inertia: pin.Inertia | None) -> None:
     link.insert(0, tag)
 
 
+def check_not_source(model: "RobotModel", path: str | Path, what: str) -> Path:
+    """``path`` as a :class:`~pathlib.Path`, unless it names the URDF ``model`` was read from
+    (:class:`ModelError`: a writer never replaces its input)."""
+    out = Path(path)
+    source = None if model.source is None else Path(model.source)
+    if source is not None and source.exists() and out.exists() \
+            and out.resolve().samefile(source.resolve()):
+        raise ModelError(f"{what}({str(path)!r}) would write over the URDF {model.name!r} was "
+                         "read from (its source); write to another path")
+    return out
+
+
 def write_urdf(model: RobotModel, path: str | Path, parameters: np.ndarray | None = None,
                parameter_names: Sequence[str] | None = None, merged: str = "auto") -> Path:
     """Write ``model.source`` with the given parameters as ``<inertial>`` / ``<dynamics>`` tags.
@@ -188,9 +200,10 @@ def write_urdf(model: RobotModel, path: str | Path, parameters: np.ndarray | Non
         a body (or the part of it written on its child link) is not physically consistent, or a
         Coulomb/viscous coefficient is negative; names the body/link/joint.
     ModelError
-        the model has no source URDF, or does not match it.
+        the model has no source URDF, or does not match it, or ``path`` is that source.
     """
     check_option("merged", merged, MERGED)
+    check_not_source(model, path, "to_urdf")
     if model.source is None or not Path(model.source).is_file():
         raise ModelError(f"{model.name!r} has no source URDF to write parameters into")
     source = Path(model.source)

@@ -32,6 +32,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import ExportWarning, InconsistentParametersError, ModelError
+from .export import check_not_source
 from .inertia import body_slice, check_body
 from .joint_terms import export_parameters
 
@@ -150,12 +151,12 @@ def write_mjcf(model: "RobotModel", path: str | Path, parameters: np.ndarray | N
                parameter_names: Sequence[str] | None = None) -> Path:
     """Write the MJCF of :func:`mjcf_spec` to ``path`` after MuJoCo compiled it (a compiler
     error raises :class:`ModelError` with MuJoCo's message). Returns the path."""
+    out = check_not_source(model, path, "to_mjcf")
     spec = mjcf_spec(model, parameters, parameter_names)
     try:
         spec.compile()
     except ValueError as exc:
         raise ModelError(f"MuJoCo could not compile the MJCF of {model.name!r}: {exc}") from exc
-    out = Path(path)
     out.write_text(_exact_numbers(spec, spec.to_xml()), encoding="utf-8")
     return out
 

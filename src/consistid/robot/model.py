@@ -328,10 +328,6 @@ class RobotModel:
         Refuses (``InconsistentParametersError``) to write a physically inconsistent body, and
         (:class:`ModelError`) to write over the URDF the model was read from.
         """
-        if self.source is not None and Path(self.source).exists() and Path(path).exists() \
-                and Path(path).resolve().samefile(Path(self.source).resolve()):
-            raise ModelError(f"to_urdf({str(path)!r}) would write over the URDF {self.name!r} was "
-                             "read from (its source); write to another path")
         return write_urdf(self, path, parameters, parameter_names, merged)
 
     # ----------------------------------------------------------------------------- description
