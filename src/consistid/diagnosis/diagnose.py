@@ -1050,7 +1050,8 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     remainder = analyse_remainder(tested, left, floor, autocorrelation_time(tested.dataset, left),
                                   where.band_edges, reliable=noise.reliable,
                                   source="training" if tested is train else "held-out",
-                                  cone=cone, unknown=_unpredictable(fit, tested))
+                                  cone=cone, unknown=_unpredictable(fit, tested),
+                                  tried=bool(library.effects) and max_steps > 0)
     if not noise.reliable.all():
         notes.append("the noise floor cannot be seen on "
                      + ", ".join(names[j] for j in np.flatnonzero(~noise.reliable))

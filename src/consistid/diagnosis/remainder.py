@@ -153,10 +153,12 @@ class JointRemainder:
 class Remainder:
     """The unexplained remainder of a diagnosis: one :class:`JointRemainder` per joint and the
     verdict (``"explained"``, ``"remainder on <joints>"`` or ``"undetermined on <joints>"``);
-    ``source``: the data it was judged on (``"training"`` or ``"held-out"``)."""
+    ``source``: the data it was judged on (``"training"`` or ``"held-out"``); ``tried``: whether
+    any candidate effect was tried (not with ``effects=[]`` or ``max_steps=0``)."""
 
     joints: tuple[JointRemainder, ...]
     source: str = "held-out"
+    tried: bool = True
 
     @property
     def flagged(self) -> tuple[str, ...]:
@@ -176,6 +178,10 @@ class Remainder:
                     "does not repeat); pass sigma, or record two periods or more")
         if not self.flagged:
             return "explained: what the selected effects leave is at the noise floor"
+        if not self.tried:
+            return (f"remainder on {', '.join(self.flagged)}: the nominal model leaves more than "
+                    "the noise there, and no candidate effect was tried (effects=[] or "
+                    "max_steps=0)")
         return (f"remainder on {', '.join(self.flagged)}: the selected effects leave more than "
                 "the noise there; an effect outside the candidate list (or a wrong floor: "
                 "pass sigma)")
@@ -298,8 +304,8 @@ def analyse_remainder(data: GapData, remainder: np.ndarray, floor: np.ndarray,
                       alpha: float = REMAINDER_ALPHA,
                       relevance: float = REMAINDER_RELEVANCE,
                       reliable: np.ndarray | None = None, source: str = "held-out",
-                      cone: np.ndarray | None = None, unknown: np.ndarray | None = None
-                      ) -> Remainder:
+                      cone: np.ndarray | None = None, unknown: np.ndarray | None = None,
+                      tried: bool = True) -> Remainder:
     """The :class:`Remainder` of ``remainder`` (N, nv), the residual after every selected
     effect on ``data`` (``source``: which data), against ``floor`` (nv,); ``tau_corr`` (nv,)
     the residual's
@@ -407,4 +413,4 @@ def analyse_remainder(data: GapData, remainder: np.ndarray, floor: np.ndarray,
                                   spread, hysteresis, best, bands, band_edges, drift,
                                   tuple(pointers), determined, growth, shift, shift_share,
                                   0.0 if cone is None else float(cone[j]), tolerated))
-    return Remainder(tuple(out), source)
+    return Remainder(tuple(out), source, tried)
