@@ -311,6 +311,7 @@ def record(model: RobotModel, trajectory: DesiredMotion, effects: Effects | None
     desired = _desired(trajectory, t_fine)
     trace = robot.run(controller.gains, model, t_fine, desired, every, n_settle, progress,
                       step_hook)
+    _check_effort(model, trace.tau_fine, physics_rate)
     rng = np.random.default_rng(seed)
     desired_q = desired[0][n_settle::every]
     tracking = np.max(np.abs(trace.q - desired_q), axis=0)
@@ -335,6 +336,30 @@ def record(model: RobotModel, trajectory: DesiredMotion, effects: Effects | None
         payload_parameters=payload[1], payload_joint=payload[0],
         joint_names=tuple(model.joint_names), rate=float(rate),
         physics_rate=float(physics_rate), controller=controller, trajectory=trajectory)
+
+
+#: A simulated joint torque beyond this multiple of the URDF's effort limit is a diverging
+#: (oscillating) simulation, not a motion the arm makes.
+EFFORT_DIVERGENCE = 10.0
+
+
+def _check_effort(model: RobotModel, tau: np.ndarray, physics_rate: float) -> None:
+    """Raise :class:`ModelError` when the applied torque exceeds :data:`EFFORT_DIVERGENCE` ×
+    a joint's effort limit (finite ones): the simulation oscillates at the physics step without
+    MuJoCo flagging a bad state (a light joint with damping or a stiff controller), and its log
+    would be garbage that a softer controller cannot fix."""
+    effort = np.asarray(model.limits.effort, dtype=float)
+    peak = np.max(np.abs(tau), axis=0)
+    ratio = np.where(np.isfinite(effort) & (effort > 0), peak / np.where(effort > 0, effort, 1.0),
+                     0.0)
+    j = int(np.argmax(ratio))
+    if ratio[j] > EFFORT_DIVERGENCE:
+        raise ModelError(
+            f"the MuJoCo simulation of {model.name} diverged: the torque on "
+            f"{model.joint_names[j]!r} reaches {peak[j]:.3g} N·m, {ratio[j]:.0f} × its effort "
+            f"limit {effort[j]:g} N·m: the physics step 1/{physics_rate:g} s is too long for a "
+            "light link with damping, stiffness or a stiff controller; raise physics_rate (e.g. "
+            f"physics_rate={4 * physics_rate:g}) or soften the effect")
 
 
 def nominal_residual(model: RobotModel, dataset: Dataset) -> np.ndarray:
