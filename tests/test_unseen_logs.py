@@ -474,3 +474,29 @@ def test_independent_states_are_not_judged_as_a_trajectory(planar_2r):
         warnings.simplefilter("error", DataQualityWarning)
         rec = from_arrays(0.005 * np.arange(300), q, tau, dq, ddq, model=planar_2r)
     assert any("independent states" in s for s in rec.steps)
+
+
+def test_torques_in_mnm_read_by_their_unit_and_warned_without_it(tmp_path):
+    """A CSV whose torque columns say [mNm] is converted (noted); the same numbers without a
+    unit, given to identify as a Dataset, exceed the URDF's effort limits ×1000 and warn by
+    joint (the SDP called 1000-fold links 'consistent' silently)."""
+    import warnings as _w
+
+    from consistid.data.recordings import load_recording
+
+    model = ci.RobotModel.example("ur5")
+    run = ci.simulate.excitation_run(model, duration=6.0, rate=200.0, torque_noise=0.05, seed=3)
+    d = run.dataset
+    names = model.joint_names
+    header = ["t"] + [f"q_{n}" for n in names] + [f"tau_{n} [mNm]" for n in names]
+    rows = np.column_stack([d.t, d.q, 1e3 * d.tau])
+    path = tmp_path / "milli.csv"
+    np.savetxt(path, rows, delimiter=",", header=",".join(header), comments="", fmt="%.10g")
+    rec = load_recording(path, model=model)
+    assert any("mnm" in n.lower() and "converted to N·m" in n for n in rec.steps), rec.steps
+    ratio = np.sqrt(np.mean(rec.dataset.tau ** 2, axis=0) / np.mean(d.tau ** 2, axis=0))
+    np.testing.assert_allclose(ratio, 1.0, rtol=0.05)       # N·m again (filtered, trimmed)
+    with pytest.warns(ci.errors.DataQualityWarning, match="effort limits.*'shoulder_pan_joint'"):
+        with _w.catch_warnings():
+            _w.simplefilter("ignore", ci.errors.PoorExcitationWarning)
+            ci.identify(model, d.with_torque(1e3 * d.tau), method="ols", covariance="iid")

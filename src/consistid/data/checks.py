@@ -151,15 +151,44 @@ def check_limits(dataset: Dataset, lower: np.ndarray, upper: np.ndarray,
                       "given", DataQualityWarning, stacklevel=stacklevel)
 
 
+#: A joint whose torque's 99th percentile exceeds this multiple of its URDF effort limit is
+#: warned about: an actuator does not exceed its rating that often (mN·m logged as N·m do).
+EFFORT_FACTOR = 2.0
+
+
+def check_effort(dataset: Dataset, effort: np.ndarray,
+                 joint_names: Sequence[str] | None = None, stacklevel: int = 4) -> None:
+    """Warn (:class:`DataQualityWarning`) when a joint's torque exceeds :data:`EFFORT_FACTOR` ×
+    its effort limit in more than 1 % of the samples: torques in mN·m (or another unit), another
+    robot's log, or a URDF whose limits are wrong. Joints without a positive finite limit are not
+    checked."""
+    effort = np.asarray(effort, dtype=float)
+    tau = dataset.tau
+    if tau is None or effort.shape != (tau.shape[1],):
+        return
+    level = np.percentile(np.abs(tau), 99, axis=0)
+    found = [f"{_joint(dataset, j, joint_names)!r} reaches {level[j]:.4g} against its "
+             f"{effort[j]:.4g}" for j in range(tau.shape[1])
+             if np.isfinite(effort[j]) and effort[j] > 0 and level[j] > EFFORT_FACTOR * effort[j]]
+    if found:
+        warnings.warn(f"torques beyond the URDF's effort limits (99th percentile of |τ|): "
+                      f"{'; '.join(found[:5])}. Are they in mN·m or another unit (name it in "
+                      "the log's header, e.g. 'tau_<joint> [mNm]'), from another robot, or are "
+                      "the URDF's limits wrong? Identification goes on with them as given",
+                      DataQualityWarning, stacklevel=stacklevel)
+
+
 def check_for_identification(dataset: Dataset, joint_names: Sequence[str] | None = None,
-                             limits: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+                             limits: tuple[np.ndarray, ...] | None = None) -> None:
     """All of the above, in order, for data about to be identified (needs torques);
     ``joint_names`` (the model's) name the joints when the dataset does not; ``limits``
-    ``(lower, upper)`` per joint (the model's) are checked when given."""
+    ``(lower, upper[, effort])`` per joint (the model's) are checked when given."""
     dataset.require_torque()
     check_magnitudes(dataset, joint_names=joint_names)
     check_motion(dataset)
     check_torque(dataset, joint_names)
     check_glitches(dataset, FIELDS, joint_names=joint_names, stacklevel=5)
     if limits is not None:
-        check_limits(dataset, *limits, joint_names=joint_names, stacklevel=5)
+        check_limits(dataset, *limits[:2], joint_names=joint_names, stacklevel=5)
+        if len(limits) > 2:
+            check_effort(dataset, limits[2], joint_names, stacklevel=5)

@@ -885,7 +885,7 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     dataset = as_dataset(dataset)
     dataset.check_joints(model.nv, model.joint_names)
     check_for_identification(dataset, model.joint_names,           # before any numerics
-                             (model.limits.lower, model.limits.upper))
+                             (model.limits.lower, model.limits.upper, model.limits.effort))
     if held_out is None:
         train_ds, held_ds = dataset.split(split)
         held_source = f"last {1 - split:.0%} of each recording (time split)"

@@ -314,7 +314,7 @@ def estimate_mounting(model: RobotModel, dataset: Dataset | DataStream,
         dataset = as_dataset(dataset)
     if isinstance(dataset, Dataset):  # magnitudes, motion, dead channels, glitches
         check_for_identification(dataset, model.joint_names,
-                                 (model.limits.lower, model.limits.upper))
+                                 (model.limits.lower, model.limits.upper, model.limits.effort))
     if not np.any(g0):
         raise ModelError(f"{model.name} has zero gravity: there is no mounting tilt to estimate")
     spec = RegressorSpec.make(model, friction, armature)

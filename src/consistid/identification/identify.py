@@ -235,7 +235,7 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
         dataset.check_joints(model.nv, model.joint_names)
         # magnitudes, motion, dead channels, glitches, positions beyond the limits
         check_for_identification(dataset, model.joint_names,
-                                 (model.limits.lower, model.limits.upper))
+                                 (model.limits.lower, model.limits.upper, model.limits.effort))
     if is_nonlinear(friction):  # Stribeck / sigmoid / tanh laws: consistid.friction.fit
         if not isinstance(dataset, Dataset):
             raise OptionError("nonlinear friction laws need the data in memory (a Dataset or a "

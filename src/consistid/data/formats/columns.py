@@ -372,6 +372,10 @@ DEGREE_UNITS: dict[str, tuple[str, ...]] = {
     "ddq": ("deg/s^2", "deg/s2", "deg/s²", "°/s^2", "°/s²")}
 
 
+#: Milli spellings of the torque's unit, converted by 1e-3 (and said so).
+MILLI_UNITS: dict[str, tuple[str, ...]] = {"tau": ("mnm", "mn.m", "mn*m", "mn m", "mn·m")}
+
+
 def column_unit(name: str) -> str | None:
     """The unit written in brackets at the end of a column name (``"q1 [deg]"`` → ``"deg"``),
     lower case without spaces at the ends, or after an underscore (``"q1_deg"`` → ``"deg"``,
@@ -384,17 +388,22 @@ def column_unit(name: str) -> str | None:
 
 def unit_factor(field_name: str, column: str, source: str) -> tuple[float, str | None]:
     """``(factor to SI, note)`` for a per-joint column whose header names a unit: 1 for SI,
-    π/180 for degrees of an angle (noted), :class:`DatasetError` for any other unit, which
-    consistid will not guess (convert the column, or rename it without the unit)."""
+    π/180 for degrees of an angle, 1e-3 for mN·m (both noted), :class:`DatasetError` for any
+    other unit, which consistid will not guess (convert the column, or rename it without the
+    unit)."""
     unit = column_unit(column)
     if unit is None or unit in SI_UNITS[field_name]:
         return 1.0, None
     if unit in DEGREE_UNITS.get(field_name, ()):
         return float(np.pi / 180.0), f"{column!r} in {unit}: converted to radians"
+    if unit in MILLI_UNITS.get(field_name, ()):
+        return 1e-3, f"{column!r} in {unit}: converted to N·m"
     raise DatasetError(f"{source}, column {column!r}: unit [{unit}] is not one consistid "
                        f"reads for {field_name} (SI: {', '.join(SI_UNITS[field_name])}"
                        + (f"; degrees: {', '.join(DEGREE_UNITS[field_name])}"
                           if field_name in DEGREE_UNITS else "")
+                       + (f"; milli: {', '.join(MILLI_UNITS[field_name])}"
+                          if field_name in MILLI_UNITS else "")
                        + "); convert the column to SI units or name its unit")
 
 
