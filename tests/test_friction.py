@@ -469,3 +469,21 @@ def test_residual_at_rest_is_the_distance_to_the_friction_cone(planar_2r):
         res.residual(data, at_rest="interval")
     with pytest.raises(ci.errors.OptionError, match="rest_speed"):
         res.residual(data, at_rest="cone", rest_speed=-1.0)
+
+
+def test_a_law_on_low_pass_filtered_torques_is_warned_about(panda):
+    """The default chain filters the torques; a nonlinear law's step at q̇ = 0 reaches them
+    smoothed, which the law does not model: identify says so and how to avoid it; the linear
+    Coulomb column (filtered like the torques) is not warned about."""
+    traj = ci.FourierTrajectory.random(panda, harmonics=3, period=5.0, seed=2)
+    rec = record(panda, traj, Effects(coulomb=0.4, torque_noise=NOISE), duration=10.0,
+                 rate=500.0, seed=2)
+    data = ci.Dataset.from_recording(rec.t, rec.q, rec.tau)
+    with pytest.warns(ci.errors.DataQualityWarning, match="filter_torque=False"):
+        ci.identify(panda, data, method="ols", friction="tanh", covariance="iid")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ci.errors.DataQualityWarning)
+        ci.identify(panda, data, method="ols", covariance="iid")
+        unfiltered = ci.Dataset.from_recording(rec.t, rec.q, rec.tau, filter_torque=False)
+        assert unfiltered.dq_sign is None
+        ci.identify(panda, unfiltered, method="ols", friction="tanh", covariance="iid")

@@ -58,8 +58,9 @@ import scipy.optimize
 import scipy.stats
 
 from ..data.dataset import Dataset, as_dataset
-from ..errors import (ExportWarning, InaccurateSolutionWarning, OptionError, PoorExcitationError,
-                      PoorExcitationWarning, check_number, check_option)
+from ..errors import (DataQualityWarning, ExportWarning, InaccurateSolutionWarning,
+                      OptionError, PoorExcitationError, PoorExcitationWarning, check_number,
+                      check_option)
 from ..identification.base import RANK_RTOL, BaseParameters, compute_base_parameters
 from ..identification.compression import SIGMA_FLOOR, CompressedProblem, accumulate
 from ..identification.regressor import (FRICTION_TERMS, RegressorSpec, parameter_names,
@@ -609,6 +610,13 @@ def identify_nonlinear(model: RobotModel, dataset: Dataset, method: str, frictio
     spec = linear_spec(model, selection, armature)
     base = compute_base_parameters(model, spec)
     tau = dataset.require_torque()
+    if dataset.dq_sign is not None and any(law != LINEAR for law in selection.laws):
+        warnings.warn("the signal chain low-pass filtered these torques: a friction law's step "
+                      "at q̇ = 0 reaches them smoothed over the filter's response, which the "
+                      "law (a function of q̇) does not model, and its static friction and "
+                      "shapes are biased; load the log with filter_torque=False (the fit "
+                      "averages the noise), or fit 'coulomb', whose column is filtered like "
+                      "the torques", DataQualityWarning, stacklevel=3)
     n, nv = tau.shape
     y = regressor(model, dataset.q, dataset.dq, dataset.ddq, spec,
                   dq_sign=dataset.dq_sign).reshape(n, nv, -1)
