@@ -770,20 +770,25 @@ def _sdp_inertia(model: RobotModel, train: GapData, nominal: np.ndarray, others:
     corrected = train.dataset.with_torque(train.tau - others
                                           - (0 if train.nominal_extra is None
                                              else train.nominal_extra))
-    # The log-det prior needs every nominal body realisable (J ≻ 0); otherwise say so and use
-    # the Euclidean prior around the same nominal values.
+    # The log-det prior needs every nominal body realisable (J ≻ 0). A nominal that is not (a
+    # massless or non-physical URDF link) is no prior at all: a Euclidean pull towards it held
+    # the fitted link near zero mass and left most of the gap unexplained. Then the data and
+    # the consistency constraints alone decide (the torques depend on the base parameters only).
     check = is_physically_consistent(nominal[:model.n_inertial], "pseudo-inertia",
                                      model.body_names)
     bad = [b.body for b in check.bodies if not b.min_pseudo_inertia_eigenvalue > 0]
-    prior = "euclidean" if bad else "logdet"
+    prior = None if bad else "logdet"
     res = identify(model.with_parameters(nominal), corrected, method="sdp", friction=None,
                    prior=prior)
-    why = (f" (the nominal {', '.join(bad)} {'is' if len(bad) == 1 else 'are'} not physically "
-           "realisable, so no log-det prior)" if bad else "")
+    if bad:
+        how = (f"without a prior (the nominal {', '.join(bad)} "
+               f"{'is' if len(bad) == 1 else 'are'} not physically realisable: no prior "
+               "around it means anything; the data and the consistency constraints decide)")
+    else:
+        how = "with a log-det prior around the nominal parameters"
     return res.inertial_parameters, (f"inertia re-identified by the consistent SDP "
-                                     f"({res.solver.name}: {res.solver.status}) with a "
-                                     f"{'log-det' if prior == 'logdet' else prior} "
-                                     f"prior around the nominal parameters{why}"), res.base_std
+                                     f"({res.solver.name}: {res.solver.status}) {how}"), \
+        res.base_std
 
 
 def _tuned_atoms(library: EffectLibrary, train: GapData, floor: np.ndarray
