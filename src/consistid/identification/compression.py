@@ -148,14 +148,19 @@ def compress(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
                for keep in keeps]
     compact = [np.zeros((k.size, k.size), order="F") for k in keeps]
     n_total = dataset.n_samples
-    rigid = np.empty((min(chunk, max(n_total, 1)), model.nv, n_in))   # one reused buffer
+    rows = min(chunk, max(n_total, 1))
+    rigid = np.empty((rows, model.nv, n_in))                            # one reused buffer
+    # one reused column-major block per joint (a fresh one per chunk and joint page-faults a
+    # megabyte each time)
+    blocks = [np.empty((rows, keep.size), order="F") for keep in keeps]
     for start in range(0, n_total, chunk):
         s = slice(start, min(start + chunk, n_total))
         q, dq, ddq = check_states(model, dataset.q[s], dataset.dq[s], dataset.ddq[s])
         y = rigid_body_regressor(model, q, dq, ddq, out=rigid[: s.stop - s.start])
         for j, keep in enumerate(keeps):
             # joint j's rows of [Y | τ], kept columns only, column-major for LAPACK
-            block = np.empty((y.shape[0], keep.size), order="F")
+            block = blocks[j] if y.shape[0] == rows else np.empty((y.shape[0], keep.size),
+                                                                   order="F")
             r = rigid_cols[j].size
             for a in range(0, y.shape[0], GATHER_ROWS):   # gathered and transposed in cache
                 block[a:a + GATHER_ROWS, :r] = y[a:a + GATHER_ROWS, j, rigid_cols[j]]
