@@ -279,12 +279,12 @@ class NonlinearFrictionResult(IdentificationResult):
                            np.abs(self.friction_torque(-tiny)))[0]
         return np.where(self._dry_laws(), limit, 0.0) + super().static_friction
 
-    def dry_friction(self, dq: np.ndarray) -> np.ndarray:
+    def dry_friction(self, dq: np.ndarray, sign: np.ndarray | None = None) -> np.ndarray:
         """The friction the prediction holds at velocities ``dq`` that a joint at rest replaces
-        by its cone (N, nv): a dry law's torque (Stribeck), ``f_c sign(q̇)`` on ``"coulomb"``
-        joints; nothing for the continuous laws (sigmoid, tanh)."""
-        return super().dry_friction(dq) + np.where(self._dry_laws(), self.friction_torque(dq),
-                                                   0.0)
+        by its cone (N, nv): a dry law's torque (Stribeck), ``f_c sign(q̇)`` (or ``sign``) on
+        ``"coulomb"`` joints; nothing for the continuous laws (sigmoid, tanh)."""
+        return super().dry_friction(dq, sign) + np.where(self._dry_laws(),
+                                                         self.friction_torque(dq), 0.0)
 
     def _dry_laws(self) -> np.ndarray:
         """(nv,) joints whose law steps at ``q̇ = 0``."""

@@ -219,7 +219,7 @@ class IdentificationResult(StandardParameterSet):
             return e
         cone = self.static_friction
         rest = (np.abs(dataset.dq) < rest_speed) & (cone > 0)
-        e0 = e + self.dry_friction(dataset.dq)
+        e0 = e + self.dry_friction(dataset.dq, dataset.dq_sign)
         e[rest] = (e0 - np.clip(e0, -cone, cone))[rest]
         return e
 
@@ -230,10 +230,12 @@ class IdentificationResult(StandardParameterSet):
         as 0), the friction laws' limit as ``q̇ → 0`` in a nonlinear-friction result."""
         return np.maximum(self._coulomb(), 0.0)
 
-    def dry_friction(self, dq: np.ndarray) -> np.ndarray:
+    def dry_friction(self, dq: np.ndarray, sign: np.ndarray | None = None) -> np.ndarray:
         """The dry (velocity-sign) friction the prediction holds at velocities ``dq`` (N, nv):
-        ``f_c sign(q̇)``."""
-        return self._coulomb() * np.sign(np.atleast_2d(dq))
+        ``f_c sign(q̇)`` (``sign``: the Coulomb signal the prediction used instead, a dataset's
+        ``dq_sign``)."""
+        return self._coulomb() * (np.sign(np.atleast_2d(dq)) if sign is None
+                                  else np.atleast_2d(sign))
 
     def _coulomb(self) -> np.ndarray:
         """(nv,) the ``coulomb`` column's ``f_c`` per joint (0 without one)."""
