@@ -30,6 +30,7 @@ import scipy.optimize
 import scipy.stats
 
 from ..errors import (
+    DatasetError,
     IdentificationError,
     OptionError,
     PoorExcitationError,
@@ -187,6 +188,44 @@ def _estimate_cov(kind: str, res: np.ndarray, n_free: int) -> np.ndarray:
     return np.broadcast_to(np.diag(np.square(std)), (res.shape[0], len(std), len(std))).copy()
 
 
+def _check_within_limits(model: RobotModel, q: np.ndarray, slack: float = 0.1) -> None:
+    """Refuse joint angles beyond the URDF's limits by more than ``slack`` rad: the usual cause
+    is degrees given for radians, and the fit would otherwise fail to converge or, worse,
+    converge to corrections of whole turns."""
+    lim = model.limits
+    out = (q < lim.lower - slack) | (q > lim.upper + slack)
+    if out.any():
+        k, j = (int(i) for i in np.argwhere(out)[0])
+        hint = (" (they look like degrees: q is in radians, np.radians(q))"
+                if np.abs(q).max() > 2 * np.pi + slack else "")
+        raise DatasetError(
+            f"q[{k}, {model.joint_names[j]!r}] = {q[k, j]:.4g} rad lies outside the joint's "
+            f"limits [{lim.lower[j]:.4g}, {lim.upper[j]:.4g}] rad ({int(out.sum())} entries "
+            f"outside){hint}")
+
+
+def _check_length_unit(chart: KinematicParameters, q: np.ndarray, positions: np.ndarray,
+                       factor: float = 2.0) -> None:
+    """Refuse measured positions whose spread differs from the URDF's prediction by more than
+    ``factor``: a rigid change of measurement frame keeps distances between points, and
+    corrections of millimetres change the spread by far less, so a ratio of ~1000 or ~0.001
+    means millimetres for metres (or the reverse) rather than a robot that differs from its
+    URDF. Skipped when the configurations barely move the frame (< 1 cm RMS)."""
+    pos, _, _ = chart.frame_kinematics(np.zeros(chart.size), q, False)
+    spread_model = float(np.sqrt(np.mean(np.sum((pos - pos.mean(axis=0)) ** 2, axis=1))))
+    spread_meas = float(np.sqrt(np.mean(np.sum((positions - positions.mean(axis=0)) ** 2,
+                                               axis=1))))
+    if spread_model < 1e-2:
+        return
+    ratio = spread_meas / spread_model
+    if not 1.0 / factor <= ratio <= factor:
+        raise DatasetError(
+            f"the measured positions spread {spread_meas:.4g} (RMS about their mean) where the "
+            f"URDF predicts {spread_model:.4g} m for the same q: {ratio:.3g}× apart. A rigid "
+            "measurement frame keeps distances, so the measurements are probably in another "
+            "unit (give metres: mm / 1000) or belong to other joint configurations")
+
+
 def calibrate_kinematics(model: RobotModel, q: object, measurements: object,
                          frame: str | None = None,
                          parameters: str | Iterable[str] = "all", sigma: object = None, *,
@@ -251,9 +290,15 @@ def calibrate_kinematics(model: RobotModel, q: object, measurements: object,
         raise OptionError(f"outlier_alpha must be in (0, 1), got {outlier_alpha!r}")
     max_nfev = int(check_number("max_nfev", max_nfev, 1, integer=True))
     qa = joint_coordinates(model, q)
+    if qa.shape[0] == 0:
+        raise DatasetError("q is empty (0 configurations); give one row of joint angles (rad) "
+                           "per measurement")
+    _check_within_limits(model, qa)
     meas = as_measurements(measurements, qa.shape[0])
     frame = end_effector_frame(model) if frame is None else frame
     chart = KinematicParameters(model, frame, meas.kind)
+    if meas.kind != "distance":
+        _check_length_unit(chart, qa, meas.positions)
     sel = chart.select(parameters)
     names = [chart.names[i] for i in sel]
     n, m = meas.n, meas.width

@@ -91,6 +91,9 @@ def as_measurements(values: object, n: int | None = None) -> Measurements:
             kind = "pose"
         else:
             raise DatasetError(f"measurements have shape {a.shape}; give {shapes}")
+        if a.shape[0] == 0:
+            raise DatasetError("measurements are empty (0 rows); give one measurement per "
+                               "joint configuration")
         flat = a.reshape(a.shape[0], -1) if a.ndim > 1 else a[:, None]
         bad = np.argwhere(~np.isfinite(flat))
         if bad.size:

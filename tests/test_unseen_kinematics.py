@@ -1,0 +1,68 @@
+"""Kinematic calibration on inputs nobody tuned it to: empty arrays, degrees for radians,
+millimetres for metres (each must be refused by name, not fitted)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import consistid as ci
+from consistid.errors import DatasetError
+from consistid.kinematics import KinematicParameters
+
+
+@pytest.fixture(scope="module")
+def ur5_positions():
+    """A UR5 whose zero offsets are off by ±0.5°, measured at tool0 (positions, 10 µm noise)."""
+    model = ci.RobotModel.example("ur5")
+    chart = KinematicParameters(model, "tool0", "position")
+    rng = np.random.default_rng(3)
+    truth = np.zeros(chart.size)
+    for i, name in enumerate(chart.names[:chart.n_kinematic]):
+        if name.endswith(".zero"):
+            truth[i] = np.radians(rng.uniform(-0.5, 0.5))
+    real = chart.robot_model(truth)
+    lim = model.limits
+    q = rng.uniform(np.maximum(lim.lower, -np.pi), np.minimum(lim.upper, np.pi), (40, model.nv))
+    data, fid = real.pin_model.createData(), real.pin_model.getFrameId("tool0")
+    pos = []
+    for qk in q:
+        pin.framesForwardKinematics(real.pin_model, data, real.configuration(qk))
+        pos.append(data.oMf[fid].translation + rng.normal(0, 1e-5, 3))
+    return model, chart, truth, q, np.array(pos)
+
+
+def test_empty_input_is_named(ur5_positions):
+    model, _, _, q, pos = ur5_positions
+    with pytest.raises(DatasetError, match="empty"):
+        ci.calibrate_kinematics(model, q[:0], pos[:0], frame="tool0")
+
+
+def test_degrees_are_refused_with_the_hint(ur5_positions):
+    model, _, _, q, pos = ur5_positions
+    with pytest.raises(DatasetError, match="degrees"):
+        ci.calibrate_kinematics(model, np.degrees(q), pos, frame="tool0", sigma=1e-5)
+
+
+def test_millimetres_are_refused(ur5_positions):
+    """Before: a 'converged' fit with a 110 m joint-origin correction and χ²/dof = NaN."""
+    model, _, _, q, pos = ur5_positions
+    with pytest.raises(DatasetError, match="unit"):
+        ci.calibrate_kinematics(model, q, pos * 1000.0, frame="tool0", sigma=1e-5)
+
+
+def test_metres_in_another_frame_still_calibrate(ur5_positions):
+    """The unit check must not refuse a rigid change of measurement frame, and the zero
+    offsets the positions identify come back to within 5 σ of the injected ones."""
+    model, chart, truth, q, pos = ur5_positions
+    tracker = pin.SE3(pin.exp3(np.array([0.1, -0.2, 0.7])), np.array([2.0, -1.0, 0.3]))
+    moved = pos @ tracker.rotation.T + tracker.translation
+    cal = ci.calibrate_kinematics(model, q, moved, frame="tool0", sigma=1e-5,
+                                  parameters=["zero", "base"])
+    for name in ("shoulder_lift_joint.zero", "elbow_joint.zero", "wrist_1_joint.zero",
+                 "wrist_2_joint.zero"):
+        i = list(cal.parameter_names).index(name)
+        assert cal.identified[i]
+        lo, hi = cal.conf_int(alpha=1e-6)[i]
+        assert lo <= truth[chart.names.index(name)] <= hi, name
