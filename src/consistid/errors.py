@@ -192,3 +192,9 @@ class ModelWarning(UserWarning):
     """A robot model loads but is suspicious: a URDF body whose inertia no physical body has
     (negative principal moment, triangle inequality violated); names the bodies and what will
     refuse them (MuJoCo, the log-det prior)."""
+
+
+class BoundActiveWarning(UserWarning):
+    """A bound the user gave (a payload's ``mass_range`` or ``com_bounds``, an ellipsoid)
+    decides the estimate: the data alone would put it outside, beyond their uncertainty. Names
+    the bound, the unbounded estimate and the χ² it costs."""

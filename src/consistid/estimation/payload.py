@@ -42,7 +42,8 @@ from ..robot.shapes import Ellipsoid
 from ..identification.constraints import (BodyScaling, com_box, ellipsoid_lmi, mass_bounds,
                           pseudo_inertia_lmi)
 from ..data.dataset import Dataset
-from ..errors import (IdentificationError, InfeasibleError, ModelError, NothingFoundWarning,
+from ..errors import (BoundActiveWarning, IdentificationError, InfeasibleError, ModelError,
+                     NothingFoundWarning,
                      OptionError, PoorExcitationError, PoorExcitationWarning, check_bounds,
                      check_box, check_option)
 from ..report.html import Page
@@ -342,7 +343,8 @@ def _check_payload_options(frame: object, body: object, ellipsoid: object, com_b
 def _solve_payload(r: np.ndarray, z: np.ndarray, null: np.ndarray, what: str,
                    ellipsoid: Ellipsoid | None, box: tuple[Sequence[float], Sequence[float]] | None,
                    mass_range: tuple[float | None, float | None] | None, solver: str,
-                   options: dict[str, Any] | None) -> tuple[np.ndarray, SolverReport]:
+                   options: dict[str, Any] | None
+                   ) -> tuple[np.ndarray, SolverReport, str | None]:
     """``min ‖r θ − z‖²`` s.t. ``J(θ) ⪰ 0`` and the optional payload constraints; directions in
     ``null`` (not determined by ``r``) are pulled to zero (the most compact payload)."""
     theta_ls = np.linalg.lstsq(r, z, rcond=None)[0]
@@ -365,7 +367,42 @@ def _solve_payload(r: np.ndarray, z: np.ndarray, null: np.ndarray, what: str,
     except InfeasibleError as exc:
         raise _infeasible_options(exc, r, z, null, ellipsoid, box, mass_range, solver,
                                   options) from exc
-    return np.asarray(x.value, dtype=float), report
+    theta = np.asarray(x.value, dtype=float)
+    note = (_bounds_decide(theta, r, z, null, ellipsoid, box, mass_range, solver, options)
+            if box is not None or mass_range is not None else None)
+    return theta, report, note
+
+
+def _bounds_decide(theta: np.ndarray, r: np.ndarray, z: np.ndarray, null: np.ndarray,
+                   ellipsoid: Ellipsoid | None, box: tuple | None, mass_range: tuple | None,
+                   solver: str, options: dict[str, Any] | None) -> str | None:
+    r"""Warn (and return the note) when ``mass_range``/``com_bounds`` decide the estimate.
+
+    Likelihood-ratio test on the whitened problem: the bounds raise ``‖r θ − z‖²`` above the
+    fit with ``J ⪰ 0`` alone by ``Δχ² > 3²`` (one parameter moved by more than 3 σ, the
+    threshold of "no payload found"), i.e. the data alone put the payload outside the bounds.
+    """
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            free, _, _ = _solve_payload(r, z, null, "payload (without bounds)", ellipsoid, None,
+                                        None, solver, options)
+    except IdentificationError:
+        return None
+    delta = float(np.sum((r @ theta - z) ** 2) - np.sum((r @ free - z) ** 2))
+    if delta <= NO_PAYLOAD_SIGMAS ** 2:
+        return None
+    given = [f"{name} = {tuple(tuple(v) if np.ndim(v) else v for v in value)!r}"
+             for name, value in (("mass_range", mass_range), ("com_bounds", box))
+             if value is not None]
+    com = (f", CoM {np.array2string(free[1:4] / free[0], precision=4)} m" if free[0] > 0
+           else "")
+    text = (f"{' and '.join(given)} decide{'' if len(given) > 1 else 's'} the payload: the data alone (J ⪰ 0) give "
+            f"{free[0]:.4g} kg{com}, and the bounds cost Δχ² = {delta:.3g} > "
+            f"{NO_PAYLOAD_SIGMAS ** 2:g} ({NO_PAYLOAD_SIGMAS:g} σ). The estimate sits on the "
+            "bound, not where the data put it: check the bounds, the frame and the body")
+    warnings.warn(text, BoundActiveWarning, stacklevel=4)
+    return text
 
 
 def _infeasible_options(exc: InfeasibleError, r: np.ndarray, z: np.ndarray, null: np.ndarray,
@@ -380,7 +417,7 @@ def _infeasible_options(exc: InfeasibleError, r: np.ndarray, z: np.ndarray, null
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                theta, _ = _solve_payload(r, z, null, "payload (diagnosis)", kept["ellipsoid"],
+                theta, _, _ = _solve_payload(r, z, null, "payload (diagnosis)", kept["ellipsoid"],
                                           kept["com_bounds"], kept["mass_range"], solver,
                                           options)
         except IdentificationError:
@@ -553,8 +590,11 @@ def estimate_payload(model: RobotModel, loaded: Dataset | DataStream | Identific
     notes, short = _notes(model, index, transform, ident[0], ident[4], "data")
     if short:
         warnings.warn("payload: " + notes[-1], PoorExcitationWarning, stacklevel=2)
-    theta, report = _solve_payload(r, z, ident[2], "payload estimation (torque)", ellipsoid,
-                                   com_bounds, mass_range, solver, solver_options)
+    theta, report, bound_note = _solve_payload(r, z, ident[2], "payload estimation (torque)",
+                                               ellipsoid, com_bounds, mass_range, solver,
+                                               solver_options)
+    if bound_note is not None:
+        notes.insert(0, bound_note)
     rms = np.sqrt(problem.sum_squares(transform @ theta, cols) / n)
     cov = _covariance(r, ident[2])
     if isinstance(robot, IdentificationResult):
@@ -697,8 +737,11 @@ def payload_from_base_change(model: RobotModel, unloaded: IdentificationResult |
     z = weight @ (beta_l - beta_u)
     ident = _identifiability(r)
     notes, _ = _notes(model, index, transform, ident[0], ident[4], "change of coefficients")
-    theta, report = _solve_payload(r, z, ident[2], "payload estimation (base change)",
-                                   ellipsoid, com_bounds, mass_range, solver, solver_options)
+    theta, report, bound_note = _solve_payload(r, z, ident[2],
+                                               "payload estimation (base change)", ellipsoid,
+                                               com_bounds, mass_range, solver, solver_options)
+    if bound_note is not None:
+        notes = [bound_note, *notes]
     return _payload_result(theta, _covariance(r, ident[2]), frame_name,
                            model.body_names[index], "base-change", ident, report,
                            notes_weight + notes,
