@@ -326,3 +326,19 @@ def test_no_candidate_tried_is_not_called_an_effect_outside_the_list(xarm7):
         assert diag.effects == () and "joint3" in diag.remainder.flagged
         assert "no candidate effect was tried" in diag.remainder.verdict
         assert "outside the candidate list" not in diag.remainder.verdict
+
+
+def test_an_unseen_floor_warns_and_says_undetermined(ur5):
+    """One period of excitation (no repetition), AR(1) noise, torques filtered by the chain: the
+    floor cannot be seen (the spectrum's roll-off lies in the motion band); diagnose warns
+    (DataQualityWarning naming the joints and sigma=) and the verdict is 'undetermined' rather
+    than a floor far below the truth."""
+    rng = np.random.default_rng(5)
+    sets = []
+    for s, d in ((1, PERIOD), (2, PERIOD)):
+        r = record(ur5, FourierTrajectory.random(ur5, 3, PERIOD, seed=s), Effects(),
+                   duration=d, rate=RATE, seed=s)
+        sets.append(preprocess(r.t, r.q, r.tau + ar1_noise(r.tau.shape, 0.9, 0.05, rng)).dataset)
+    with pytest.warns(ci.errors.DataQualityWarning, match="noise floor cannot be seen.*sigma"):
+        diag = diagnose(ur5, sets[0], held_out=sets[1])
+    assert diag.remainder.undetermined and diag.verdict.startswith("undetermined")

@@ -54,6 +54,7 @@ Method
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field, replace
 from typing import Callable, Sequence
 
@@ -64,7 +65,7 @@ import scipy.stats
 from ..data.checks import check_for_identification
 from ..data.dataset import Dataset, as_dataset
 from ..data.filters import settling_time
-from ..errors import ModelError, OptionError, check_number, check_option
+from ..errors import DataQualityWarning, ModelError, OptionError, check_number, check_option
 from ..identification.regressor import joint_columns
 from ..identification.statistics import autocorrelation_time, coloured_covariance
 from ..progress import Progress
@@ -1058,10 +1059,14 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
                                   cone=cone, unknown=_unpredictable(fit, tested),
                                   tried=bool(library.effects) and max_steps > 0)
     if not noise.reliable.all():
-        notes.append("the noise floor cannot be seen on "
-                     + ", ".join(names[j] for j in np.flatnonzero(~noise.reliable))
-                     + " (torques filtered below the motion band and no repetition of the "
-                     "excitation): pass sigma for a trustworthy remainder verdict")
+        unseen = ("the noise floor cannot be seen on "
+                  + ", ".join(names[j] for j in np.flatnonzero(~noise.reliable))
+                  + " (torques filtered below the motion band and no repetition of the "
+                  "excitation): pass sigma for a trustworthy remainder verdict")
+        notes.append(unseen)
+        warnings.warn(f"diagnose: {unseen}; until then the verdict there is 'undetermined' and "
+                      "the effects' significance rests on a floor that may be far too low",
+                      DataQualityWarning, stacklevel=2)
     return Diagnosis(model.name, tuple(names), tuple(findings), where, floor, noise_source,
                      rms_nominal, rms_final, library_floor, held_source, tuple(steps), fit,
                      tuple(notes), remainder, noise)
