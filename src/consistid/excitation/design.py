@@ -25,6 +25,7 @@ constraints (:func:`random_feasible`).
 from __future__ import annotations
 
 import logging
+import warnings
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -36,7 +37,13 @@ import scipy.sparse
 
 from ..identification.base import BaseParameters, compute_base_parameters
 from ..data.dataset import Dataset
-from ..errors import InfeasibleExcitationError, OptionError, check_number, check_option
+from ..errors import (
+    InfeasibleExcitationError,
+    OptionError,
+    PoorExcitationWarning,
+    check_number,
+    check_option,
+)
 from ..report.html import Page
 from ..report.result import Reported
 from ..progress import Progress
@@ -620,9 +627,31 @@ def design_excitation(model: RobotModel, harmonics: int = 5, period: float = 10.
             "safety or n_grid, or relax the limits")
     best = min(feasible, key=lambda s: s.value)
     traj = param.trajectory(best.coefficients)
+    _warn_if_uninformative(qualities[best.index].cond, limits)
     return ExcitationDesign(traj, criterion, best.value, qualities[best.index], tuple(starts),
                             best.index, base, spec, limits, tuple(model.joint_names),
                             time.perf_counter() - start_time)
+
+
+#: ``cond(Y_b)`` beyond which least squares on the design's data loses every digit of the
+#: worst-determined base parameter: ``1/√ε`` (the normal equations square the condition number).
+UNINFORMATIVE_COND = 1.0 / np.sqrt(np.finfo(float).eps)
+
+
+def _warn_if_uninformative(cond: float, limits: ExcitationLimits) -> None:
+    """A feasible design is not a useful one: warn when the best trajectory leaves base
+    parameters unexcited (``cond(Y_b) > 1/√ε``), usually because the limits leave no motion."""
+    if np.isfinite(cond) and cond <= UNINFORMATIVE_COND:
+        return
+    tight = {name: float(np.min(v)) for name, v in
+             (("velocity", limits.velocity), ("acceleration", limits.acceleration))}
+    warnings.warn(
+        f"the best feasible trajectory has cond(Y_b) = {cond:.3g} > 1/√ε = "
+        f"{UNINFORMATIVE_COND:.3g}: it does not excite every base parameter, and an "
+        "identification from it would be decided by noise and the prior. The limits leave "
+        f"little room to move (smallest velocity limit {tight['velocity']:.3g} rad/s, "
+        f"acceleration {tight['acceleration']:.3g} rad/s²): relax them, lengthen the period or "
+        "add harmonics", PoorExcitationWarning, stacklevel=3)
 
 
 def _run_start(problem: "_DesignProblem", k: int, x0: np.ndarray | Callable[[], np.ndarray],

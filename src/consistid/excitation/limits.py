@@ -171,9 +171,24 @@ class ExcitationLimits:
             tau = joint_vector("torque limit", torque, nv, allow_infinite=True)
         if tau is not None and not np.isfinite(tau).any():
             tau = None
+        lower_v = lim.lower.copy() if lower is None else joint_vector("lower", lower, nv, True)
+        upper_v = lim.upper.copy() if upper is None else joint_vector("upper", upper, nv, True)
+        for label, given, side in (("lower", lower_v, -1.0), ("upper", upper_v, 1.0)):
+            urdf = lim.lower if side < 0 else lim.upper
+            # widening is allowed (inf: no limit), but a finite bound past the URDF's and past
+            # one turn is what degrees given for radians look like
+            beyond = np.flatnonzero(np.isfinite(given) & (side * (given - urdf) > 1e-9)
+                                    & (np.abs(given) > 2 * np.pi))
+            if beyond.size:
+                j = int(beyond[0])
+                raise ExcitationError(
+                    f"{label} = {given[j]:.4g} rad for joint {model.joint_names[j]!r} lies beyond "
+                    f"the URDF's {label} limit {urdf[j]:.4g} rad and beyond one turn: limits "
+                    "are in radians (np.radians(...) if these are degrees); for a joint "
+                    "without that limit give inf")
         return cls(
-            lower=lim.lower.copy() if lower is None else joint_vector("lower", lower, nv, True),
-            upper=lim.upper.copy() if upper is None else joint_vector("upper", upper, nv, True),
+            lower=lower_v,
+            upper=upper_v,
             velocity=lim.velocity.copy() if velocity is None else joint_vector(
                 "velocity limit", velocity, nv, allow_infinite=True),
             acceleration=joint_vector("acceleration limit", acceleration, nv),
