@@ -263,6 +263,7 @@ class RecursiveEstimator:
         self._flag = False
         self._absorbing = 0
         self.n_updates = 0
+        self._last_time: float | None = None
         self.last_statistic = float("nan")
         self.last_forgetting = self.forgetting
 
@@ -410,7 +411,29 @@ class RecursiveEstimator:
         before touching the estimate. ``t`` (s) is recorded with a flagged change.
         """
         q, dq, ddq, tau = self._check(q, dq, ddq, tau)
-        return self._update(self.row(q, dq, ddq), tau, t)
+        if t is not None:
+            t = float(self._check_times("update", np.array([t], dtype=float))[0])
+        out = self._update(self.row(q, dq, ddq), tau, t)
+        if t is not None:
+            self._last_time = t
+        return out
+
+    def _check_times(self, what: str, times: np.ndarray) -> np.ndarray:
+        """Sample times must be finite and never go back (also across calls): a change is
+        reported at its time, and a NaN or a clock that jumped back would be reported as one."""
+        bad = np.flatnonzero(~np.isfinite(times))
+        if bad.size:
+            raise DatasetError(f"{what}: sample {self.n_updates + int(bad[0])}: t is "
+                               f"{times[bad[0]]}; the sample was refused and the estimate is "
+                               "unchanged (give finite times in s, or t=None)")
+        previous = np.r_[-np.inf if self._last_time is None else self._last_time, times[:-1]]
+        back = np.flatnonzero(times < previous)
+        if back.size:
+            k = int(back[0])
+            raise DatasetError(f"{what}: sample {self.n_updates + k}: t = {times[k]!r} s is "
+                               f"before the previous sample's {previous[k]!r} s; the sample was "
+                               "refused and the estimate is unchanged (times must not decrease)")
+        return times
 
     def _update(self, w: np.ndarray, tau: np.ndarray, t: float | None) -> np.ndarray:
         p, beta = self._p, self._beta
@@ -534,6 +557,8 @@ class RecursiveEstimator:
         times = None if t is None else np.asarray(t, dtype=float).reshape(-1)
         if times is not None and times.shape != (n,):
             raise DatasetError(f"update_batch: t has shape {times.shape}; expected ({n},)")
+        if times is not None and n:
+            self._check_times("update_batch", times)
         start = self.n_updates
         b = self.base.n_base
         betas = np.empty((n, b)) if record else None
@@ -550,6 +575,8 @@ class RecursiveEstimator:
             if record:
                 betas[k] = self._beta
                 stds[k] = np.sqrt(np.diag(self._p))
+        if times is not None and n:
+            self._last_time = float(times[-1])
         return RecursiveTrace(np.arange(start, start + n), times, betas, stds, stats,
                               np.array(flagged, dtype=int))
 
