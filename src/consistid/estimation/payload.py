@@ -397,7 +397,8 @@ def _bounds_decide(theta: np.ndarray, r: np.ndarray, z: np.ndarray, null: np.nda
              if value is not None]
     com = (f", CoM {np.array2string(free[1:4] / free[0], precision=4)} m" if free[0] > 0
            else "")
-    text = (f"{' and '.join(given)} decide{'' if len(given) > 1 else 's'} the payload: the data alone (J ⪰ 0) give "
+    verb = "decide" if len(given) > 1 else "decides"
+    text = (f"{' and '.join(given)} {verb} the payload: the data alone (J ⪰ 0) give "
             f"{free[0]:.4g} kg{com}, and the bounds cost Δχ² = {delta:.3g} > "
             f"{NO_PAYLOAD_SIGMAS ** 2:g} ({NO_PAYLOAD_SIGMAS:g} σ). The estimate sits on the "
             "bound, not where the data put it: check the bounds, the frame and the body")

@@ -49,6 +49,7 @@ Euclidean pull towards their prior (zero) decides.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 from typing import Any, Sequence
 
@@ -59,9 +60,9 @@ from ..identification.base import BaseParameters, compute_base_parameters
 from ..identification.solver import DEFAULT_SOLVER, check_solver, solve
 from ..identification.constraints import BodyScaling, body_constraints, relative_bound
 from ..data.dataset import Dataset
-from ..errors import (IdentificationError, InconsistentParametersError, InfeasibleError,
-                     ModelError, OptionError, UnrealizableCoefficientsError, check_number,
-                     check_option)
+from ..errors import (IdentificationError, InaccurateSolutionWarning,
+                     InconsistentParametersError, InfeasibleError, ModelError, OptionError,
+                     UnrealizableCoefficientsError, check_number, check_option)
 from ..robot.model import RobotModel, require_model
 from ..robot.inertia import body_slice, is_physically_consistent, pseudo_inertia
 from ..identification.priors import euclidean, logdet_divergence, logdet_divergence_value
@@ -686,6 +687,25 @@ def recover_standard(model: RobotModel, base_params: np.ndarray | Identification
     std, weight, undetermined = _weights(beta, covariance)
     problem = _Problem(model, spec, base, beta, std, weight, pi0, prior, margin, joint_constraints,
                        tuple(str(n) for n, u in zip(base.names, undetermined) if u))
-    if mode == "exact":
-        return _exact(problem, solver, solver_options)
-    return _nearest(problem, slack, solver, solver_options)
+    result = (_exact(problem, solver, solver_options) if mode == "exact"
+              else _nearest(problem, slack, solver, solver_options))
+    _warn_if_inconsistent(result)
+    return result
+
+
+def _warn_if_inconsistent(result: RecoveryResult) -> None:
+    """Both modes promise a physically consistent set: when the solver's answer is not one
+    (round-off on the constraints of bodies scaled far from their prior), say so by name
+    instead of returning it as if it were."""
+    if result.is_consistent:
+        return
+    bad = [b for b in result.consistency.bodies if not b.ok]
+    worst = max((b for b in result.consistency.bodies), key=lambda b: abs(b.mass))
+    warnings.warn(
+        f"recovery ({result.mode}) returned standard parameters that are not physically "
+        f"consistent although the solver reported {result.solver[-1].status!r}: "
+        + "; ".join(b.reason for b in bad[:3])
+        + f". The heaviest body is {worst.body} at {worst.mass:.4g} kg: the constraints hold "
+        "only to solver round-off at this scale. Do not export these parameters; check the "
+        "coefficients (and their covariance) or raise margin=", InaccurateSolutionWarning,
+        stacklevel=3)
