@@ -56,3 +56,34 @@ def test_time_going_back_is_refused_across_calls_and_in_a_batch(ur5_run):
     assert est.n_updates == 10                      # no row of the refused batch was taken
     est.update(d.q[10], d.dq[10], d.ddq[10], d.tau[10], t=d.t[10])    # equal-or-later: fine
     est.update(d.q[11], d.dq[11], d.ddq[11], d.tau[11])                # no time at all: fine
+
+
+@pytest.mark.parametrize("name", ["ur5", "kinova"])          # kinova: nq = 9 ≠ nv = 6
+def test_slotine_li_refuses_a_nan_sample_instead_of_commanding_nan_torque(name):
+    """Before: torque() with a NaN position returned a NaN torque for every joint, adapt(nan)
+    made the parameters NaN then raised numpy's LinAlgError, a wrong width raised numpy's
+    broadcast error."""
+    from consistid.errors import JointCountError, OptionError
+
+    model = ci.RobotModel.example(name)
+    ctrl = ci.SlotineLiController(model)
+    q, z = np.full(model.nv, 0.3), np.zeros(model.nv)
+    tau = ctrl.torque(q, z + 0.1, q, z, z)
+    assert np.all(np.isfinite(tau))
+    before = ctrl.parameters.copy()
+    first, last = model.joint_names[0], model.joint_names[-1]
+    for args, where in (((np.r_[np.nan, q[1:]], z, q, z, z), f"q[{first!r}]"),
+                        ((q, z, q, z, np.r_[z[:-1], np.inf]), f"ddq_d[{last!r}]")):
+        with pytest.raises(DatasetError) as info:
+            ctrl.torque(*args)
+        assert where in str(info.value)
+    with pytest.raises(JointCountError, match="q has shape"):
+        ctrl.torque(q[:3], z, q, z, z)
+    for dt in (np.nan, -1e-3, 0.0):
+        with pytest.raises(OptionError, match="dt"):
+            ctrl.adapt(dt)
+    with pytest.raises(DatasetError, match="tau"):
+        ctrl.observe(q, z, z, np.full(model.nv, np.nan))
+    np.testing.assert_array_equal(ctrl.parameters, before)
+    ctrl.adapt(1e-3)                                          # the last good torque() still counts
+    assert np.all(np.isfinite(ctrl.parameters))

@@ -46,13 +46,14 @@ still returns a consistent estimate, but in another metric, which the argument d
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
 import pinocchio as pin
 
-from ..errors import JointCountError, OptionError, check_number
+from ..errors import DatasetError, JointCountError, OptionError, check_number
 from ..identification.constraints import BodyScaling
 from ..identification.priors import logdet_metric
 from ..identification.regressor import (FrictionArg, RegressorSpec, joint_columns,
@@ -252,10 +253,31 @@ class SlotineLiController:
         return 0.5 * (g + g.T)
 
     # ----------------------------------------------------------------------------- the loop
+    def _vectors(self, what: str, names: tuple[str, ...], values: tuple) -> tuple[np.ndarray, ...]:
+        """The arguments as ``(nv,)`` float vectors; a wrong shape or a NaN/inf raises naming the
+        argument and the joint (a NaN would otherwise reach the motors as a NaN torque, or the
+        estimate as NaN parameters). One finite-sum test on the fast path."""
+        nv = self.model.nv
+        out = tuple(np.asarray(v, dtype=float) for v in values)
+        if all(a.shape == (nv,) for a in out) and math.isfinite(float(sum(a.sum() for a in out))):
+            return out
+        for name, a in zip(names, out):
+            if a.shape != (nv,):
+                raise JointCountError(f"{what}: {name} has shape {a.shape}; {self.model.name} "
+                                      f"needs a vector of {nv}")
+            bad = np.flatnonzero(~np.isfinite(a))
+            if bad.size:
+                raise DatasetError(f"{what}: {name}[{self.model.joint_names[bad[0]]!r}] is "
+                                   f"{a[bad[0]]}; nothing was computed and the parameters are "
+                                   "unchanged (hold the last torque, or stop)")
+        raise DatasetError(f"{what}: the sample overflows (sum of its entries is not finite)")
+
     def torque(self, q: np.ndarray, dq: np.ndarray, q_d: np.ndarray, dq_d: np.ndarray,
                ddq_d: np.ndarray) -> np.ndarray:
         """``τ = Y π̂ − K s`` at the measured ``(q, q̇)`` and the desired ``(q_d, q̇_d, q̈_d)``;
         keeps ``Y`` and ``s`` for the next :meth:`adapt`."""
+        q, dq, q_d, dq_d, ddq_d = self._vectors("torque", ("q", "dq", "q_d", "dq_d", "ddq_d"),
+                                                (q, dq, q_d, dq_d, ddq_d))
         e, de = q - q_d, dq - dq_d
         dq_r = dq_d - self.lam * e
         ddq_r = ddq_d - self.lam * de
@@ -269,6 +291,7 @@ class SlotineLiController:
         the last :meth:`torque`), then the projection every ``project_every`` steps."""
         if self._y is None:
             raise OptionError("adapt() needs a torque() call first (it uses that Y and s)")
+        dt = check_number("dt", dt, 0.0, strict=True)
         self.parameters = self.parameters - dt * (self.gamma @ (self._y.T @ self._s))
         self.steps += 1
         if self.projection == "clip" and self.steps % self.project_every == 0:
@@ -292,7 +315,7 @@ class SlotineLiController:
         the Lyapunov function's parameter part non-increasing. Returns the prediction error's
         norm (N·m) before the step; does nothing (returns it) with ``composite = 0``.
         """
-        q, dq, ddq, tau = (np.asarray(a, dtype=float) for a in (q, dq, ddq, tau))
+        q, dq, ddq, tau = self._vectors("observe", ("q", "dq", "ddq", "tau"), (q, dq, ddq, tau))
         m = self.model.pin_model
         qc = q if m.nq == m.nv else self.model.configuration(q)
         w = pin.computeJointTorqueRegressor(m, self._data, qc, dq, ddq)
