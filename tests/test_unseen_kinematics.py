@@ -66,3 +66,25 @@ def test_metres_in_another_frame_still_calibrate(ur5_positions):
         assert cal.identified[i]
         lo, hi = cal.conf_int(alpha=1e-6)[i]
         assert lo <= truth[chart.names.index(name)] <= hi, name
+
+
+def test_distances_in_millimetres_are_refused():
+    """Before: PoorExcitationError 'anchor.y not seen' (the trilaterated anchor was metres
+    away), which points at the poses, not the unit."""
+    from consistid.kinematics import select_poses
+
+    model = ci.RobotModel.example("xarm7")
+    anchor = np.array([0.8, 0.3, 0.1])
+    q = select_poses(model, 40, "link_eef", "distance", seed=0, anchor=anchor).q
+    data, fid = model.pin_model.createData(), model.pin_model.getFrameId("link_eef")
+    d = []
+    for qk in q:
+        pin.framesForwardKinematics(model.pin_model, data, model.configuration(qk))
+        d.append(np.linalg.norm(data.oMf[fid].translation - anchor))
+    d = np.array(d)
+    cal = ci.calibrate_kinematics(model, q, d, frame="link_eef", parameters=["zero", "anchor"],
+                                  sigma=1e-5)
+    assert max(abs(v) for v in cal.corrections.values()) < 1e-9     # the URDF robot: nothing
+    with pytest.raises(DatasetError, match="unit"):
+        ci.calibrate_kinematics(model, q, d * 1000.0, frame="link_eef",
+                                parameters=["zero", "anchor"], sigma=1e-5)

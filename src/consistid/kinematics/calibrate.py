@@ -226,6 +226,23 @@ def _check_length_unit(chart: KinematicParameters, q: np.ndarray, positions: np.
             "unit (give metres: mm / 1000) or belong to other joint configurations")
 
 
+def _check_distance_unit(chart: KinematicParameters, q: np.ndarray, distances: np.ndarray,
+                         factor: float = 2.0) -> None:
+    """Refuse distances whose range exceeds what the frame can make: by the triangle
+    inequality ``|d_i − d_j| ≤ ‖p_i − p_j‖`` for any anchor, so ``max d − min d`` is at most the
+    largest distance between two of the frame's positions (the URDF's, to ``factor``: a
+    calibration moves them by millimetres). Millimetres for metres break it a thousandfold."""
+    pos, _, _ = chart.frame_kinematics(np.zeros(chart.size), q, False)
+    reach = float(np.max(np.linalg.norm(pos[:, None, :] - pos[None, :, :], axis=-1)))
+    spread = float(np.ptp(distances))
+    if spread > factor * reach + 1e-3:
+        raise DatasetError(
+            f"the measured distances range over {spread:.4g} where the frame's positions for the "
+            f"same q are at most {reach:.4g} m apart: |d_i − d_j| ≤ ‖p_i − p_j‖ for any anchor, "
+            "so the distances are probably in another unit (give metres: mm / 1000) or belong "
+            "to other joint configurations")
+
+
 def calibrate_kinematics(model: RobotModel, q: object, measurements: object,
                          frame: str | None = None,
                          parameters: str | Iterable[str] = "all", sigma: object = None, *,
@@ -299,6 +316,8 @@ def calibrate_kinematics(model: RobotModel, q: object, measurements: object,
     chart = KinematicParameters(model, frame, meas.kind)
     if meas.kind != "distance":
         _check_length_unit(chart, qa, meas.positions)
+    else:
+        _check_distance_unit(chart, qa, meas.distances)
     sel = chart.select(parameters)
     names = [chart.names[i] for i in sel]
     n, m = meas.n, meas.width
