@@ -89,3 +89,21 @@ def test_recovery_never_returns_an_inconsistent_set_silently():
     warned = [w for w in record if issubclass(w.category, InaccurateSolutionWarning)
               and "not physically consistent" in str(w.message)]
     assert rec.is_consistent or warned
+
+
+def test_an_undetermined_mass_is_not_reported_as_no_payload(planar_2r):
+    """A payload on link1 of the planar 2R arm (gravity in the plane): its mass has σ = inf.
+    Before: 'no payload found: the mass 0.623 ± inf kg is within 3 σ of 0'."""
+    from consistid.errors import NothingFoundWarning
+
+    truth = planar_2r.prior_parameters.copy()
+    loaded = truth.copy()
+    loaded[:10] += from_mass_com_inertia(0.7, [0.1, 0.02, 0.0], 0.7 / 12 * np.eye(3) * 0.01)
+    runs = [ci.simulate.excitation_run(planar_2r, p, duration=8.0, rate=200.0, torque_noise=0.05,
+                                       seed=s).dataset for p, s in ((truth, 3), (loaded, 4))]
+    robot = ci.identify(planar_2r, runs[0], method="ols", friction=None)
+    with pytest.warns(NothingFoundWarning, match="not determined") as record:
+        pay = ci.estimate_payload(planar_2r, runs[1], robot=robot, body="link1")
+    assert not np.isfinite(pay.mass_std) and not pay.found
+    assert not any("no payload found" in str(w.message) for w in record)
+    assert "cannot tell" in pay.summary()

@@ -473,7 +473,15 @@ def _payload_result(theta: np.ndarray, cov: np.ndarray, frame: str, body: str, m
     mass = float(theta[0])
     mass_std = float(np.sqrt(max(cov[0, 0], 0.0))) if np.isfinite(cov[0, 0]) else np.inf
     found = bool(mass > NO_PAYLOAD_SIGMAS * mass_std)
-    if not found:
+    if not found and not np.isfinite(mass_std):
+        text = (f"payload mass not determined: these data do not fix the mass of a payload on "
+                f"{body!r} (σ = inf; the value {mass:.3g} kg is the most compact one, not a "
+                "measurement), so found = False means 'cannot tell', not 'no payload'; its "
+                "centre of mass and inertia are undefined (NaN). The notes say which "
+                "directions the data, or the robot's structure, leave free")
+        notes = [text, *notes]
+        warnings.warn(text, NothingFoundWarning, stacklevel=3)
+    elif not found:
         text = (f"no payload found: the mass {mass:.3g} ± {mass_std:.2g} kg is within "
                  f"{NO_PAYLOAD_SIGMAS:g} σ of 0, so the data carry no detectable payload on "
                  f"{body!r}; its centre of mass and inertia are undefined (NaN). Check that the "
