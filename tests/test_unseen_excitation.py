@@ -48,3 +48,19 @@ def test_limits_that_leave_no_motion_warn_instead_of_a_silent_useless_design():
     with pytest.warns(PoorExcitationWarning, match="cond"):
         design = ci.design_excitation(model, limits=limits, max_iter=5, **FAST)
     assert design.cond > 1e8
+
+
+def test_continuous_joints_leave_no_numpy_warning_and_n_jobs_zero_is_named():
+    """Kinova (continuous joints, ±inf limits): from_model compared inf − inf (a RuntimeWarning
+    from the degrees check). n_jobs=0 reached joblib's own ValueError."""
+    import warnings
+
+    from consistid.errors import OptionError
+
+    model = ci.RobotModel.example("kinova")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        limits = ExcitationLimits.from_model(model, acceleration=5.0)
+    assert np.isinf(limits.lower).any()
+    with pytest.raises(OptionError, match="n_jobs"):
+        ci.design_excitation(model, limits=limits, n_jobs=0, max_iter=1, **FAST)

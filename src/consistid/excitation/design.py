@@ -580,6 +580,10 @@ def design_excitation(model: RobotModel, harmonics: int = 5, period: float = 10.
                           f"{n_starts}, {max_iter}, {n_grid}, {n_check}")
     if not 0.0 <= safety < 0.5:
         raise OptionError(f"safety = {safety} must lie in [0, 0.5)")
+    if n_jobs is not None and (isinstance(n_jobs, bool) or not isinstance(n_jobs, (int, np.integer))
+                               or n_jobs == 0):
+        raise OptionError(f"n_jobs = {n_jobs!r}: give None (in this process), a number of "
+                          "workers ≥ 1, or -1 for all cores (joblib's convention)")
     if not torque_weight >= 0:
         raise OptionError(f"torque_weight = {torque_weight}; it must be ≥ 0 (N·m)")
     if torque_weight and criterion != "cond":

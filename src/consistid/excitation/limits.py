@@ -177,8 +177,8 @@ class ExcitationLimits:
             urdf = lim.lower if side < 0 else lim.upper
             # widening is allowed (inf: no limit), but a finite bound past the URDF's and past
             # one turn is what degrees given for radians look like
-            beyond = np.flatnonzero(np.isfinite(given) & (side * (given - urdf) > 1e-9)
-                                    & (np.abs(given) > 2 * np.pi))
+            turn = np.isfinite(given) & (np.abs(given) > 2 * np.pi)   # no inf − inf below
+            beyond = np.flatnonzero(turn & (side * (np.where(turn, given, 0.0) - urdf) > 1e-9))
             if beyond.size:
                 j = int(beyond[0])
                 raise ExcitationError(
