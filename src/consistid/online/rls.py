@@ -38,7 +38,8 @@ adapts (``on_change``): ``"payload"`` adds the prior covariance of a payload on 
 (:data:`PAYLOAD_PRIOR_MASS`, :data:`PAYLOAD_PRIOR_RADIUS`; the rule of change of Gaz & De Luca
 2017 cited in :mod:`consistid.estimation.payload`: ``β_L = β + B_{[:, n]} π_L``) to ``P``, so the
 ten directions a payload moves are re-learnt at once and the rest is kept; ``"reset"`` divides
-the information by :data:`RESET_FACTOR` (every direction re-learnt); ``None`` only flags.
+the information by :data:`RESET_FACTOR` and adds the initial covariance (every direction
+re-learnt, no more certain than before the first sample); ``None`` only flags.
 ``"payload"`` escalates to a reset when the detector flags again as soon as it re-arms (the
 change was not a payload). The
 estimate and covariance just before the flag are kept (:attr:`RecursiveEstimator.changes`), and
@@ -225,6 +226,7 @@ class RecursiveEstimator:
             if np.any(std <= 0):
                 raise OptionError("initial_std must be > 0 for every base parameter")
         self._p = np.diag(std ** 2)
+        self._p0 = self._p.copy()
         self.max_trace = (float(np.trace(self._p)) if max_trace is None
                           else check_number("max_trace", max_trace, 0, strict=True))
         if noise_std is None:
@@ -516,7 +518,10 @@ class RecursiveEstimator:
         if action == "payload":
             self._p = self._p + self._payload_cov
         else:
-            self._p = self._p / RESET_FACTOR
+            # every direction back to (at least) the prior's uncertainty: the old data's
+            # information is gone, whatever its size (P / RESET_FACTOR alone kept 1e-4 of it,
+            # which still outweighed the new data in the weakly excited directions)
+            self._p = self._p / RESET_FACTOR + self._p0
         self._changes[-1] = replace(self._changes[-1], action=action)
         self._absorbing = window
         return self._update_after_flag(w, tau, t)
