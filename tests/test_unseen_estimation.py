@@ -107,3 +107,23 @@ def test_an_undetermined_mass_is_not_reported_as_no_payload(planar_2r):
     assert not np.isfinite(pay.mass_std) and not pay.found
     assert not any("no payload found" in str(w.message) for w in record)
     assert "cannot tell" in pay.summary()
+
+
+def test_planar_com_std_is_finite_where_the_data_fix_it(planar_2r):
+    """Planar 2R, payload on link2: m, m·c_x, m·c_y are determined, m·c_z is not. Before: the
+    delta method multiplied 0 × inf and reported c_x, c_y as undetermined (σ = inf) too."""
+    truth = planar_2r.prior_parameters.copy()
+    loaded = truth.copy()
+    loaded[10:20] += from_mass_com_inertia(0.7, [0.1, 0.02, 0.0], 0.7 / 12 * np.eye(3) * 0.01)
+    runs = [ci.simulate.excitation_run(planar_2r, p, duration=8.0, rate=200.0, torque_noise=0.05,
+                                       seed=s).dataset for p, s in ((truth, 3), (loaded, 4))]
+    robot = ci.identify(planar_2r, runs[0], method="ols", friction=None)
+    pay = ci.estimate_payload(planar_2r, runs[1], robot=robot)
+    std = pay.com_std
+    assert np.isinf(std[2]) and np.all(np.isfinite(std[:2]))
+    m, h, cov = pay.mass, pay.parameters[1:3], pay.covariance
+    for i in range(2):                       # c_i = h_i / m, by hand on the (m, h_i) block
+        g = np.array([-h[i] / m ** 2, 1.0 / m])
+        block = cov[np.ix_([0, i + 1], [0, i + 1])]
+        assert std[i] == pytest.approx(np.sqrt(g @ block @ g), rel=1e-9)
+    assert np.all(np.abs(pay.com[:2] - [0.1, 0.02]) < 5 * std[:2] + 1e-3)

@@ -150,11 +150,18 @@ class Payload(Reported):
         jac = np.zeros((3, 10))
         jac[:, 0] = -h / m ** 2
         jac[:, 1:4] = np.eye(3) / m
-        with np.errstate(invalid="ignore"):
-            cov = jac @ np.nan_to_num(self.covariance, nan=0.0, posinf=np.inf) @ jac.T
-        var = np.diag(cov)
-        # an undetermined moment (inf variance) leaves the CoM undetermined: inf, not NaN
-        return np.where(np.isnan(var), np.inf, np.sqrt(np.clip(var, 0.0, None)))
+        out = np.empty(3)
+        for i in range(3):
+            # only the parameters c_i depends on: a 0 × inf term of an undetermined moment on
+            # another axis (a planar arm's m·c_z) must not make c_x undetermined too
+            used = np.flatnonzero(jac[i])
+            block = self.covariance[np.ix_(used, used)]
+            if not np.all(np.isfinite(np.diag(block))):
+                out[i] = np.inf        # an undetermined moment leaves c_i undetermined
+                continue
+            var = float(jac[i, used] @ np.nan_to_num(block, nan=0.0) @ jac[i, used])
+            out[i] = np.sqrt(max(var, 0.0))
+        return out
 
     def summary(self) -> str:
         from ..identification.summary import table
