@@ -144,3 +144,19 @@ def test_a_ceiling_mounted_robot_is_found_upside_down(name):
     est = estimate_mounting(model, data, friction=None)
     assert np.allclose(est.gravity, hung.gravity, atol=0.01 * 9.81)
     assert np.all(np.isfinite(est.std)) and est.relative_error[1] < est.relative_error[0]
+
+
+def test_a_payload_no_motor_could_carry_is_flagged(loaded_run):
+    """200 kg on the flange: the simulated torques reach 8× the URDF's efforts. Before: 'mass
+    201 kg, found' without a word; now the data checks identify() runs say so."""
+    from consistid.errors import DataQualityWarning
+
+    model, frame, robot, _ = loaded_run
+    heavy = robot.parameters[: model.n_inertial].copy()
+    placement = model.pin_model.frames[model.pin_model.getFrameId(frame)].placement
+    heavy[-10:] += frame_transform(placement.rotation, placement.translation) @ \
+        from_mass_com_inertia(200.0, [0, 0, 0.05], 200.0 / 12 * 0.01 * np.eye(3))
+    data = ci.simulate.excitation_run(model, heavy, duration=4.0, rate=200.0, torque_noise=0.2,
+                                      seed=5).dataset
+    with pytest.warns(DataQualityWarning, match="effort"):
+        ci.estimate_payload(model, data, robot=robot, frame=frame)

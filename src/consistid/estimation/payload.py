@@ -41,6 +41,7 @@ from ..identification.solver import DEFAULT_SOLVER, solve
 from ..robot.shapes import Ellipsoid
 from ..identification.constraints import (BodyScaling, com_box, ellipsoid_lmi, mass_bounds,
                           pseudo_inertia_lmi)
+from ..data.checks import check_effort
 from ..data.dataset import Dataset
 from ..errors import (BoundActiveWarning, IdentificationError, InfeasibleError, ModelError,
                      NothingFoundWarning,
@@ -570,6 +571,10 @@ def estimate_payload(model: RobotModel, loaded: Dataset | DataStream | Identific
     else:
         loaded.check_joints(model.nv, model.joint_names)
         loaded.require_torque()
+        # torques no motor of this robot can give (a payload beyond its rating, or mN·m): the
+        # estimate is then of a load that was never carried as logged. Only this of identify's
+        # checks: static poses (a payload's m, m·c) legitimately leave a joint without torque
+        check_effort(loaded, model.limits.effort, model.joint_names, stacklevel=3)
     if isinstance(robot, IdentificationResult):
         spec = resolve_spec(model, friction, armature, given=robot.spec)
         theta = robot.parameters
