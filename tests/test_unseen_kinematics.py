@@ -88,3 +88,13 @@ def test_distances_in_millimetres_are_refused():
     with pytest.raises(DatasetError, match="unit"):
         ci.calibrate_kinematics(model, q, d * 1000.0, frame="link_eef",
                                 parameters=["zero", "anchor"], sigma=1e-5)
+
+
+def test_held_out_rms_refuses_degrees_too(ur5_positions):
+    """Before: cal.rms(np.degrees(q), measured) returned a 0.55 m 'RMS' without a word."""
+    model, _, _, q, pos = ur5_positions
+    cal = ci.calibrate_kinematics(model, q[:30], pos[:30], frame="tool0", sigma=1e-5,
+                                  parameters=["zero", "base"])
+    assert cal.rms(q[30:], pos[30:])["position"] < 5e-5
+    with pytest.raises(DatasetError, match="degrees"):
+        cal.rms(np.degrees(q[30:]), pos[30:])

@@ -188,22 +188,6 @@ def _estimate_cov(kind: str, res: np.ndarray, n_free: int) -> np.ndarray:
     return np.broadcast_to(np.diag(np.square(std)), (res.shape[0], len(std), len(std))).copy()
 
 
-def _check_within_limits(model: RobotModel, q: np.ndarray, slack: float = 0.1) -> None:
-    """Refuse joint angles beyond the URDF's limits by more than ``slack`` rad: the usual cause
-    is degrees given for radians, and the fit would otherwise fail to converge or, worse,
-    converge to corrections of whole turns."""
-    lim = model.limits
-    out = (q < lim.lower - slack) | (q > lim.upper + slack)
-    if out.any():
-        k, j = (int(i) for i in np.argwhere(out)[0])
-        hint = (" (they look like degrees: q is in radians, np.radians(q))"
-                if np.abs(q).max() > 2 * np.pi + slack else "")
-        raise DatasetError(
-            f"q[{k}, {model.joint_names[j]!r}] = {q[k, j]:.4g} rad lies outside the joint's "
-            f"limits [{lim.lower[j]:.4g}, {lim.upper[j]:.4g}] rad ({int(out.sum())} entries "
-            f"outside){hint}")
-
-
 def _check_length_unit(chart: KinematicParameters, q: np.ndarray, positions: np.ndarray,
                        factor: float = 2.0) -> None:
     """Refuse measured positions whose spread differs from the URDF's prediction by more than
@@ -310,7 +294,6 @@ def calibrate_kinematics(model: RobotModel, q: object, measurements: object,
     if qa.shape[0] == 0:
         raise DatasetError("q is empty (0 configurations); give one row of joint angles (rad) "
                            "per measurement")
-    _check_within_limits(model, qa)
     meas = as_measurements(measurements, qa.shape[0])
     frame = end_effector_frame(model) if frame is None else frame
     chart = KinematicParameters(model, frame, meas.kind)

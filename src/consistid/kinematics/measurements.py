@@ -135,6 +135,22 @@ def as_measurements(values: object, n: int | None = None) -> Measurements:
     return m
 
 
+def check_within_limits(model: RobotModel, q: np.ndarray, slack: float = 0.1) -> None:
+    """Refuse joint angles beyond the URDF's limits by more than ``slack`` rad: the usual cause
+    is degrees given for radians, and the fit would otherwise fail to converge or, worse,
+    converge to corrections of whole turns."""
+    lim = model.limits
+    out = (q < lim.lower - slack) | (q > lim.upper + slack)
+    if out.any():
+        k, j = (int(i) for i in np.argwhere(out)[0])
+        hint = (" (they look like degrees: q is in radians, np.radians(q))"
+                if np.abs(q).max() > 2 * np.pi + slack else "")
+        raise DatasetError(
+            f"q[{k}, {model.joint_names[j]!r}] = {q[k, j]:.4g} rad lies outside the joint's "
+            f"limits [{lim.lower[j]:.4g}, {lim.upper[j]:.4g}] rad ({int(out.sum())} entries "
+            f"outside){hint}")
+
+
 def joint_coordinates(model: RobotModel, q: object) -> np.ndarray:
     """``q`` as (N, nv) angles, validated: :class:`JointCountError` for a wrong width,
     :class:`DatasetError` naming ``q[i, 'joint']`` for a non-finite entry. A model with
@@ -153,6 +169,7 @@ def joint_coordinates(model: RobotModel, q: object) -> np.ndarray:
                            "entries)")
     pm = model.pin_model
     if a.shape[1] == model.nv:
+        check_within_limits(model, a)
         return a
     if a.shape[1] == pm.nq:
         out = np.empty((a.shape[0], model.nv))
