@@ -58,9 +58,18 @@ def test_the_chain_filters_the_coulomb_signal_like_the_torque(ur5_coulomb):
     inner = np.isin(np.round(full.t, 9), np.round(ds.t, 9))
     np.testing.assert_allclose(ds.dq_sign, ref[inner], atol=1e-9)
     assert preprocess(rec.t, rec.q, rec.tau, filter_torque=False).dataset.dq_sign is None
-    # it travels with the samples: select, split, concatenate
+    # it travels with the samples: select, split, concatenate, save and load (NPZ and CSV)
     a, b = ds.split(0.5)
     np.testing.assert_array_equal(ci.Dataset.concatenate([a, b]).dq_sign, ds.dq_sign)
+
+
+def test_dq_sign_survives_save_and_load(ur5_coulomb, tmp_path):
+    model, rec = ur5_coulomb
+    ds = ci.Dataset.from_recording(rec.t, rec.q, rec.tau)
+    for suffix in (".npz", ".csv"):
+        ds.save(tmp_path / f"d{suffix}")
+        back = ci.Dataset.load(tmp_path / f"d{suffix}")
+        np.testing.assert_allclose(back.dq_sign, ds.dq_sign, rtol=1e-15, atol=0)
 
 
 def test_coulomb_friction_through_the_default_chain_is_unbiased(ur5_coulomb):
