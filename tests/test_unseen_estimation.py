@@ -160,3 +160,22 @@ def test_a_payload_no_motor_could_carry_is_flagged(loaded_run):
                                       seed=5).dataset
     with pytest.warns(DataQualityWarning, match="effort"):
         ci.estimate_payload(model, data, robot=robot, frame=frame)
+
+
+def test_a_wall_mounted_robot_is_not_called_undetermined():
+    """Gravity turned by 90° about x: the two-angle chart is singular there (the pitch turns
+    nothing). Before: 'the data do not determine the mounting tilt … the model's gravity is kept
+    there' although the data fixed gravity to 0.01°."""
+    import math
+
+    from consistid.errors import PoorExcitationWarning
+    from consistid.estimation.mounting import estimate_mounting, gravity_from_tilt
+
+    model = ci.RobotModel.example("ur5")
+    wall = model.with_gravity(gravity_from_tilt(model.gravity, (math.pi / 2, 0.0)))
+    data = ci.simulate.excitation_run(wall, model.prior_parameters, duration=10.0, rate=200.0,
+                                      torque_noise=0.1, friction=None, seed=1).dataset
+    with pytest.warns(PoorExcitationWarning, match="singular") as record:
+        est = estimate_mounting(model, data, friction=None)
+    assert not any("do not determine" in str(w.message) for w in record)
+    assert np.allclose(est.gravity, wall.gravity, atol=0.005 * 9.81)

@@ -365,8 +365,23 @@ def estimate_mounting(model: RobotModel, dataset: Dataset | DataStream,
     grams = np.einsum("jrk,jrl->jkl", jac, jac)
     eig, vec = np.linalg.eigh(grams.sum(axis=0))
     flat = eig <= FLAT * max(eig.max(), 1e-300)
-    if flat.any():  # the data cannot see a tilt in these directions: keep the model's there
+    chart = [float(np.linalg.norm(gravity_from_tilt(g0, a + JACOBIAN_STEP * v)
+                                  - gravity_from_tilt(g0, a - JACOBIAN_STEP * v)))
+             / (2 * JACOBIAN_STEP * float(np.linalg.norm(g0))) for v in vec[:, flat].T]
+    if flat.any():  # keep the model's tilt along what nothing determines (0 there)
         a = a - vec[:, flat] @ (vec[:, flat].T @ a)
+    if flat.any() and max(chart) < 1e-3:
+        # the angles' chart is singular (gravity along a tilt axis, a 90° mounting): turning
+        # about the second axis moves no gravity, so the flat direction is the chart's, not
+        # the data's; gravity itself is determined
+        warnings.warn(f"the mounting tilt is {math.degrees(abs(a[0])):.4g}° about "
+                      f"{_axis_name(tilt_axes(g0)[0])}: gravity lies along the second tilt "
+                      "axis, where the two angles are singular (the second one turns nothing). "
+                      "Gravity is determined: "
+                      f"{np.array2string(gravity_from_tilt(g0, a), precision=4)} m/s² (use "
+                      ".gravity or .model); the angles' ± is reported infinite",
+                      PoorExcitationWarning, stacklevel=2)
+    elif flat.any():  # the data cannot see a tilt in these directions: the model's is kept
         warnings.warn(f"the data do not determine the mounting tilt in {int(flat.sum())} of 2 "
                       f"directions (profile curvature {2 * eig}); the model's gravity is kept "
                       "there and its ± is infinite", PoorExcitationWarning, stacklevel=2)
