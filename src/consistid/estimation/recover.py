@@ -62,7 +62,7 @@ from ..identification.constraints import BodyScaling, body_constraints, relative
 from ..data.dataset import Dataset
 from ..errors import (IdentificationError, InaccurateSolutionWarning,
                      InconsistentParametersError, InfeasibleError, ModelError, OptionError,
-                     UnrealizableCoefficientsError, check_number, check_option)
+                     SolverError, UnrealizableCoefficientsError, check_number, check_option)
 from ..robot.model import RobotModel, require_model
 from ..robot.inertia import body_slice, is_physically_consistent, pseudo_inertia
 from ..identification.priors import euclidean, logdet_divergence, logdet_divergence_value
@@ -558,8 +558,19 @@ def _nearest(problem: _Problem, slack: float, solver: str, options: dict[str, An
     bound = d_star * (1.0 + SLACK_RTOL) + slack
     # normalised to 1 so that the cone's scale does not depend on how misfit β̂ is
     constraints2.append(cp.sum_squares(problem.misfit(x2) / np.sqrt(bound)) <= 1.0)
-    stage2 = solve(cp.Problem(cp.Minimize(objective), constraints2),
-                   problem.label("nearest recovery (stage 2: prior)"), solver, options1)
+    try:
+        stage2 = solve(cp.Problem(cp.Minimize(objective), constraints2),
+                       problem.label("nearest recovery (stage 2: prior)"), solver, options1)
+    except SolverError as exc:
+        if problem.prior_kind != "logdet":
+            raise
+        # the stage-1 point exists; the log-det barrier's exponential
+        # cones are what the solver could not handle (coefficients moved far, bodies far from
+        # the prior), and the Euclidean prior, without them, usually solves
+        raise SolverError(f"{exc}. Stage 1 found the nearest realisable coefficients "
+                          f"(weighted distance {d_star:.3g}); only the log-det prior stage "
+                          "failed: prior='euclidean' solves the same stage without exponential "
+                          "cones") from exc
     return _finish(problem, "nearest", x2.value, (stage1, stage2),
                    {"stage1_distance": d_star, "slack": slack})
 
