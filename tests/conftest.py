@@ -61,3 +61,20 @@ def random_states(model: ci.RobotModel, n: int, seed: int):
     """:func:`consistid.identification.base.random_states` seeded by an integer (hypothesis draws
     integers)."""
     return base.random_states(model, n, np.random.default_rng(seed))
+
+
+@pytest.fixture()
+def cli_project(tmp_path, planar_2r) -> Path:
+    """A URDF and two logs (consistid layout) under data/, an empty conf/ for configurations:
+    the folder a CLI test writes its TOML into."""
+    data = tmp_path / "data"
+    data.mkdir()
+    (data / "arm.urdf").write_text(PLANAR_2R.format(**PLANAR_2R_VALUES))
+    rng = np.random.default_rng(0)
+    for k in (1, 2):
+        q, dq, ddq = random_states(planar_2r, 300, rng)
+        tau = planar_2r.rnea(q, dq, ddq) + 0.01 * rng.standard_normal(q.shape)
+        ci.Dataset(t=0.005 * np.arange(300), q=q, dq=dq, ddq=ddq, tau=tau).save(
+            data / f"run{k}.npz")
+    (tmp_path / "conf").mkdir()
+    return tmp_path

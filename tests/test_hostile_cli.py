@@ -22,23 +22,12 @@ from consistid.cli.files import (atomic_dir, atomic_path, check_output, check_ou
                                  same_file)
 from consistid.errors import ConsistidError, OutputPathError
 
-from .conftest import PLANAR_2R, PLANAR_2R_VALUES, random_states
 
 
 @pytest.fixture()
-def project(tmp_path, planar_2r):
-    """A URDF and two logs (consistid layout) under data/, configurations under conf/."""
-    data = tmp_path / "data"
-    data.mkdir()
-    (data / "arm.urdf").write_text(PLANAR_2R.format(**PLANAR_2R_VALUES))
-    rng = np.random.default_rng(0)
-    for k in (1, 2):
-        q, dq, ddq = random_states(planar_2r, 300, rng)
-        tau = planar_2r.rnea(q, dq, ddq) + 0.01 * rng.standard_normal(q.shape)
-        ci.Dataset(t=0.005 * np.arange(300), q=q, dq=dq, ddq=ddq, tau=tau).save(
-            data / f"run{k}.npz")
-    (tmp_path / "conf").mkdir()
-    return tmp_path
+def project(cli_project):
+    """conftest's CLI project: data/ (URDF and two logs) and conf/."""
+    return cli_project
 
 
 MODEL = """root = ".."
