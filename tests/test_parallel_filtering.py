@@ -70,6 +70,13 @@ def test_dq_sign_survives_save_and_load(ur5_coulomb, tmp_path):
         ds.save(tmp_path / f"d{suffix}")
         back = ci.Dataset.load(tmp_path / f"d{suffix}")
         np.testing.assert_allclose(back.dq_sign, ds.dq_sign, rtol=1e-15, atol=0)
+    # a robot-log loader reading that CSV does not take dq_sign1… for a joint 'sign1''s dq: it
+    # ignores them and says what they are and how to keep them
+    from consistid.data.recordings import load_recording
+
+    rec = load_recording(tmp_path / "d.csv", model=model)
+    assert "unselected joints" not in rec.steps[0]
+    assert "dq_sign" in rec.steps[0] and "Dataset.load keeps it" in rec.steps[0]
 
 
 def test_coulomb_friction_through_the_default_chain_is_unbiased(ur5_coulomb):

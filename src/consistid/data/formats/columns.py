@@ -134,9 +134,15 @@ def parse_candidates(name: str) -> list[tuple[str, str | int]]:
     return _parse(raw)
 
 
+#: A consistid Dataset file's Coulomb signal columns (``Dataset.dq_sign``): not a joint's dq.
+_DQ_SIGN = re.compile(r"dq_sign\d+")
+
+
 def _parse(raw: str) -> list[tuple[str, str | int]]:
     n = raw.lower()
     out: list[tuple[str, str | int]] = []
+    if _DQ_SIGN.fullmatch(n):
+        return out
     m = re.fullmatch(r"([a-z]+)_?(\d+)", n)
     if m and _field_of(m.group(1)):
         out.append((_field_of(m.group(1)), int(m.group(2)) - 1))
@@ -202,6 +208,10 @@ class ColumnMap:
             text += f"; dropped the columns of unselected joints {list(self.dropped)}"
         if self.ignored:
             text += f"; ignored columns {list(self.ignored)}"
+        if any(_DQ_SIGN.fullmatch(c.lower()) for c in self.ignored):
+            text += (" (dq_sign…: a consistid Dataset's Coulomb signal through its torque filter; "
+                     "consistid.Dataset.load keeps it, and a Coulomb term fitted without it is "
+                     "biased low on filtered torques)")
         return text
 
 
