@@ -58,6 +58,7 @@ only after the warm-up.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field, replace
 from typing import Any, Sequence
 
@@ -67,12 +68,13 @@ import scipy.stats
 from scipy.linalg.lapack import dpotrf as _potrf
 from scipy.linalg.lapack import dtrtri as _trtri
 
-from ..errors import (DatasetError, IdentificationError, JointCountError, OptionError,
-                      check_number, check_option)
+from ..errors import (DataQualityWarning, DatasetError, IdentificationError, JointCountError,
+                      OptionError, check_number, check_option)
 from ..identification.base import BaseParameters, compute_base_parameters, random_states
 from ..identification.regressor import (DEFAULT_FRICTION, FrictionArg, RegressorSpec,
                                         parameter_names, prior_vector, regressor)
 from ..identification.summary import table
+from ..robot.joint_terms import STANDSTILL_SPEED
 from ..robot.model import RobotModel, require_model
 from .change import ChangeDetector, Cusum, WindowedChiSquare
 from .report import fragment
@@ -88,6 +90,9 @@ PRIOR_TORQUE = 10.0
 PAYLOAD_PRIOR_MASS, PAYLOAD_PRIOR_RADIUS = 10.0, 0.3
 #: ``on_change="reset"`` multiplies the information ``P⁻¹`` by this.
 RESET_FACTOR = 1e-4
+#: This many flags in a row, each as soon as the detector re-armed, are a model that does not fit
+#: (terms missing from the regressor, noise_std too small), not changes of the robot: warned.
+CHAIN_FLAGS = 3
 #: Samples of the exponential average that estimates σ when ``noise_std`` is not given.
 NOISE_MEMORY = 2000
 #: σ (N·m) assumed during the warm-up when it is estimated.
@@ -145,6 +150,15 @@ class RecursiveTrace:
     std: np.ndarray | None
     statistic: np.ndarray
     flagged: np.ndarray
+
+
+def _repaired(p: np.ndarray) -> np.ndarray:
+    """``p`` symmetrised, its eigenvalues clipped below at ``1e-12`` of the largest: the
+    nearest (in Frobenius norm) positive definite matrix up to that floor (Higham 1988)."""
+    sym = 0.5 * (p + p.T)
+    values, vectors = np.linalg.eigh(sym)
+    floor = 1e-12 * max(float(values.max()), 1e-300)
+    return (vectors * np.maximum(values, floor)) @ vectors.T
 
 
 class RecursiveEstimator:
@@ -262,6 +276,10 @@ class RecursiveEstimator:
         self._payload_cov = self._payload_covariance() if on_change == "payload" else None
         self._data = model.pin_model.createData()
         self._changes: list[Change] = []
+        self._chain_warned = False
+        self._still: np.ndarray | None = None       # joints at rest in the current sample
+        #: times the covariance was repaired after losing definiteness to round-off
+        self.n_repairs = 0
         self._flag = False
         self._absorbing = 0
         self.n_updates = 0
@@ -415,6 +433,7 @@ class RecursiveEstimator:
         q, dq, ddq, tau = self._check(q, dq, ddq, tau)
         if t is not None:
             t = float(self._check_times("update", np.array([t], dtype=float))[0])
+        self._still = np.abs(dq) < STANDSTILL_SPEED
         out = self._update(self.row(q, dq, ddq), tau, t)
         if t is not None:
             self._last_time = t
@@ -448,13 +467,33 @@ class RecursiveEstimator:
         s = w @ pw + self._sigma_matrix
         chol, info = _potrf(s, lower=1)                             # S = L Lᵀ
         if info != 0:
-            raise IdentificationError(
-                f"update: sample {self.n_updates}: the innovation covariance is not positive "
-                "definite (the covariance P lost definiteness); the estimate is unchanged")
+            # P − K S Kᵀ lost definiteness to round-off (a reset's wide prior followed by
+            # sharp data): repair P once — symmetric, eigenvalues clipped to a small positive
+            # fraction of the largest — and say so; refuse only if that does not help
+            p_bar = self._repair(p_bar)
+            self._p = p_bar * lam if lam != 1.0 else p_bar
+            pw = p_bar @ w.T
+            s = w @ pw + self._sigma_matrix
+            chol, info = _potrf(s, lower=1)
+            if info != 0:
+                raise IdentificationError(
+                    f"update: sample {self.n_updates}: the innovation covariance is not "
+                    "positive definite, even with P repaired; the estimate is unchanged")
         l_inv, _ = _trtri(chol, lower=1)       # dpotrf zeroed the upper triangle (clean=1)
         e = tau - w @ beta
         white = l_inv @ e                                           # S^{-1/2} e
         chi2 = float(white @ white)
+        still = self._still
+        if still is not None and still.any():
+            # A joint at rest holds any torque its stiction allows (set-valued friction): its
+            # innovation says nothing about a change of the robot. The detector sees the moving
+            # joints' χ² plus the standing ones' expectation (1 each), so its degrees of freedom
+            # and threshold stay those of nv joints.
+            moving = ~still
+            chi2 = float(still.sum())
+            if moving.any():
+                e_m = e[moving]
+                chi2 += float(e_m @ np.linalg.solve(s[np.ix_(moving, moving)], e_m))
         self.last_statistic = chi2
         self._flag = False
         if (self.detector is not None and self.n_updates >= self.warmup
@@ -474,6 +513,8 @@ class RecursiveEstimator:
         if not (math.isfinite(float(new_beta.sum())) and math.isfinite(float(new_p.sum()))):
             raise IdentificationError(f"update: sample {self.n_updates} made the estimate "
                                       "non-finite; it was not applied (check the sample's scale)")
+        if float(np.diagonal(new_p).min()) <= 0.0:      # O(b): definiteness lost to round-off
+            new_p = self._repair(new_p)
         self._beta, self._p = new_beta, new_p
         if not self.noise_given and self._absorbing == 0:
             self._learn_noise(tau - w @ new_beta)
@@ -503,6 +544,18 @@ class RecursiveEstimator:
                                   NOISE_FLOOR ** 2)
         self._sigma_matrix = np.diag(self._sigma2)
 
+    def _repair(self, p: np.ndarray) -> np.ndarray:
+        """``p`` made positive definite (:func:`_repaired`), counted in ``n_repairs``; the
+        first repair warns."""
+        self.n_repairs += 1
+        if self.n_repairs == 1:
+            warnings.warn(f"RecursiveEstimator: at sample {self.n_updates} the covariance P lost "
+                          "definiteness to round-off (a reset's wide prior, then sharp data); "
+                          "repaired by clipping its negative eigenvalues — the estimate goes on, "
+                          "its σ there is approximate (n_repairs counts them)",
+                          DataQualityWarning, stacklevel=4)
+        return _repaired(p)
+
     def _absorb(self, w: np.ndarray, tau: np.ndarray, t: float | None) -> np.ndarray:
         """Adapt to a flagged change (``on_change``), then take the flagging sample.
 
@@ -515,6 +568,16 @@ class RecursiveEstimator:
         if action == "payload" and len(self._changes) >= 2 \
                 and self._changes[-1].index - self._changes[-2].index <= 2 * window + 1:
             action = "reset"
+        recent = [c.index for c in self._changes[-CHAIN_FLAGS:]]
+        if not self._chain_warned and len(recent) == CHAIN_FLAGS \
+                and all(b - a <= 2 * window + 1 for a, b in zip(recent, recent[1:])):
+            self._chain_warned = True
+            warnings.warn(f"RecursiveEstimator: the change detector flagged {CHAIN_FLAGS} times "
+                          f"in a row as soon as it re-armed (samples {recent}): not changes of "
+                          "the robot but a model that does not fit the data — the regressor "
+                          "lacks terms the torques hold (friction=, armature=True) or "
+                          "noise_std is too small; each flag resets or widens the estimate",
+                          DataQualityWarning, stacklevel=4)
         if action == "payload":
             self._p = self._p + self._payload_cov
         else:
@@ -571,7 +634,9 @@ class RecursiveEstimator:
         stats = np.empty(n)
         flagged = []
         qa, dqa, ddqa, taua = arrays
+        still = np.abs(dqa) < STANDSTILL_SPEED
         for k in range(n):
+            self._still = still[k]
             self._update(self.row(qa[k], dqa[k], ddqa[k]), taua[k],
                          None if times is None else float(times[k]))
             stats[k] = self.last_statistic
