@@ -376,14 +376,12 @@ def _delayed(data: GapData, x: np.ndarray, d: float, joint: int | None) -> np.nd
     ``x(t − d)``, linearly interpolated within each recording segment (held at the ends)."""
     out = x.copy()
     joints = range(data.nv) if joint is None else [joint]
-    ds = data.dataset
-    for s in np.unique(ds.segment):
-        idx = np.flatnonzero(ds.segment == s)
-        t = ds.t[idx]
+    for seg in data.segments:
+        t = seg.t
         for j in joints:
-            rows = x[idx, j].reshape(idx.size, -1)
-            out[idx, j] = np.column_stack([np.interp(t - d, t, c) for c in rows.T]
-                                          ).reshape(out[idx, j].shape)
+            rows = x[seg.index, j].reshape(seg.size, -1)
+            out[seg.index, j] = np.column_stack([np.interp(t - d, t, c) for c in rows.T]
+                                                ).reshape(out[seg.index, j].shape)
     return out
 
 
@@ -1080,22 +1078,20 @@ def _unpredictable(fit: GapModel, data: GapData) -> np.ndarray:
     a recording's ends on a joint whose effect was seen through that filter (the filter there
     depends on torque outside the recording)."""
     out = np.zeros((data.n, data.nv), dtype=bool)
-    ds = data.dataset
     since, until = np.zeros(data.n), np.zeros(data.n)
-    segments = [np.flatnonzero(ds.segment == s) for s in np.unique(ds.segment)]
-    for idx in segments:
-        since[idx] = ds.t[idx] - ds.t[idx[0]]
-        until[idx] = ds.t[idx[-1]] - ds.t[idx]
+    for seg in data.segments:
+        since[seg.index] = seg.t - seg.t[0]
+        until[seg.index] = seg.t[-1] - seg.t
     for i, atom in enumerate(fit.atoms):
         cols = slice(None) if atom.joint is None else atom.joint
         if i in fit.delays:
             edge = since < fit.delays[i]
         elif np.isfinite(atom.cutoff):
             width = np.zeros(data.n)
-            for idx in segments:
-                rate = 1.0 / float(np.median(np.diff(ds.t[idx]))) if idx.size > 1 else 0.0
+            for seg in data.segments:
+                rate = 1.0 / seg.step if seg.size > 1 else 0.0
                 if atom.cutoff < 0.45 * rate:   # else lowpass_segments leaves it unfiltered
-                    width[idx] = settling_time(atom.cutoff, rate, energy=0.999)
+                    width[seg.index] = settling_time(atom.cutoff, rate, energy=0.999)
             edge = (since < width) | (until < width)
         else:
             continue
