@@ -564,7 +564,8 @@ def run_chain(t: np.ndarray, q: np.ndarray, tau: np.ndarray,
         tauf = (fourier_derivatives(mean[:, nv:], rate, o.period, harmonics)[0]
                 if o.filter_torque else mean[:, nv:])
         # the Coulomb column through the torque's filter (Dataset.dq_sign)
-        signf = fourier_derivatives(np.sign(dqf), rate, o.period, harmonics)[0]
+        signf = (fourier_derivatives(np.sign(dqf), rate, o.period, harmonics)[0]
+                 if o.filter_torque else np.sign(dqf))
         p = mean.shape[0]
         steps.append(Step("fourier", f"averaged {n_periods} period(s) of {o.period:g} s "
                                      f"({p} samples; {xs.shape[0] - n_periods * p} trailing "
@@ -593,12 +594,14 @@ def run_chain(t: np.ndarray, q: np.ndarray, tau: np.ndarray,
                 qf = lowpass(qs, cutoff, rate, o.order)
                 dqf, ddqf = central_difference(qf, rate)
                 tauf = lowpass(taus, cutoff, rate, o.order) if o.filter_torque else taus
-                signf = lowpass(np.sign(dqf), cutoff, rate, o.order)
+                signf = (lowpass(np.sign(dqf), cutoff, rate, o.order) if o.filter_torque
+                         else np.sign(dqf))
             else:
                 qf, dqf, ddqf = savgol_derivatives(qs, rate, window, o.polyorder)
                 tauf = (savgol_derivatives(taus, rate, window, o.polyorder)[0]
                         if o.filter_torque else taus)
-                signf = savgol_derivatives(np.sign(dqf), rate, window, o.polyorder)[0]
+                signf = (savgol_derivatives(np.sign(dqf), rate, window, o.polyorder)[0]
+                         if o.filter_torque else np.sign(dqf))
             tol = 1e-3 / rate                   # float stamps (Unix seconds) are not exact
             keep = (ts >= ts[0] + trim - tol) & (ts <= ts[-1] - trim + tol)
             if not keep.any():
