@@ -264,7 +264,7 @@ def test_identify_on_the_kuka_example(kuka_dir, tmp_path, capsys):
     res = ci.IdentificationResult.load(out / "result.json")
     saved = json.loads((out / "result.json").read_text())
     assert json.loads(res.save(tmp_path / "again.json").read_text()) == saved
-    assert res.model.source == kuka_dir / "kuka_lwr4.urdf"           # found by its SHA-256
+    assert res.model.source == (kuka_dir / "kuka_lwr4.urdf").resolve()  # found by SHA-256
     assert res.solver.status == "optimal" and res.is_consistent
     named = dict(zip(res.parameter_names, res.parameters))
     fc = [named[f"{j}.fc"] for j in res.model.joint_names]
