@@ -17,6 +17,7 @@ from consistid.identification.statistics import autocorrelation_time
 from consistid.identification.streaming import (
     DataStream,
     ResidualStatistics,
+    autocorrelation_windows,
     is_stream,
     merge,
     merge_all,
@@ -126,6 +127,58 @@ def test_residual_statistics_pool_like_one_dataset(planar_2r):
     assert stats.n_samples == stacked.n_samples
     single = ResidualStatistics.of(planar_2r, spec, theta, noisy[0])
     assert single.n_samples == noisy[0].n_samples
+
+
+def test_autocorrelation_windows_read_few_samples_and_keep_the_correlation_time(planar_2r):
+    """A long log's residual autocorrelation is read on 2^15 samples in four windows, none
+    pairing samples across a gap, and gives the correlation time of all samples (AR(1) with
+    φ = 0.8: τ = (1 + φ)/(1 − φ) = 9 in closed form) to its standard error."""
+    data = ci.simulate.excitation_run(planar_2r, duration=1300.0, rate=100.0, seed=3,
+                                      torque_noise=0.0).dataset
+    rng = np.random.default_rng(1)
+    noise = ci.simulate.experiments.ar1_noise(data.tau.shape, 0.8, 0.1, rng)
+    noisy = ci.Dataset.concatenate([data.with_torque(data.tau + noise)] * 2)   # two recordings
+    spec = RegressorSpec.make(planar_2r, None)
+    theta = planar_2r.prior_parameters
+    picked = autocorrelation_windows(noisy)
+    assert picked.n_samples == 2 ** 15 < noisy.n_samples
+    # each window, and each recording within one, is its own segment, time increasing within
+    labels = np.unique(picked.segment)
+    assert 4 <= labels.size <= 8
+    for label in labels:
+        assert np.all(np.diff(picked.t[picked.segment == label]) > 0)
+    assert autocorrelation_windows(noisy, None) is noisy
+    few = ResidualStatistics.of(planar_2r, spec, theta, noisy)
+    every = ResidualStatistics.of(planar_2r, spec, theta, noisy, samples=None)
+    assert few.n_samples == 2 ** 15 and every.n_samples == noisy.n_samples
+    tau_few, tau_all = few.autocorrelation_time(), every.autocorrelation_time()
+    np.testing.assert_allclose(tau_all, 9.0, rtol=0.1)
+    np.testing.assert_allclose(tau_few, tau_all, rtol=0.2)   # ~3 standard errors of 2^15
+
+
+def test_coloured_covariance_counts_every_sample_in_the_variance(planar_2r):
+    """The σ of the coloured covariance comes from every sample's residual (exact from the
+    factors) even when the autocorrelation reads a part: identify's ± on a long log equals the
+    sandwich computed by hand from the residual of all samples and the windows' τ."""
+    from consistid.identification.compression import joint_sigma
+    from consistid.identification.statistics import coloured_covariance
+
+    data = ci.simulate.excitation_run(planar_2r, duration=500.0, rate=100.0, seed=4,
+                                      torque_noise=0.05).dataset
+    res = ci.identify(planar_2r, data, method="ols", covariance="coloured")
+    iid = ci.identify(planar_2r, data, method="ols", covariance="iid")
+    from consistid.identification.regressor import predict_torque
+
+    residual = data.tau - predict_torque(planar_2r, data, res.spec, res.parameters)
+    tau = ResidualStatistics.of(planar_2r, res.spec, res.parameters, data).autocorrelation_time()
+    problem = compress(planar_2r, data, res.spec)
+    cols = res.base.independent
+    r_b = problem.factors[:, :-1, :-1][:, :, cols]
+    grams = np.matmul(r_b.transpose(0, 2, 1), r_b)
+    w = 1.0 / np.asarray(iid.sigma, dtype=float) ** 2
+    v = joint_sigma(np.sum(residual ** 2, axis=0), data.n_samples, res.base.n_base, tau) ** 2
+    expected = coloured_covariance(iid.base_covariance, grams, w, tau, v)
+    np.testing.assert_allclose(res.base_covariance, expected, rtol=1e-8)
 
 
 def test_which_inputs_stream(tmp_path, planar_2r):

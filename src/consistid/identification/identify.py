@@ -286,7 +286,9 @@ def with_covariance(result: IdentificationResult, problem: CompressedProblem,
     sigma = np.asarray(result.sigma, dtype=float)
     weights = np.where(sigma > 0, 1.0 / np.where(sigma > 0, sigma, 1.0) ** 2, 1.0)
     # each joint's own residual variance (OLS weighs joints alike whatever their noise)
-    variances = joint_sigma(stats.sum_squares, stats.n_samples, result.base.n_base, tau) ** 2
+    # every sample's residual, exact from the factors (the autocorrelation may read fewer)
+    variances = joint_sigma(problem.sum_squares(result.parameters), problem.n_samples,
+                            result.base.n_base, tau) ** 2
     cov = coloured_covariance(result.base_covariance, grams, weights, tau,
                               np.where(variances > 0, variances, 1.0 / weights))
     shown = ", ".join(f"{n} {t:.3g}" for n, t in zip(result.model.joint_names, tau))
