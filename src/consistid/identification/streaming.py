@@ -104,8 +104,8 @@ def autocorrelation_windows(dataset: Dataset, samples: int | None = AUTOCORRELAT
     relative standard error is about :math:`\sqrt{2(2M + 1)/n}` for a window of ``M`` lags on
     ``n`` samples (Madras & Sokal 1988, doi:10.1007/BF01022990; ``M ≈ 5τ``): 3 % for a white
     residual and 11 % for ``τ = 20`` samples on :data:`AUTOCORRELATION_SAMPLES`, so reading
-    every sample of a long log (a second data pass as long as the first) buys little. The residual's sum of squares is
-    exact from the compressed problem whatever is read here
+    every sample of a long log (a second data pass as long as the first) buys little. The
+    residual's sum of squares is exact from the compressed problem whatever is read here
     (:meth:`~consistid.identification.compression.CompressedProblem.sum_squares`).
     """
     n = dataset.n_samples
