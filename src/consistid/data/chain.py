@@ -237,6 +237,15 @@ class ChainResult:
     bandwidth: float | None
     options: PreprocessOptions
 
+    @property
+    def torque_filter(self) -> tuple[float, int] | None:
+        """``(cut-off Hz, order)`` of the zero-phase Butterworth low-pass applied to the torques
+        (:attr:`consistid.data.dataset.Dataset.torque_filter`), or ``None``: torques unfiltered,
+        or smoothed another way (Savitzky–Golay, Fourier harmonics)."""
+        if self.options.filter_torque and self.options.derivative == "central":
+            return float(self.cutoff), int(self.options.order)
+        return None
+
     def __str__(self) -> str:
         lines = [f"{len(self.steps)} steps → {self.t.size} samples, "
                  f"{len(np.unique(self.segment))} segment(s) at {self.rate:.6g} Hz"]

@@ -61,6 +61,13 @@ class Dataset:
         both sides of ``τ = Y θ`` went through the same filter (parallel filtering; without it
         the sharp ``sign`` of the filtered ``q̇`` against the smoothed step in the filtered
         torque biases ``f_c`` low by ~10 % at a 5 Hz cut-off); ``None``: ``sign(dq)``.
+    torque_filter : ``(cut-off Hz, order)`` of the zero-phase Butterworth low-pass
+        (:func:`consistid.data.filters.lowpass`) the signal chain applied to ``tau`` (set by the
+        chain); ``None``: unfiltered, or not known. The diagnosis' noise floor divides its
+        response out of the torque spectrum (:mod:`consistid.diagnosis.noise`). Kept by
+        :meth:`select` and :meth:`with_torque` (give ``torque_filter=None`` to
+        :func:`dataclasses.replace` for torques that did not go through it), by
+        :meth:`concatenate` when every part has the same, and in ``.npz`` files.
 
     Raises
     ------
@@ -76,6 +83,7 @@ class Dataset:
     joint_names: tuple[str, ...] | None = None
     segment: np.ndarray | None = field(default=None)
     dq_sign: np.ndarray | None = None
+    torque_filter: tuple[float, int] | None = None
 
     def __post_init__(self) -> None:
         t = np.asarray(self.t, dtype=float)
@@ -129,6 +137,8 @@ class Dataset:
                                    f"{self.dq.shape} like dq")
             _check_finite("dq_sign", sign, names)
             object.__setattr__(self, "dq_sign", sign)
+        if self.torque_filter is not None:
+            object.__setattr__(self, "torque_filter", _check_filter(self.torque_filter))
         same = seg[1:] == seg[:-1]
         bad = np.flatnonzero(same & (np.diff(t) <= 0))
         if bad.size:
@@ -228,6 +238,8 @@ class Dataset:
             segment=np.concatenate([p[2] for p in parts]),
             dq_sign=None if all(d.dq_sign is None for d in datasets) else np.concatenate(
                 [np.sign(d.dq) if d.dq_sign is None else d.dq_sign for d in datasets]),
+            torque_filter=datasets[0].torque_filter
+            if all(d.torque_filter == datasets[0].torque_filter for d in datasets) else None,
         )
 
     # ----------------------------------------------------------------------------- files
@@ -252,6 +264,8 @@ class Dataset:
                       if getattr(self, k) is not None}
             if self.joint_names is not None:
                 arrays["joint_names"] = np.array(self.joint_names)
+            if self.torque_filter is not None:
+                arrays["torque_filter"] = np.array(self.torque_filter, dtype=float)
             np.savez(path, segment=self.segment, **arrays)
         elif path.suffix == ".csv":
             cols = self.columns()
@@ -282,7 +296,8 @@ class Dataset:
         """The dataset of the signal chain's arrays (:func:`consistid.data.chain.run_chain`)."""
         return cls(t=result.t, q=result.q, dq=result.dq, ddq=result.ddq, tau=result.tau,
                    segment=result.segment, dq_sign=result.dq_sign,
-                   joint_names=tuple(joint_names) if joint_names is not None else None)
+                   joint_names=tuple(joint_names) if joint_names is not None else None,
+                   torque_filter=result.torque_filter)
 
     @classmethod
     def load(cls, path: str | Path, joint_names: Sequence[str] | None = None) -> "Dataset":
@@ -298,6 +313,8 @@ class Dataset:
                                               f"{sorted(f.files)}")
                 arrays = {k: f[k] for k in f.files if k in ("t", *FIELDS, "segment", "dq_sign")}
                 stored = tuple(str(n) for n in f["joint_names"]) if "joint_names" in f else None
+                if "torque_filter" in f:
+                    arrays["torque_filter"] = tuple(f["torque_filter"].tolist())
             if joint_names is not None and stored is not None and tuple(joint_names) != stored:
                 raise JointNameError(f"{path.name} names its joints {list(stored)}, not "
                                      f"{list(joint_names)}")
@@ -342,6 +359,19 @@ class Dataset:
                        dq_sign=np.column_stack([col[c] for c in sign])
                        if all(c in col for c in sign) else None)
         raise DatasetError(f"unknown dataset format {path.suffix!r}; use .npz or .csv")
+
+
+def _check_filter(value: object) -> tuple[float, int]:
+    """``Dataset.torque_filter`` as ``(cut-off, order)``, or :class:`DatasetError`."""
+    try:
+        cutoff, order = (float(v) for v in value)            # type: ignore[union-attr]
+    except (TypeError, ValueError):
+        raise DatasetError(f"dataset.torque_filter = {value!r:.60} is not a (cut-off Hz, "
+                           "order) pair") from None
+    if not (np.isfinite(cutoff) and cutoff > 0 and order >= 1 and order == int(order)):
+        raise DatasetError(f"dataset.torque_filter = {value!r:.60}: the cut-off must be a "
+                           "positive number of Hz and the order a whole number ≥ 1")
+    return cutoff, int(order)
 
 
 def open_npz(path: Path):

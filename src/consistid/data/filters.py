@@ -146,6 +146,16 @@ def lowpass(x: np.ndarray, cutoff: float, rate: float, order: int = 4) -> np.nda
     return scipy.signal.sosfiltfilt(sos.copy(), x, axis=0, padlen=pad)  # scipy wants it writable
 
 
+def lowpass_power(freqs: np.ndarray, cutoff: float, rate: float, order: int = 4) -> np.ndarray:
+    """The power response ``|H(f)|⁴`` of :func:`lowpass` (the Butterworth filter run forward and
+    backward: its magnitude squared, then squared again for power) at ``freqs`` (Hz): the digital
+    filter's own response (``scipy.signal.sosfreqz`` of the same sections), not the analogue
+    ``(1 + (f/f_c)^{2n})^{-2}``, which it departs from near the Nyquist frequency."""
+    sos, _ = _butterworth(int(order), float(cutoff), float(rate))
+    _, h = scipy.signal.sosfreqz(sos, worN=np.asarray(freqs, dtype=float), fs=float(rate))
+    return np.abs(h) ** 4
+
+
 @functools.lru_cache(maxsize=64)
 def settling_time(cutoff: float, rate: float, order: int = 4, energy: float = 0.99) -> float:
     """Half-width (s) of the zero-phase low-pass's impulse response (:func:`lowpass`) that holds
