@@ -2,6 +2,7 @@ import numpy as np
 import pytest
 
 import consistid as ci
+from consistid.data.signals import preprocess
 from consistid.errors import DatasetError, JointCountError, JointNameError, MissingColumnsError
 
 
@@ -178,3 +179,36 @@ def test_the_data_package_has_no_import_cycle_and_no_function_level_imports():
         visit(name, [])
     assert "chain" in graph["dataset"] and "dataset" not in graph["chain"]
     assert "dataset" in graph["signals"]
+
+
+def _logged(rate=200.0, seconds=8.0, nv=2):
+    t = np.arange(int(rate * seconds)) / rate
+    q = np.column_stack([0.5 * np.sin(2 * np.pi * 0.4 * (j + 1) * t) for j in range(nv)])
+    tau = np.column_stack([np.cos(2 * np.pi * 0.4 * (j + 1) * t) for j in range(nv)])
+    return t, q, tau + 0.01 * np.random.default_rng(0).standard_normal(tau.shape)
+
+
+def test_the_chain_records_its_torque_filter_and_files_keep_it(tmp_path):
+    """from_recording's dataset carries the (cut-off, order) of the low-pass its torques went
+    through, the chain's own; none when the torques were not filtered, or were smoothed another
+    way; selection and .npz keep it, a stack of datasets filtered differently has none."""
+    t, q, tau = _logged()
+    rec = preprocess(t, q, tau)
+    data = rec.dataset
+    assert data.torque_filter == (rec.cutoff, rec.options.order) and rec.options.order >= 1
+    assert ci.Dataset.from_recording(t, q, tau, filter_torque=False).torque_filter is None
+    assert ci.Dataset.from_recording(t, q, tau, derivative="savgol").torque_filter is None
+    assert data.select(slice(10, 100)).torque_filter == data.torque_filter
+    data.save(tmp_path / "d.npz")
+    assert ci.Dataset.load(tmp_path / "d.npz").torque_filter == data.torque_filter
+    other = ci.Dataset.from_recording(t, q, tau, cutoff=3.0)
+    assert other.torque_filter[0] == 3.0
+    assert ci.Dataset.concatenate([data, data]).torque_filter == data.torque_filter
+    assert ci.Dataset.concatenate([data, other]).torque_filter is None
+
+
+@pytest.mark.parametrize("value", [(0.0, 4), (np.nan, 4), (5.0, 0), (5.0, 2.5), "5 Hz", (5.0,)])
+def test_a_bad_torque_filter_is_named(value):
+    t, q, tau = _logged()
+    with pytest.raises(DatasetError, match="torque_filter"):
+        ci.Dataset(t=t, q=q, dq=q, ddq=q, tau=tau, torque_filter=value)

@@ -74,7 +74,7 @@ from ..robot.model import RobotModel, require_model
 from .candidates import EFFECT_NAMES, SIGNATURES, Atom, EffectLibrary, GapData
 from .effects import REGISTRY, EffectParameter
 from .gap import GapBreakdown, gap_breakdown, residual_spectra
-from .noise import NoiseFloor, estimate_noise_floor, fine_spectra, spectral_floor
+from .noise import NoiseFloor, estimate_noise_floor, spectral_estimate
 from .remainder import Remainder, analyse_remainder, dry_friction_at_rest
 
 #: A held-out shrink below this fraction does not list a joint under an arm-wide effect.
@@ -908,8 +908,13 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     given = None if sigma is None else _sigma(sigma, model.nv)
     resolution = (None if torque_resolution is None
                   else _sigma(torque_resolution, model.nv, "torque_resolution"))
+    # the spectrum through the torques' recorded low-pass: on all recordings when they share
+    # one, else on the held-out ones (what a spectrum floor is judged on)
+    on = (held if everything.dataset.torque_filter is None
+          and held.dataset.torque_filter is not None else everything)
     noise = estimate_noise_floor(everything.dataset, everything.tau, everything.residual,
-                                 everything.tau_nom, given, resolution)
+                                 everything.tau_nom, given, resolution,
+                                 spectrum_on=(on.dataset, on.residual, on.tau_nom))
     floor, noise_source = noise.sigma.copy(), noise.description
     library = EffectLibrary(model, tuple(effects))
 
@@ -1039,9 +1044,7 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
         # The nominal residual's high band also holds the tails of steps and spikes that the
         # effects explain (a Coulomb step has a 1/f² spectrum); estimate the level again
         # without them. Still the level above the motion band, never what the fit leaves.
-        unexplained = everything.residual - fit.correction(everything)
-        again = spectral_floor(fine_spectra(everything.dataset, unexplained,
-                                            everything.tau_nom))[0]
+        again = spectral_estimate(on.dataset, on.residual - fit.correction(on), on.tau_nom).sigma
         floor = np.where(spectral, np.minimum(floor, again), floor)
         noise_source += " (spectral level re-estimated without the selected effects' tails)"
     where = gap_breakdown(everything, floor, spectra=spectra)

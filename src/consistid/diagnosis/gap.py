@@ -152,12 +152,14 @@ class Spectra:
     freqs : (F,) frequencies (Hz).
     residual, nominal : (F, nv) power spectral densities of the residual and the nominal torque.
     signal_band : ``f_s``, the frequency below which the nominal torque has 99.9 % of its power.
+    segments : Welch segments averaged (over every recording), 0 when not counted.
     """
 
     freqs: np.ndarray
     residual: np.ndarray
     nominal: np.ndarray
     signal_band: float
+    segments: int = 0
 
     @property
     def noise_band(self) -> tuple[np.ndarray, float, float]:

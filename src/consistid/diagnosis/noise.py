@@ -32,6 +32,22 @@ in this order of preference (:func:`estimate_noise_floor` says which one each jo
 
     It cannot see noise coloured or filtered *below* ``2 f_s``: when the fitted cut-off lies
     there the estimate is flagged unreliable (pass ``sigma``).
+``spectrum`` through a known filter
+    When the dataset records the low-pass the signal chain applied to its torques
+    (:attr:`consistid.Dataset.torque_filter`), its power response ``G(f) = |H(f)|⁴`` is known
+    and divided out, leaving the spectrum of the noise itself where ``G`` is at least
+    :data:`MIN_RESPONSE`. There a first-order (AR(1)) noise spectrum, which white noise is the
+    ``φ = 0`` case of,
+
+    .. math::  S(f) = S_0 \frac{(1 - φ)^2}{1 + φ^2 - 2φ\cos(2π f / f_r)}
+
+    (Box & Jenkins, *Time Series Analysis*, §3.2.4; ``f_r`` the sampling rate) is fitted with
+    the same robust loss, and :math:`\hat\sigma^2 = \int_0^{f_N} G(f) S(f)\, df`. So coloured
+    noise seen through a filter whose cut-off lies in or below the motion band is measured
+    rather than flagged, as long as the noise's knee ``f_r \ln(1/φ)/2π`` lies within the fitted
+    band (else the level below it is an extrapolation: unreliable), and the fit describes the
+    spectrum to within :data:`MAX_MISFIT` (else the torques did not go through the filter
+    recorded, or their noise is not first-order: the free fit above is used).
 """
 
 from __future__ import annotations
@@ -42,8 +58,10 @@ import numpy as np
 import scipy.integrate
 import scipy.optimize
 import scipy.signal
+import scipy.special
 
 from ..data.dataset import Dataset
+from ..data.filters import lowpass_power
 from .gap import Spectra, residual_spectra
 
 #: ``q`` repeats after a lag when ``mean |q(t+L) − q(t)|² ≤ REPEAT_TOLERANCE · 2 Var(q)``.
@@ -53,6 +71,19 @@ FINE_SEGMENT = 4.0
 #: Shortest period (s) searched, and the least overlap (s) a repetition estimate needs.
 MIN_PERIOD = 0.5
 MIN_OVERLAP = 2.0
+#: Least power response ``|H|⁴`` of a known torque filter at which its spectrum is divided by
+#: it (50 dB down): further down, leakage of the motion band and round-off outweigh the noise.
+MIN_RESPONSE = 1e-5
+#: Largest median distance (natural log) of the smoothed noise spectrum from its fitted AR(1)
+#: shape (a factor 1.5) for the known-filter estimate to stand; a Welch average of many segments
+#: scatters far less.
+MAX_MISFIT = np.log(1.5)
+#: Largest standard error of the known-filter estimate's ``log σ`` for it to stand (σ known to
+#: about ±15 %): a noise knee near the band's lower edge, or few Welch segments, leave the level
+#: below the band uncertain, and the verdict is then "undetermined" rather than a guess.
+MAX_STDERR = 0.15
+#: Largest AR(1) coefficient fitted (its knee at 0.016 % of the sampling rate).
+MAX_AR = 0.999
 
 
 @dataclass(frozen=True)
@@ -171,7 +202,7 @@ def fine_spectra(dataset: Dataset, residual: np.ndarray, tau_nom: np.ndarray,
     than the breakdown's, so that a low cut-off and the motion band are resolved), averaged over
     the uniformly sampled recordings."""
     acc_r = acc_n = freqs = None
-    weight = 0
+    weight = segments = 0
     rate = None
     for s in np.unique(dataset.segment):
         idx = np.flatnonzero(dataset.segment == s)
@@ -186,6 +217,7 @@ def fine_spectra(dataset: Dataset, residual: np.ndarray, tau_nom: np.ndarray,
         nper = min(nper, idx.size // 2)
         if nper < 32:
             continue
+        segments += (idx.size - nper) // (nper // 2) + 1        # scipy's 50 % overlap
         f, pr = scipy.signal.welch(residual[idx], fs=rate, nperseg=nper, axis=0)
         _, pn = scipy.signal.welch(tau_nom[idx], fs=rate, nperseg=nper, axis=0)
         if freqs is not None and f.size != freqs.size:
@@ -202,7 +234,7 @@ def fine_spectra(dataset: Dataset, residual: np.ndarray, tau_nom: np.ndarray,
     power = p_nom[1:].sum(axis=1)
     band = float(freqs[1:][np.searchsorted(np.cumsum(power) / power.sum(), 0.999)]) \
         if power.sum() > 0 else float(freqs[1])
-    return Spectra(freqs, p_res, p_nom, band)
+    return Spectra(freqs, p_res, p_nom, band, segments)
 
 
 def _rolloff(f: np.ndarray, fc: float, n: float) -> np.ndarray:
@@ -248,12 +280,146 @@ def spectral_floor(spectra: Spectra) -> tuple[np.ndarray, np.ndarray, np.ndarray
     return np.maximum(sigma, 1e-12), cut, reliable
 
 
+def _ar1_shape(f: np.ndarray, phi: float, rate: float) -> np.ndarray:
+    """The AR(1) spectrum of the module notes over its value at ``f = 0``."""
+    return (1.0 - phi) ** 2 / (1.0 + phi ** 2 - 2.0 * phi * np.cos(2.0 * np.pi * f / rate))
+
+
+def log_periodogram_bias(segments: int) -> float:
+    r"""``E[log Ŝ(f)] − log S(f)`` of a Welch estimate averaging ``segments`` Hann-windowed
+    segments with 50 % overlap: ``Ŝ/S ~ χ²_ν/ν`` with ``ν ≈ 1.89·K`` equivalent degrees of
+    freedom (Percival & Walden, *Spectral Analysis for Physical Applications*, 1993, §6.17), and
+    :math:`E \log(χ^2_ν/ν) = ψ(ν/2) − \log(ν/2)` (ψ the digamma function). A fit to the
+    log-spectrum sits that far below the true level (−0.09 for six segments); 0 when the count
+    is unknown."""
+    if segments <= 0:
+        return 0.0
+    half = 0.5 * 1.89 * segments
+    return float(scipy.special.digamma(half) - np.log(half))
+
+
+def filtered_floor(spectra: Spectra, torque_filter: tuple[float, int] | None, rate: float
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
+    """Per joint, the known-filter estimate of the module notes: ``(σ, reliable, standard
+    error of log σ, band text)``; σ ``nan`` where the band holds fewer than six frequencies.
+    ``torque_filter`` ``None``: torques not filtered (``G = 1``)."""
+    freqs, psd = spectra.freqs, spectra.residual
+    nv = psd.shape[1]
+    nyq = 0.5 * rate
+
+    def response(x: np.ndarray) -> np.ndarray:
+        return (np.ones_like(x) if torque_filter is None
+                else lowpass_power(x, torque_filter[0], rate, torque_filter[1]))
+
+    gain = response(freqs)
+    lo = max(2 * spectra.signal_band, 2 * freqs[1])
+    band = (freqs >= lo) & (freqs <= 0.9 * nyq) & (gain >= MIN_RESPONSE)
+    sigma, reliable, stderrs = np.full(nv, np.nan), np.zeros(nv, dtype=bool), np.full(nv, np.inf)
+    if band.sum() < 6:
+        return sigma, reliable, stderrs, "no band"
+    f = freqs[band]
+    grid = np.linspace(0.0, nyq, 8193)
+    g_grid = response(grid)
+    kernel = np.ones(5) / 5.0
+    bias = log_periodogram_bias(spectra.segments)
+    effective = f.size / kernel.size          # each KERNEL bins alike after the smoothing
+    for j in range(nv):
+        p = np.maximum(psd[band, j], 1e-300) / gain[band]
+        y = np.convolve(np.pad(np.log(p), 2, mode="edge"), kernel, mode="valid")
+
+        def res(x: np.ndarray) -> np.ndarray:
+            return y - x[0] - np.log(_ar1_shape(f, x[1], rate))
+
+        def log_sigma(x: np.ndarray) -> float:
+            power = scipy.integrate.trapezoid(g_grid * _ar1_shape(grid, x[1], rate), grid)
+            return 0.5 * float(x[0] + np.log(power))
+
+        fit = scipy.optimize.least_squares(res, np.array([float(np.median(y)), 0.0]),
+                                           loss="soft_l1", f_scale=0.5,
+                                           bounds=([-np.inf, 0.0], [np.inf, MAX_AR]))
+        sigma[j] = np.exp(log_sigma(fit.x) - 0.5 * bias)
+        r = res(fit.x)
+        misfit = float(np.median(np.abs(r)))
+        # the standard error of log σ: the Gauss–Newton covariance of (log S₀, φ) (the
+        # residuals' variance over the effective degrees of freedom), propagated by log σ's
+        # gradient (central differences)
+        scale2 = (float(np.mean(r ** 2)) * kernel.size * effective
+                  / max(effective - fit.x.size, 1e-9))
+        grad = np.array([(log_sigma(fit.x + e) - log_sigma(fit.x - e)) / 2e-6
+                         for e in np.eye(fit.x.size) * 1e-6])
+        cov = scale2 * np.linalg.pinv(fit.jac.T @ fit.jac)
+        stderr = float(np.sqrt(max(grad @ cov @ grad, 0.0)))
+        # the noise's knee below the band: its level there is an extrapolation, unseen
+        knee = np.inf if fit.x[1] <= 0 else rate * np.log(1.0 / fit.x[1]) / (2 * np.pi)
+        reliable[j] = misfit <= MAX_MISFIT and stderr <= MAX_STDERR and knee >= f[0]
+        stderrs[j] = stderr
+    return sigma, reliable, stderrs, f"{f[0]:.3g}–{f[-1]:.3g} Hz"
+
+
+@dataclass(frozen=True)
+class SpectralFloor:
+    """The spectrum estimate per joint (:func:`spectral_estimate`): ``sigma``, ``cutoff`` and
+    ``reliable`` as in :class:`NoiseFloor`, ``known`` (nv,) True where the recorded torque
+    filter was divided out, ``text`` how (for the description)."""
+
+    sigma: np.ndarray
+    cutoff: np.ndarray
+    reliable: np.ndarray
+    known: np.ndarray
+    text: str
+
+
+def spectral_estimate(dataset: Dataset, residual: np.ndarray, tau_nom: np.ndarray
+                      ) -> SpectralFloor:
+    """The ``spectrum`` floor of the module notes. With the dataset's torque filter recorded:
+    the AR(1) fit through it (:func:`filtered_floor`), standing where it is reliable or where
+    the free fit (:func:`spectral_floor`, white below the band) is seen and agrees with it
+    within two standard errors. Without: the free fit, and where it cannot see the level, the
+    AR(1) fit with no filter (coloured noise that is not a roll-off) if that one stands."""
+    sp = fine_spectra(dataset, residual, tau_nom)
+    sigma, cut, reliable = spectral_floor(sp)
+    filt = [f"{c:.3g} Hz" for c in cut if np.isfinite(c)]
+    text = ("from the residual spectrum above the motion band "
+            f"(> {2 * sp.signal_band:.3g} Hz), a flat level "
+            + (f"rolling off as a low-pass at {', '.join(sorted(set(filt)))}" if filt
+               else "(white)"))
+    if sp.freqs.size < 8:
+        return SpectralFloor(np.maximum(sigma, 1e-12), cut, reliable,
+                             np.zeros(sigma.size, dtype=bool), text)
+    rate = 2.0 * float(sp.freqs[-1])
+    given = dataset.torque_filter
+    k_sigma, k_reliable, k_err, band = filtered_floor(sp, given, rate)
+    if given is not None:
+        known = np.isfinite(k_sigma)
+        agree = reliable & (np.abs(np.log(np.where(known, k_sigma, 1.0) / sigma)) <= 2 * k_err)
+        reliable = np.where(known, k_reliable | agree, reliable)
+        what = (f"with the chain's low-pass ({given[0]:.3g} Hz, order {given[1]}) divided "
+                "out, ")
+    else:
+        known = ~reliable & k_reliable
+        reliable = reliable | known
+        what = "on joints the flat level does not fit, "
+    sigma = np.where(known, k_sigma, sigma)
+    cut = np.where(known, np.inf if given is None else given[0], cut)
+    if known.any():
+        ar1 = (f"from the residual spectrum {what}an AR(1) noise level fitted on {band} and "
+               "extended below it")
+        joints = ", ".join(str(j + 1) for j in np.flatnonzero(known))
+        text = (ar1 if known.all() else
+                f"{text}; {ar1.replace('from the residual spectrum ', '')} (joints {joints})")
+    return SpectralFloor(np.maximum(sigma, 1e-12), cut, reliable, known, text)
+
+
 def estimate_noise_floor(dataset: Dataset, tau: np.ndarray, residual: np.ndarray,
                          tau_nom: np.ndarray, sigma: np.ndarray | None = None,
-                         torque_resolution: np.ndarray | None = None) -> NoiseFloor:
+                         torque_resolution: np.ndarray | None = None,
+                         spectrum_on: tuple[Dataset, np.ndarray, np.ndarray] | None = None
+                         ) -> NoiseFloor:
     """The noise floor of the module notes. ``tau``: the measured torque (for repetition);
     ``residual``, ``tau_nom``: measured minus nominal torque and the nominal torque (for the
-    spectrum); ``sigma``, ``torque_resolution``: (nv,) given values (either may be ``None``)."""
+    spectrum); ``sigma``, ``torque_resolution``: (nv,) given values (either may be ``None``);
+    ``spectrum_on``: ``(dataset, residual, tau_nom)`` of other samples to estimate the spectrum
+    on (e.g. the recordings whose torque filter is recorded); default the ones above."""
     nv = tau.shape[1]
     if sigma is not None or torque_resolution is not None:
         s = np.zeros(nv)
@@ -266,8 +432,8 @@ def estimate_noise_floor(dataset: Dataset, tau: np.ndarray, residual: np.ndarray
             parts.append("the torque resolution / √12")
         return NoiseFloor(s, ("given",) * nv, None, np.full(nv, np.nan), np.ones(nv, bool),
                           f"given ({' and '.join(parts)})")
-    sp = fine_spectra(dataset, residual, tau_nom)
-    spec_sigma, cut, reliable = spectral_floor(sp)
+    spectral = spectral_estimate(*(spectrum_on or (dataset, residual, tau_nom)))
+    spec_sigma, cut, reliable = spectral.sigma, spectral.cutoff, spectral.reliable
     period, lag = find_period(dataset)
     rep, order = repetition_floor(dataset, tau, lag) if lag else (np.full(nv, np.nan), 0)
     use_rep = np.isfinite(rep)
@@ -280,11 +446,7 @@ def estimate_noise_floor(dataset: Dataset, tau: np.ndarray, residual: np.ndarray
                 + ("σ² = Var(τ(t+2P) − 2τ(t+P) + τ(t))/6 (a linear drift cancels)" if order == 2
                    else "σ² = Var(τ(t+P) − τ(t))/2 (two periods: a drift would inflate it)"))
     else:
-        filt = [f"{c:.3g} Hz" for c in cut[~use_rep] if np.isfinite(c)]
-        text = ("from the residual spectrum above the motion band "
-                f"(> {2 * sp.signal_band:.3g} Hz), a flat level "
-                + (f"rolling off as a low-pass at {', '.join(sorted(set(filt)))}" if filt
-                   else "(white)")
+        text = (spectral.text
                 + ("" if period is None else
                    f"; repetition (period {period:.4g} s) on "
                    f"{int(use_rep.sum())} of {nv} joints"))
