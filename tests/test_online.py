@@ -558,6 +558,28 @@ def test_a_model_that_does_not_fit_warns_and_never_loses_definiteness(planar_2r)
         trace = est.update_batch(q, dq, ddq, tau)
     texts = [str(w.message) for w in record if issubclass(w.category, ci.errors.DataQualityWarning)]
     assert sum("re-armed" in t and "friction=" in t for t in texts) == 1
-    assert est.n_repairs >= 1 and sum("lost definiteness" in t for t in texts) == 1
+    # whether round-off breaks P here depends on the BLAS and numpy build: when it does, it is
+    # repaired and warned once (the repair itself is forced in the next test)
+    assert sum("lost definiteness" in t for t in texts) == min(est.n_repairs, 1)
     assert len(trace.flagged) >= 3 and np.all(np.isfinite(trace.std))
+    assert np.linalg.eigvalsh(est.covariance).min() > 0
+
+
+def test_a_covariance_that_lost_definiteness_is_repaired_and_warned_once(planar_2r):
+    """P made indefinite (as round-off leaves it after a reset's wide prior and sharp data):
+    the next updates repair it — symmetric, eigenvalues clipped to a positive floor — count the
+    repairs, warn once, and go on with finite σ and a positive definite P."""
+    q, dq, ddq = random_states(planar_2r, 40, 13)
+    est = ci.RecursiveEstimator(planar_2r, noise_std=0.01, friction=None, detector=None)
+    tau = est.predict(q, dq, ddq)
+    est.update_batch(q[:20], dq[:20], ddq[:20], tau[:20])
+    p = est.covariance
+    values, vectors = np.linalg.eigh(p)
+    values[-1] = -10.0 * abs(values).max()              # one direction far below zero
+    est._p = (vectors * values) @ vectors.T
+    with pytest.warns(ci.errors.DataQualityWarning, match="lost definiteness") as record:
+        trace = est.update_batch(q[20:], dq[20:], ddq[20:], tau[20:])
+    assert est.n_repairs >= 1
+    assert sum("lost definiteness" in str(w.message) for w in record) == 1
+    assert np.all(np.isfinite(trace.std))
     assert np.linalg.eigvalsh(est.covariance).min() > 0
