@@ -10,6 +10,7 @@ import pytest
 import consistid as ci
 from consistid.errors import DatasetError, JointCountError, OptionError
 from consistid.identification.compression import compress
+from consistid.identification.identify import base_parameters_of
 from consistid.identification.regressor import RegressorSpec
 
 distributed = pytest.importorskip("distributed")
@@ -62,6 +63,12 @@ def test_compressed_problem_equals_the_local_one(client, ur5):
     local = compress(ur5, ci.Dataset.concatenate(data), spec)
     assert remote.n_samples == local.n_samples
     for got, want in zip(normal_equations(remote), normal_equations(local)):
+        np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-10 * np.max(np.abs(want)))
+    # each joint's QR on its independent columns only, as identify runs it, on the workers too
+    base = base_parameters_of(ur5, spec)
+    remote_b = on_dask(data, client=client, split_every=2).compress(ur5, spec, base)
+    local_b = compress(ur5, ci.Dataset.concatenate(data), spec, base=base)
+    for got, want in zip(normal_equations(remote_b), normal_equations(local_b)):
         np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-10 * np.max(np.abs(want)))
 
 

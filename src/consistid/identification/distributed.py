@@ -39,6 +39,7 @@ import numpy as np
 from ..data.dataset import Dataset
 from ..errors import DatasetError, OptionError
 from ..robot.model import RobotModel
+from .base import BaseParameters
 from .compression import CompressedProblem, compress
 from .regressor import RegressorSpec
 from .streaming import DataStream, Part, ResidualStatistics, merge_all
@@ -61,9 +62,12 @@ def _load(part: Part, k: int, model: RobotModel, loader: Callable[[Path], Datase
 
 
 def compress_partition(items: Iterable[Part], model: RobotModel, spec: RegressorSpec,
-                       loader: Callable[[Path], Dataset]) -> CompressedProblem | None:
-    """The compressed problem of one partition's files or Datasets (``None`` if empty)."""
-    parts = [compress(model, _load(p, k, model, loader), spec) for k, p in enumerate(items)]
+                       loader: Callable[[Path], Dataset], base: BaseParameters | None = None
+                       ) -> CompressedProblem | None:
+    """The compressed problem of one partition's files or Datasets (``None`` if empty);
+    ``base`` as in :func:`~consistid.identification.compression.compress`."""
+    parts = [compress(model, _load(p, k, model, loader), spec, base=base)
+             for k, p in enumerate(items)]
     return merge_all(parts) if parts else None
 
 
@@ -143,10 +147,11 @@ class DaskData(DataStream):
         self.scheduler = f"dask {configured or 'threads'} scheduler (no distributed.Client)"
         return dask.compute(item, scheduler=configured or "threads")[0]
 
-    def compress(self, model: RobotModel, spec: RegressorSpec) -> CompressedProblem:
+    def compress(self, model: RobotModel, spec: RegressorSpec,
+                 base: BaseParameters | None = None) -> CompressedProblem:
         """The compressed problem of every partition, merged up a tree of fan-in
-        ``split_every``."""
-        per = partial(compress_partition, model=model, spec=spec, loader=self.loader)
+        ``split_every`` (``base``: each joint's QR on its independent columns only)."""
+        per = partial(compress_partition, model=model, spec=spec, loader=self.loader, base=base)
         problem = self._compute(self.bag.reduction(per, merge_partials,
                                                    split_every=self.split_every))
         if problem is None:

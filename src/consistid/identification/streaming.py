@@ -323,9 +323,7 @@ def compress_data(model: RobotModel, data: Dataset | DataStream, spec: Regressor
     """The compressed problem of an in-memory dataset or of a stream (``base``: the QR on each
     joint's independent columns only, :func:`~consistid.identification.compression.compress`)."""
     if isinstance(data, DataStream):
-        if type(data).compress is DataStream.compress:
-            return data.compress(model, spec, base)
-        return data.compress(model, spec)    # its own reduction (Dask): on every column
+        return data.compress(model, spec, base)
     return compress(model, data, spec, base=base)
 
 
