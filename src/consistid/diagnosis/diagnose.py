@@ -75,7 +75,13 @@ from .candidates import EFFECT_NAMES, SIGNATURES, Atom, EffectLibrary, GapData
 from .effects import REGISTRY, EffectParameter
 from .gap import GapBreakdown, gap_breakdown, residual_spectra
 from .noise import NoiseFloor, estimate_noise_floor, spectral_estimate
-from .remainder import Remainder, analyse_remainder, dry_friction_at_rest
+from .remainder import (
+    LOWPASS_ORDER,
+    Remainder,
+    analyse_remainder,
+    dry_friction_at_rest,
+    dry_friction_through_filter,
+)
 
 #: A held-out shrink below this fraction does not list a joint under an arm-wide effect.
 JOINT_SHRINK_FLOOR = 0.05
@@ -1052,12 +1058,13 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     # (training) ones for a repetition floor — a held-out recording the chain filtered at
     # another cut-off holds another noise level — else the held-out data.
     tested = train if any(m == "repetition" for m in noise.method) else held
-    dry, cone = _dry_friction(fit, tested)
-    left = dry_friction_at_rest(tested, tested.residual - fit.correction(tested), dry, cone)
+    unknown = _unpredictable(fit, tested)
+    left, cone = _set_valued_friction(fit, tested, tested.residual - fit.correction(tested),
+                                      unknown)
     remainder = analyse_remainder(tested, left, floor, autocorrelation_time(tested.dataset, left),
                                   where.band_edges, reliable=noise.reliable,
                                   source="training" if tested is train else "held-out",
-                                  cone=cone, unknown=_unpredictable(fit, tested),
+                                  cone=cone, unknown=unknown,
                                   tried=bool(library.effects) and max_steps > 0)
     if not noise.reliable.all():
         unseen = ("the noise floor cannot be seen on "
@@ -1102,21 +1109,35 @@ def _unpredictable(fit: GapModel, data: GapData) -> np.ndarray:
     return out
 
 
-def _dry_friction(fit: GapModel, data: GapData) -> tuple[np.ndarray, np.ndarray]:
-    """The selected dry friction's correction on ``data`` (N, nv) — its Coulomb and Stribeck
-    atoms — and the half-width of its cone at rest per joint (nv,): ``f_c + Δf``, the fitted
-    static friction; 0 on joints where a term was seen through a low-pass (the arguments of
-    :func:`~consistid.diagnosis.remainder.dry_friction_at_rest`)."""
+def _set_valued_friction(fit: GapModel, data: GapData, residual: np.ndarray,
+                         unknown: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``residual`` (N, nv), what every selected effect leaves on ``data``, with the selected
+    dry friction (its Coulomb and Stribeck atoms) taken as set-valued at rest, and the cone
+    half-width each joint was judged against (nv,; 0: none). Atoms seen without a filter:
+    :func:`~consistid.diagnosis.remainder.dry_friction_at_rest`, against the fitted static
+    friction ``f_c + Δf``; seen through a low-pass, where the dataset says which one the signal
+    chain applied to the torques (``torque_filter``):
+    :func:`~consistid.diagnosis.remainder.dry_friction_through_filter`; else not at all."""
     dry, cone = np.zeros((data.n, data.nv)), np.zeros(data.nv)
     filtered = np.zeros(data.nv, dtype=bool)
+    laws: dict[int, list[np.ndarray]] = {}
     for atom, th in zip(fit.atoms, fit.theta):
         if atom.effect in DRY_FRICTION and atom.joint is not None:
             dry += fit.library.columns(atom, data) @ th
             cone[atom.joint] += max(float(th[0]), 0.0)
             filtered[atom.joint] |= bool(np.isfinite(atom.cutoff))
-    cone[filtered] = 0.0
-    dry[:, filtered] = 0.0
-    return dry, cone
+            law = REGISTRY[atom.effect].unfiltered(fit.library, atom, data)
+            laws.setdefault(atom.joint, []).extend(np.reshape(law, (data.n, -1)).T)
+    left = dry_friction_at_rest(data, residual, dry, np.where(filtered, 0.0, cone))
+    chain = data.dataset.torque_filter       # (cut-off Hz, order) of the chain's low-pass
+    for j in np.flatnonzero(filtered & (cone > 0)):
+        if chain is None or chain[1] != LOWPASS_ORDER:
+            cone[j] = 0.0
+            continue
+        left[:, j], cone[j] = dry_friction_through_filter(
+            data, int(j), residual[:, j], dry[:, j], laws[int(j)], float(cone[j]),
+            float(chain[0]), ~unknown[:, j])
+    return left, cone
 
 
 def _prune_nested(prob: _Problem, chosen: list[int], alts: list, bics: list, pvals: list,
