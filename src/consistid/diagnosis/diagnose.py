@@ -77,6 +77,7 @@ from .gap import GapBreakdown, gap_breakdown, residual_spectra
 from .noise import NoiseFloor, estimate_noise_floor, spectral_estimate
 from .remainder import (
     LOWPASS_ORDER,
+    REMAINDER_RATIO,
     Remainder,
     analyse_remainder,
     dry_friction_at_rest,
@@ -1060,7 +1061,7 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     tested = train if any(m == "repetition" for m in noise.method) else held
     unknown = _unpredictable(fit, tested)
     left, cone = _set_valued_friction(fit, tested, tested.residual - fit.correction(tested),
-                                      unknown)
+                                      unknown, floor)
     remainder = analyse_remainder(tested, left, floor, autocorrelation_time(tested.dataset, left),
                                   where.band_edges, reliable=noise.reliable,
                                   source="training" if tested is train else "held-out",
@@ -1110,14 +1111,17 @@ def _unpredictable(fit: GapModel, data: GapData) -> np.ndarray:
 
 
 def _set_valued_friction(fit: GapModel, data: GapData, residual: np.ndarray,
-                         unknown: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                         unknown: np.ndarray, floor: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``residual`` (N, nv), what every selected effect leaves on ``data``, with the selected
     dry friction (its Coulomb and Stribeck atoms) taken as set-valued at rest, and the cone
     half-width each joint was judged against (nv,; 0: none). Atoms seen without a filter:
     :func:`~consistid.diagnosis.remainder.dry_friction_at_rest`, against the fitted static
     friction ``f_c + Δf``; seen through a low-pass, where the dataset says which one the signal
     chain applied to the torques (``torque_filter``):
-    :func:`~consistid.diagnosis.remainder.dry_friction_through_filter`; else not at all."""
+    :func:`~consistid.diagnosis.remainder.dry_friction_through_filter`, on the joints whose
+    point-valued remainder would be flagged (above ``REMAINDER_RATIO`` × ``floor``): elsewhere
+    the set-valued friction, which can only leave less, changes no verdict and its solve (a
+    second or more per joint on a 30 s log) is skipped; else not at all."""
     dry, cone = np.zeros((data.n, data.nv)), np.zeros(data.nv)
     filtered = np.zeros(data.nv, dtype=bool)
     laws: dict[int, list[np.ndarray]] = {}
@@ -1130,13 +1134,15 @@ def _set_valued_friction(fit: GapModel, data: GapData, residual: np.ndarray,
             laws.setdefault(atom.joint, []).extend(np.reshape(law, (data.n, -1)).T)
     left = dry_friction_at_rest(data, residual, dry, np.where(filtered, 0.0, cone))
     chain = data.dataset.torque_filter       # (cut-off Hz, order) of the chain's low-pass
+    known = ~unknown
     for j in np.flatnonzero(filtered & (cone > 0)):
-        if chain is None or chain[1] != LOWPASS_ORDER:
+        rms = float(np.sqrt(np.mean(left[known[:, j], j] ** 2))) if known[:, j].any() else 0.0
+        if chain is None or chain[1] != LOWPASS_ORDER or rms <= REMAINDER_RATIO * floor[j]:
             cone[j] = 0.0
             continue
         left[:, j], cone[j] = dry_friction_through_filter(
             data, int(j), residual[:, j], dry[:, j], laws[int(j)], float(cone[j]),
-            float(chain[0]), ~unknown[:, j])
+            float(chain[0]), known[:, j])
     return left, cone
 
 
