@@ -198,9 +198,17 @@ def test_the_chain_records_its_torque_filter_and_files_keep_it(tmp_path):
     assert data.torque_filter == (rec.cutoff, rec.options.order) and rec.options.order >= 1
     assert ci.Dataset.from_recording(t, q, tau, filter_torque=False).torque_filter is None
     assert ci.Dataset.from_recording(t, q, tau, derivative="savgol").torque_filter is None
+    assert ci.Dataset.from_recording(t, q, tau, decimate=4).torque_filter is None
+    assert data.with_torque(data.tau + 1.0).torque_filter is None          # made elsewhere
+    assert data.with_torque(data.tau - 1.0, keep_filter=True).torque_filter == data.torque_filter
     assert data.select(slice(10, 100)).torque_filter == data.torque_filter
     data.save(tmp_path / "d.npz")
     assert ci.Dataset.load(tmp_path / "d.npz").torque_filter == data.torque_filter
+    with np.load(tmp_path / "d.npz") as f:
+        arrays = dict(f)
+    np.savez(tmp_path / "bad.npz", **{**arrays, "torque_filter": np.array(5.0)})
+    with pytest.raises(DatasetError, match="torque_filter"):
+        ci.Dataset.load(tmp_path / "bad.npz")
     other = ci.Dataset.from_recording(t, q, tau, cutoff=3.0)
     assert other.torque_filter[0] == 3.0
     assert ci.Dataset.concatenate([data, data]).torque_filter == data.torque_filter

@@ -109,3 +109,14 @@ def test_a_breakaway_pulse_near_standstill_is_flagged(planar_2r):
     held = np.random.default_rng(1).uniform(-FC, FC, N)
     ratio, _, _ = _judge(planar_2r, np.where(rest, held, FC * np.sign(v)) + pulse)
     assert ratio > REMAINDER_RATIO
+
+
+@pytest.mark.parametrize("growth", [1.5, 2.0])
+def test_a_friction_grown_beyond_the_cone_is_flagged(planar_2r, growth):
+    """The moving friction grew to 1.5 or 2 × the fitted static friction (held-out data against
+    the fit): the refitted amplitude may not exceed the cone (dynamic friction ≤ static), so
+    what it cannot take up stays a remainder."""
+    v, rest = _motion()
+    held = np.random.default_rng(1).uniform(-FC, FC, N)
+    ratio, cone, _ = _judge(planar_2r, np.where(rest, held, growth * FC * np.sign(v)))
+    assert ratio > REMAINDER_RATIO and cone <= FC

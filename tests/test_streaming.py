@@ -11,9 +11,10 @@ from hypothesis import strategies as st
 
 import consistid as ci
 from consistid.errors import DatasetError, JointCountError, OptionError
-from consistid.identification.compression import compress
-from consistid.identification.regressor import RegressorSpec
-from consistid.identification.statistics import autocorrelation_time
+from consistid.identification.compression import compress, joint_sigma
+from consistid.identification.regressor import RegressorSpec, predict_torque
+from consistid.identification.statistics import (add_lagged, autocorrelation_time,
+                                                 coloured_covariance)
 from consistid.identification.streaming import (
     DataStream,
     ResidualStatistics,
@@ -156,19 +157,41 @@ def test_autocorrelation_windows_read_few_samples_and_keep_the_correlation_time(
     np.testing.assert_allclose(tau_few, tau_all, rtol=0.2)   # ~3 standard errors of 2^15
 
 
+def test_a_long_correlation_reads_enough_samples_for_its_time(planar_2r):
+    """AR(1) with φ = 0.98 (τ = 99 samples in closed form) on a 300 000-sample log: the
+    windows' first estimate asks for more samples than 2^15 (τ within 10 % needs ~200 000), the
+    residual is read again on them, and τ lands within 30 % (three standard errors) of the
+    closed form."""
+    data = ci.simulate.excitation_run(planar_2r, duration=3000.0, rate=100.0, seed=5,
+                                      torque_noise=0.0).dataset
+    noise = ci.simulate.experiments.ar1_noise(data.tau.shape, 0.98, 0.1,
+                                              np.random.default_rng(2))
+    noisy = data.with_torque(data.tau + noise)
+    spec = RegressorSpec.make(planar_2r, None)
+    stats = ResidualStatistics.of(planar_2r, spec, planar_2r.prior_parameters, noisy)
+    assert stats.n_samples > 2 ** 17
+    np.testing.assert_allclose(stats.autocorrelation_time(), 99.0, rtol=0.3)
+
+
+def test_pooled_autocovariances_keep_the_longer_ones_lags():
+    """A short recording adds nothing beyond its own lags; it does not cut the long one's."""
+    long, short = np.ones((50, 2)), np.full((5, 2), 2.0)
+    both = add_lagged(long, short)
+    assert both.shape == (50, 2)
+    np.testing.assert_array_equal(both[:5], 3.0)
+    np.testing.assert_array_equal(both[5:], 1.0)
+    np.testing.assert_array_equal(add_lagged(short, long), both)
+    assert add_lagged(None, short) is short and add_lagged(None, None) is None
+
+
 def test_coloured_covariance_counts_every_sample_in_the_variance(planar_2r):
     """The σ of the coloured covariance comes from every sample's residual (exact from the
     factors) even when the autocorrelation reads a part: identify's ± on a long log equals the
     sandwich computed by hand from the residual of all samples and the windows' τ."""
-    from consistid.identification.compression import joint_sigma
-    from consistid.identification.statistics import coloured_covariance
-
     data = ci.simulate.excitation_run(planar_2r, duration=500.0, rate=100.0, seed=4,
                                       torque_noise=0.05).dataset
     res = ci.identify(planar_2r, data, method="ols", covariance="coloured")
     iid = ci.identify(planar_2r, data, method="ols", covariance="iid")
-    from consistid.identification.regressor import predict_torque
-
     residual = data.tau - predict_torque(planar_2r, data, res.spec, res.parameters)
     tau = ResidualStatistics.of(planar_2r, res.spec, res.parameters, data).autocorrelation_time()
     problem = compress(planar_2r, data, res.spec)

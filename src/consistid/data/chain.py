@@ -241,8 +241,10 @@ class ChainResult:
     def torque_filter(self) -> tuple[float, int] | None:
         """``(cut-off Hz, order)`` of the zero-phase Butterworth low-pass applied to the torques
         (:attr:`consistid.data.dataset.Dataset.torque_filter`), or ``None``: torques unfiltered,
-        or smoothed another way (Savitzky–Golay, Fourier harmonics)."""
-        if self.options.filter_torque and self.options.derivative == "central":
+        smoothed another way (Savitzky–Golay, Fourier harmonics), or decimated after the filter
+        (its response is then not that of the same filter at the result's rate)."""
+        if (self.options.filter_torque and self.options.derivative == "central"
+                and self.options.decimate == 1):
             return float(self.cutoff), int(self.options.order)
         return None
 

@@ -63,11 +63,13 @@ class Dataset:
         torque biases ``f_c`` low by ~10 % at a 5 Hz cut-off); ``None``: ``sign(dq)``.
     torque_filter : ``(cut-off Hz, order)`` of the zero-phase Butterworth low-pass
         (:func:`consistid.data.filters.lowpass`) the signal chain applied to ``tau`` (set by the
-        chain); ``None``: unfiltered, or not known. The diagnosis' noise floor divides its
-        response out of the torque spectrum (:mod:`consistid.diagnosis.noise`). Kept by
-        :meth:`select` and :meth:`with_torque` (give ``torque_filter=None`` to
-        :func:`dataclasses.replace` for torques that did not go through it), by
-        :meth:`concatenate` when every part has the same, and in ``.npz`` files.
+        chain at the dataset's rate); ``None``: unfiltered, or not known (the chain also leaves
+        it out when it decimates after filtering). The diagnosis divides its response out of the
+        torque spectrum for the noise floor (:mod:`consistid.diagnosis.noise`) and judges dry
+        friction at rest through it (:mod:`consistid.diagnosis.remainder`). Kept by
+        :meth:`select` (a selection at another spacing makes it wrong: consumers ignore a
+        cut-off above 0.45 × the rate), by :meth:`concatenate` when every part has the same, and
+        in ``.npz`` files (not in ``.csv``); dropped by :meth:`with_torque` unless asked.
 
     Raises
     ------
@@ -186,8 +188,12 @@ class Dataset:
                        segment=self.segment[index],
                        dq_sign=None if self.dq_sign is None else self.dq_sign[index])
 
-    def with_torque(self, tau: np.ndarray) -> "Dataset":
-        return replace(self, tau=tau)
+    def with_torque(self, tau: np.ndarray, keep_filter: bool = False) -> "Dataset":
+        """The same samples with the torques ``tau``. Their :attr:`torque_filter` is dropped
+        unless ``keep_filter`` (the new torques went through the same low-pass, e.g. the old
+        ones minus a correction filtered alike): torques made elsewhere (simulated, raw plus
+        noise) did not."""
+        return replace(self, tau=tau, torque_filter=self.torque_filter if keep_filter else None)
 
     # ----------------------------------------------------------------------------- splitting
     def split(self, fraction: float = 0.7) -> tuple["Dataset", "Dataset"]:
@@ -314,7 +320,7 @@ class Dataset:
                 arrays = {k: f[k] for k in f.files if k in ("t", *FIELDS, "segment", "dq_sign")}
                 stored = tuple(str(n) for n in f["joint_names"]) if "joint_names" in f else None
                 if "torque_filter" in f:
-                    arrays["torque_filter"] = tuple(f["torque_filter"].tolist())
+                    arrays["torque_filter"] = np.atleast_1d(f["torque_filter"]).tolist()
             if joint_names is not None and stored is not None and tuple(joint_names) != stored:
                 raise JointNameError(f"{path.name} names its joints {list(stored)}, not "
                                      f"{list(joint_names)}")

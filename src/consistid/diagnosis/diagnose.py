@@ -1135,14 +1135,20 @@ def _set_valued_friction(fit: GapModel, data: GapData, residual: np.ndarray,
     left = dry_friction_at_rest(data, residual, dry, np.where(filtered, 0.0, cone))
     chain = data.dataset.torque_filter       # (cut-off Hz, order) of the chain's low-pass
     known = ~unknown
+    rate = 1.0 / min((seg.step for seg in data.segments if seg.size > 1), default=np.inf)
     for j in np.flatnonzero(filtered & (cone > 0)):
         rms = float(np.sqrt(np.mean(left[known[:, j], j] ** 2))) if known[:, j].any() else 0.0
-        if chain is None or chain[1] != LOWPASS_ORDER or rms <= REMAINDER_RATIO * floor[j]:
+        if (chain is None or chain[1] != LOWPASS_ORDER or chain[0] >= 0.45 * rate
+                or rms <= REMAINDER_RATIO * floor[j]):
             cone[j] = 0.0
             continue
-        left[:, j], cone[j] = dry_friction_through_filter(
-            data, int(j), residual[:, j], dry[:, j], laws[int(j)], float(cone[j]),
-            float(chain[0]), known[:, j])
+        judged = dry_friction_through_filter(data, int(j), residual[:, j], dry[:, j],
+                                             laws[int(j)], float(cone[j]), float(chain[0]),
+                                             known[:, j])
+        if judged is None:
+            cone[j] = 0.0
+        else:
+            left[:, j], cone[j] = judged
     return left, cone
 
 

@@ -153,6 +153,7 @@ class Spectra:
     residual, nominal : (F, nv) power spectral densities of the residual and the nominal torque.
     signal_band : ``f_s``, the frequency below which the nominal torque has 99.9 % of its power.
     segments : Welch segments averaged (over every recording), 0 when not counted.
+    rate : the sampling rate (Hz) they were computed at, 0 when not recorded.
     """
 
     freqs: np.ndarray
@@ -160,6 +161,7 @@ class Spectra:
     nominal: np.ndarray
     signal_band: float
     segments: int = 0
+    rate: float = 0.0
 
     @property
     def noise_band(self) -> tuple[np.ndarray, float, float]:

@@ -217,7 +217,7 @@ def fine_spectra(dataset: Dataset, residual: np.ndarray, tau_nom: np.ndarray,
         nper = min(nper, idx.size // 2)
         if nper < 32:
             continue
-        segments += (idx.size - nper) // (nper // 2) + 1        # scipy's 50 % overlap
+        segments += (idx.size - nper) // (nper - nper // 2) + 1     # scipy's 50 % overlap
         f, pr = scipy.signal.welch(residual[idx], fs=rate, nperseg=nper, axis=0)
         _, pn = scipy.signal.welch(tau_nom[idx], fs=rate, nperseg=nper, axis=0)
         if freqs is not None and f.size != freqs.size:
@@ -234,7 +234,7 @@ def fine_spectra(dataset: Dataset, residual: np.ndarray, tau_nom: np.ndarray,
     power = p_nom[1:].sum(axis=1)
     band = float(freqs[1:][np.searchsorted(np.cumsum(power) / power.sum(), 0.999)]) \
         if power.sum() > 0 else float(freqs[1])
-    return Spectra(freqs, p_res, p_nom, band, segments)
+    return Spectra(freqs, p_res, p_nom, band, segments, rate)
 
 
 def _rolloff(f: np.ndarray, fc: float, n: float) -> np.ndarray:
@@ -386,13 +386,21 @@ def spectral_estimate(dataset: Dataset, residual: np.ndarray, tau_nom: np.ndarra
     if sp.freqs.size < 8:
         return SpectralFloor(np.maximum(sigma, 1e-12), cut, reliable,
                              np.zeros(sigma.size, dtype=bool), text)
-    rate = 2.0 * float(sp.freqs[-1])
+    rate = sp.rate if sp.rate > 0 else 2.0 * float(sp.freqs[-1])
     given = dataset.torque_filter
+    if given is not None and not given[0] < 0.45 * rate:
+        given = None           # not the rate it was filtered at (decimated, selected): unknown
     k_sigma, k_reliable, k_err, band = filtered_floor(sp, given, rate)
     if given is not None:
-        known = np.isfinite(k_sigma)
-        agree = reliable & (np.abs(np.log(np.where(known, k_sigma, 1.0) / sigma)) <= 2 * k_err)
-        reliable = np.where(known, k_reliable | agree, reliable)
+        # the AR(1) fit through the filter where it stands; else the free fit (white below the
+        # band) where that sees its level and the AR(1) fit, as far as it can tell, does not
+        # contradict it (within two of its standard errors)
+        known = k_reliable
+        free = reliable & ~known & (np.abs(np.log(np.where(np.isfinite(k_sigma), k_sigma, sigma)
+                                                  / sigma)) <= 2 * k_err)
+        reliable = known | free
+        # unseen joints report the AR(1) value when it is at least loosely determined
+        known = known | (~free & np.isfinite(k_sigma) & (k_err <= 1.0))
         what = (f"with the chain's low-pass ({given[0]:.3g} Hz, order {given[1]}) divided "
                 "out, ")
     else:

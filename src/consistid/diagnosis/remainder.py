@@ -58,6 +58,7 @@ still counts. Through a low-pass the diagnosis does not know, nothing is taken a
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -67,7 +68,7 @@ import scipy.sparse
 import scipy.stats
 
 from ..data.signals import lowpass
-from .gapdata import GapData, lowpass_segments
+from .gapdata import GapData, Segment, lowpass_segments
 
 #: The remaining RMS must exceed the noise floor by this factor to flag a remainder.
 REMAINDER_RATIO = 1.5
@@ -83,6 +84,10 @@ POSITION_BINS = 10
 #: The filter's impulse response is cut where it falls below this fraction of its peak (the held
 #: torques' columns in :func:`dry_friction_through_filter`).
 IMPULSE_TAIL = 1e-6
+#: Most entries (rest samples × impulse response length) the held torques' columns of
+#: :func:`dry_friction_through_filter` may hold (~0.5 GB as a sparse matrix and its copies);
+#: beyond, the joint's dry friction is not judged set-valued (its remainder can only be larger).
+MAX_HELD_ENTRIES = 10_000_000
 #: L-BFGS-B stops when an iteration lowers ``½‖a x − y‖²`` by less than this fraction
 #: (:func:`_box_least_squares`): the remainder's RMS is then within ~10⁻³ of the converged one
 #: (measured: the same ratios to the floor to three digits as at 10⁻¹², in a fifth of the
@@ -331,20 +336,15 @@ def _held_columns(data: GapData, rest: np.ndarray, cutoff: float) -> scipy.spars
         at = np.flatnonzero(rest[seg.index])
         if at.size == 0:
             continue
-        first = np.arange(data.n)[seg.index][0]
+        where = np.arange(data.n)[seg.index]          # the segment's rows, contiguous or not
         rate = 1.0 / seg.step if seg.size > 1 else 0.0
         if seg.size < 8 or cutoff >= 0.45 * rate:      # lowpass_segments leaves it unfiltered
             h, lags = np.ones(1), np.zeros(1, dtype=int)
         else:
-            n = int(np.ceil(40 * rate / cutoff)) | 1
-            impulse = np.zeros(n)
-            impulse[n // 2] = 1.0
-            full = lowpass(impulse, cutoff, rate, LOWPASS_ORDER)
-            keep = np.flatnonzero(np.abs(full) >= IMPULSE_TAIL * np.abs(full).max())
-            h, lags = full[keep], keep - n // 2
+            h, lags = _impulse(float(cutoff), float(rate))
         r = at[:, None] + lags[None, :]
         inside = (r >= 0) & (r < seg.size)
-        rows.append((first + r)[inside])
+        rows.append(where[r[inside]])
         cols.append(np.broadcast_to(col + np.arange(at.size)[:, None], r.shape)[inside])
         vals.append(np.broadcast_to(h, r.shape)[inside])
         col += at.size
@@ -353,6 +353,26 @@ def _held_columns(data: GapData, rest: np.ndarray, cutoff: float) -> scipy.spars
     return scipy.sparse.csc_matrix((np.concatenate(vals),
                                     (np.concatenate(rows), np.concatenate(cols))),
                                    shape=(data.n, col))
+
+
+def impulse_length(cutoff: float, plan: Sequence[Segment]) -> int:
+    """Samples of the zero-phase low-pass's impulse response kept by :func:`_held_columns`
+    (above :data:`IMPULSE_TAIL` of its peak) at the highest rate among ``plan``'s segments."""
+    rates = [1.0 / seg.step for seg in plan if seg.size > 1 and np.isfinite(seg.step)]
+    if not rates or cutoff >= 0.45 * max(rates):
+        return 1
+    return int(_impulse(cutoff, max(rates))[0].size)
+
+
+@functools.lru_cache(maxsize=32)
+def _impulse(cutoff: float, rate: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(h, lags)``: the low-pass's impulse response above :data:`IMPULSE_TAIL` of its peak."""
+    n = int(np.ceil(40 * rate / cutoff)) | 1
+    impulse = np.zeros(n)
+    impulse[n // 2] = 1.0
+    full = lowpass(impulse, cutoff, rate, LOWPASS_ORDER)
+    keep = np.flatnonzero(np.abs(full) >= IMPULSE_TAIL * np.abs(full).max())
+    return full[keep], keep - n // 2
 
 
 def _box_least_squares(a: scipy.sparse.csr_matrix, y: np.ndarray, lower: np.ndarray,
@@ -376,10 +396,13 @@ def _box_least_squares(a: scipy.sparse.csr_matrix, y: np.ndarray, lower: np.ndar
 
 def dry_friction_through_filter(data: GapData, joint: int, remainder: np.ndarray,
                                 dry: np.ndarray, laws: Sequence[np.ndarray], cone: float,
-                                cutoff: float, known: np.ndarray) -> tuple[np.ndarray, float]:
+                                cutoff: float, known: np.ndarray
+                                ) -> tuple[np.ndarray, float] | None:
     r"""The remainder on joint ``joint`` (N,) with its dry friction taken as set-valued where the
     torques went through the signal chain's zero-phase low-pass ``L`` at ``cutoff`` Hz, and the
-    cone half-width it was judged against.
+    cone half-width it was judged against; ``None`` (not judged so) where a segment holding
+    samples at rest is not uniformly sampled, or the held torques' columns would exceed
+    :data:`MAX_HELD_ENTRIES` entries (a long, slowly filtered log).
 
     ``remainder`` (N,) is the residual after every selected effect, ``dry`` (N,) the selected
     dry friction's correction as fitted, ``laws`` its atoms' signals before any filter (unit
@@ -396,7 +419,8 @@ def dry_friction_through_filter(data: GapData, joint: int, remainder: np.ndarray
     the candidates saw the friction through a cut-off tuned to the torque, which a held joint
     pulls below the chain's, and such a fit may hold a Stribeck hump that only imitated
     sticking. ``c`` is the fitted static friction, or the amplitudes' sum ``Σ a_k`` found with
-    it when smaller (one more solve): the stricter cone of the two. With ``L`` the identity the
+    it when smaller (one more solve): the stricter cone of the two; each ``a_k ≤ c`` (dynamic
+    friction cannot exceed static). With ``L`` the identity the
     held torques decouple and this is :func:`dry_friction_at_rest` with the amplitudes fitted
     again.
 
@@ -414,6 +438,10 @@ def dry_friction_through_filter(data: GapData, joint: int, remainder: np.ndarray
     band exceeds the floor on 62–84 % of the samples, and a 1 Hz sine added with 4 × (1013)
     or 2 × (1021) the floor's RMS stays below the flag (here 3.6 and 2.1 ×)."""
     rest = standstill_mask(data.dataset.dq)[:, joint]
+    if not all(seg.uniform for seg in data.segments if rest[seg.index].any()):
+        return None            # the held torque's filter placed by sample, not by time
+    if rest.sum() * impulse_length(cutoff, data.segments) > MAX_HELD_ENTRIES:
+        return None
     moving = lowpass_segments(data.dataset, np.column_stack(laws) * ~rest[:, None], cutoff,
                               data.segments)
     scale = np.linalg.norm(moving[known], axis=0)
@@ -425,8 +453,11 @@ def dry_friction_through_filter(data: GapData, joint: int, remainder: np.ndarray
     fitted = columns[np.flatnonzero(known)]
 
     def solve(c: float, start: np.ndarray | None = None) -> np.ndarray:
+        # held torques within ±c, and each moving amplitude within [0, c]: a joint's dynamic
+        # friction cannot exceed its static friction (f_c ≤ f_s), so a friction that grew
+        # beyond the cone (held-out data against the fit) stays a remainder
         lower = np.concatenate([np.zeros(k), np.full(columns.shape[1] - k, -c)])
-        upper = np.concatenate([np.full(k, np.inf), np.full(columns.shape[1] - k, c)])
+        upper = np.concatenate([c * scale, np.full(columns.shape[1] - k, c)])
         return _box_least_squares(fitted, e0[known], lower, upper, start)
 
     x = solve(cone)

@@ -39,8 +39,9 @@ def autocovariance_sum(dataset: Dataset, residual: np.ndarray, max_lag: int = 20
                        pooled: np.ndarray | None = None) -> np.ndarray | None:
     """Autocovariance sums (lags ``0 … max_lag``, per joint) of the residual, pooled over the
     dataset's recordings (mean removed per recording; recordings under 16 samples skipped) and
-    added to ``pooled`` (the sums of other data, e.g. earlier chunks of a stream; lags beyond the
-    shorter of the two are dropped). ``None`` when nothing was pooled."""
+    added to ``pooled`` (the sums of other data, e.g. earlier chunks of a stream; a shorter
+    recording adds nothing at lags beyond its own, :func:`add_lagged`). ``None`` when nothing
+    was pooled."""
     acf_sum = pooled
     for idx in _recordings(np.asarray(dataset.segment)):
         part = residual[idx]
@@ -55,8 +56,22 @@ def autocovariance_sum(dataset: Dataset, residual: np.ndarray, max_lag: int = 20
         size = scipy.fft.next_fast_len(n + lags, real=True)
         f = scipy.fft.rfft(x, n=size, axis=1)
         acov = scipy.fft.irfft(f.real ** 2 + f.imag ** 2, n=size, axis=1)[:, :lags + 1].T
-        acf_sum = acov if acf_sum is None else acf_sum[: acov.shape[0]] + acov[: acf_sum.shape[0]]
+        acf_sum = add_lagged(acf_sum, acov)
     return acf_sum
+
+
+def add_lagged(a: np.ndarray | None, b: np.ndarray | None) -> np.ndarray | None:
+    """The sum of two autocovariance sums ``(lags, nv)`` of different lengths: the shorter one
+    holds no pairs at the longer one's extra lags, so it adds zero there (truncating to the
+    shorter would cut every recording's window at the shortest one's length, and a recording
+    of a few dozen samples would make Sokal's window — and ``τ`` — far too short)."""
+    if a is None or b is None:
+        return b if a is None else a
+    if a.shape[0] < b.shape[0]:
+        a, b = b, a
+    out = a.copy()
+    out[: b.shape[0]] += b
+    return out
 
 
 def _recordings(segment: np.ndarray) -> list[slice | np.ndarray]:

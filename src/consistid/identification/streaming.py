@@ -49,7 +49,7 @@ from ..robot.model import RobotModel
 from .base import BaseParameters
 from .compression import CompressedProblem, compress
 from .regressor import RegressorSpec, predict_torque
-from .statistics import autocovariance_sum, integrated_time
+from .statistics import add_lagged, autocovariance_sum, integrated_time
 
 #: What a stream yields: a dataset, or a file holding one.
 Part = Dataset | str | os.PathLike
@@ -91,6 +91,9 @@ def merge_all(problems: Iterable[CompressedProblem]) -> CompressedProblem:
 AUTOCORRELATION_SAMPLES = 2 ** 15
 #: Windows they are taken in, spread evenly over the dataset.
 AUTOCORRELATION_WINDOWS = 4
+#: Relative standard error of the autocorrelation time that :meth:`ResidualStatistics.of`
+#: reads enough samples for.
+TAU_PRECISION = 0.1
 
 
 def autocorrelation_windows(dataset: Dataset, samples: int | None = AUTOCORRELATION_SAMPLES
@@ -103,10 +106,11 @@ def autocorrelation_windows(dataset: Dataset, samples: int | None = AUTOCORRELAT
     The autocorrelation time is a property of the noise, not of the excitation: its estimate's
     relative standard error is about :math:`\sqrt{2(2M + 1)/n}` for a window of ``M`` lags on
     ``n`` samples (Madras & Sokal 1988, doi:10.1007/BF01022990; ``M ≈ 5τ``): 3 % for a white
-    residual and 11 % for ``τ = 20`` samples on :data:`AUTOCORRELATION_SAMPLES`, so reading
-    every sample of a long log (a second data pass as long as the first) buys little. The
-    residual's sum of squares is exact from the compressed problem whatever is read here
-    (:meth:`~consistid.identification.compression.CompressedProblem.sum_squares`).
+    residual on :data:`AUTOCORRELATION_SAMPLES`, but 35 % for ``τ = 200`` (a heavily filtered
+    high-rate log), for which :meth:`ResidualStatistics.of` reads more. The residual's sum of
+    squares is exact from the compressed problem whatever is read here
+    (:meth:`~consistid.identification.compression.CompressedProblem.sum_squares`). A stream
+    reads this many per part.
     """
     n = dataset.n_samples
     if samples is None or n <= samples:
@@ -140,18 +144,32 @@ class ResidualStatistics:
     def of(cls, model: RobotModel, spec: RegressorSpec, theta: np.ndarray,
            dataset: Dataset, samples: int | None = AUTOCORRELATION_SAMPLES
            ) -> "ResidualStatistics":
-        """The statistics of one in-memory dataset (one pass by
-        :func:`~consistid.identification.regressor.predict_torque`) over at most ``samples``
-        of its samples (:func:`autocorrelation_windows`; ``None``: all of them). The sums
-        and the count are those of the samples read."""
-        dataset = autocorrelation_windows(dataset, samples)
+        """The statistics of one in-memory dataset (by
+        :func:`~consistid.identification.regressor.predict_torque`) over ``samples`` of its
+        samples (:func:`autocorrelation_windows`; ``None``: all of them), or more when the
+        correlation time found there asks for them: the estimate of ``τ`` has a relative
+        standard error ``√(2(2M + 1)/n)`` with Sokal's window ``M ≈ 5τ``, so ``τ`` within
+        :data:`TAU_PRECISION` needs ``n ≥ 2(10τ + 1)/TAU_PRECISION²`` samples (4 400 for a
+        white residual, 400 000 for ``τ = 200``); the residual is then read again on that
+        many. The sums and the count are those of the samples read."""
+        part = autocorrelation_windows(dataset, samples)
+        stats = cls._of(model, spec, theta, part)
+        if part is not dataset:
+            tau = float(np.max(stats.autocorrelation_time()))
+            needed = int(np.ceil(2.0 * (10.0 * tau + 1.0) / TAU_PRECISION ** 2))
+            if needed > part.n_samples:
+                stats = cls._of(model, spec, theta, autocorrelation_windows(dataset, needed))
+        return stats
+
+    @classmethod
+    def _of(cls, model: RobotModel, spec: RegressorSpec, theta: np.ndarray,
+            dataset: Dataset) -> "ResidualStatistics":
         residual = dataset.require_torque() - predict_torque(model, dataset, spec, theta)
         return cls(autocovariance_sum(dataset, residual), np.sum(residual ** 2, axis=0),
                    dataset.n_samples)
 
     def __add__(self, other: "ResidualStatistics") -> "ResidualStatistics":
-        a, b = self.autocovariance, other.autocovariance
-        pooled = a if b is None else b if a is None else a[: b.shape[0]] + b[: a.shape[0]]
+        pooled = add_lagged(self.autocovariance, other.autocovariance)
         return ResidualStatistics(pooled, self.sum_squares + other.sum_squares,
                                   self.n_samples + other.n_samples)
 
