@@ -82,8 +82,12 @@ from .remainder import (
     analyse_remainder,
     dry_friction_at_rest,
     dry_friction_through_filter,
+    standstill_mask,
 )
 
+#: Fewest samples clear of standstill on which a remainder is judged point-valued before the
+#: set-valued friction through a filter is tried (:func:`_set_valued_friction`).
+FAR_SAMPLES = 200
 #: A held-out shrink below this fraction does not list a joint under an arm-wide effect.
 JOINT_SHRINK_FLOOR = 0.05
 #: A runner-up whose held-out gain is within this fraction of the chosen one's makes a finding
@@ -1121,7 +1125,11 @@ def _set_valued_friction(fit: GapModel, data: GapData, residual: np.ndarray,
     :func:`~consistid.diagnosis.remainder.dry_friction_through_filter`, on the joints whose
     point-valued remainder would be flagged (above ``REMAINDER_RATIO`` × ``floor``): elsewhere
     the set-valued friction, which can only leave less, changes no verdict and its solve (a
-    second or more per joint on a 30 s log) is skipped; else not at all."""
+    second or more per joint on a 30 s log) is skipped; and not where the remainder on the
+    samples clear of standstill (beyond the filter's settling time of any sample at rest,
+    :func:`_near_rest`) is flagged on its own, which no held torque reaches (a position- or
+    load-dependent friction that the refitted amplitudes and the held torques near rest would
+    otherwise take up in part). Through no recorded filter: not at all."""
     dry, cone = np.zeros((data.n, data.nv)), np.zeros(data.nv)
     filtered = np.zeros(data.nv, dtype=bool)
     laws: dict[int, list[np.ndarray]] = {}
@@ -1142,6 +1150,14 @@ def _set_valued_friction(fit: GapModel, data: GapData, residual: np.ndarray,
                 or rms <= REMAINDER_RATIO * floor[j]):
             cone[j] = 0.0
             continue
+        # Held torques reach, through the filter, only the samples within its settling time of
+        # a sample at rest: a remainder flagged on the samples beyond (moving well clear of
+        # standstill) is one no set-valued friction explains — judge it point-valued
+        far = known[:, j] & ~_near_rest(data, j, float(chain[0]), rate)
+        if far.sum() >= FAR_SAMPLES and (np.sqrt(np.mean(left[far, j] ** 2))
+                                         > REMAINDER_RATIO * floor[j]):
+            cone[j] = 0.0
+            continue
         judged = dry_friction_through_filter(data, int(j), residual[:, j], dry[:, j],
                                              laws[int(j)], float(cone[j]), float(chain[0]),
                                              known[:, j])
@@ -1150,6 +1166,15 @@ def _set_valued_friction(fit: GapModel, data: GapData, residual: np.ndarray,
         else:
             left[:, j], cone[j] = judged
     return left, cone
+
+
+def _near_rest(data: GapData, joint: int, cutoff: float, rate: float) -> np.ndarray:
+    """(N,) samples within the zero-phase low-pass's settling time (99.9 % of its impulse
+    response's energy, :func:`~consistid.data.filters.settling_time`) of a sample where
+    ``joint`` is at rest (:func:`~consistid.diagnosis.remainder.standstill_mask`)."""
+    rest = standstill_mask(data.dataset.dq)[:, joint].astype(float)
+    half = int(np.ceil(settling_time(cutoff, rate, energy=0.999) * rate))
+    return np.convolve(rest, np.ones(2 * half + 1), mode="same") > 0
 
 
 def _prune_nested(prob: _Problem, chosen: list[int], alts: list, bics: list, pvals: list,

@@ -392,15 +392,12 @@ def spectral_estimate(dataset: Dataset, residual: np.ndarray, tau_nom: np.ndarra
         given = None           # not the rate it was filtered at (decimated, selected): unknown
     k_sigma, k_reliable, k_err, band = filtered_floor(sp, given, rate)
     if given is not None:
-        # the AR(1) fit through the filter where it stands; else the free fit (white below the
-        # band) where that sees its level and the AR(1) fit, as far as it can tell, does not
-        # contradict it (within two of its standard errors)
-        known = k_reliable
-        free = reliable & ~known & (np.abs(np.log(np.where(np.isfinite(k_sigma), k_sigma, sigma)
-                                                  / sigma)) <= 2 * k_err)
-        reliable = known | free
-        # unseen joints report the AR(1) value when it is at least loosely determined
-        known = known | (~free & np.isfinite(k_sigma) & (k_err <= 1.0))
+        # The AR(1) fit through the recorded filter where it stands (it knows the filter's
+        # shape, which the free fit approximates); elsewhere the free fit where it sees a flat
+        # level. A joint neither sees reports the AR(1) value when it is at least loosely
+        # determined (its standard error ≤ 1 in log σ), else the free one.
+        known = k_reliable | (~reliable & np.isfinite(k_sigma) & (k_err <= 1.0))
+        reliable = k_reliable | reliable
         what = (f"with the chain's low-pass ({given[0]:.3g} Hz, order {given[1]}) divided "
                 "out, ")
     else:
