@@ -1150,18 +1150,16 @@ def _set_valued_friction(fit: GapModel, data: GapData, residual: np.ndarray,
                 or rms <= REMAINDER_RATIO * floor[j]):
             cone[j] = 0.0
             continue
-        # Held torques reach, through the filter, only the samples within its settling time of
-        # a sample at rest: a remainder flagged on the samples beyond (moving well clear of
-        # standstill) is one no set-valued friction explains — judge it point-valued
-        far = known[:, j] & ~_near_rest(data, j, float(chain[0]), rate)
-        if far.sum() >= FAR_SAMPLES and (np.sqrt(np.mean(left[far, j] ** 2))
-                                         > REMAINDER_RATIO * floor[j]):
-            cone[j] = 0.0
-            continue
         judged = dry_friction_through_filter(data, int(j), residual[:, j], dry[:, j],
                                              laws[int(j)], float(cone[j]), float(chain[0]),
                                              known[:, j])
-        if judged is None:
+        # Held torques reach, through the filter, only the samples within its settling time of
+        # a sample at rest: what the set-valued fit still leaves on the samples beyond (moving
+        # well clear of standstill), if flagged on its own, is a remainder no set-valued
+        # friction explains — the joint is judged point-valued
+        far = known[:, j] & ~_near_rest(data, j, float(chain[0]), rate)
+        if judged is None or (far.sum() >= FAR_SAMPLES and np.sqrt(np.mean(judged[0][far] ** 2))
+                              > REMAINDER_RATIO * floor[j]):
             cone[j] = 0.0
         else:
             left[:, j], cone[j] = judged
