@@ -9,7 +9,8 @@ of ``pin.rnea`` calls, as a user would write it): every ratio below divides a ti
 time measured in the same run on the same samples, just before it (medians over ``--repeat``
 pairs), so the load of a shared machine cancels as far as it can; each ratio is printed for
 wall-clock times and, in parentheses, for the CPU times of this process (``time.process_time``:
-one thread, so the same when the machine is idle, and less disturbed by other jobs). Rows:
+one thread, so the same when the machine is idle, and less disturbed by other jobs), and
+the ratio of the minima over the repetitions (``timeit``'s statistic). Rows:
 
 * ``consistid.regressor``: the streamed regressor (4096-sample buffer, rigid body + Coulomb,
   viscous, offset), and the Pinocchio call alone (``computeJointTorqueRegressor`` in a loop);
@@ -83,20 +84,24 @@ def timed(fn, repeat: int):
 
 class Ratio:
     """A time ratio, wall clock and CPU time of this process (``time.process_time``, less
-    sensitive to other jobs on a shared machine); formats as ``"wall (CPU cpu)"``."""
+    sensitive to other jobs on a shared machine), and optionally the ratio of the two minima
+    over the repetitions (``timeit``'s statistic: what the code costs when nothing interferes;
+    the rnea loop's own time varies by up to 1.5× between repetitions here); formats as
+    ``"wall (CPU cpu; minima best)"``."""
 
-    def __init__(self, wall: float, cpu: float) -> None:
-        self.wall, self.cpu = wall, cpu
+    def __init__(self, wall: float, cpu: float, best: float | None = None) -> None:
+        self.wall, self.cpu, self.best = wall, cpu, best
 
     def __format__(self, spec: str) -> str:
-        return f"{self.wall:{spec}} (CPU {self.cpu:{spec}})"
+        best = "" if self.best is None else f"; minima {self.best:{spec}}"
+        return f"{self.wall:{spec}} (CPU {self.cpu:{spec}}{best})"
 
 
 def paired(fn, floor, repeat: int):
     """Median time of ``fn`` and median of its ratios to ``floor`` timed just before it, each
     repetition a pair (a shared machine's load drifts less within a pair than over a run); the
     ratio as a :class:`Ratio` of wall-clock and of CPU times."""
-    times, walls, cpus, out = [], [], [], None
+    times, floors, walls, cpus, out = [], [], [], [], None
     for _ in range(repeat):
         c0 = time.process_time()
         t_floor, _ = timed(floor, 1)
@@ -104,9 +109,11 @@ def paired(fn, floor, repeat: int):
         t, out = timed(fn, 1)
         c2 = time.process_time()
         times.append(t)
+        floors.append(t_floor)
         walls.append(t / t_floor)
         cpus.append((c2 - c1) / max(c1 - c0, 1e-9))
-    return statistics.median(times), Ratio(statistics.median(walls), statistics.median(cpus)), out
+    return statistics.median(times), Ratio(statistics.median(walls), statistics.median(cpus),
+                                           min(times) / min(floors)), out
 
 
 def talos() -> ci.RobotModel:

@@ -128,7 +128,7 @@ def test_the_floor_through_a_recorded_filter_sees_coloured_noise_with_an_honest_
     logs, reliable_all = [], []
     for seed in range(20):
         data, sp = _filtered_noise(500.0, 10.0, 0.9, 10.0, seed)
-        sigma, reliable, err, _ = filtered_floor(sp, data.torque_filter, 500.0)
+        sigma, reliable, err, _, _ = filtered_floor(sp, data.torque_filter, 500.0)
         log_ratio = np.log(sigma / data.tau.std(axis=0))
         assert np.all(np.abs(log_ratio) <= 3 * err), (log_ratio, err)
         assert np.all((np.exp(log_ratio[reliable]) > 0.7) & (np.exp(log_ratio[reliable]) < 1.4))

@@ -299,9 +299,11 @@ def log_periodogram_bias(segments: int) -> float:
 
 
 def filtered_floor(spectra: Spectra, torque_filter: tuple[float, int] | None, rate: float
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, str]:
     """Per joint, the known-filter estimate of the module notes: ``(σ, reliable, standard
-    error of log σ, band text)``; σ ``nan`` where the band holds fewer than six frequencies.
+    error of log σ, shaped, band text)``, ``shaped`` where the AR(1) shape describes the
+    spectrum and its knee lies in the band (the estimate is then unbiased, if perhaps too
+    uncertain to be reliable); σ ``nan`` where the band holds fewer than six frequencies.
     ``torque_filter`` ``None``: torques not filtered (``G = 1``)."""
     freqs, psd = spectra.freqs, spectra.residual
     nv = psd.shape[1]
@@ -315,8 +317,9 @@ def filtered_floor(spectra: Spectra, torque_filter: tuple[float, int] | None, ra
     lo = max(2 * spectra.signal_band, 2 * freqs[1])
     band = (freqs >= lo) & (freqs <= 0.9 * nyq) & (gain >= MIN_RESPONSE)
     sigma, reliable, stderrs = np.full(nv, np.nan), np.zeros(nv, dtype=bool), np.full(nv, np.inf)
+    shaped = np.zeros(nv, dtype=bool)
     if band.sum() < 6:
-        return sigma, reliable, stderrs, "no band"
+        return sigma, reliable, stderrs, shaped, "no band"
     f = freqs[band]
     grid = np.linspace(0.0, nyq, 8193)
     g_grid = response(grid)
@@ -351,9 +354,10 @@ def filtered_floor(spectra: Spectra, torque_filter: tuple[float, int] | None, ra
         stderr = float(np.sqrt(max(grad @ cov @ grad, 0.0)))
         # the noise's knee below the band: its level there is an extrapolation, unseen
         knee = np.inf if fit.x[1] <= 0 else rate * np.log(1.0 / fit.x[1]) / (2 * np.pi)
-        reliable[j] = misfit <= MAX_MISFIT and stderr <= MAX_STDERR and knee >= f[0]
+        shaped[j] = misfit <= MAX_MISFIT and knee >= f[0]
+        reliable[j] = shaped[j] and stderr <= MAX_STDERR
         stderrs[j] = stderr
-    return sigma, reliable, stderrs, f"{f[0]:.3g}–{f[-1]:.3g} Hz"
+    return sigma, reliable, stderrs, shaped, f"{f[0]:.3g}–{f[-1]:.3g} Hz"
 
 
 @dataclass(frozen=True)
@@ -390,14 +394,19 @@ def spectral_estimate(dataset: Dataset, residual: np.ndarray, tau_nom: np.ndarra
     given = dataset.torque_filter
     if given is not None and not given[0] < 0.45 * rate:
         given = None           # not the rate it was filtered at (decimated, selected): unknown
-    k_sigma, k_reliable, k_err, band = filtered_floor(sp, given, rate)
+    k_sigma, k_reliable, k_err, shaped, band = filtered_floor(sp, given, rate)
     if given is not None:
-        # The AR(1) fit through the recorded filter where it stands (it knows the filter's
-        # shape, which the free fit approximates); elsewhere the free fit where it sees a flat
-        # level. A joint neither sees reports the AR(1) value when it is at least loosely
-        # determined (its standard error ≤ 1 in log σ), else the free one.
-        known = k_reliable | (~reliable & np.isfinite(k_sigma) & (k_err <= 1.0))
-        reliable = k_reliable | reliable
+        # The AR(1) fit through the recorded filter wherever its shape fits (it knows the
+        # filter's shape, which the free fit approximates): seen where its error is small, or
+        # where the free fit sees a flat level within two of its standard errors (white noise
+        # both ways). Where the shape does not fit (an effect's tail, not first-order noise, or
+        # a knee below the band), the free fit as without a filter.
+        known = shaped & np.isfinite(k_sigma)
+        agree = np.abs(np.log(np.where(known, k_sigma, sigma) / sigma)) <= 2 * k_err
+        reliable = k_reliable | (reliable & (~known | agree))
+        # a joint nothing sees reports the AR(1) value where it is at least loosely determined
+        # (standard error ≤ 1 in log σ): the free fit's roll-off then lies in the motion band
+        known |= ~reliable & np.isfinite(k_sigma) & (k_err <= 1.0)
         what = (f"with the chain's low-pass ({given[0]:.3g} Hz, order {given[1]}) divided "
                 "out, ")
     else:
