@@ -376,10 +376,12 @@ class SpectralFloor:
 def spectral_estimate(dataset: Dataset, residual: np.ndarray, tau_nom: np.ndarray
                       ) -> SpectralFloor:
     """The ``spectrum`` floor of the module notes. With the dataset's torque filter recorded:
-    the AR(1) fit through it (:func:`filtered_floor`), standing where it is reliable or where
-    the free fit (:func:`spectral_floor`, white below the band) is seen and agrees with it
-    within two standard errors. Without: the free fit, and where it cannot see the level, the
-    AR(1) fit with no filter (coloured noise that is not a roll-off) if that one stands."""
+    the AR(1) fit through it (:func:`filtered_floor`) wherever its shape fits, seen where it is
+    reliable or where the free fit (:func:`spectral_floor`, white below the band) is seen and
+    agrees with it within two standard errors; the free fit where the AR(1) shape does not fit
+    (an effect's tail, a knee below the band). Without: the free fit, and where it cannot see
+    the level, the AR(1) fit with no filter (coloured noise that is not a roll-off) if that one
+    stands."""
     sp = fine_spectra(dataset, residual, tau_nom)
     sigma, cut, reliable = spectral_floor(sp)
     filt = [f"{c:.3g} Hz" for c in cut if np.isfinite(c)]
