@@ -157,17 +157,26 @@ def lowpass_power(freqs: np.ndarray, cutoff: float, rate: float, order: int = 4)
 
 
 @functools.lru_cache(maxsize=64)
-def settling_time(cutoff: float, rate: float, order: int = 4, energy: float = 0.99) -> float:
-    """Half-width (s) of the zero-phase low-pass's impulse response (:func:`lowpass`) that holds
-    ``energy`` of its energy: within that time of a recording's ends the filtered signal depends
-    on samples before or after the recording, which its odd-reflection padding only guesses."""
+def impulse_response(cutoff: float, rate: float, order: int = 4) -> np.ndarray:
+    """The zero-phase low-pass's impulse response (:func:`lowpass` of a unit sample), ``n``
+    samples centred on sample ``n // 2`` (``n ≈ 40 rate / cutoff``, odd: its tails have died
+    out). Shared, read-only."""
     n = int(np.ceil(40 * rate / cutoff)) | 1
     impulse = np.zeros(n)
     impulse[n // 2] = 1.0
     h = lowpass(impulse, cutoff, rate, order)
-    power = h ** 2
+    h.flags.writeable = False
+    return h
+
+
+@functools.lru_cache(maxsize=64)
+def settling_time(cutoff: float, rate: float, order: int = 4, energy: float = 0.99) -> float:
+    """Half-width (s) of the zero-phase low-pass's impulse response (:func:`lowpass`) that holds
+    ``energy`` of its energy: within that time of a recording's ends the filtered signal depends
+    on samples before or after the recording, which its odd-reflection padding only guesses."""
+    power = impulse_response(cutoff, rate, order) ** 2
     # symmetric about the centre: grow the window until it holds the fraction asked for
-    centre = n // 2
+    centre = power.size // 2
     cumulative = power[centre] + 2 * np.cumsum(power[centre + 1:])
     k = int(np.searchsorted(cumulative, energy * power.sum()))
     return (k + 1) / rate

@@ -67,7 +67,7 @@ import scipy.optimize
 import scipy.sparse
 import scipy.stats
 
-from ..data.signals import lowpass
+from ..data.filters import impulse_response
 from .gapdata import GapData, Segment, lowpass_segments
 
 #: The remaining RMS must exceed the noise floor by this factor to flag a remainder.
@@ -366,13 +366,11 @@ def impulse_length(cutoff: float, plan: Sequence[Segment]) -> int:
 
 @functools.lru_cache(maxsize=32)
 def _impulse(cutoff: float, rate: float) -> tuple[np.ndarray, np.ndarray]:
-    """``(h, lags)``: the low-pass's impulse response above :data:`IMPULSE_TAIL` of its peak."""
-    n = int(np.ceil(40 * rate / cutoff)) | 1
-    impulse = np.zeros(n)
-    impulse[n // 2] = 1.0
-    full = lowpass(impulse, cutoff, rate, LOWPASS_ORDER)
+    """``(h, lags)``: the low-pass's impulse response
+    (:func:`~consistid.data.filters.impulse_response`) above :data:`IMPULSE_TAIL` of its peak."""
+    full = impulse_response(cutoff, rate, LOWPASS_ORDER)
     keep = np.flatnonzero(np.abs(full) >= IMPULSE_TAIL * np.abs(full).max())
-    return full[keep], keep - n // 2
+    return full[keep], keep - full.size // 2
 
 
 def _box_least_squares(a: scipy.sparse.csr_matrix, y: np.ndarray, lower: np.ndarray,
