@@ -16,6 +16,8 @@ from consistid.identification.regressor import RegressorSpec, predict_torque
 from consistid.identification.statistics import (add_lagged, autocorrelation_time,
                                                  coloured_covariance)
 from consistid.identification.streaming import (
+    AUTOCORRELATION_SAMPLES,
+    TAU_PRECISION,
     DataStream,
     ResidualStatistics,
     autocorrelation_windows,
@@ -131,9 +133,11 @@ def test_residual_statistics_pool_like_one_dataset(planar_2r):
 
 
 def test_autocorrelation_windows_read_few_samples_and_keep_the_correlation_time(planar_2r):
-    """A long log's residual autocorrelation is read on 2^15 samples in four windows, none
-    pairing samples across a gap, and gives the correlation time of all samples (AR(1) with
-    φ = 0.8: τ = (1 + φ)/(1 − φ) = 9 in closed form) to its standard error."""
+    """A long log's residual autocorrelation is first read on AUTOCORRELATION_SAMPLES samples in
+    four windows, none pairing samples across a gap; the correlation time found there (AR(1)
+    with φ = 0.8: τ = (1 + φ)/(1 − φ) = 9 in closed form) asks for ``2(10τ + 1)/0.1²`` samples,
+    more than were read, so they are read, and give the correlation time of all samples to
+    three of the standard errors they were read for."""
     data = ci.simulate.excitation_run(planar_2r, duration=1300.0, rate=100.0, seed=3,
                                       torque_noise=0.0).dataset
     rng = np.random.default_rng(1)
@@ -142,7 +146,7 @@ def test_autocorrelation_windows_read_few_samples_and_keep_the_correlation_time(
     spec = RegressorSpec.make(planar_2r, None)
     theta = planar_2r.prior_parameters
     picked = autocorrelation_windows(noisy)
-    assert picked.n_samples == 2 ** 15 < noisy.n_samples
+    assert picked.n_samples == AUTOCORRELATION_SAMPLES < noisy.n_samples
     # each window, and each recording within one, is its own segment, time increasing within
     labels = np.unique(picked.segment)
     assert 4 <= labels.size <= 8
@@ -151,15 +155,17 @@ def test_autocorrelation_windows_read_few_samples_and_keep_the_correlation_time(
     assert autocorrelation_windows(noisy, None) is noisy
     few = ResidualStatistics.of(planar_2r, spec, theta, noisy)
     every = ResidualStatistics.of(planar_2r, spec, theta, noisy, samples=None)
-    assert few.n_samples == 2 ** 15 and every.n_samples == noisy.n_samples
+    assert every.n_samples == noisy.n_samples
     tau_few, tau_all = few.autocorrelation_time(), every.autocorrelation_time()
     np.testing.assert_allclose(tau_all, 9.0, rtol=0.1)
-    np.testing.assert_allclose(tau_few, tau_all, rtol=0.2)   # ~3 standard errors of 2^15
+    needed = 2.0 * (10.0 * 9.0 + 1.0) / TAU_PRECISION ** 2
+    assert 0.7 * needed <= few.n_samples < noisy.n_samples
+    np.testing.assert_allclose(tau_few, tau_all, rtol=3 * TAU_PRECISION)
 
 
 def test_a_long_correlation_reads_enough_samples_for_its_time(planar_2r):
     """AR(1) with φ = 0.98 (τ = 99 samples in closed form) on a 300 000-sample log: the
-    windows' first estimate asks for more samples than 2^15 (τ within 10 % needs ~200 000), the
+    windows' first estimate asks for more samples than they hold (τ within 10 % needs ~200 000), the
     residual is read again on them, and τ lands within 30 % (three standard errors) of the
     closed form."""
     data = ci.simulate.excitation_run(planar_2r, duration=3000.0, rate=100.0, seed=5,

@@ -87,8 +87,12 @@ def merge_all(problems: Iterable[CompressedProblem]) -> CompressedProblem:
     return out
 
 
-#: Samples of a dataset read for the residual's autocorrelation (:func:`autocorrelation_windows`).
-AUTOCORRELATION_SAMPLES = 2 ** 15
+#: Samples of a dataset first read for the residual's autocorrelation
+#: (:func:`autocorrelation_windows`): what :data:`TAU_PRECISION` asks of a white residual
+#: (``2(10·1 + 1)/0.1² = 2 200``) with room to spare (τ of a white residual within 5 %), in
+#: windows long enough (2 048 samples) to see a correlation time of a few hundred samples,
+#: for which :meth:`ResidualStatistics.of` then reads more.
+AUTOCORRELATION_SAMPLES = 2 ** 13
 #: Windows they are taken in, spread evenly over the dataset.
 AUTOCORRELATION_WINDOWS = 4
 #: Relative standard error of the autocorrelation time that :meth:`ResidualStatistics.of`
@@ -105,8 +109,8 @@ def autocorrelation_windows(dataset: Dataset, samples: int | None = AUTOCORRELAT
 
     The autocorrelation time is a property of the noise, not of the excitation: its estimate's
     relative standard error is about :math:`\sqrt{2(2M + 1)/n}` for a window of ``M`` lags on
-    ``n`` samples (Madras & Sokal 1988, doi:10.1007/BF01022990; ``M ≈ 5τ``): 3 % for a white
-    residual on :data:`AUTOCORRELATION_SAMPLES`, but 35 % for ``τ = 200`` (a heavily filtered
+    ``n`` samples (Madras & Sokal 1988, doi:10.1007/BF01022990; ``M ≈ 5τ``): 5 % for a white
+    residual on :data:`AUTOCORRELATION_SAMPLES`, but 70 % for ``τ = 200`` (a heavily filtered
     high-rate log), for which :meth:`ResidualStatistics.of` reads more. The residual's sum of
     squares is exact from the compressed problem whatever is read here
     (:meth:`~consistid.identification.compression.CompressedProblem.sum_squares`). A stream
