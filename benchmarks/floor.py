@@ -68,18 +68,10 @@ from consistid.identification.sdp import identify_sdp  # noqa: E402
 from consistid.identification.streaming import residual_statistics  # noqa: E402
 from consistid.identification.summary import table  # noqa: E402
 from consistid.robot.model import example_robot_data_dir  # noqa: E402
+from sdp_speed import median_time as timed  # noqa: E402  (this folder's sdp_speed.py)
 
 SIGMA = 0.1
 FRICTION = ("coulomb", "viscous", "offset")
-
-
-def timed(fn, repeat: int):
-    times, out = [], None
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times), out
 
 
 class Ratio:
