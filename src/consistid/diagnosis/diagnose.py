@@ -925,7 +925,8 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
           and held.dataset.torque_filter is not None else everything)
     noise = estimate_noise_floor(everything.dataset, everything.tau, everything.residual,
                                  everything.tau_nom, given, resolution,
-                                 spectrum_on=(on.dataset, on.residual, on.tau_nom))
+                                 spectrum_on=(on.dataset, on.residual, on.tau_nom),
+                                 repeating=(train.dataset, train.residual, train.tau_nom))
     floor, noise_source = noise.sigma.copy(), noise.description
     library = EffectLibrary(model, tuple(effects))
 
