@@ -237,7 +237,16 @@ class RobotModel:
                               "URDF limits): in degrees rather than radians (or mm rather than "
                               "m)? The merged body is built at that position",
                               ModelWarning, stacklevel=2)
-            model = pin.buildReducedModel(full, [full.getJointId(j) for j in locked], q_ref)
+            try:
+                model = pin.buildReducedModel(full, [full.getJointId(j) for j in locked], q_ref)
+            except (ValueError, RuntimeError) as exc:   # Pinocchio's own lookups by frame name
+                links = {f.name for f in full.frames if f.type == pin.FrameType.BODY}
+                clash = [j for j in locked if j in links]
+                cause = (f"locked joint(s) {clash} share their name with a link, which Pinocchio "
+                         "cannot tell apart once the joint is fixed; rename the joint in the "
+                         f"URDF (e.g. '{clash[0]}_joint') or leave it out of locked_joints"
+                         if clash else str(exc))
+                raise ModelError(f"{path.name}: cannot lock {locked}: {cause}") from exc
         if g is not None:
             model.gravity.linear = g
         robot = cls(model, name=name or path.stem, source=path, locked_joints=locked,
