@@ -225,9 +225,14 @@ class RobotModel:
             outside = []
             for joint in locked:
                 jid = full.getJointId(joint)
-                if full.joints[jid].nq != 1:
-                    raise ModelError(f"cannot lock joint {joint!r}: only 1-coordinate joints")
                 iq = full.joints[jid].idx_q
+                if full.joints[jid].nq == 2 and full.joints[jid].nv == 1:
+                    # a continuous joint: Pinocchio's coordinates are (cos θ, sin θ)
+                    angle = config.get(joint, 0.0)
+                    q_ref[iq:iq + 2] = np.cos(angle), np.sin(angle)
+                    continue
+                if full.joints[jid].nq != 1:
+                    raise ModelError(f"cannot lock joint {joint!r}: only 1-DoF joints")
                 q_ref[iq] = config.get(joint, 0.0)
                 lo, hi = full.lowerPositionLimit[iq], full.upperPositionLimit[iq]
                 if joint in config and lo < hi and not lo - 1e-9 <= q_ref[iq] <= hi + 1e-9:
