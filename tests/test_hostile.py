@@ -474,6 +474,17 @@ def test_a_locked_mimic_joint_is_fine(tmp_path):
     assert ci.RobotModel.from_urdf(path, locked_joints=["joint2"]).nv == 1
 
 
+def test_locking_a_joint_named_like_its_parent_link_is_named(tmp_path):
+    """The SO-100 arm's URDF names its gripper joint like the link it hangs from ('gripper'):
+    Pinocchio's buildReducedModel then fails on an ambiguous frame name (a bare ValueError);
+    the error names the joint and what to do."""
+    path = tmp_path / "clash.urdf"
+    path.write_text(PLANAR_2R.format(**PLANAR_2R_VALUES).replace("link1", "joint2"))
+    with pytest.raises(ci.ModelError, match=r"clash.urdf: cannot lock \['joint2'\].*share"
+                                            r".*rename the joint"):
+        ci.RobotModel.from_urdf(path, locked_joints=["joint2"])
+
+
 @pytest.mark.parametrize("kwargs,message", [
     (dict(locked_joints=["joint1", "joint2"]), r"no moving joint \(locked: \['joint1', 'joint2'\]"),
     (dict(locked_joints="joint1"), "must be a list of joint names"),

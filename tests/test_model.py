@@ -5,6 +5,7 @@ import pytest
 import consistid as ci
 from consistid.identification.base import random_states
 from consistid.robot.model import EXAMPLE_ROBOTS
+from .conftest import PLANAR_2R, PLANAR_2R_VALUES
 
 
 @pytest.mark.parametrize("name", sorted(EXAMPLE_ROBOTS))
@@ -87,3 +88,23 @@ def test_unset_urdf_limits_read_as_unlimited_and_excite_the_double_pendulum():
     y = ci.regressor(pend, q, dq, ddq)
     assert base.n_base == np.linalg.matrix_rank(y)
     assert np.ptp(q) > 1.0
+
+
+def test_a_continuous_joint_locks_like_a_revolute_one(tmp_path):
+    """A continuous joint (Pinocchio coordinates cos θ, sin θ; Tiago's wheels) locks at the
+    angle given, and the merged model equals the one where the same joint is revolute (was:
+    'only 1-coordinate joints')."""
+    text = PLANAR_2R.format(**PLANAR_2R_VALUES)
+    cont = text.replace('<joint name="joint2" type="revolute">', '<joint name="joint2" '
+                        'type="continuous">')
+    assert cont != text
+    models = []
+    for name, urdf in (("revolute", text), ("continuous", cont)):
+        path = tmp_path / f"{name}.urdf"
+        path.write_text(urdf)
+        models.append(ci.RobotModel.from_urdf(path, locked_joints=["joint2"],
+                                              locked_configuration={"joint2": 0.7}))
+    np.testing.assert_allclose(models[1].prior_parameters, models[0].prior_parameters,
+                               atol=1e-12)
+    q = np.array([[0.3], [-1.1]])
+    np.testing.assert_allclose(models[1].rnea(q, q, q), models[0].rnea(q, q, q), atol=1e-12)

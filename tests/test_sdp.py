@@ -22,8 +22,8 @@ from consistid.errors import (IdentificationError, InaccurateSolutionWarning,
                               InconsistentParametersError, InfeasibleError, OptionError,
                               PoorExcitationWarning)
 from consistid.excitation import FourierTrajectory
-from consistid.robot.inertia import (inertia_about_origin, is_physically_consistent, perturb,
-                                  to_mass_com_inertia)
+from consistid.robot.inertia import (from_pseudo_inertia, inertia_about_origin,
+                                  is_physically_consistent, perturb, to_mass_com_inertia)
 from consistid.identification.priors import Neighbourhood
 from consistid.identification.regressor import RegressorSpec, dataset_regressor
 from consistid.identification.sdp import default_prior_weight, identify_sdp
@@ -401,6 +401,30 @@ def test_log_det_prior_needs_realizable_prior_bodies(panda, sets):
     bad[10 * 3 + 9] = 5.0  # panda_link4: Izz far beyond Ixx + Iyy
     model = panda.with_parameters(bad)
     with pytest.raises(InconsistentParametersError, match="panda_link4"):
+        ci.identify(model, sets["train"], method="sdp", friction=FRICTION)
+    res = ci.identify(model, sets["train"], method="sdp", friction=FRICTION, prior="euclidean")
+    assert res.is_consistent
+
+
+def flattened(body: np.ndarray, ratio: float = 1e-12) -> np.ndarray:
+    """``body`` with its pseudo-inertia's smallest eigenvalue set to ``ratio`` × its largest: a
+    body with no extent along one direction up to round-off (as the Tiago URDF's arm_1_link,
+    ratio 5e-13)."""
+    lam, vec = np.linalg.eigh(j_matrix(body))
+    lam[0] = ratio * lam[-1]
+    return from_pseudo_inertia(vec @ np.diag(lam) @ vec.T)
+
+
+def test_log_det_prior_refuses_a_body_singular_to_working_precision(panda, sets):
+    """A URDF body whose pseudo-inertia is positive definite only by round-off (λ_min = 1e-12
+    λ_max) is no centre for a log-det prior (its divergence weighs the flat direction by
+    1/λ_min; on Tiago's arm_1_link the solve stalled, InsufficientProgress, or came back
+    inaccurate): refused by name as a non-positive one is, and the Euclidean prior works."""
+    bad = panda.prior_parameters.copy()
+    bad[30:40] = flattened(bad[30:40])
+    assert np.linalg.eigvalsh(j_matrix(bad[30:40]))[0] > 0
+    model = panda.with_parameters(bad)
+    with pytest.raises(InconsistentParametersError, match="panda_link4.*working precision"):
         ci.identify(model, sets["train"], method="sdp", friction=FRICTION)
     res = ci.identify(model, sets["train"], method="sdp", friction=FRICTION, prior="euclidean")
     assert res.is_consistent

@@ -69,7 +69,7 @@ from ..errors import DataQualityWarning, ModelError, OptionError, check_number, 
 from ..identification.regressor import joint_columns
 from ..identification.statistics import autocorrelation_time, coloured_covariance
 from ..progress import Progress
-from ..robot.inertia import is_physically_consistent
+from ..robot.inertia import is_degenerate
 from ..robot.model import RobotModel, require_model
 from .candidates import EFFECT_NAMES, SIGNATURES, Atom, EffectLibrary, GapData
 from .effects import REGISTRY, EffectParameter
@@ -780,19 +780,20 @@ def _sdp_inertia(model: RobotModel, train: GapData, nominal: np.ndarray, others:
     corrected = train.dataset.with_torque(train.tau - others
                                           - (0 if train.nominal_extra is None
                                              else train.nominal_extra))
-    # The log-det prior needs every nominal body realisable (J ≻ 0). A nominal that is not (a
-    # massless or non-physical URDF link) is no prior at all: a Euclidean pull towards it held
+    # The log-det prior needs every nominal body realisable (J ≻ 0 to working precision,
+    # robot.inertia.is_degenerate). A nominal that is not (a massless, flat or non-physical URDF
+    # link) is no prior at all: a Euclidean pull towards it held
     # the fitted link near zero mass and left most of the gap unexplained. Then the data and
     # the consistency constraints alone decide (the torques depend on the base parameters only).
-    check = is_physically_consistent(nominal[:model.n_inertial], "pseudo-inertia",
-                                     model.body_names)
-    bad = [b.body for b in check.bodies if not b.min_pseudo_inertia_eigenvalue > 0]
+    bad = [name for name, body in zip(model.body_names,
+                                      nominal[:model.n_inertial].reshape(-1, 10))
+           if is_degenerate(body)]
     prior = None if bad else "logdet"
     res = identify(model.with_parameters(nominal), corrected, method="sdp", friction=None,
                    prior=prior)
     if bad:
         how = (f"without a prior (the nominal {', '.join(bad)} "
-               f"{'is' if len(bad) == 1 else 'are'} not physically realisable: no prior "
+               f"{'is' if len(bad) == 1 else 'are'} not realisable to working precision: no prior "
                "around it means anything; the data and the consistency constraints decide)")
     else:
         how = "with a log-det prior around the nominal parameters"
@@ -925,7 +926,8 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
           and held.dataset.torque_filter is not None else everything)
     noise = estimate_noise_floor(everything.dataset, everything.tau, everything.residual,
                                  everything.tau_nom, given, resolution,
-                                 spectrum_on=(on.dataset, on.residual, on.tau_nom))
+                                 spectrum_on=(on.dataset, on.residual, on.tau_nom),
+                                 repeating=(train.dataset, train.residual, train.tau_nom))
     floor, noise_source = noise.sigma.copy(), noise.description
     library = EffectLibrary(model, tuple(effects))
 

@@ -19,7 +19,12 @@ in this order of preference (:func:`estimate_noise_floor` says which one each jo
     linearly (friction warming in over the log). The period ``P`` is found on the joint
     positions (:func:`find_period`): the smallest whole number of samples after which ``q``
     repeats to within :data:`REPEAT_TOLERANCE` of its variance. Needs two periods within one
-    recording; recordings without are estimated as below.
+    recording; recordings without are estimated as below. A torque that repeats neither with
+    the excitation nor is noise (a disturbance at a frequency of its own, a load changed during
+    the log) enters ``d`` as well: where the spectrum below sees the noise level and the
+    repetition floor exceeds it by more than the two estimates' joint error
+    (:data:`MAX_FLOOR_RATIO`), the floor is the spectral one, and the description says that the
+    torque does not repeat (the remainder then shows the component, not a floor that hides it).
 ``spectrum``
     The residual's Welch spectrum above the motion band (Welch 1967,
     doi:10.1109/TAU.1967.1161901): white noise has a flat level ``S₀``; torques a zero-phase
@@ -84,6 +89,13 @@ MAX_MISFIT = np.log(1.5)
 MAX_STDERR = 0.15
 #: Largest AR(1) coefficient fitted (its knee at 0.016 % of the sampling rate).
 MAX_AR = 0.999
+#: What one estimate of the floor promises: within this factor range of the true noise (the
+#: margin of :mod:`consistid.diagnosis.remainder` covers its lower end, 1 / 0.7).
+FLOOR_ACCURACY = (0.7, 1.5)
+#: Two estimates of the same noise, each within :data:`FLOOR_ACCURACY`, differ at most by this
+#: factor (1.5 / 0.7); a repetition floor further above a seen spectral one holds a component
+#: that is not noise.
+MAX_FLOOR_RATIO = FLOOR_ACCURACY[1] / FLOOR_ACCURACY[0]
 
 
 @dataclass(frozen=True)
@@ -429,13 +441,16 @@ def spectral_estimate(dataset: Dataset, residual: np.ndarray, tau_nom: np.ndarra
 def estimate_noise_floor(dataset: Dataset, tau: np.ndarray, residual: np.ndarray,
                          tau_nom: np.ndarray, sigma: np.ndarray | None = None,
                          torque_resolution: np.ndarray | None = None,
-                         spectrum_on: tuple[Dataset, np.ndarray, np.ndarray] | None = None
+                         spectrum_on: tuple[Dataset, np.ndarray, np.ndarray] | None = None,
+                         repeating: tuple[Dataset, np.ndarray, np.ndarray] | None = None
                          ) -> NoiseFloor:
     """The noise floor of the module notes. ``tau``: the measured torque (for repetition);
     ``residual``, ``tau_nom``: measured minus nominal torque and the nominal torque (for the
     spectrum); ``sigma``, ``torque_resolution``: (nv,) given values (either may be ``None``);
     ``spectrum_on``: ``(dataset, residual, tau_nom)`` of other samples to estimate the spectrum
-    on (e.g. the recordings whose torque filter is recorded); default the ones above."""
+    on (e.g. the recordings whose torque filter is recorded); default the ones above;
+    ``repeating``: the same for the recordings that repeat the excitation, whose spectral level
+    a repetition floor is checked against (:data:`MAX_FLOOR_RATIO`); default ``spectrum_on``."""
     nv = tau.shape[1]
     if sigma is not None or torque_resolution is not None:
         s = np.zeros(nv)
@@ -452,7 +467,15 @@ def estimate_noise_floor(dataset: Dataset, tau: np.ndarray, residual: np.ndarray
     spec_sigma, cut, reliable = spectral.sigma, spectral.cutoff, spectral.reliable
     period, lag = find_period(dataset)
     rep, order = repetition_floor(dataset, tau, lag) if lag else (np.full(nv, np.nan), 0)
-    use_rep = np.isfinite(rep)
+    repeats = np.isfinite(rep)
+    # a torque that does not repeat, yet is no noise the spectrum sees (module notes)
+    seen = (spectral if repeating is None or not repeats.any()
+            else spectral_estimate(*repeating))
+    not_noise = repeats & seen.reliable & (rep > MAX_FLOOR_RATIO * seen.sigma)
+    use_rep = repeats & ~not_noise
+    spec_sigma = np.where(not_noise, seen.sigma, spec_sigma)
+    cut = np.where(not_noise, seen.cutoff, cut)
+    reliable = np.where(not_noise, True, reliable)
     out = np.where(use_rep, rep, spec_sigma)
     method = tuple("repetition" if u else "spectrum" for u in use_rep)
     reliable = np.where(use_rep, True, reliable)
@@ -468,6 +491,13 @@ def estimate_noise_floor(dataset: Dataset, tau: np.ndarray, residual: np.ndarray
                    f"{int(use_rep.sum())} of {nv} joints"))
         if period is None:
             text += "; the excitation does not repeat within a recording"
+    if not_noise.any():
+        text += ("; the torque does not repeat from period to period on "
+                 + ", ".join(f"joint {j + 1} ({rep[j]:.3g} N·m, {rep[j] / spec_sigma[j]:.3g} × "
+                             "the spectrum's level)" for j in np.flatnonzero(not_noise))
+                 + ": a component that is neither locked to the excitation nor noise (a "
+                 "disturbance at its own frequency, a change during the log); the floor there "
+                 "is the spectrum's of the repeating recordings")
     if not reliable.all():
         text += ("; UNRELIABLE on joints filtered below the motion band (pass sigma): "
                  + ", ".join(str(j + 1) for j in np.flatnonzero(~reliable)))

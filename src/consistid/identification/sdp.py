@@ -79,7 +79,7 @@ from ..errors import (IdentificationError, InconsistentParametersError, Infeasib
                      ModelError, OptionError, PoorExcitationWarning, check_bounds, check_box,
                      check_number, check_option)
 from ..robot.model import RobotModel
-from ..robot.inertia import body_slice, from_pseudo_inertia, pseudo_inertia
+from ..robot.inertia import body_slice, from_pseudo_inertia, is_degenerate, pseudo_inertia
 from .regressor import RegressorSpec, parameter_names, predict_torque, prior_vector
 from .result import IdentificationResult
 
@@ -535,9 +535,9 @@ def _reference(body: np.ndarray, fallback: float) -> np.ndarray:
     """The prior body itself if realisable, else its pseudo-inertia with eigenvalues raised to
     ``10⁻³`` of its largest (or to ``fallback`` for a massless body): a well-conditioned
     realisable body that only scales the program (and the default Euclidean metric)."""
-    lam, vec = np.linalg.eigh(pseudo_inertia(body))
-    if lam[0] > 1e-9 * max(lam[-1], 0.0):
+    if not is_degenerate(body):
         return body
+    lam, vec = np.linalg.eigh(pseudo_inertia(body))
     floor = 1e-3 * lam[-1] if lam[-1] > 0 else fallback
     return from_pseudo_inertia(vec @ np.diag(np.maximum(lam, floor)) @ vec.T)
 
@@ -564,12 +564,14 @@ def _make_setup(model: RobotModel, spec: RegressorSpec, prior_vec: np.ndarray,
     bodies = prior_vec[:10 * nb].reshape(nb, 10)
     if prior == "logdet":
         for name, body in zip(model.body_names, bodies):
-            lam = np.linalg.eigvalsh(pseudo_inertia(body))
-            if not lam[0] > 0:
+            if is_degenerate(body):
+                lam = np.linalg.eigvalsh(pseudo_inertia(body))
                 raise InconsistentParametersError(
-                    f"{name}: the prior (URDF) pseudo-inertia is not positive definite (min "
-                    f"eigenvalue {lam[0]:.3g}); the log-det prior needs realisable prior bodies. "
-                    "Fix the URDF inertia or use prior='euclidean' / None")
+                    f"{name}: the prior (URDF) pseudo-inertia is not positive definite to "
+                    f"working precision (eigenvalues {lam[0]:.3g} … {lam[-1]:.3g}: a body with "
+                    "no extent along some direction); the log-det prior needs realisable prior "
+                    "bodies and weighs that direction without bound. Fix the URDF inertia or "
+                    "use prior='euclidean' / None")
     lam_max = max(float(np.linalg.eigvalsh(pseudo_inertia(b))[-1]) for b in bodies)
     refs = np.concatenate([_reference(b, 1e-3 * max(lam_max, 1e-12)) for b in bodies])
     scalings = tuple(cons.BodyScaling.from_reference(refs[body_slice(i)])

@@ -103,6 +103,20 @@ def pseudo_inertia(p: np.ndarray) -> np.ndarray:
     return np.array(pin.PseudoInertia.FromDynamicParameters(_body(p)).toMatrix())
 
 
+#: A pseudo-inertia whose smallest eigenvalue is at most this fraction of its largest is singular
+#: to working precision: a body with no extent along some direction (a point mass, a rod, a
+#: plate). It is physical, but no log-det prior can be centred on it (its divergence
+#: ``−log det(J₀⁻¹J) + tr(J₀⁻¹J)`` weighs that direction by ``1/λ_min``).
+DEGENERATE_RTOL = 1e-9
+
+
+def is_degenerate(p: np.ndarray) -> bool:
+    """Whether one body's pseudo-inertia is not positive definite to working precision,
+    ``λ_min(J) ≤`` :data:`DEGENERATE_RTOL` ``· max(λ_max(J), 0)``."""
+    lam = np.linalg.eigvalsh(pseudo_inertia(p))
+    return not lam[0] > DEGENERATE_RTOL * max(lam[-1], 0.0)
+
+
 def pseudo_inertia_map() -> np.ndarray:
     r"""The constant (16, 10) matrix ``P`` with ``vec(J) = P π`` (column-major ``vec``).
 

@@ -225,9 +225,14 @@ class RobotModel:
             outside = []
             for joint in locked:
                 jid = full.getJointId(joint)
-                if full.joints[jid].nq != 1:
-                    raise ModelError(f"cannot lock joint {joint!r}: only 1-coordinate joints")
                 iq = full.joints[jid].idx_q
+                if full.joints[jid].nq == 2 and full.joints[jid].nv == 1:
+                    # a continuous joint: Pinocchio's coordinates are (cos θ, sin θ)
+                    angle = config.get(joint, 0.0)
+                    q_ref[iq:iq + 2] = np.cos(angle), np.sin(angle)
+                    continue
+                if full.joints[jid].nq != 1:
+                    raise ModelError(f"cannot lock joint {joint!r}: only 1-DoF joints")
                 q_ref[iq] = config.get(joint, 0.0)
                 lo, hi = full.lowerPositionLimit[iq], full.upperPositionLimit[iq]
                 if joint in config and lo < hi and not lo - 1e-9 <= q_ref[iq] <= hi + 1e-9:
@@ -237,7 +242,16 @@ class RobotModel:
                               "URDF limits): in degrees rather than radians (or mm rather than "
                               "m)? The merged body is built at that position",
                               ModelWarning, stacklevel=2)
-            model = pin.buildReducedModel(full, [full.getJointId(j) for j in locked], q_ref)
+            try:
+                model = pin.buildReducedModel(full, [full.getJointId(j) for j in locked], q_ref)
+            except (ValueError, RuntimeError) as exc:   # Pinocchio's own lookups by frame name
+                links = {f.name for f in full.frames if f.type == pin.FrameType.BODY}
+                clash = [j for j in locked if j in links]
+                cause = (f"locked joint(s) {clash} share their name with a link, which Pinocchio "
+                         "cannot tell apart once the joint is fixed; rename the joint in the "
+                         f"URDF (e.g. '{clash[0]}_joint') or leave it out of locked_joints"
+                         if clash else str(exc))
+                raise ModelError(f"{path.name}: cannot lock {locked}: {cause}") from exc
         if g is not None:
             model.gravity.linear = g
         robot = cls(model, name=name or path.stem, source=path, locked_joints=locked,
