@@ -19,8 +19,8 @@ from consistid.identification.base import compute_base_parameters
 from consistid.identification.compression import SIGMA_FLOOR, compress
 from consistid.robot.shapes import Ellipsoid
 from consistid.errors import (IdentificationError, InaccurateSolutionWarning,
-                              InconsistentParametersError, InfeasibleError, OptionError,
-                              PoorExcitationWarning)
+                              InconsistentParametersError, InfeasibleError, ModelWarning,
+                              OptionError, PoorExcitationWarning)
 from consistid.excitation import FourierTrajectory
 from consistid.robot.inertia import (from_pseudo_inertia, inertia_about_origin,
                                   is_physically_consistent, perturb, to_mass_com_inertia)
@@ -401,9 +401,13 @@ def test_log_det_prior_needs_realizable_prior_bodies(panda, sets):
     bad[10 * 3 + 9] = 5.0  # panda_link4: Izz far beyond Ixx + Iyy
     model = panda.with_parameters(bad)
     with pytest.raises(InconsistentParametersError, match="panda_link4"):
-        ci.identify(model, sets["train"], method="sdp", friction=FRICTION)
+        ci.identify(model, sets["train"], method="sdp", friction=FRICTION, prior="logdet")
     res = ci.identify(model, sets["train"], method="sdp", friction=FRICTION, prior="euclidean")
     assert res.is_consistent
+    # the default prior says why it is not the log-det one, and gives the Euclidean answer
+    with pytest.warns(ModelWarning, match="panda_link4.*prior='euclidean'"):
+        auto = ci.identify(model, sets["train"], method="sdp", friction=FRICTION)
+    np.testing.assert_allclose(auto.parameters, res.parameters, rtol=1e-9, atol=1e-12)
 
 
 def flattened(body: np.ndarray, ratio: float = 1e-12) -> np.ndarray:
@@ -425,9 +429,11 @@ def test_log_det_prior_refuses_a_body_singular_to_working_precision(panda, sets)
     assert np.linalg.eigvalsh(j_matrix(bad[30:40]))[0] > 0
     model = panda.with_parameters(bad)
     with pytest.raises(InconsistentParametersError, match="panda_link4.*working precision"):
-        ci.identify(model, sets["train"], method="sdp", friction=FRICTION)
+        ci.identify(model, sets["train"], method="sdp", friction=FRICTION, prior="logdet")
     res = ci.identify(model, sets["train"], method="sdp", friction=FRICTION, prior="euclidean")
     assert res.is_consistent
+    with pytest.warns(ModelWarning, match="panda_link4.*working precision"):
+        ci.identify(model, sets["train"], method="sdp", friction=FRICTION)
 
 
 def test_program_size_does_not_depend_on_the_number_of_samples(panda, sets):

@@ -48,8 +48,10 @@ from .base import COND_WARN, RANK_RTOL, BaseParameters, compute_base_parameters
 from .compression import CompressedProblem, floor_sigma, joint_sigma
 from ..data.checks import check_for_identification
 from ..data.dataset import Dataset, as_dataset
-from ..errors import OptionError, PoorExcitationError, PoorExcitationWarning, check_option
+from ..errors import (ModelWarning, OptionError, PoorExcitationError, PoorExcitationWarning,
+                      check_option)
 from ..friction.fit import NONLINEAR_OPTIONS, identify_nonlinear, is_nonlinear
+from ..robot.inertia import is_degenerate
 from ..robot.model import RobotModel, require_model
 from .regressor import DEFAULT_FRICTION, FrictionArg, RegressorSpec, parameter_names, prior_vector
 from .result import IdentificationResult
@@ -151,6 +153,27 @@ def least_squares(model: RobotModel, problem: CompressedProblem, base: BaseParam
         solver=SolverReport("numpy QR (compressed)", "optimal", time.perf_counter() - start))
 
 
+def default_prior(model: RobotModel) -> str:
+    """The SDP's prior for ``prior="auto"``: ``"logdet"``, the Bregman divergence around the
+    URDF bodies, when every URDF body is realisable to working precision
+    (:func:`consistid.robot.inertia.is_degenerate`); else ``"euclidean"`` in the log-det metric of
+    a regularised reference body (the same curvature where the URDF body is realisable), with a
+    :class:`ModelWarning` naming the bodies: a log-det divergence centred on a body with no
+    extent along some direction (a point mass, a rod, a CAD export's non-physical inertia)
+    weighs that direction by ``1/λ_min`` and is no prior at all."""
+    bodies = model.prior_parameters[:model.n_inertial].reshape(-1, 10)
+    bad = [name for name, body in zip(model.body_names, bodies) if is_degenerate(body)]
+    if not bad:
+        return "logdet"
+    warnings.warn(f"{', '.join(bad)}: the URDF pseudo-inertia is not positive definite to "
+                  "working precision (massless, a point mass or rod, or no physical body), so no "
+                  "log-det prior can be centred on it; identify uses prior='euclidean' instead "
+                  "(the log-det metric of a regularised body). Fix the URDF inertia for the "
+                  "log-det prior, or pass prior='euclidean' / None to choose", ModelWarning,
+                  stacklevel=3)
+    return "euclidean"
+
+
 def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable | DataStream,
              method: str = "sdp",
              friction: FrictionArg = DEFAULT_FRICTION,
@@ -181,7 +204,8 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
         ``"auto"`` (default): ``"pseudo-inertia"`` for the SDP, none for OLS/WLS, which also
         accept an explicit ``"none"`` and refuse any level.
     prior : ``"logdet"``, ``"euclidean"`` or ``None``/``"none"`` (no prior). ``"auto"``
-        (default): ``"logdet"`` for the SDP, none for OLS/WLS, which also accept
+        (default): ``"logdet"`` for the SDP (``"euclidean"``, with a warning, when a URDF body is
+        not realisable: :func:`default_prior`), none for OLS/WLS, which also accept
         ``None``/``"none"`` and refuse a prior.
     covariance : ``"coloured"`` widens ``base_covariance`` for residuals correlated in time
         (filtered torques), each joint's rows counting as ``N / τ_j`` (module docstring; one
@@ -257,7 +281,7 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
         if given is None:
             given = SDPOptions.from_keywords(
                 constraints="pseudo-inertia" if constraints == "auto" else constraints,
-                prior="logdet" if prior == "auto" else prior, **options)
+                prior=default_prior(model) if prior == "auto" else prior, **options)
         result = identify_sdp(model, problem, base, spec, given,
                               dataset=dataset if isinstance(dataset, Dataset) else None)
     return with_covariance(result, problem, dataset, covariance)
