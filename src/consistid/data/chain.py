@@ -67,6 +67,7 @@ from .filters import (
     estimate_bandwidth,
     fourier_derivatives,
     hampel,
+    held_still,
     low_speed_mask,
     lowpass,
     period_average,
@@ -415,6 +416,10 @@ def _cutoff(t: np.ndarray, q: np.ndarray, stretches: list[slice], rate: float,
             qs = resample(ts, qs, grid, "linear")
         bandwidth = estimate_bandwidth(qs, rate)
         origin = "estimated from the position spectrum (99.99 % of the power)"
+        still = np.flatnonzero(held_still(qs))
+        if 0 < still.size < qs.shape[1]:
+            origin += (f"; q[:, {still.tolist()}] held still (constant or flickering between "
+                       "counts): left out")
     else:
         bandwidth, origin = float(o.bandwidth), "given"
     cutoff = default_cutoff(bandwidth, rate)
