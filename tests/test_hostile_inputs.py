@@ -8,8 +8,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import consistid as ci
+from consistid.cli import main
 from consistid.data.filters import estimate_bandwidth, held_still
+from consistid.data.recordings import from_arrays
 from consistid.data.signals import preprocess
+from consistid.errors import DatasetError, OptionError
 
 RATE = 200.0
 #: Encoder resolution of a 19-bit absolute encoder (rad per count).
@@ -50,3 +54,139 @@ def test_independent_states_still_have_a_bandwidth():
     q = np.random.default_rng(1).uniform(-1, 1, (200, 3))
     assert held_still(q).all()
     assert estimate_bandwidth(q, RATE) > 0.4 * RATE
+
+
+# ------------------------------------------------------------------ options of the wrong type
+@pytest.fixture()
+def csv_log(tmp_path):
+    t, q, tau = _moving()
+    path = tmp_path / "run.csv"
+    header = "t,q_a,q_b,tau_a,tau_b\n"
+    path.write_text(header + "\n".join(",".join(f"{v:.10g}" for v in row)
+                                       for row in np.column_stack([t, q, tau])) + "\n")
+    return path
+
+
+@pytest.mark.parametrize("options, message", [
+    ({"columns": "t"}, r"columns= must be a mapping"),
+    ({"joints": "a"}, r"joints= must be a list of joint names \(e.g. joints=\['a'\]\)"),
+    ({"trim_start": "2"}, r"trim_start must be seconds \(a number\), got '2'"),
+    ({"trim_end": True}, r"trim_end must be seconds \(a number\), got True"),
+])
+def test_options_of_the_wrong_python_type_are_named(csv_log, options, message):
+    """Before: AttributeError ('str' has no 'items'), a joint list read letter by letter
+    (['a'] by luck here, ['p', 'a', 'n', …] for 'panda_joint1'), TypeError from '<'."""
+    with pytest.raises(OptionError, match=message):
+        ci.load_recording(csv_log, **options)
+
+
+def test_joints_as_a_string_is_not_read_letter_by_letter(csv_log):
+    with pytest.raises(OptionError, match=r"joints=\['q_a'\]"):
+        ci.load_recording(csv_log, joints="q_a")
+
+
+# ------------------------------------------------------------------ the CLI's [data] table
+CLI_MODEL = """root = ".."
+[model]
+urdf = "data/arm.urdf"
+gravity = [0.0, -9.81, 0.0]
+"""
+CLI_IDENTIFY = '[identify]\nmethod = "ols"\nfriction = ["coulomb"]\n'
+
+
+def _cli(project, capsys, data: str) -> str:
+    path = project / "conf" / "run.toml"
+    path.write_text(CLI_MODEL + '[data]\ndir = "data"\nkeys = "consistid"\n' + data
+                    + CLI_IDENTIFY)
+    got = main(["identify", str(path)])
+    out = capsys.readouterr()
+    assert got == 2, out.err
+    assert "Traceback" not in out.err + out.out
+    return out.err
+
+
+@pytest.mark.parametrize("train", ['["run1.npz", "run1.npz"]', '["run1.npz", "./run1.npz"]',
+                                   '["run1.npz", "../data/run1.npz"]'])
+def test_a_log_listed_twice_is_refused(cli_project, capsys, train):
+    """Before: stacked twice without a word, every σ √2 too small."""
+    err = _cli(cli_project, capsys, f"train = {train}\n")
+    assert "[data] train lists the log" in err and "twice (entries 1 and 2" in err
+    assert "run1.npz" in err
+
+
+def test_a_held_out_log_listed_twice_is_refused(cli_project, capsys):
+    err = _cli(cli_project, capsys, 'train = ["run1.npz"]\nheld_out = ["run2.npz", "run2.npz"]\n')
+    assert "[data] held_out lists the log" in err
+
+
+def test_an_empty_file_name_is_named(cli_project, capsys):
+    """Before: the data folder itself was read, and called 'not a ROS 2 bag'."""
+    err = _cli(cli_project, capsys, 'train = ["run1.npz", ""]\n')
+    assert "[data] train has an empty file name (entry 2" in err and "ROS" not in err
+
+
+def test_columns_that_is_not_a_table_is_named_in_toml(cli_project, capsys):
+    """Before: AttributeError traceback ('str' object has no attribute 'items')."""
+    err = _cli(cli_project, capsys, 'train = ["run1.npz"]\ncolumns = "t"\n')
+    assert '[data] columns must be a table (e.g. columns = {t = "time", ...}), got columns = "t"' \
+        in err
+
+
+# ------------------------------------------------------------------ file habits
+def test_a_parquet_time_column_of_durations_is_read_in_its_unit(tmp_path, csv_log):
+    """A ``duration[ns]`` column (pandas ``to_timedelta``, Arrow's elapsed time) says its unit;
+    before, its integers were read as seconds and the log refused as '1e-07 Hz'."""
+    pd = pytest.importorskip("pandas")
+    pytest.importorskip("pyarrow")
+    frame = pd.read_csv(csv_log)
+    plain = ci.load_recording(csv_log).dataset
+    frame["t"] = pd.to_timedelta(frame["t"], unit="s")
+    frame.to_parquet(tmp_path / "run.parquet")
+    rec = ci.load_recording(tmp_path / "run.parquet")
+    assert np.allclose(rec.dataset.t, plain.t, atol=1e-9)
+    assert np.array_equal(rec.dataset.q, plain.q)
+    assert any("durations (duration[ns]): converted to seconds" in s for s in rec.steps)
+
+
+def test_a_csv_that_is_not_utf8_names_its_line(tmp_path, csv_log):
+    """A Latin-1 '°' in a comment: before, a bare UnicodeDecodeError (no file, no line)."""
+    path = tmp_path / "latin1.csv"
+    path.write_bytes("# Temperatur 25 °C\n".encode("latin-1") + csv_log.read_bytes())
+    with pytest.raises(DatasetError, match=r"latin1.csv, line 1: byte b'\\xb0' is not UTF-8"):
+        ci.load_recording(path)
+
+
+def test_a_csv_with_crlf_line_breaks_and_a_bom_reads_like_the_plain_one(tmp_path, csv_log):
+    path = tmp_path / "windows.csv"
+    path.write_bytes(b"\xef\xbb\xbf" + csv_log.read_bytes().replace(b"\n", b"\r\n"))
+    a, b = ci.load_recording(csv_log).dataset, ci.load_recording(path).dataset
+    assert np.array_equal(a.q, b.q) and np.array_equal(a.t, b.t)
+
+
+def test_byte_string_joint_names_in_an_npz_are_decoded(tmp_path):
+    """``np.savez(joint_names=[b"a", b"b"])``: before, the names read "b'a'" and matched no
+    joint."""
+    t, q, tau = _moving()
+    path = tmp_path / "run.npz"
+    np.savez(path, t=t, q=q[:, ::-1], tau=tau[:, ::-1], joint_names=np.array([b"b", b"a"]))
+    rec = ci.load_recording(path)
+    assert rec.dataset.joint_names == ("b", "a")
+    ds_path = tmp_path / "dataset.npz"
+    np.savez(ds_path, t=t, q=q, dq=q, ddq=q, tau=tau, joint_names=np.array([b"a", b"b"]))
+    assert ci.Dataset.load(ds_path).joint_names == ("a", "b")
+
+
+@pytest.mark.parametrize("make, message", [
+    (lambda q: q.astype(complex), r"q holds complex numbers"),
+    (lambda q: q > 0, r"q holds booleans"),
+])
+def test_complex_or_boolean_arrays_are_refused(make, message):
+    """Before: the imaginary part dropped with only numpy's ComplexWarning; booleans read as
+    0 and 1 rad."""
+    t, q, tau = _moving()
+    with pytest.raises(DatasetError, match=message):
+        ci.Dataset(t=t, q=make(q), dq=q, ddq=q, tau=tau)
+    with pytest.raises(DatasetError, match=message):
+        ci.Dataset.from_recording(t, make(q), tau)
+    with pytest.raises(DatasetError, match=message):
+        from_arrays(t, make(q), tau)

@@ -28,6 +28,7 @@ import numpy as np
 
 from ..errors import DatasetError, JointCountError, JointNameError, MissingColumnsError
 from .chain import ChainResult, PreprocessOptions, run_chain
+from .filters import real_array
 
 FIELDS = ("q", "dq", "ddq", "tau")
 
@@ -104,7 +105,7 @@ class Dataset:
                 if name != "tau":
                     raise DatasetError(f"dataset.{name} is missing")
                 continue
-            a = np.asarray(value, dtype=float)
+            a = real_array(f"dataset.{name}", value)
             if a.ndim == 1:
                 a = a[:, None]
             if a.ndim != 2 or a.shape[0] != n:
@@ -318,7 +319,7 @@ class Dataset:
                     raise MissingColumnsError(f"{path.name} lacks arrays {missing}; it has "
                                               f"{sorted(f.files)}")
                 arrays = {k: f[k] for k in f.files if k in ("t", *FIELDS, "segment", "dq_sign")}
-                stored = tuple(str(n) for n in f["joint_names"]) if "joint_names" in f else None
+                stored = array_names(f["joint_names"]) if "joint_names" in f else None
                 if "torque_filter" in f:
                     arrays["torque_filter"] = np.atleast_1d(f["torque_filter"]).tolist()
             if joint_names is not None and stored is not None and tuple(joint_names) != stored:
@@ -378,6 +379,14 @@ def _check_filter(value: object) -> tuple[float, int]:
         raise DatasetError(f"dataset.torque_filter = {value!r:.60}: the cut-off must be a "
                            "positive number of Hz and the order a whole number ≥ 1")
     return cutoff, int(order)
+
+
+def array_names(names: np.ndarray) -> tuple[str, ...]:
+    """The names held by an array read from a file: ``str`` (unicode) or ``bytes`` elements
+    (``np.savez`` of ``[b"joint1", …]``, Python 2 era logs) decoded as UTF-8, not written
+    ``"b'joint1'"``."""
+    return tuple(n.decode("utf-8", "replace") if isinstance(n, bytes) else str(n)
+                 for n in np.atleast_1d(names))
 
 
 def open_npz(path: Path):

@@ -55,8 +55,21 @@ MAX_CUTOFF_FRACTION = 0.4
 PAD_PERIODS = 6.0
 
 
+def real_array(name: str, x: object) -> np.ndarray:
+    """``x`` as a float array; :class:`DatasetError` naming ``name`` for complex numbers (numpy
+    would drop their imaginary parts with only a ``ComplexWarning``) and for booleans (no joint
+    position or torque is true or false)."""
+    a = np.asarray(x)
+    if a.dtype.kind == "c":
+        raise DatasetError(f"{name} holds complex numbers (dtype {a.dtype}); joint signals are "
+                           "real: pass their real part (np.real) if the imaginary part is 0")
+    if a.dtype.kind == "b":
+        raise DatasetError(f"{name} holds booleans, not numbers; pass the logged values")
+    return a.astype(float)
+
+
 def as_2d(name: str, x: np.ndarray) -> np.ndarray:
-    a = np.asarray(x, dtype=float)
+    a = real_array(name, x)
     if a.ndim == 1:
         a = a[:, None]
     if a.ndim != 2:

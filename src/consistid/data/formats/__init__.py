@@ -24,7 +24,7 @@ from typing import Any, Mapping, Sequence
 
 from ...errors import DatasetError, OptionError
 from ...progress import ProgressArg
-from .columns import Log
+from .columns import Log, check_selection
 from .csv import read_csv
 from .frame import read_frame
 from .matlab import read_mat
@@ -64,6 +64,7 @@ def read_log(path: str | Path, *, joints: Sequence[str] | None = None,
     :class:`OptionError`. ``progress`` (:mod:`consistid.progress`) shows a bar over a bag's
     messages; the other formats are read in one call."""
     kind = format_of(path)
+    check_selection(joints, columns)
     if kind == "npz":
         raise DatasetError(f"{Path(path).name}: .npz logs are read by "
                            "consistid.data.recordings.load_recording")

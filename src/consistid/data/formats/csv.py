@@ -98,8 +98,8 @@ def read_csv(path: str | Path, *, joints: Sequence[str] | None = None,
     source = path.name
     if not path.is_file():
         raise DatasetError(f"log file {str(path)!r} does not exist")
-    with open(path, newline="", encoding="utf-8-sig") as fh:
-        head = fh.read(SNIFF_CHARS)
+    raw_text = _read_text(path, source)
+    head = raw_text[:SNIFF_CHARS]
     if not head.strip():
         raise DatasetError(f"{source} is empty")
     lines = head.splitlines()
@@ -119,8 +119,7 @@ def read_csv(path: str | Path, *, joints: Sequence[str] | None = None,
     decimal_comma = delimiter == ";" and bool(data_lines) and "," in data_lines[0]
     wanted = [cmap.time] + [c for cols in cmap.fields.values() for c in cols]
     usecols = sorted({names.index(c) for c in wanted})
-    with open(path, encoding="utf-8-sig") as fh:
-        text = fh.read()
+    text = raw_text.replace("\r\n", "\n").replace("\r", "\n")     # universal line breaks
     if not data_lines:
         raise DatasetError(f"{source}: a header ({len(names)} columns) but no data rows")
     text, cut = _drop_cut_last_line(text, k, delimiter, len(names), source)
@@ -160,6 +159,22 @@ def read_csv(path: str | Path, *, joints: Sequence[str] | None = None,
         col[cmap.time] = stamps
         note += (f"; column {cmap.time!r} read as {CLOCKS[clock]}")
     return log_from_columns(col.__getitem__, cmap, source, table.shape[0], rows, (note,))
+
+
+def _read_text(path: Path, source: str) -> str:
+    """The file's text decoded as UTF-8 (a byte-order mark dropped, line breaks as written);
+    :class:`DatasetError` naming the line of the first byte that is not UTF-8 (a Latin-1 ``°``
+    or ``µ`` in a header or a comment)."""
+    raw = path.read_bytes()
+    body = raw[3:] if raw.startswith(b"\xef\xbb\xbf") else raw
+    try:
+        return body.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = body[:exc.start].count(b"\n") + 1
+        text = body.splitlines()[line - 1][:60].decode("utf-8", "replace")
+        raise DatasetError(f"{source}, line {line}: byte {body[exc.start:exc.start + 1]!r} is "
+                           f"not UTF-8 text ({text!r}); save the log as UTF-8 (e.g. iconv -f "
+                           "latin1 -t utf-8), or remove that character") from None
 
 
 def _drop_cut_last_line(text: str, header: int, delimiter: str, n_names: int,
