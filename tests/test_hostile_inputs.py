@@ -190,3 +190,15 @@ def test_complex_or_boolean_arrays_are_refused(make, message):
         ci.Dataset.from_recording(t, make(q), tau)
     with pytest.raises(DatasetError, match=message):
         from_arrays(t, make(q), tau)
+
+
+@pytest.mark.parametrize("sep", ["\t", "|"])
+def test_decimal_commas_with_a_tab_or_bar_read_like_the_plain_log(tmp_path, csv_log, sep):
+    """A European spreadsheet's tab-separated export: before, '0,0' was 'not a number'
+    (decimal commas were read only with ';')."""
+    text = csv_log.read_text()
+    path = tmp_path / "european.csv"
+    path.write_text(text.replace(",", sep).replace(".", ","))
+    a, b = ci.load_recording(csv_log), ci.load_recording(path)
+    assert np.array_equal(a.dataset.q, b.dataset.q) and np.array_equal(a.dataset.t, b.dataset.t)
+    assert "decimal comma" in b.steps[1]

@@ -1,10 +1,11 @@
 r"""CSV (and other delimited text) logs: one header line naming the columns, one row per sample.
 
 The delimiter is sniffed from the first lines (``,``, ``;``, tab, ``|`` or spaces; Python's
-``csv.Sniffer``), and said in the record; with ``;`` a decimal comma (``1,25``) is read as
-``1.25``. Lines starting with ``#`` are comments (before the header too). A time column
-written as ISO 8601 date-times (``2025-11-24 16:00:00.002``, pandas' ``to_csv`` of a datetime
-column) or as times of day (``16:00:00.002``) is parsed. A last line cut short by a logger
+``csv.Sniffer``), and said in the record; with any delimiter but ``,`` (``;``, a tab: a
+spreadsheet's export in a European locale) a decimal comma (``1,25``) is read as ``1.25``.
+Lines starting with ``#`` are comments (before the header too). A time column written as ISO
+8601 date-times (``2025-11-24 16:00:00.002``, pandas' ``to_csv`` of a datetime column) or as
+times of day (``16:00:00.002``) is parsed. A last line cut short by a logger
 stopped mid-write (no line break after it; too few fields, or a last field under half its
 usual length) is dropped with a warning. The columns are
 matched by name (:mod:`consistid.data.formats.columns`). Numbers are parsed by ``numpy.loadtxt``;
@@ -116,7 +117,7 @@ def read_csv(path: str | Path, *, joints: Sequence[str] | None = None,
                                   "the arrays to consistid.data.recordings.from_arrays")
     cmap = map_columns(names, source, joints=joints, columns=columns)
     data_lines = [ln for ln in lines[k + 1:] if ln.strip() and not ln.lstrip().startswith("#")]
-    decimal_comma = delimiter == ";" and bool(data_lines) and "," in data_lines[0]
+    decimal_comma = delimiter != "," and bool(data_lines) and "," in data_lines[0]
     wanted = [cmap.time] + [c for cols in cmap.fields.values() for c in cols]
     usecols = sorted({names.index(c) for c in wanted})
     text = raw_text.replace("\r\n", "\n").replace("\r", "\n")     # universal line breaks
