@@ -202,3 +202,42 @@ def test_decimal_commas_with_a_tab_or_bar_read_like_the_plain_log(tmp_path, csv_
     a, b = ci.load_recording(csv_log), ci.load_recording(path)
     assert np.array_equal(a.dataset.q, b.dataset.q) and np.array_equal(a.dataset.t, b.dataset.t)
     assert "decimal comma" in b.steps[1]
+
+
+def _blank(csv_log, tmp_path, column: int, rows: slice) -> object:
+    lines = csv_log.read_text().splitlines()
+    for n in range(len(lines))[rows]:
+        cells = lines[n].split(",")
+        cells[column] = ""
+        lines[n] = ",".join(cells)
+    path = tmp_path / "blank.csv"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_a_column_of_empty_cells_is_called_unrecorded(tmp_path, csv_log):
+    """pandas writes NaN as an empty cell: before, 'line 2 … '' is not a number' — as if one row
+    were bad, where the logger never recorded the signal (the Parquet and 'NaN' text cases
+    already said so)."""
+    path = _blank(csv_log, tmp_path, 4, slice(1, None))
+    with pytest.raises(DatasetError, match=r"column 'tau_b': every one of its 2000 cells is "
+                                           r"empty: the logger did not record it"):
+        ci.load_recording(path)
+
+
+def test_a_few_empty_cells_name_the_first_and_count_the_rest(tmp_path, csv_log):
+    path = _blank(csv_log, tmp_path, 2, slice(10, 13))
+    with pytest.raises(DatasetError, match=r"line 11, column 'q_b': an empty cell, the first of 3 "
+                                           r"in that column \(2000 rows\)"):
+        ci.load_recording(path)
+
+
+def test_an_empty_column_nothing_reads_does_not_take_the_blame(tmp_path, csv_log):
+    """A trailing comma on every line (an unnamed empty column) and a bad number elsewhere:
+    the bad number is named, not the column nothing reads."""
+    lines = [ln + "," for ln in csv_log.read_text().splitlines()]
+    lines[5] = lines[5].replace(lines[5].split(",")[1], "x", 1)
+    path = tmp_path / "trailing.csv"
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(DatasetError, match=r"line 6, column 'q_a': 'x' is not a number"):
+        ci.load_recording(path)

@@ -54,9 +54,12 @@ def sniff_delimiter(sample: str, source: str) -> str:
 
 
 def _locate(path: Path, start: int, delimiter: str, names: list[str], decimal_comma: bool,
-            source: str) -> None:
+            source: str, read: Sequence[int]) -> None:
     """Re-read ``path`` line by line from line ``start`` (0-based) and raise a DatasetError
-    naming the first bad line/column."""
+    naming the first bad line/column among the columns ``read``; an empty cell is counted down
+    its column (a column empty in every row is a signal the logger did not record)."""
+    empty: tuple[int, int] | None = None              # (line, column) of the first empty cell
+    rows = blanks = 0
     with open(path, newline="", encoding="utf-8-sig") as fh:
         for lineno, line in enumerate(fh):
             if lineno < start or not line.strip() or line.lstrip().startswith("#"):
@@ -65,16 +68,36 @@ def _locate(path: Path, start: int, delimiter: str, names: list[str], decimal_co
                                     skipinitialspace=delimiter == " "))
             if delimiter == " ":
                 cells = [c for c in cells if c != ""]
+            if empty is not None:
+                rows += 1
+                blanks += len(cells) > empty[1] and not cells[empty[1]].strip()
+                continue
             if len(cells) != len(names):
                 raise DatasetError(f"{source}, line {lineno + 1}: {len(cells)} fields, the header "
                                    f"has {len(names)} ({line.strip()[:80]!r})")
-            for name, cell in zip(names, cells):
+            for c, (name, cell) in enumerate(zip(names, cells)):
+                if c not in read:
+                    continue
                 text = cell.strip().replace(",", ".") if decimal_comma else cell.strip()
+                if not text:
+                    empty, rows, blanks = (lineno + 1, c), rows + 1, 1
+                    break
                 try:
                     float(text)
                 except ValueError:
                     raise DatasetError(f"{source}, line {lineno + 1}, column {name!r}: "
                                        f"{cell!r} is not a number") from None
+            else:
+                rows += 1
+    if empty is None:
+        return
+    name = names[empty[1]]
+    if blanks == rows:
+        raise DatasetError(f"{source}, column {name!r}: every one of its {rows} cells is empty: "
+                           "the logger did not record it. Log that signal, or leave the joint "
+                           "out (joints=[...]; a model with that joint locked)")
+    raise DatasetError(f"{source}, line {empty[0]}, column {name!r}: an empty cell, the first of "
+                       f"{blanks} in that column ({rows} rows); repair or drop those rows")
 
 
 def read_csv(path: str | Path, *, joints: Sequence[str] | None = None,
@@ -139,7 +162,7 @@ def read_csv(path: str | Path, *, joints: Sequence[str] | None = None,
                            skiprows=k + 1, comments="#", ndmin=2, dtype=float, usecols=usecols,
                            quotechar='"')
     except ValueError as exc:
-        _locate(path, k + 1, delimiter, names, decimal_comma, source)
+        _locate(path, k + 1, delimiter, names, decimal_comma, source, usecols)
         raise DatasetError(f"{source}: not readable as numbers after the header ({exc})") from None
     if table.shape[0] == 0:
         raise DatasetError(f"{source}: a header ({len(names)} columns) but no data rows")
