@@ -241,3 +241,38 @@ def test_an_empty_column_nothing_reads_does_not_take_the_blame(tmp_path, csv_log
     path.write_text("\n".join(lines) + "\n")
     with pytest.raises(DatasetError, match=r"line 6, column 'q_a': 'x' is not a number"):
         ci.load_recording(path)
+
+
+# ------------------------------------------------------------------ the same recording twice
+def test_the_same_dataset_twice_in_a_list_is_refused(planar_2r):
+    """``identify(model, [d, d])`` (or a copy of d): before, stacked silently — the fit the same,
+    every σ √2 too small."""
+    t, q, tau = _moving()
+    d = ci.Dataset.from_recording(t, q, tau)
+    copy = ci.Dataset(t=d.t.copy(), q=d.q.copy(), dq=d.dq, ddq=d.ddq, tau=d.tau.copy())
+    other = ci.Dataset.from_recording(t, q[::-1], tau[::-1])
+    for twice in ([d, d], [d, other, copy]):
+        with pytest.raises(DatasetError, match=r"dataset\[\d\] is the recording dataset\[0\] "
+                                               r"again .* σ would shrink by √2"):
+            ci.identify(planar_2r, twice, method="ols")
+    ci.identify(planar_2r, [d, other], method="ols")             # two recordings: fine
+
+
+def test_the_same_file_twice_in_a_stream_is_refused(planar_2r, tmp_path):
+    t, q, tau = _moving()
+    d = ci.Dataset.from_recording(t, q, tau)
+    d.save(tmp_path / "a.npz")
+    with pytest.raises(DatasetError, match=r"is part 0 again: read twice"):
+        ci.identify(planar_2r, [tmp_path / "a.npz", tmp_path / "." / "a.npz"], method="ols")
+
+
+@pytest.mark.parametrize("names, message", [
+    (["a", "a"], r"names \['a'\] more than once"),
+    ("ab", r"must be a list of names, got the string 'ab'"),
+])
+def test_dataset_joint_names_must_be_distinct_names(names, message):
+    """Before: ['a', 'a'] accepted (a joint's columns then matched by name to either), and the
+    string 'ab' taken as the names 'a' and 'b'."""
+    t, q, tau = _moving()
+    with pytest.raises(ci.errors.JointNameError, match=message):
+        ci.Dataset(t=t, q=q, dq=q, ddq=q, tau=tau, joint_names=names)

@@ -19,6 +19,7 @@ These are the dataset's own files. A robot's log (CSV with joint names, Parquet,
 
 from __future__ import annotations
 
+import hashlib
 import zipfile
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -98,6 +99,14 @@ class Dataset:
         object.__setattr__(self, "t", t)
         nv = None
         names = tuple(self.joint_names) if self.joint_names is not None else None
+        if names is not None:
+            if isinstance(self.joint_names, str):
+                raise JointNameError(f"dataset.joint_names must be a list of names, got the "
+                                     f"string {self.joint_names!r}")
+            dup = sorted({str(n) for n in names if names.count(n) > 1})
+            if dup:
+                raise JointNameError(f"dataset.joint_names names {dup} more than once: "
+                                     f"{list(names)}")
         object.__setattr__(self, "joint_names", names)
         for name in FIELDS:
             value = getattr(self, name)
@@ -181,6 +190,16 @@ class Dataset:
             raise JointNameError(f"dataset joints {list(self.joint_names)} differ from the "
                                  f"model's {list(joint_names)} (same count, other names or "
                                  "order)")
+
+    def fingerprint(self) -> str:
+        """A digest (BLAKE2b) of ``t``, ``q`` and ``tau``: equal for the same recording given
+        twice, whatever the object."""
+        h = hashlib.blake2b(digest_size=16)
+        for a in (self.t, self.q, self.tau):
+            if a is not None:
+                h.update(np.ascontiguousarray(a).tobytes())
+                h.update(str(a.shape).encode())
+        return h.hexdigest()
 
     def select(self, index: np.ndarray | slice) -> "Dataset":
         """The samples at ``index`` (boolean mask, integer array or slice)."""
@@ -431,7 +450,13 @@ def as_dataset(data: "Dataset | Sequence[Dataset]", name: str = "dataset") -> Da
     if not parts:
         raise DatasetError(f"{name} is an empty list: give at least one Dataset")
     parts = [_unwrap(d) for d in parts]
+    seen: dict[str, int] = {}
     for k, d in enumerate(parts):
         if not isinstance(d, Dataset):
             raise DatasetError(f"{name}[{k}] is a {type(d).__name__}, not a Dataset")
+        first = seen.setdefault(d.fingerprint(), k)
+        if first != k:
+            raise DatasetError(f"{name}[{k}] is the recording {name}[{first}] again (identical "
+                               "t, q and tau): stacked twice, its samples would count twice and "
+                               "every σ would shrink by √2; pass each recording once")
     return Dataset.concatenate(parts)
