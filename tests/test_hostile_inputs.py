@@ -5,11 +5,14 @@ failed before its fix)."""
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 
 import consistid as ci
 from consistid.cli import main
+from consistid.cli.calibrate import read_calibration_data
 from consistid.data.filters import estimate_bandwidth, held_still
 from consistid.data.recordings import from_arrays
 from consistid.data.signals import preprocess
@@ -276,3 +279,22 @@ def test_dataset_joint_names_must_be_distinct_names(names, message):
     t, q, tau = _moving()
     with pytest.raises(ci.errors.JointNameError, match=message):
         ci.Dataset(t=t, q=q, dq=q, ddq=q, tau=tau, joint_names=names)
+
+
+# ------------------------------------------------------------------ calibration CSVs
+def test_a_header_only_calibration_csv_is_named_without_numpys_warning(tmp_path):
+    """Before: numpy's 'loadtxt: input contained no data' UserWarning leaked out with it."""
+    path = tmp_path / "poses.csv"
+    path.write_text("j1,j2,x,y,z,qx,qy,qz,qw\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ci.errors.ConfigError, match="poses.csv: a header but no rows"):
+            read_calibration_data(path, ci.RobotModel.example("panda"))
+
+
+def test_a_latin1_calibration_csv_names_its_line(tmp_path):
+    path = tmp_path / "poses.csv"
+    path.write_bytes("j1,j2,x [m],y,z,qx,qy,qz,qw  # °\n".encode("latin-1"))
+    with pytest.raises(ci.errors.ConfigError, match=r"poses.csv, line 1: byte b'\\xb0' is not "
+                                                     r"UTF-8"):
+        read_calibration_data(path, ci.RobotModel.example("panda"))

@@ -122,7 +122,7 @@ def read_csv(path: str | Path, *, joints: Sequence[str] | None = None,
     source = path.name
     if not path.is_file():
         raise DatasetError(f"log file {str(path)!r} does not exist")
-    raw_text = _read_text(path, source)
+    raw_text = read_text(path, source)
     head = raw_text[:SNIFF_CHARS]
     if not head.strip():
         raise DatasetError(f"{source} is empty")
@@ -185,7 +185,7 @@ def read_csv(path: str | Path, *, joints: Sequence[str] | None = None,
     return log_from_columns(col.__getitem__, cmap, source, table.shape[0], rows, (note,))
 
 
-def _read_text(path: Path, source: str) -> str:
+def read_text(path: Path, source: str) -> str:
     """The file's text decoded as UTF-8 (a byte-order mark dropped, line breaks as written);
     :class:`DatasetError` naming the line of the first byte that is not UTF-8 (a Latin-1 ``°``
     or ``µ`` in a header or a comment)."""
