@@ -298,3 +298,49 @@ def test_a_latin1_calibration_csv_names_its_line(tmp_path):
     with pytest.raises(ci.errors.ConfigError, match=r"poses.csv, line 1: byte b'\\xb0' is not "
                                                      r"UTF-8"):
         read_calibration_data(path, ci.RobotModel.example("panda"))
+
+
+# ------------------------------------------------------------------ warnings reach the files
+def test_identify_output_carries_the_warnings_of_its_data(cli_project, capsys):
+    """A torque channel with its sign flipped warns on the terminal; before, result.json and
+    report.html — what a colleague opens — had no trace of it."""
+    d = ci.Dataset.load(cli_project / "data" / "run1.npz")
+    flipped = d.tau.copy()
+    flipped[:, 0] *= -1
+    ci.Dataset(t=d.t, q=d.q, dq=d.dq, ddq=d.ddq, tau=flipped).save(
+        cli_project / "data" / "flipped.npz")
+    path = cli_project / "conf" / "run.toml"
+    path.write_text(CLI_MODEL + '[data]\ndir = "data"\nkeys = "consistid"\n'
+                    'train = ["flipped.npz"]\n' + CLI_IDENTIFY)
+    out = cli_project / "out"
+    with pytest.warns(ci.errors.DataQualityWarning, match="opposite sign"):
+        assert main(["-q", "identify", str(path), "--output", str(out)]) == 0
+    assert "warning 1: DataQualityWarning: flipped.npz" in capsys.readouterr().out
+    res = ci.IdentificationResult.load(out / "result.json")
+    assert "opposite sign" in res.details["warning 1"]
+    assert "opposite sign" in (out / "report.html").read_text()
+
+
+def test_identify_output_of_clean_data_has_no_warning_notes(cli_project, capsys):
+    path = cli_project / "conf" / "run.toml"
+    path.write_text(CLI_MODEL + '[data]\ndir = "data"\nkeys = "consistid"\n'
+                    'train = ["run1.npz"]\n' + CLI_IDENTIFY)
+    assert main(["-q", "identify", str(path), "--output", str(cli_project / "out")]) == 0
+    res = ci.IdentificationResult.load(cli_project / "out" / "result.json")
+    assert not [k for k in res.details if k.startswith("warning")]
+
+
+def test_diagnose_report_carries_the_warnings_of_its_data(cli_project, capsys):
+    d = ci.Dataset.load(cli_project / "data" / "run1.npz")
+    flipped = d.tau.copy()
+    flipped[:, 0] *= -1
+    ci.Dataset(t=d.t, q=d.q, dq=d.dq, ddq=d.ddq, tau=flipped).save(
+        cli_project / "data" / "flipped.npz")
+    path = cli_project / "conf" / "run.toml"
+    path.write_text(CLI_MODEL + '[data]\ndir = "data"\nkeys = "consistid"\n'
+                    'train = ["flipped.npz"]\nheld_out = ["run2.npz"]\n'
+                    '[diagnose]\neffects = ["coulomb"]\n')
+    out = cli_project / "report.txt"
+    with pytest.warns(ci.errors.DataQualityWarning, match="opposite sign"):
+        assert main(["-q", "diagnose", str(path), "--output", str(out)]) == 0
+    assert "warning: DataQualityWarning: flipped.npz" in out.read_text()

@@ -14,6 +14,7 @@ configuration files.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import importlib.metadata
 import os
 import platform
@@ -183,22 +184,28 @@ def identify(args: argparse.Namespace) -> int:
     inputs = config_inputs(config, model)
     folder = (check_output_dir(args.output, IDENTIFY_OUTPUTS, inputs=inputs, force=args.force,
                                what="--output") if args.output else None)
-    train, held = config_recordings(config, model)
-    _log(str(train))
-    if held is not None:
-        _log(str(held))
-    if estimates_tilt(config):
-        _log("estimating the base tilt (gravity direction) on the training recordings")
-        mounting = ci.estimate_mounting(model, train.dataset,
-                                        **{k: options[k] for k in ("friction", "armature")
-                                           if k in options})
-        print(f"{mounting}\n")
-        model = mounting.model
-    _log(f"identifying {model.name} on {train.dataset.n_samples} samples "
-         f"({', '.join(_toml_pair(k, v) for k, v in options.items()) or 'defaults'})")
-    t0 = time.perf_counter()
-    res = ci.identify(model, train.dataset, **options)
-    _log(f"      done in {time.perf_counter() - t0:.2f} s")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        train, held = config_recordings(config, model)
+        _log(str(train))
+        if held is not None:
+            _log(str(held))
+        if estimates_tilt(config):
+            _log("estimating the base tilt (gravity direction) on the training recordings")
+            mounting = ci.estimate_mounting(model, train.dataset,
+                                            **{k: options[k] for k in ("friction", "armature")
+                                               if k in options})
+            print(f"{mounting}\n")
+            model = mounting.model
+        _log(f"identifying {model.name} on {train.dataset.n_samples} samples "
+             f"({', '.join(_toml_pair(k, v) for k, v in options.items()) or 'defaults'})")
+        t0 = time.perf_counter()
+        res = ci.identify(model, train.dataset, **options)
+        _log(f"      done in {time.perf_counter() - t0:.2f} s")
+    found = _replay(caught)
+    if found:
+        res = dataclasses.replace(res, details={
+            **res.details, **{f"warning {k + 1}": text for k, text in enumerate(found)}})
     print(res.summary(max_rows=None if args.all else 20))
     scored = [score(res, train.dataset, "train")]
     if held is not None:
@@ -210,6 +217,20 @@ def identify(args: argparse.Namespace) -> int:
         _write_identification(res, folder, train.dataset,
                               None if held is None else held.dataset)
     return 0
+
+
+def _replay(caught: list[warnings.WarningMessage]) -> list[str]:
+    """The warnings raised while a result's data were read and it was computed (degrees beyond
+    the joint limits, a flipped torque sign, poor excitation …), each shown again (once) as it
+    was raised, as ``"Category: message"`` texts for the result — so that its summary and the
+    files written from it carry them, not only the terminal."""
+    seen: dict[str, None] = {}
+    for w in caught:
+        text = f"{w.category.__name__}: {w.message}"
+        if text not in seen:
+            seen[text] = None
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    return list(seen)
 
 
 def _toml_pair(key: str, value: object) -> str:
@@ -451,20 +472,25 @@ def diagnose(args: argparse.Namespace) -> int:
         output = _report_target(output if args.output else config.resolve(output),
                                 config_inputs(config, model), args.force,
                                 "--output" if args.output else "[diagnose] output")
-    train, held = config_recordings(config, model)
-    options = {k: t[k] for k in DIAGNOSE_OPTIONS if k in t}
-    nominal = None
-    if "nominal_urdf" in t:  # same joints, locks and gravity as [model], other inertias
-        nominal = model_without_dynamics(config.resolve(t["nominal_urdf"]),
-                                         locked_joints=model.locked_joints,
-                                         gravity=model.gravity)[0]
-    _log(f"diagnosing {model.name}: {train.dataset.n_samples} training samples, "
-         f"{'held-out logs' if held is not None else 'time split'}")
-    t0 = time.perf_counter()
-    diag = ci.diagnose(model, train.dataset, nominal=nominal,
-                       held_out=None if held is None else held.dataset, progress=_progress(),
-                       **options)
-    _log(f"      done in {time.perf_counter() - t0:.2f} s")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        train, held = config_recordings(config, model)
+        options = {k: t[k] for k in DIAGNOSE_OPTIONS if k in t}
+        nominal = None
+        if "nominal_urdf" in t:  # same joints, locks and gravity as [model], other inertias
+            nominal = model_without_dynamics(config.resolve(t["nominal_urdf"]),
+                                             locked_joints=model.locked_joints,
+                                             gravity=model.gravity)[0]
+        _log(f"diagnosing {model.name}: {train.dataset.n_samples} training samples, "
+             f"{'held-out logs' if held is not None else 'time split'}")
+        t0 = time.perf_counter()
+        diag = ci.diagnose(model, train.dataset, nominal=nominal,
+                           held_out=None if held is None else held.dataset,
+                           progress=_progress(), **options)
+        _log(f"      done in {time.perf_counter() - t0:.2f} s")
+    found = _replay(caught)
+    if found:
+        diag = dataclasses.replace(diag, notes=(*diag.notes, *(f"warning: {w}" for w in found)))
     print(diag.summary())
     if output:
         if output.suffix in (".html", ".txt"):
