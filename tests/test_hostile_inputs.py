@@ -344,3 +344,32 @@ def test_diagnose_report_carries_the_warnings_of_its_data(cli_project, capsys):
     with pytest.warns(ci.errors.DataQualityWarning, match="opposite sign"):
         assert main(["-q", "diagnose", str(path), "--output", str(out)]) == 0
     assert "warning: DataQualityWarning: flipped.npz" in out.read_text()
+
+
+# ------------------------------------------------------------------ ROS bags
+def test_bag_messages_without_effort_at_the_start_are_skipped_and_counted(tmp_path):
+    """A driver whose first messages carry positions only: before, the whole bag was refused
+    as 'the log has no torques'."""
+    pytest.importorskip("rosbags")
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    js = ts.types["sensor_msgs/msg/JointState"]
+    header, stamp = ts.types["std_msgs/msg/Header"], ts.types["builtin_interfaces/msg/Time"]
+    t, q, tau = _moving(5.0)
+    late = 10
+    with Writer(tmp_path / "bag", version=9, storage_plugin=StoragePlugin.MCAP) as w:
+        c = w.add_connection("/joint_states", js.__msgtype__, typestore=ts)
+        for k, tk in enumerate(t):
+            ns = 1_700_000_000 * 10 ** 9 + int(round(tk * 1e9))
+            effort = tau[k] if k >= late else np.array([])
+            msg = js(header=header(stamp=stamp(sec=ns // 10 ** 9, nanosec=ns % 10 ** 9),
+                                   frame_id=""), name=["a", "b"], position=q[k],
+                     velocity=np.array([]), effort=effort)
+            w.write(c, ns, ts.serialize_cdr(msg, js.__msgtype__))
+    rec = ci.load_recording(tmp_path / "bag", progress=False)
+    expected = from_arrays(t[late:], q[late:], tau[late:], joint_names=["a", "b"]).dataset
+    np.testing.assert_allclose(rec.dataset.q, expected.q, atol=1e-9)
+    np.testing.assert_allclose(rec.dataset.tau, expected.tau, atol=1e-9)
+    assert any(s.startswith(f"{late} message(s) without an effort") for s in rec.steps)
