@@ -373,3 +373,10 @@ def test_bag_messages_without_effort_at_the_start_are_skipped_and_counted(tmp_pa
     np.testing.assert_allclose(rec.dataset.q, expected.q, atol=1e-9)
     np.testing.assert_allclose(rec.dataset.tau, expected.tau, atol=1e-9)
     assert any(s.startswith(f"{late} message(s) without an effort") for s in rec.steps)
+
+
+def test_a_folder_of_logs_given_as_one_log_lists_them(tmp_path, csv_log):
+    """Before: only 'not a ROS 2 bag' — true, but not what a user with a folder of CSVs needs."""
+    with pytest.raises(DatasetError, match=r"not a ROS 2 bag; it holds the logs \['run.csv'\]: "
+                                           r"name each one"):
+        ci.load_recording(tmp_path)

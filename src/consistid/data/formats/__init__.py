@@ -45,7 +45,12 @@ def format_of(path: str | Path) -> str:
     if path.is_dir():
         if (path / "metadata.yaml").is_file():
             return "bag"
-        raise DatasetError(f"{str(path)!r} is a folder without metadata.yaml: not a ROS 2 bag")
+        logs = sorted(p.name for p in path.iterdir()
+                      if p.suffix.lower() in (*SUFFIXES, ".npz") and p.is_file())
+        held = (f"; it holds the logs {logs[:6]}{' …' if len(logs) > 6 else ''}: name each one "
+                "(a folder is read only as a ROS 2 bag)" if logs else "")
+        raise DatasetError(f"{str(path)!r} is a folder without metadata.yaml: not a ROS 2 bag"
+                           + held)
     suffix = path.suffix.lower()
     if suffix == ".npz":
         return "npz"
