@@ -380,3 +380,36 @@ def test_a_folder_of_logs_given_as_one_log_lists_them(tmp_path, csv_log):
     with pytest.raises(DatasetError, match=r"not a ROS 2 bag; it holds the logs \['run.csv'\]: "
                                            r"name each one"):
         ci.load_recording(tmp_path)
+
+
+def test_identify_output_carries_the_models_warning(cli_project, capsys):
+    """A gravity in mm/s² warns when the model is built, before the logs are read."""
+    path = cli_project / "conf" / "run.toml"
+    path.write_text(CLI_MODEL.replace("-9.81", "-9810.0") + '[data]\ndir = "data"\n'
+                    'keys = "consistid"\ntrain = ["run1.npz"]\n' + CLI_IDENTIFY)
+    out = cli_project / "out"
+    with pytest.warns(ci.errors.ModelWarning, match="in mm/s²"):
+        assert main(["-q", "identify", str(path), "--output", str(out)]) == 0
+    res = ci.IdentificationResult.load(out / "result.json")
+    assert any("ModelWarning: gravity" in v for k, v in res.details.items()
+               if k.startswith("warning"))
+
+
+def test_an_unknown_example_robot_is_named_in_toml(cli_project, capsys):
+    """Before: 'robot = "pandaa" is not supported' — the Python keyword, not the TOML key."""
+    path = cli_project / "conf" / "run.toml"
+    path.write_text('[model]\nexample = "pandaa"\n[data]\ntrain = ["x.npz"]\n' + CLI_IDENTIFY)
+    assert main(["identify", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert '[model] example = "pandaa" is not an example robot; they are ["panda"' in err
+
+
+def test_a_joint_locked_twice_is_named(tmp_path):
+    """Before: Pinocchio's ValueError ('two identical indexes'), a traceback in the CLI."""
+    from .conftest import PLANAR_2R, PLANAR_2R_VALUES
+
+    path = tmp_path / "arm.urdf"
+    path.write_text(PLANAR_2R.format(**PLANAR_2R_VALUES))
+    with pytest.raises(ci.errors.ModelError, match=r"locked_joints names \['joint2'\] more than "
+                                                   r"once"):
+        ci.RobotModel.from_urdf(path, locked_joints=["joint2", "joint2"])

@@ -14,6 +14,7 @@ configuration files.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import importlib.metadata
 import os
@@ -22,7 +23,7 @@ import sys
 import time
 import warnings
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import Callable, Iterator, Sequence
 
 import numpy as np
 
@@ -179,13 +180,12 @@ def identify(args: argparse.Namespace) -> int:
     from consistid.identification.scoring import score, scores_table
 
     config = load_config(args.config)
-    model = config_model(config, allow_tilt=True)
-    options = config_identify(config)
-    inputs = config_inputs(config, model)
-    folder = (check_output_dir(args.output, IDENTIFY_OUTPUTS, inputs=inputs, force=args.force,
-                               what="--output") if args.output else None)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
+    with _kept_warnings() as found:
+        model = config_model(config, allow_tilt=True)
+        options = config_identify(config)
+        inputs = config_inputs(config, model)
+        folder = (check_output_dir(args.output, IDENTIFY_OUTPUTS, inputs=inputs,
+                                   force=args.force, what="--output") if args.output else None)
         train, held = config_recordings(config, model)
         _log(str(train))
         if held is not None:
@@ -202,7 +202,6 @@ def identify(args: argparse.Namespace) -> int:
         t0 = time.perf_counter()
         res = ci.identify(model, train.dataset, **options)
         _log(f"      done in {time.perf_counter() - t0:.2f} s")
-    found = _replay(caught)
     if found:
         res = dataclasses.replace(res, details={
             **res.details, **{f"warning {k + 1}": text for k, text in enumerate(found)}})
@@ -219,18 +218,28 @@ def identify(args: argparse.Namespace) -> int:
     return 0
 
 
-def _replay(caught: list[warnings.WarningMessage]) -> list[str]:
-    """The warnings raised while a result's data were read and it was computed (degrees beyond
-    the joint limits, a flipped torque sign, poor excitation …), each shown again (once) as it
-    was raised, as ``"Category: message"`` texts for the result — so that its summary and the
-    files written from it carry them, not only the terminal."""
-    seen: dict[str, None] = {}
-    for w in caught:
-        text = f"{w.category.__name__}: {w.message}"
-        if text not in seen:
-            seen[text] = None
-            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-    return list(seen)
+@contextlib.contextmanager
+def _kept_warnings() -> Iterator[list[str]]:
+    """Record the warnings raised in the block (a result's data read, the result computed:
+    degrees beyond the joint limits, a flipped torque sign, a gravity in mm/s², poor excitation
+    …); when it ends, show each once as it was raised and append its ``"Category: message"``
+    text to the yielded list — for the result, so that its summary and the files written from
+    it carry them, not only the terminal."""
+    found: list[str] = []
+    caught: list[warnings.WarningMessage] = []
+    try:
+        with warnings.catch_warnings(record=True) as recorded:
+            warnings.simplefilter("always")
+            try:
+                yield found
+            finally:
+                caught = list(recorded)
+    finally:
+        for w in caught:
+            text = f"{w.category.__name__}: {w.message}"
+            if text not in found:
+                found.append(text)
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
 
 
 def _toml_pair(key: str, value: object) -> str:
@@ -454,7 +463,8 @@ def diagnose(args: argparse.Namespace) -> int:
     from consistid.robot.model import model_without_dynamics
 
     config = load_config(args.config)
-    model = config_model(config)
+    with _kept_warnings() as found:
+        model = config_model(config)
     t = config.table("diagnose", DIAGNOSE_KEYS, required=False)
     for key, kind in (("nominal_urdf", "string"), ("output", "string"),
                       ("effects", "string or array of strings"), ("split", "number"),
@@ -472,8 +482,7 @@ def diagnose(args: argparse.Namespace) -> int:
         output = _report_target(output if args.output else config.resolve(output),
                                 config_inputs(config, model), args.force,
                                 "--output" if args.output else "[diagnose] output")
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
+    with _kept_warnings() as more:
         train, held = config_recordings(config, model)
         options = {k: t[k] for k in DIAGNOSE_OPTIONS if k in t}
         nominal = None
@@ -488,7 +497,7 @@ def diagnose(args: argparse.Namespace) -> int:
                            held_out=None if held is None else held.dataset,
                            progress=_progress(), **options)
         _log(f"      done in {time.perf_counter() - t0:.2f} s")
-    found = _replay(caught)
+    found += [w for w in more if w not in found]
     if found:
         diag = dataclasses.replace(diag, notes=(*diag.notes, *(f"warning: {w}" for w in found)))
     print(diag.summary())

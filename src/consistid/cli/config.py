@@ -62,7 +62,7 @@ from pathlib import Path
 from typing import Any, Iterable, Mapping, Sequence
 
 from ..errors import ConfigError, DataQualityWarning
-from ..robot.model import RobotModel
+from ..robot.model import EXAMPLE_ROBOTS, RobotModel
 from ..data.chain import PreprocessOptions
 from ..data.recordings import Recording, load_recording
 from .files import same_file
@@ -270,6 +270,10 @@ def config_model(config: RunConfig, allow_tilt: bool = False) -> RobotModel:
         raise ConfigError(f"{config.path.name}: [model] gravity must be three numbers [gx, gy, "
                           f"gz] (m/s², base frame), got {gravity!r}")
     if "example" in t:  # an example-robot-data arm by name (RobotModel.example)
+        if t["example"] not in EXAMPLE_ROBOTS:
+            raise ConfigError(f"{config.path.name}: [model] example = {_toml(t['example'])} is "
+                              f"not an example robot; they are {_toml(list(EXAMPLE_ROBOTS))} "
+                              "(or give urdf = \"path/to/robot.urdf\")")
         if set(t) != {"example"}:
             raise ConfigError(f"{config.path.name}: [model] example = {t['example']!r} takes no "
                               f"other key; got {sorted(set(t) - {'example'})}")
