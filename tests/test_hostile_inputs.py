@@ -413,3 +413,20 @@ def test_a_joint_locked_twice_is_named(tmp_path):
     with pytest.raises(ci.errors.ModelError, match=r"locked_joints names \['joint2'\] more than "
                                                    r"once"):
         ci.RobotModel.from_urdf(path, locked_joints=["joint2", "joint2"])
+
+
+# ------------------------------------------------------------------ time typed as time
+@pytest.mark.parametrize("kind", ["datetime64", "timedelta64"])
+def test_time_typed_as_time_is_read_in_seconds_by_every_entry(kind):
+    """``t`` as numpy datetimes or durations (pandas' ``.to_numpy()`` of a time column): before,
+    ``Dataset.from_recording`` read their nanoseconds as seconds and refused a '1e-07 Hz' log
+    (and ``from_arrays`` did so for durations)."""
+    t, q, tau = _moving()
+    ns = np.round(t * 1e9).astype("int64").astype("timedelta64[ns]")
+    typed = np.datetime64("2025-11-27T03:00:00", "ns") + ns if kind == "datetime64" else ns
+    plain = ci.Dataset.from_recording(t, q, tau)
+    got = ci.Dataset.from_recording(typed, q, tau)
+    np.testing.assert_allclose(got.t, plain.t, atol=1e-12)
+    np.testing.assert_allclose(got.q, plain.q, atol=1e-12)
+    rec = from_arrays(typed, q, tau)
+    np.testing.assert_allclose(rec.dataset.t, from_arrays(t, q, tau).dataset.t, atol=1e-12)

@@ -85,6 +85,7 @@ from .timestamps import (
     interval_centres,
     median_step,
     merge_duplicates,
+    seconds_of,
 )
 
 LOG = logging.getLogger(__name__)
@@ -271,7 +272,7 @@ def _split(t: np.ndarray, limit: float) -> list[slice]:
 def _check_inputs(t: np.ndarray, q: np.ndarray, tau: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     check_resolution(t)
-    t = np.asarray(t, dtype=float)
+    t = np.asarray(seconds_of(t), dtype=float)
     if t.ndim != 1:
         raise DatasetError(f"t must be 1-D (N,), got shape {t.shape}")
     q, tau = as_2d("q", q), as_2d("tau", tau)
