@@ -430,3 +430,15 @@ def test_time_typed_as_time_is_read_in_seconds_by_every_entry(kind):
     np.testing.assert_allclose(got.q, plain.q, atol=1e-12)
     rec = from_arrays(typed, q, tau)
     np.testing.assert_allclose(rec.dataset.t, from_arrays(t, q, tau).dataset.t, atol=1e-12)
+
+
+def test_arrays_with_one_row_per_joint_are_called_transposed(tmp_path):
+    """``np.savez(q=q.T)`` (a MATLAB habit): before, only 'q has 2 samples but t has 2000'."""
+    t, q, tau = _moving()
+    np.savez(tmp_path / "run.npz", t=t, q=q.T, tau=tau.T)
+    with pytest.raises(DatasetError, match=r"q has 2 samples but t has 2000 \(its shape "
+                                           r"\(2, 2000\) has them along the other axis: "
+                                           r"transpose it to \(2000, 2\)"):
+        ci.load_recording(tmp_path / "run.npz")
+    with pytest.raises(DatasetError, match=r"transpose it to \(2000, 2\)"):
+        ci.Dataset.from_recording(t, q.T, tau.T)

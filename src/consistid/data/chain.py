@@ -73,6 +73,7 @@ from .filters import (
     period_average,
     savgol_derivatives,
     savgol_window,
+    transposed_hint,
 )
 from .resample import check_rate, nominal_rate, resample, supported_rate, uniform_grid
 from .timestamps import (
@@ -278,7 +279,8 @@ def _check_inputs(t: np.ndarray, q: np.ndarray, tau: np.ndarray
     q, tau = as_2d("q", q), as_2d("tau", tau)
     for name, a in (("t", t[:, None]), ("q", q), ("tau", tau)):
         if a.shape[0] != t.shape[0]:
-            raise DatasetError(f"{name} has {a.shape[0]} samples; t has {t.shape[0]}")
+            raise DatasetError(f"{name} has {a.shape[0]} samples; t has {t.shape[0]}"
+                               + transposed_hint(a.shape, t.shape[0]))
         bad = np.argwhere(~np.isfinite(a))
         if bad.size:
             raise DatasetError(f"{name}[{bad[0][0]}{'' if name == 't' else f', {bad[0][1]}'}] "

@@ -68,6 +68,15 @@ def real_array(name: str, x: object) -> np.ndarray:
     return a.astype(float)
 
 
+def transposed_hint(shape: tuple[int, ...], n: int) -> str:
+    """``"; …transposed…"`` when an array of ``shape`` has the ``n`` samples of ``t`` along its
+    second axis — one row per joint instead of one row per sample — else ``""``."""
+    if len(shape) == 2 and shape[1] == n and shape[0] != n:
+        return (f" (its shape {tuple(shape)} has them along the other axis: transpose it to "
+                f"({n}, {shape[0]}), one row per sample)")
+    return ""
+
+
 def as_2d(name: str, x: np.ndarray) -> np.ndarray:
     a = real_array(name, x)
     if a.ndim == 1:

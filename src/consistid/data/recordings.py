@@ -62,7 +62,7 @@ from ..progress import ProgressArg
 from ..robot.model import RobotModel
 from .chain import PreprocessOptions, run_chain
 from .dataset import Dataset, array_names, open_npz
-from .filters import real_array
+from .filters import real_array, transposed_hint
 from .formats import Log, format_of, read_frame, read_log
 from .resample import resample
 from .timestamps import (
@@ -237,7 +237,8 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
               for k, a in arrays.items() if a is not None}
     for k, a in arrays.items():
         if a.shape[0] != t.size:
-            raise DatasetError(f"{source}: {k} has {a.shape[0]} samples but t has {t.size}")
+            raise DatasetError(f"{source}: {k} has {a.shape[0]} samples but t has {t.size}"
+                               + transposed_hint(a.shape, t.size))
     back = np.flatnonzero(np.diff(t) < 0)
     if back.size:
         k = int(back[0]) + 1
