@@ -442,3 +442,15 @@ def test_arrays_with_one_row_per_joint_are_called_transposed(tmp_path):
         ci.load_recording(tmp_path / "run.npz")
     with pytest.raises(DatasetError, match=r"transpose it to \(2000, 2\)"):
         ci.Dataset.from_recording(t, q.T, tau.T)
+
+
+def test_a_second_header_line_of_units_is_recognised(tmp_path, csv_log):
+    """Loggers that write the units on the line below the names: before, "line 2, column 't':
+    's' is not a number"."""
+    lines = csv_log.read_text().splitlines()
+    path = tmp_path / "units.csv"
+    path.write_text("\n".join([lines[0], "s,rad,rad,Nm,Nm", *lines[1:]]) + "\n")
+    with pytest.raises(DatasetError, match=r"the line after the header holds no number \(\['s', "
+                                           r"'rad', 'rad', 'Nm', 'Nm'\]\): a second header line, "
+                                           r"e.g. of units\? Put each unit in its column's header"):
+        ci.load_recording(path)

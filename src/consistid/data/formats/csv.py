@@ -146,6 +146,12 @@ def read_csv(path: str | Path, *, joints: Sequence[str] | None = None,
     text = raw_text.replace("\r\n", "\n").replace("\r", "\n")     # universal line breaks
     if not data_lines:
         raise DatasetError(f"{source}: a header ({len(names)} columns) but no data rows")
+    first = [c for c in _cells(data_lines[0], delimiter) if c]
+    if first and not any(_is_number(c) or _time_kind([c]) for c in first):
+        raise DatasetError(f"{source}: the line after the header holds no number "
+                           f"({first[:6]}{' …' if len(first) > 6 else ''}): a second header "
+                           "line, e.g. of units? Put each unit in its column's header "
+                           "('q1 [rad]', 'tau1 [Nm]', 't [ms]') and remove that line")
     text, cut = _drop_cut_last_line(text, k, delimiter, len(names), source)
     time_idx = names.index(cmap.time)
     clock = _time_kind(_cells(data_lines[0], delimiter)[time_idx:time_idx + 1])
