@@ -37,8 +37,9 @@ from typing import Any
 
 import numpy as np
 
-from ..data.formats.csv import sniff_delimiter
-from ..errors import ConfigError, DataQualityWarning, MissingColumnsError, OutputPathError
+from ..data.formats.csv import read_text, sniff_delimiter
+from ..errors import (ConfigError, DataQualityWarning, DatasetError, MissingColumnsError,
+                      OutputPathError)
 from ..kinematics.calibrate import calibrate_kinematics
 from ..kinematics.result import CalibrationResult
 from ..robot.model import RobotModel, model_without_dynamics
@@ -172,14 +173,18 @@ MAX_REACH = 20.0
 def _read_table(path: Path) -> tuple[list[str], np.ndarray]:
     """Header names (units kept) and numbers of a calibration CSV: the delimiter sniffed as for
     logs (``;`` with decimal commas too), a UTF-8 byte-order mark ignored."""
-    with open(path, encoding="utf-8-sig") as fh:
-        text = fh.read()
+    try:
+        text = read_text(path, path.name)
+    except DatasetError as exc:
+        raise ConfigError(str(exc)) from None
     lines = [ln for ln in text.splitlines() if ln.strip()]
     if not lines:
         raise ConfigError(f"{path.name} is empty")
     delimiter = sniff_delimiter("\n".join(lines[:20]), path.name)
     header = [h.strip().strip('"') for h in lines[0].split(delimiter)]
     rows = lines[1:]
+    if not rows:
+        raise ConfigError(f"{path.name}: a header but no rows")
     if delimiter == ";":
         rows = [ln.replace(",", ".") for ln in rows]
     try:
@@ -187,7 +192,7 @@ def _read_table(path: Path) -> tuple[list[str], np.ndarray]:
     except ValueError as exc:
         raise ConfigError(f"{path.name}: not a numeric CSV after the header (delimiter "
                           f"{delimiter!r}; {exc})") from exc
-    if table.shape[0] == 0:
+    if table.shape[0] == 0:                     # only comment lines below the header
         raise ConfigError(f"{path.name}: a header but no rows")
     if table.shape[1] != len(header):
         raise ConfigError(f"{path.name}: {len(header)} header names but {table.shape[1]} "

@@ -14,6 +14,8 @@ configuration files.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import dataclasses
 import importlib.metadata
 import os
 import platform
@@ -21,7 +23,7 @@ import sys
 import time
 import warnings
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import Callable, Iterator, Sequence
 
 import numpy as np
 
@@ -178,27 +180,31 @@ def identify(args: argparse.Namespace) -> int:
     from consistid.identification.scoring import score, scores_table
 
     config = load_config(args.config)
-    model = config_model(config, allow_tilt=True)
-    options = config_identify(config)
-    inputs = config_inputs(config, model)
-    folder = (check_output_dir(args.output, IDENTIFY_OUTPUTS, inputs=inputs, force=args.force,
-                               what="--output") if args.output else None)
-    train, held = config_recordings(config, model)
-    _log(str(train))
-    if held is not None:
-        _log(str(held))
-    if estimates_tilt(config):
-        _log("estimating the base tilt (gravity direction) on the training recordings")
-        mounting = ci.estimate_mounting(model, train.dataset,
-                                        **{k: options[k] for k in ("friction", "armature")
-                                           if k in options})
-        print(f"{mounting}\n")
-        model = mounting.model
-    _log(f"identifying {model.name} on {train.dataset.n_samples} samples "
-         f"({', '.join(_toml_pair(k, v) for k, v in options.items()) or 'defaults'})")
-    t0 = time.perf_counter()
-    res = ci.identify(model, train.dataset, **options)
-    _log(f"      done in {time.perf_counter() - t0:.2f} s")
+    with _kept_warnings() as found:
+        model = config_model(config, allow_tilt=True)
+        options = config_identify(config)
+        inputs = config_inputs(config, model)
+        folder = (check_output_dir(args.output, IDENTIFY_OUTPUTS, inputs=inputs,
+                                   force=args.force, what="--output") if args.output else None)
+        train, held = config_recordings(config, model)
+        _log(str(train))
+        if held is not None:
+            _log(str(held))
+        if estimates_tilt(config):
+            _log("estimating the base tilt (gravity direction) on the training recordings")
+            mounting = ci.estimate_mounting(model, train.dataset,
+                                            **{k: options[k] for k in ("friction", "armature")
+                                               if k in options})
+            print(f"{mounting}\n")
+            model = mounting.model
+        _log(f"identifying {model.name} on {train.dataset.n_samples} samples "
+             f"({', '.join(_toml_pair(k, v) for k, v in options.items()) or 'defaults'})")
+        t0 = time.perf_counter()
+        res = ci.identify(model, train.dataset, **options)
+        _log(f"      done in {time.perf_counter() - t0:.2f} s")
+    if found:
+        res = dataclasses.replace(res, details={
+            **res.details, **{f"warning {k + 1}": text for k, text in enumerate(found)}})
     print(res.summary(max_rows=None if args.all else 20))
     scored = [score(res, train.dataset, "train")]
     if held is not None:
@@ -210,6 +216,30 @@ def identify(args: argparse.Namespace) -> int:
         _write_identification(res, folder, train.dataset,
                               None if held is None else held.dataset)
     return 0
+
+
+@contextlib.contextmanager
+def _kept_warnings() -> Iterator[list[str]]:
+    """Record the warnings raised in the block (a result's data read, the result computed:
+    degrees beyond the joint limits, a flipped torque sign, a gravity in mm/s², poor excitation
+    …); when it ends, show each once as it was raised and append its ``"Category: message"``
+    text to the yielded list — for the result, so that its summary and the files written from
+    it carry them, not only the terminal."""
+    found: list[str] = []
+    caught: list[warnings.WarningMessage] = []
+    try:
+        with warnings.catch_warnings(record=True) as recorded:
+            warnings.simplefilter("always")
+            try:
+                yield found
+            finally:
+                caught = list(recorded)
+    finally:
+        for w in caught:
+            text = f"{w.category.__name__}: {w.message}"
+            if text not in found:
+                found.append(text)
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
 
 
 def _toml_pair(key: str, value: object) -> str:
@@ -433,7 +463,8 @@ def diagnose(args: argparse.Namespace) -> int:
     from consistid.robot.model import model_without_dynamics
 
     config = load_config(args.config)
-    model = config_model(config)
+    with _kept_warnings() as found:
+        model = config_model(config)
     t = config.table("diagnose", DIAGNOSE_KEYS, required=False)
     for key, kind in (("nominal_urdf", "string"), ("output", "string"),
                       ("effects", "string or array of strings"), ("split", "number"),
@@ -451,20 +482,24 @@ def diagnose(args: argparse.Namespace) -> int:
         output = _report_target(output if args.output else config.resolve(output),
                                 config_inputs(config, model), args.force,
                                 "--output" if args.output else "[diagnose] output")
-    train, held = config_recordings(config, model)
-    options = {k: t[k] for k in DIAGNOSE_OPTIONS if k in t}
-    nominal = None
-    if "nominal_urdf" in t:  # same joints, locks and gravity as [model], other inertias
-        nominal = model_without_dynamics(config.resolve(t["nominal_urdf"]),
-                                         locked_joints=model.locked_joints,
-                                         gravity=model.gravity)[0]
-    _log(f"diagnosing {model.name}: {train.dataset.n_samples} training samples, "
-         f"{'held-out logs' if held is not None else 'time split'}")
-    t0 = time.perf_counter()
-    diag = ci.diagnose(model, train.dataset, nominal=nominal,
-                       held_out=None if held is None else held.dataset, progress=_progress(),
-                       **options)
-    _log(f"      done in {time.perf_counter() - t0:.2f} s")
+    with _kept_warnings() as more:
+        train, held = config_recordings(config, model)
+        options = {k: t[k] for k in DIAGNOSE_OPTIONS if k in t}
+        nominal = None
+        if "nominal_urdf" in t:  # same joints, locks and gravity as [model], other inertias
+            nominal = model_without_dynamics(config.resolve(t["nominal_urdf"]),
+                                             locked_joints=model.locked_joints,
+                                             gravity=model.gravity)[0]
+        _log(f"diagnosing {model.name}: {train.dataset.n_samples} training samples, "
+             f"{'held-out logs' if held is not None else 'time split'}")
+        t0 = time.perf_counter()
+        diag = ci.diagnose(model, train.dataset, nominal=nominal,
+                           held_out=None if held is None else held.dataset,
+                           progress=_progress(), **options)
+        _log(f"      done in {time.perf_counter() - t0:.2f} s")
+    found += [w for w in more if w not in found]
+    if found:
+        diag = dataclasses.replace(diag, notes=(*diag.notes, *(f"warning: {w}" for w in found)))
     print(diag.summary())
     if output:
         if output.suffix in (".html", ".txt"):

@@ -62,7 +62,7 @@ from pathlib import Path
 from typing import Any, Iterable, Mapping, Sequence
 
 from ..errors import ConfigError, DataQualityWarning
-from ..robot.model import RobotModel
+from ..robot.model import EXAMPLE_ROBOTS, RobotModel
 from ..data.chain import PreprocessOptions
 from ..data.recordings import Recording, load_recording
 from .files import same_file
@@ -129,7 +129,7 @@ class RunConfig:
         """``value`` (of ``[table] key``) if it has the TOML type ``kind``, else
         :class:`ConfigError` written in TOML terms. ``kind``: ``"string"``, ``"boolean"``,
         ``"number"`` (integer or float), ``"integer"``, ``"array of strings"``, ``"array of
-        numbers"``, ``"string or array of strings"``, ``"string or table"``."""
+        numbers"``, ``"string or array of strings"``, ``"string or table"``, ``"table"``."""
         def number(v: Any) -> bool:
             return isinstance(v, (int, float)) and not isinstance(v, bool)
 
@@ -144,13 +144,15 @@ class RunConfig:
             "string or array of strings": lambda v: isinstance(v, str) or (
                 isinstance(v, list) and all(isinstance(x, str) for x in v)),
             "string or table": lambda v: isinstance(v, (str, Mapping)),
+            "table": lambda v: isinstance(v, Mapping),
         }
         if not checks[kind](value):
             example = {"string": '"text"', "boolean": "true", "number": "1.5",
                        "integer": "3", "array of strings": '["a", "b"]',
                        "array of numbers": "[0.0, 1.0]",
                        "string or array of strings": '"a" or ["a", "b"]',
-                       "string or table": '"name" or {t = "time", ...}'}[kind]
+                       "string or table": '"name" or {t = "time", ...}',
+                       "table": '{t = "time", ...}'}[kind]
             article = "an" if kind[0] in "aeiou" else "a"
             raise ConfigError(f"{self.path.name}: [{table}] {key} must be {article} {kind} (e.g. "
                               f"{key} = {example}), got {key} = {_toml(value)}")
@@ -268,6 +270,10 @@ def config_model(config: RunConfig, allow_tilt: bool = False) -> RobotModel:
         raise ConfigError(f"{config.path.name}: [model] gravity must be three numbers [gx, gy, "
                           f"gz] (m/s², base frame), got {gravity!r}")
     if "example" in t:  # an example-robot-data arm by name (RobotModel.example)
+        if t["example"] not in EXAMPLE_ROBOTS:
+            raise ConfigError(f"{config.path.name}: [model] example = {_toml(t['example'])} is "
+                              f"not an example robot; they are {_toml(list(EXAMPLE_ROBOTS))} "
+                              "(or give urdf = \"path/to/robot.urdf\")")
         if set(t) != {"example"}:
             raise ConfigError(f"{config.path.name}: [model] example = {t['example']!r} takes no "
                               f"other key; got {sorted(set(t) - {'example'})}")
@@ -296,7 +302,7 @@ def config_recordings(config: RunConfig, model: RobotModel | None = None
                       ("trim_end", "number"), ("duplicates", "string"),
                       ("train", "string or array of strings"),
                       ("held_out", "string or array of strings"),
-                      ("joints", "array of strings"), ("columns", "string or table"),
+                      ("joints", "array of strings"), ("columns", "table"),
                       ("topic", "string"), ("stamp", "string"), ("delimiter", "string"),
                       ("time_unit", "string"), ("timestamp", "string or table"),
                       ("derivatives", "string")):
@@ -323,14 +329,35 @@ def config_recordings(config: RunConfig, model: RobotModel | None = None
         if not isinstance(files, list) or not all(isinstance(f, str) for f in files):
             raise ConfigError(f"{config.path.name}: [data] {what} must be a list of file names, "
                               f"got {files!r}")
-        recs = [load_recording(config.resolve(f, under=t.get("dir")), keys, model=model,
-                               **options) for f in files]
+        paths = _distinct_logs(config, what, files, t.get("dir"))
+        recs = [load_recording(p, keys, model=model, **options) for p in paths]
         return recs[0] if len(recs) == 1 else Recording.concatenate(recs)
 
     held = t.get("held_out")
     if held:
         _warn_shared(config, t["train"], held, t.get("dir"))
     return read(t["train"], "train"), (read(held, "held_out") if held else None)
+
+
+def _distinct_logs(config: RunConfig, what: str, files: list[str], under: str | None
+                   ) -> list[Path]:
+    """The paths of ``[data] what``, refusing an empty name and a log listed twice (under any
+    spelling: stacked twice, its samples would count twice and every σ shrink by √2)."""
+    paths: list[Path] = []
+    for k, name in enumerate(files):
+        if not name.strip():
+            raise ConfigError(f"{config.path.name}: [data] {what} has an empty file name (entry "
+                              f"{k + 1} of {_toml(files)}); remove it or name the log")
+        path = config.resolve(name, under=under)
+        earlier = [j for j, p in enumerate(paths) if same_file(p, path)]
+        if earlier:
+            raise ConfigError(f"{config.path.name}: [data] {what} lists the log {str(path)!r} "
+                              f"twice (entries {earlier[0] + 1} and {k + 1}: "
+                              f"{_toml(files[earlier[0]])}, {_toml(name)}); stacked twice, its "
+                              "samples would count twice and every σ would shrink by √2: list "
+                              "each log once")
+        paths.append(path)
+    return paths
 
 
 def _check_folder(config: RunConfig, key: str, value: str) -> None:

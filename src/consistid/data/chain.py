@@ -67,11 +67,13 @@ from .filters import (
     estimate_bandwidth,
     fourier_derivatives,
     hampel,
+    held_still,
     low_speed_mask,
     lowpass,
     period_average,
     savgol_derivatives,
     savgol_window,
+    transposed_hint,
 )
 from .resample import check_rate, nominal_rate, resample, supported_rate, uniform_grid
 from .timestamps import (
@@ -84,6 +86,7 @@ from .timestamps import (
     interval_centres,
     median_step,
     merge_duplicates,
+    seconds_of,
 )
 
 LOG = logging.getLogger(__name__)
@@ -270,13 +273,14 @@ def _split(t: np.ndarray, limit: float) -> list[slice]:
 def _check_inputs(t: np.ndarray, q: np.ndarray, tau: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     check_resolution(t)
-    t = np.asarray(t, dtype=float)
+    t = np.asarray(seconds_of(t), dtype=float)
     if t.ndim != 1:
         raise DatasetError(f"t must be 1-D (N,), got shape {t.shape}")
     q, tau = as_2d("q", q), as_2d("tau", tau)
     for name, a in (("t", t[:, None]), ("q", q), ("tau", tau)):
         if a.shape[0] != t.shape[0]:
-            raise DatasetError(f"{name} has {a.shape[0]} samples; t has {t.shape[0]}")
+            raise DatasetError(f"{name} has {a.shape[0]} samples; t has {t.shape[0]}"
+                               + transposed_hint(a.shape, t.shape[0]))
         bad = np.argwhere(~np.isfinite(a))
         if bad.size:
             raise DatasetError(f"{name}[{bad[0][0]}{'' if name == 't' else f', {bad[0][1]}'}] "
@@ -415,6 +419,10 @@ def _cutoff(t: np.ndarray, q: np.ndarray, stretches: list[slice], rate: float,
             qs = resample(ts, qs, grid, "linear")
         bandwidth = estimate_bandwidth(qs, rate)
         origin = "estimated from the position spectrum (99.99 % of the power)"
+        still = np.flatnonzero(held_still(qs))
+        if 0 < still.size < qs.shape[1]:
+            origin += (f"; q[:, {still.tolist()}] held still (constant or flickering between "
+                       "counts): left out")
     else:
         bandwidth, origin = float(o.bandwidth), "given"
     cutoff = default_cutoff(bandwidth, rate)

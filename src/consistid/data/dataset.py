@@ -19,6 +19,7 @@ These are the dataset's own files. A robot's log (CSV with joint names, Parquet,
 
 from __future__ import annotations
 
+import hashlib
 import zipfile
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -28,6 +29,7 @@ import numpy as np
 
 from ..errors import DatasetError, JointCountError, JointNameError, MissingColumnsError
 from .chain import ChainResult, PreprocessOptions, run_chain
+from .filters import real_array
 
 FIELDS = ("q", "dq", "ddq", "tau")
 
@@ -97,6 +99,14 @@ class Dataset:
         object.__setattr__(self, "t", t)
         nv = None
         names = tuple(self.joint_names) if self.joint_names is not None else None
+        if names is not None:
+            if isinstance(self.joint_names, str):
+                raise JointNameError(f"dataset.joint_names must be a list of names, got the "
+                                     f"string {self.joint_names!r}")
+            dup = sorted({str(n) for n in names if names.count(n) > 1})
+            if dup:
+                raise JointNameError(f"dataset.joint_names names {dup} more than once: "
+                                     f"{list(names)}")
         object.__setattr__(self, "joint_names", names)
         for name in FIELDS:
             value = getattr(self, name)
@@ -104,7 +114,7 @@ class Dataset:
                 if name != "tau":
                     raise DatasetError(f"dataset.{name} is missing")
                 continue
-            a = np.asarray(value, dtype=float)
+            a = real_array(f"dataset.{name}", value)
             if a.ndim == 1:
                 a = a[:, None]
             if a.ndim != 2 or a.shape[0] != n:
@@ -180,6 +190,16 @@ class Dataset:
             raise JointNameError(f"dataset joints {list(self.joint_names)} differ from the "
                                  f"model's {list(joint_names)} (same count, other names or "
                                  "order)")
+
+    def fingerprint(self) -> str:
+        """A digest (BLAKE2b) of ``t``, ``q`` and ``tau``: equal for the same recording given
+        twice, whatever the object."""
+        h = hashlib.blake2b(digest_size=16)
+        for a in (self.t, self.q, self.tau):
+            if a is not None:
+                h.update(np.ascontiguousarray(a).tobytes())
+                h.update(str(a.shape).encode())
+        return h.hexdigest()
 
     def select(self, index: np.ndarray | slice) -> "Dataset":
         """The samples at ``index`` (boolean mask, integer array or slice)."""
@@ -318,7 +338,7 @@ class Dataset:
                     raise MissingColumnsError(f"{path.name} lacks arrays {missing}; it has "
                                               f"{sorted(f.files)}")
                 arrays = {k: f[k] for k in f.files if k in ("t", *FIELDS, "segment", "dq_sign")}
-                stored = tuple(str(n) for n in f["joint_names"]) if "joint_names" in f else None
+                stored = array_names(f["joint_names"]) if "joint_names" in f else None
                 if "torque_filter" in f:
                     arrays["torque_filter"] = np.atleast_1d(f["torque_filter"]).tolist()
             if joint_names is not None and stored is not None and tuple(joint_names) != stored:
@@ -380,6 +400,14 @@ def _check_filter(value: object) -> tuple[float, int]:
     return cutoff, int(order)
 
 
+def array_names(names: np.ndarray) -> tuple[str, ...]:
+    """The names held by an array read from a file: ``str`` (unicode) or ``bytes`` elements
+    (``np.savez`` of ``[b"joint1", …]``, Python 2 era logs) decoded as UTF-8, not written
+    ``"b'joint1'"``."""
+    return tuple(n.decode("utf-8", "replace") if isinstance(n, bytes) else str(n)
+                 for n in np.atleast_1d(names))
+
+
 def open_npz(path: Path):
     """``numpy.load`` of an ``.npz`` archive (no pickles), or :class:`DatasetError` naming the
     file when it is not one (a text file, a single ``.npy`` array, a truncated zip)."""
@@ -422,7 +450,13 @@ def as_dataset(data: "Dataset | Sequence[Dataset]", name: str = "dataset") -> Da
     if not parts:
         raise DatasetError(f"{name} is an empty list: give at least one Dataset")
     parts = [_unwrap(d) for d in parts]
+    seen: dict[str, int] = {}
     for k, d in enumerate(parts):
         if not isinstance(d, Dataset):
             raise DatasetError(f"{name}[{k}] is a {type(d).__name__}, not a Dataset")
+        first = seen.setdefault(d.fingerprint(), k)
+        if first != k:
+            raise DatasetError(f"{name}[{k}] is the recording {name}[{first}] again (identical "
+                               "t, q and tau): stacked twice, its samples would count twice and "
+                               "every σ would shrink by √2; pass each recording once")
     return Dataset.concatenate(parts)

@@ -55,8 +55,30 @@ MAX_CUTOFF_FRACTION = 0.4
 PAD_PERIODS = 6.0
 
 
+def real_array(name: str, x: object) -> np.ndarray:
+    """``x`` as a float array; :class:`DatasetError` naming ``name`` for complex numbers (numpy
+    would drop their imaginary parts with only a ``ComplexWarning``) and for booleans (no joint
+    position or torque is true or false)."""
+    a = np.asarray(x)
+    if a.dtype.kind == "c":
+        raise DatasetError(f"{name} holds complex numbers (dtype {a.dtype}); joint signals are "
+                           "real: pass their real part (np.real) if the imaginary part is 0")
+    if a.dtype.kind == "b":
+        raise DatasetError(f"{name} holds booleans, not numbers; pass the logged values")
+    return a.astype(float)
+
+
+def transposed_hint(shape: tuple[int, ...], n: int) -> str:
+    """``"; …transposed…"`` when an array of ``shape`` has the ``n`` samples of ``t`` along its
+    second axis — one row per joint instead of one row per sample — else ``""``."""
+    if len(shape) == 2 and shape[1] == n and shape[0] != n:
+        return (f" (its shape {tuple(shape)} has them along the other axis: transpose it to "
+                f"({n}, {shape[0]}), one row per sample)")
+    return ""
+
+
 def as_2d(name: str, x: np.ndarray) -> np.ndarray:
-    a = np.asarray(x, dtype=float)
+    a = real_array(name, x)
     if a.ndim == 1:
         a = a[:, None]
     if a.ndim != 2:
@@ -359,11 +381,28 @@ def low_speed_mask(dq: np.ndarray, threshold: float | Sequence[float]) -> np.nda
     return np.all(np.abs(dq) >= thr, axis=1)
 
 
+def held_still(q: np.ndarray) -> np.ndarray:
+    """``True`` for each joint whose positions trace no motion the sampling resolves: constant,
+    or consecutive samples as far apart as the whole log spreads (median ``|Δq|`` at least half
+    the standard deviation: a joint held by its brake whose encoder flickers between counts,
+    the same rule that tells independent states from a trajectory in
+    :mod:`consistid.data.recordings`)."""
+    q = as_2d("q", q)
+    if q.shape[0] < 2:
+        return np.ones(q.shape[1], dtype=bool)
+    spread = np.std(q, axis=0)
+    jumps = np.median(np.abs(np.diff(q, axis=0)), axis=0)
+    return (np.ptp(q, axis=0) == 0) | (jumps >= 0.5 * spread)
+
+
 def estimate_bandwidth(q: np.ndarray, rate: float, fraction: float = 0.9999) -> float:
     """The excitation bandwidth (Hz): the frequency below which ``fraction`` of the power of
-    every joint's detrended, Hann-windowed position lies (the largest over joints).
+    every moving joint's detrended, Hann-windowed position lies (the largest over joints).
 
-    Positions are used, not velocities: their noise is tiny compared with the motion.
+    Positions are used, not velocities: their noise is tiny compared with the motion. Joints
+    :func:`held_still` are left out: their spectrum is rounding or encoder noise, flat up to the
+    Nyquist frequency, and would set every joint's cut-off there (when no joint moves by that
+    rule — independent states, not a trajectory — every joint that varies counts).
     """
     q = as_2d("q", q)
     if q.shape[0] < 16:
@@ -373,6 +412,8 @@ def estimate_bandwidth(q: np.ndarray, rate: float, fraction: float = 0.9999) -> 
     freqs = np.fft.rfftfreq(q.shape[0], 1.0 / rate)
     total = power.sum(axis=0)
     moving = total > 0
+    if (moving & ~held_still(q)).any():
+        moving &= ~held_still(q)
     if not moving.any():
         raise DatasetError("the positions do not move: no excitation bandwidth")
     cum = np.cumsum(power[:, moving], axis=0) / total[moving]

@@ -57,11 +57,12 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ..errors import (DataQualityWarning, DatasetError, JointNameError, MissingColumnsError,
-                      check_option)
+                      OptionError, check_option)
 from ..progress import ProgressArg
 from ..robot.model import RobotModel
 from .chain import PreprocessOptions, run_chain
-from .dataset import Dataset, open_npz
+from .dataset import Dataset, array_names, open_npz
+from .filters import real_array, transposed_hint
 from .formats import Log, format_of, read_frame, read_log
 from .resample import resample
 from .timestamps import (
@@ -232,11 +233,12 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
         raise MissingColumnsError(f"{source}: {given} is given without "
                                   f"{'ddq' if given == 'dq' else 'dq'}; give both or neither "
                                   "(neither: they are estimated from q)")
-    arrays = {k: np.atleast_2d(np.asarray(a, dtype=float).T).T for k, a in arrays.items()
-              if a is not None}
+    arrays = {k: np.atleast_2d(real_array(f"{source}: {k}", a).T).T
+              for k, a in arrays.items() if a is not None}
     for k, a in arrays.items():
         if a.shape[0] != t.size:
-            raise DatasetError(f"{source}: {k} has {a.shape[0]} samples but t has {t.size}")
+            raise DatasetError(f"{source}: {k} has {a.shape[0]} samples but t has {t.size}"
+                               + transposed_hint(a.shape, t.size))
     back = np.flatnonzero(np.diff(t) < 0)
     if back.size:
         k = int(back[0]) + 1
@@ -268,6 +270,10 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
     order, names = _match_joints(joint_names, nv, model, source, steps)
     if order is not None:
         arrays = {k: a[:, order] for k, a in arrays.items()}
+    for name, value in (("trim_start", trim_start), ("trim_end", trim_end)):
+        if isinstance(value, (bool, np.bool_)) \
+                or not isinstance(value, (int, float, np.integer, np.floating)):
+            raise OptionError(f"{source}: {name} must be seconds (a number), got {value!r}")
     if trim_start < 0 or trim_end < 0 or not np.isfinite(trim_start + trim_end):
         raise DatasetError(f"{source}: trim_start and trim_end must be finite seconds ≥ 0, got "
                            f"{trim_start}, {trim_end}")
@@ -618,7 +624,7 @@ def load_recording(path: str | Path, keys: str | Mapping[str, str] = "auto", *,
         used = {v for k, v in layout.items() if v in files}
         arrays = {k: f[v] for k, v in layout.items() if v in files and k != JOINT_NAMES_KEY}
         names_key = layout.get(JOINT_NAMES_KEY, JOINT_NAMES_KEY)
-        file_names = [str(n) for n in f[names_key]] if names_key in files else None
+        file_names = list(array_names(f[names_key])) if names_key in files else None
         used |= {names_key} if file_names is not None else set()
     if file_names is not None and joint_names is not None and list(joint_names) != file_names:
         raise JointNameError(f"{path.name}: joint_names {list(joint_names)} differ from the "

@@ -82,6 +82,17 @@ def check_resolution(t: np.ndarray, source: str = "t") -> None:
                            "nanoseconds) where the log is written or converted")
 
 
+def seconds_of(t: np.ndarray) -> np.ndarray:
+    """Stamps typed as times — ``datetime64`` (seconds from the first) or ``timedelta64``
+    (seconds) — in float seconds; other arrays unchanged (their unit is the caller's)."""
+    a = np.asarray(t)
+    if a.dtype.kind == "M" and a.size:
+        return (a - a[0]) / np.timedelta64(1, "ns") * 1e-9
+    if a.dtype.kind == "m":
+        return a / np.timedelta64(1, "ns") * 1e-9
+    return a
+
+
 def check_stamps(t: np.ndarray, source: str = "t") -> np.ndarray:
     """``t`` as a 1-D float array of finite stamps; names the first bad index otherwise (and
     refuses stamps a narrow float type cannot resolve, :func:`check_resolution`)."""
@@ -90,8 +101,7 @@ def check_stamps(t: np.ndarray, source: str = "t") -> np.ndarray:
         raise DatasetError(f"{source}: time stamps must be a non-empty 1-D array, got shape "
                            f"{a.shape}")
     check_resolution(a, source)
-    if a.dtype.kind == "M":                                 # numpy datetime64
-        a = (a - a[0]) / np.timedelta64(1, "ns") * 1e-9
+    a = seconds_of(a)
     try:
         a = a.astype(float)
     except (TypeError, ValueError):

@@ -249,9 +249,15 @@ class DataStream:
                                "returns a fresh iterable to read it again")
         self._read = True
         source = self.source() if callable(self.source) else self.source
+        files: dict[Path, int] = {}
         for k, part in enumerate(source):
             label = _label(part, k)
             if isinstance(part, (str, os.PathLike)):
+                first = files.setdefault(Path(part).resolve(), k)
+                if first != k:
+                    raise DatasetError(f"{label} is part {first} again: read twice, its samples "
+                                       "would count twice and every σ would shrink by √2; list "
+                                       "each file once")
                 try:
                     data = self.loader(Path(part))
                 except DatasetError as exc:

@@ -214,6 +214,9 @@ class RobotModel:
             raise ModelError(
                 f"unknown joint(s) {unknown} in {path.name}; joints are {list(full.names)[1:]}"
             )
+        twice = sorted({j for j in locked if locked.count(j) > 1})
+        if twice:
+            raise ModelError(f"locked_joints names {twice} more than once: {locked}")
         unlocked = sorted(set(config) - set(locked))
         if unlocked:
             raise ModelError(f"locked_configuration names joint(s) {unlocked} that are not in "

@@ -24,7 +24,7 @@ from typing import Any, Mapping, Sequence
 
 from ...errors import DatasetError, OptionError
 from ...progress import ProgressArg
-from .columns import Log
+from .columns import Log, check_selection
 from .csv import read_csv
 from .frame import read_frame
 from .matlab import read_mat
@@ -45,7 +45,12 @@ def format_of(path: str | Path) -> str:
     if path.is_dir():
         if (path / "metadata.yaml").is_file():
             return "bag"
-        raise DatasetError(f"{str(path)!r} is a folder without metadata.yaml: not a ROS 2 bag")
+        logs = sorted(p.name for p in path.iterdir()
+                      if p.suffix.lower() in (*SUFFIXES, ".npz") and p.is_file())
+        held = (f"; it holds the logs {logs[:6]}{' …' if len(logs) > 6 else ''}: name each one "
+                "(a folder is read only as a ROS 2 bag)" if logs else "")
+        raise DatasetError(f"{str(path)!r} is a folder without metadata.yaml: not a ROS 2 bag"
+                           + held)
     suffix = path.suffix.lower()
     if suffix == ".npz":
         return "npz"
@@ -64,6 +69,7 @@ def read_log(path: str | Path, *, joints: Sequence[str] | None = None,
     :class:`OptionError`. ``progress`` (:mod:`consistid.progress`) shows a bar over a bag's
     messages; the other formats are read in one call."""
     kind = format_of(path)
+    check_selection(joints, columns)
     if kind == "npz":
         raise DatasetError(f"{Path(path).name}: .npz logs are read by "
                            "consistid.data.recordings.load_recording")

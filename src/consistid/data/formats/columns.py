@@ -31,7 +31,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from ...errors import DatasetError, JointNameError, MissingColumnsError
+from ...errors import DatasetError, JointNameError, MissingColumnsError, OptionError
 from ..timestamps import check_resolution
 
 FIELDS = ("q", "dq", "ddq", "tau")
@@ -213,6 +213,18 @@ class ColumnMap:
                      "consistid.Dataset.load keeps it, and a Coulomb term fitted without it is "
                      "biased low on filtered torques)")
         return text
+
+
+def check_selection(joints: object, columns: object) -> None:
+    """:class:`OptionError` unless ``joints`` is ``None`` or a sequence of names (a single
+    string would be read letter by letter) and ``columns`` ``None`` or a mapping."""
+    if joints is not None and (isinstance(joints, (str, bytes))
+                               or not isinstance(joints, (Sequence, np.ndarray))):
+        raise OptionError(f"joints= must be a list of joint names (e.g. joints=[{joints!r}]), got "
+                          f"{joints!r}")
+    if columns is not None and not isinstance(columns, Mapping):
+        raise OptionError("columns= must be a mapping from fields to column names (e.g. "
+                          f"columns={{'t': 'stamp', 'q': 'pos_{{joint}}'}}), got {columns!r}")
 
 
 def map_columns(names: Sequence[str], source: str, *, joints: Sequence[str] | None = None,

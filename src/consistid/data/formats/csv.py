@@ -1,10 +1,11 @@
 r"""CSV (and other delimited text) logs: one header line naming the columns, one row per sample.
 
 The delimiter is sniffed from the first lines (``,``, ``;``, tab, ``|`` or spaces; Python's
-``csv.Sniffer``), and said in the record; with ``;`` a decimal comma (``1,25``) is read as
-``1.25``. Lines starting with ``#`` are comments (before the header too). A time column
-written as ISO 8601 date-times (``2025-11-24 16:00:00.002``, pandas' ``to_csv`` of a datetime
-column) or as times of day (``16:00:00.002``) is parsed. A last line cut short by a logger
+``csv.Sniffer``), and said in the record; with any delimiter but ``,`` (``;``, a tab: a
+spreadsheet's export in a European locale) a decimal comma (``1,25``) is read as ``1.25``.
+Lines starting with ``#`` are comments (before the header too). A time column written as ISO
+8601 date-times (``2025-11-24 16:00:00.002``, pandas' ``to_csv`` of a datetime column) or as
+times of day (``16:00:00.002``) is parsed. A last line cut short by a logger
 stopped mid-write (no line break after it; too few fields, or a last field under half its
 usual length) is dropped with a warning. The columns are
 matched by name (:mod:`consistid.data.formats.columns`). Numbers are parsed by ``numpy.loadtxt``;
@@ -53,9 +54,12 @@ def sniff_delimiter(sample: str, source: str) -> str:
 
 
 def _locate(path: Path, start: int, delimiter: str, names: list[str], decimal_comma: bool,
-            source: str) -> None:
+            source: str, read: Sequence[int]) -> None:
     """Re-read ``path`` line by line from line ``start`` (0-based) and raise a DatasetError
-    naming the first bad line/column."""
+    naming the first bad line/column among the columns ``read``; an empty cell is counted down
+    its column (a column empty in every row is a signal the logger did not record)."""
+    empty: tuple[int, int] | None = None              # (line, column) of the first empty cell
+    rows = blanks = 0
     with open(path, newline="", encoding="utf-8-sig") as fh:
         for lineno, line in enumerate(fh):
             if lineno < start or not line.strip() or line.lstrip().startswith("#"):
@@ -64,16 +68,36 @@ def _locate(path: Path, start: int, delimiter: str, names: list[str], decimal_co
                                     skipinitialspace=delimiter == " "))
             if delimiter == " ":
                 cells = [c for c in cells if c != ""]
+            if empty is not None:
+                rows += 1
+                blanks += len(cells) > empty[1] and not cells[empty[1]].strip()
+                continue
             if len(cells) != len(names):
                 raise DatasetError(f"{source}, line {lineno + 1}: {len(cells)} fields, the header "
                                    f"has {len(names)} ({line.strip()[:80]!r})")
-            for name, cell in zip(names, cells):
+            for c, (name, cell) in enumerate(zip(names, cells)):
+                if c not in read:
+                    continue
                 text = cell.strip().replace(",", ".") if decimal_comma else cell.strip()
+                if not text:
+                    empty, rows, blanks = (lineno + 1, c), rows + 1, 1
+                    break
                 try:
                     float(text)
                 except ValueError:
                     raise DatasetError(f"{source}, line {lineno + 1}, column {name!r}: "
                                        f"{cell!r} is not a number") from None
+            else:
+                rows += 1
+    if empty is None:
+        return
+    name = names[empty[1]]
+    if blanks == rows:
+        raise DatasetError(f"{source}, column {name!r}: every one of its {rows} cells is empty: "
+                           "the logger did not record it. Log that signal, or leave the joint "
+                           "out (joints=[...]; a model with that joint locked)")
+    raise DatasetError(f"{source}, line {empty[0]}, column {name!r}: an empty cell, the first of "
+                       f"{blanks} in that column ({rows} rows); repair or drop those rows")
 
 
 def read_csv(path: str | Path, *, joints: Sequence[str] | None = None,
@@ -98,8 +122,8 @@ def read_csv(path: str | Path, *, joints: Sequence[str] | None = None,
     source = path.name
     if not path.is_file():
         raise DatasetError(f"log file {str(path)!r} does not exist")
-    with open(path, newline="", encoding="utf-8-sig") as fh:
-        head = fh.read(SNIFF_CHARS)
+    raw_text = read_text(path, source)
+    head = raw_text[:SNIFF_CHARS]
     if not head.strip():
         raise DatasetError(f"{source} is empty")
     lines = head.splitlines()
@@ -116,13 +140,18 @@ def read_csv(path: str | Path, *, joints: Sequence[str] | None = None,
                                   "the arrays to consistid.data.recordings.from_arrays")
     cmap = map_columns(names, source, joints=joints, columns=columns)
     data_lines = [ln for ln in lines[k + 1:] if ln.strip() and not ln.lstrip().startswith("#")]
-    decimal_comma = delimiter == ";" and bool(data_lines) and "," in data_lines[0]
+    decimal_comma = delimiter != "," and bool(data_lines) and "," in data_lines[0]
     wanted = [cmap.time] + [c for cols in cmap.fields.values() for c in cols]
     usecols = sorted({names.index(c) for c in wanted})
-    with open(path, encoding="utf-8-sig") as fh:
-        text = fh.read()
+    text = raw_text.replace("\r\n", "\n").replace("\r", "\n")     # universal line breaks
     if not data_lines:
         raise DatasetError(f"{source}: a header ({len(names)} columns) but no data rows")
+    first = [c for c in _cells(data_lines[0], delimiter) if c]
+    if first and not any(_is_number(c) or _time_kind([c]) for c in first):
+        raise DatasetError(f"{source}: the line after the header holds no number "
+                           f"({first[:6]}{' …' if len(first) > 6 else ''}): a second header "
+                           "line, e.g. of units? Put each unit in its column's header "
+                           "('q1 [rad]', 'tau1 [Nm]', 't [ms]') and remove that line")
     text, cut = _drop_cut_last_line(text, k, delimiter, len(names), source)
     time_idx = names.index(cmap.time)
     clock = _time_kind(_cells(data_lines[0], delimiter)[time_idx:time_idx + 1])
@@ -139,7 +168,7 @@ def read_csv(path: str | Path, *, joints: Sequence[str] | None = None,
                            skiprows=k + 1, comments="#", ndmin=2, dtype=float, usecols=usecols,
                            quotechar='"')
     except ValueError as exc:
-        _locate(path, k + 1, delimiter, names, decimal_comma, source)
+        _locate(path, k + 1, delimiter, names, decimal_comma, source, usecols)
         raise DatasetError(f"{source}: not readable as numbers after the header ({exc})") from None
     if table.shape[0] == 0:
         raise DatasetError(f"{source}: a header ({len(names)} columns) but no data rows")
@@ -160,6 +189,22 @@ def read_csv(path: str | Path, *, joints: Sequence[str] | None = None,
         col[cmap.time] = stamps
         note += (f"; column {cmap.time!r} read as {CLOCKS[clock]}")
     return log_from_columns(col.__getitem__, cmap, source, table.shape[0], rows, (note,))
+
+
+def read_text(path: Path, source: str) -> str:
+    """The file's text decoded as UTF-8 (a byte-order mark dropped, line breaks as written);
+    :class:`DatasetError` naming the line of the first byte that is not UTF-8 (a Latin-1 ``°``
+    or ``µ`` in a header or a comment)."""
+    raw = path.read_bytes()
+    body = raw[3:] if raw.startswith(b"\xef\xbb\xbf") else raw
+    try:
+        return body.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = body[:exc.start].count(b"\n") + 1
+        text = body.splitlines()[line - 1][:60].decode("utf-8", "replace")
+        raise DatasetError(f"{source}, line {line}: byte {body[exc.start:exc.start + 1]!r} is "
+                           f"not UTF-8 text ({text!r}); save the log as UTF-8 (e.g. iconv -f "
+                           "latin1 -t utf-8), or remove that character") from None
 
 
 def _drop_cut_last_line(text: str, header: int, delimiter: str, n_names: int,

@@ -14,7 +14,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from ...errors import DatasetError
-from .columns import Log, log_from_columns, map_columns, time_unit_of
+from .columns import Log, check_selection, log_from_columns, map_columns, time_unit_of
 
 
 def read_frame(frame: Any, *, joints: Sequence[str] | None = None,
@@ -22,6 +22,7 @@ def read_frame(frame: Any, *, joints: Sequence[str] | None = None,
                source: str = "DataFrame") -> Log:
     """A :class:`~consistid.data.formats.columns.Log` from a pandas ``DataFrame`` (rows are
     samples). ``joints``, ``columns``: as for CSV."""
+    check_selection(joints, columns)
     if not hasattr(frame, "columns") or not hasattr(frame, "index"):
         raise DatasetError(f"{source}: expected a pandas DataFrame, got {type(frame).__name__}")
     labels = [".".join(str(p) for p in c) if isinstance(c, tuple) else str(c)

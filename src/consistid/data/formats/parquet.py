@@ -1,6 +1,6 @@
 r"""Parquet logs (Apache Arrow's columnar files), read with ``pyarrow`` (the ``[io]``
 extra): the columns are matched by name as in a CSV (:mod:`consistid.data.formats.columns`);
-a timestamp-typed time column is converted to seconds.
+a timestamp- or duration-typed time column is converted to seconds.
 """
 
 from __future__ import annotations
@@ -39,14 +39,18 @@ def read_parquet(path: str | Path, *, joints: Sequence[str] | None = None,
         a = col.to_numpy(zero_copy_only=False)
         if a.dtype.kind == "M":
             return (a - a[0]).astype("timedelta64[ns]").astype(np.int64) * 1e-9
+        if a.dtype.kind == "m":                   # a duration column: its unit is in its type
+            return a.astype("timedelta64[ns]").astype(np.int64) * 1e-9
         if a.dtype == object:                     # nulls come back as None
             a = np.array([np.nan if v is None else v for v in a], dtype=object)
         return a
 
     log = log_from_columns(get, cmap, path.name, table.num_rows, None,
                            (f"{table.num_rows} rows, {len(names)} columns",))
-    if str(table.schema.field(cmap.time).type).startswith("timestamp"):
+    kind = str(table.schema.field(cmap.time).type)
+    if kind.startswith(("timestamp", "duration")):
+        what = ("timestamps: converted to seconds from the first" if kind.startswith("timestamp")
+                else f"durations ({kind}): converted to seconds")
         return Log(log.t, log.fields, log.joint_names, log.source,
-                   log.notes + (f"{cmap.time!r} holds timestamps: converted to seconds from the "
-                                "first",), "s", log.rows)
+                   log.notes + (f"{cmap.time!r} holds {what}",), "s", log.rows)
     return log

@@ -9,7 +9,8 @@ joint (e.g. a gripper driver publishing its own ``JointState`` on the same topic
 counted in the record. Samples are stamped with ``header.stamp`` (``stamp="header"``, the
 default, as ROS drivers stamp the reading) or the time the recorder received the message
 (``stamp="receive"``; also used, and said, when every header stamp is zero). Velocities are
-read when every kept message has them; efforts are the torques and must be present.
+read when every kept message has them; efforts are the torques: messages without them (a driver
+starting up) are skipped and counted, and a bag with none is refused.
 """
 
 from __future__ import annotations
@@ -134,15 +135,23 @@ def read_bag(path: str | Path, *, joints: Sequence[str] | None = None, topic: st
                 "message (joints=[...] with a model that locks the others)")
         raise DatasetError(f"{source}: no {topic} message has every selected joint (missing "
                            f"everywhere: {missing}; names seen: {sorted(seen)}){hint}")
-    if any(e is None for e in eff):
-        k = next(i for i, e in enumerate(eff) if e is None)
-        raise MissingColumnsError(f"{source}: {topic} message {k} (of the kept ones) has no "
-                                  "effort: the log has no torques to identify from")
+    no_effort = [k for k, e in enumerate(eff) if e is None]
+    if len(no_effort) == len(eff):
+        raise MissingColumnsError(f"{source}: every {topic} message has no effort for the "
+                                  "selected joints: the log has no torques to identify from")
+    if no_effort:       # e.g. a driver's first messages, before its torque sensing is up
+        keep = [k for k, e in enumerate(eff) if e is not None]
+        header_t, receive_t, pos, vel, eff = ([a[k] for k in keep] for a in
+                                              (header_t, receive_t, pos, vel, eff))
     notes = [f"read {source}: topic {topic!r} (sensor_msgs/JointState), {len(pos)} of {n_msgs} "
              f"messages, joints {list(selected)}"]
     if skipped:
         notes.append(f"{skipped} message(s) without every selected joint skipped (e.g. another "
                      "driver's joints on the same topic)")
+    if no_effort:
+        notes.append(f"{len(no_effort)} message(s) without an effort for every joint skipped "
+                     f"(kept messages {no_effort[0]}–{no_effort[-1]}; e.g. a driver starting up): "
+                     "no torque to fit there")
     dropped = sorted(seen - set(selected))
     if dropped:
         notes.append(f"dropped the unselected joints {dropped}")
