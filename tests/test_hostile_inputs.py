@@ -195,6 +195,17 @@ def test_complex_or_boolean_arrays_are_refused(make, message):
         from_arrays(t, make(q), tau)
 
 
+def test_a_dataset_of_float_arrays_does_not_copy_them():
+    """Refusing complex and boolean arrays must not copy the float ones a Dataset is made of
+    (every Dataset.select / with_torque / replace would copy each field: twice the memory of a
+    long log and twice the time of building one)."""
+    t, q, tau = _moving()
+    d = ci.Dataset(t=t, q=q, dq=q, ddq=q, tau=tau)
+    assert np.shares_memory(d.q, q) and np.shares_memory(d.tau, tau)
+    assert not np.shares_memory(ci.Dataset(t=t, q=q.astype(np.float32), dq=q, ddq=q,
+                                           tau=tau).q, q)
+
+
 @pytest.mark.parametrize("sep", ["\t", "|"])
 def test_decimal_commas_with_a_tab_or_bar_read_like_the_plain_log(tmp_path, csv_log, sep):
     """A European spreadsheet's tab-separated export: before, '0,0' was 'not a number'

@@ -65,7 +65,7 @@ def real_array(name: str, x: object) -> np.ndarray:
                            "real: pass their real part (np.real) if the imaginary part is 0")
     if a.dtype.kind == "b":
         raise DatasetError(f"{name} holds booleans, not numbers; pass the logged values")
-    return a.astype(float)
+    return a.astype(float, copy=False)
 
 
 def transposed_hint(shape: tuple[int, ...], n: int) -> str:
