@@ -52,6 +52,27 @@ def test_a_joint_held_still_does_not_set_the_others_cutoff(still):
     assert any("q[:, [2]] held still" in s.detail for s in with_still.steps)
 
 
+@pytest.mark.parametrize("p", [0.5, 0.3, 0.05])
+def test_a_joint_flickering_between_two_counts_seldom_is_held_still(p):
+    """A brake holds the joint near an encoder edge: it reads the upper count a fraction ``p``
+    of the samples. Before, only ``p`` near ½ was seen (the median step is 0 below): the cut-off
+    went to Nyquist (100 Hz) for ``p`` = 0.3 and 0.05."""
+    t, q, _ = _moving()
+    held = 0.3 + COUNT * (np.random.default_rng(2).random(t.size) < p)
+    q3 = np.column_stack([q, held])
+    assert held_still(q3).tolist() == [False, False, True]
+    assert estimate_bandwidth(q3, RATE) == estimate_bandwidth(q, RATE)
+
+
+@pytest.mark.parametrize("per_period, still", [(5, True), (8, False), (200, False)])
+def test_held_still_is_the_lag_one_correlation_of_a_sampled_motion(per_period, still):
+    """A sine sampled ``k`` times a period has ``mean(Δq²)/var(q) = 2(1 − cos 2π/k)``: at least
+    1 (no motion the sampling resolves) below 7 samples a period, below 1 from 7 on."""
+    n = np.arange(40 * per_period)
+    q = np.sin(2 * np.pi * n / per_period + 0.1)
+    assert held_still(q).tolist() == [still]
+
+
 def test_independent_states_still_have_a_bandwidth():
     """Random states (no joint traces a motion) keep the old rule: every varying joint counts."""
     q = np.random.default_rng(1).uniform(-1, 1, (200, 3))

@@ -383,16 +383,18 @@ def low_speed_mask(dq: np.ndarray, threshold: float | Sequence[float]) -> np.nda
 
 def held_still(q: np.ndarray) -> np.ndarray:
     """``True`` for each joint whose positions trace no motion the sampling resolves: constant,
-    or consecutive samples as far apart as the whole log spreads (median ``|Δq|`` at least half
-    the standard deviation: a joint held by its brake whose encoder flickers between counts,
-    the same rule that tells independent states from a trajectory in
-    :mod:`consistid.data.recordings`)."""
+    or consecutive samples as far apart as any two of the log — the mean square successive
+    difference at least the variance, ``mean(Δq²) ≥ var(q)`` (von Neumann's ratio
+    ``δ²/s² = 2(1 − ρ₁)`` at least 1, lag-1 correlation ``ρ₁ ≤ ½``; von Neumann 1941,
+    doi:10.1214/aoms/1177731677). Samples drawn independently (a joint held by its brake whose
+    encoder flickers between counts, however seldom; independent states rather than a
+    trajectory, as :mod:`consistid.data.recordings` tells them) have ``δ²/s² ≈ 2``; a motion
+    sampled ``k`` times per period ``2(1 − cos(2π/k))``, below 1 from ``k = 7`` on."""
     q = as_2d("q", q)
     if q.shape[0] < 2:
         return np.ones(q.shape[1], dtype=bool)
-    spread = np.std(q, axis=0)
-    jumps = np.median(np.abs(np.diff(q, axis=0)), axis=0)
-    return (np.ptp(q, axis=0) == 0) | (jumps >= 0.5 * spread)
+    successive = np.mean(np.diff(q, axis=0) ** 2, axis=0)
+    return (np.ptp(q, axis=0) == 0) | (successive >= np.var(q, axis=0))
 
 
 def estimate_bandwidth(q: np.ndarray, rate: float, fraction: float = 0.9999) -> float:
@@ -412,8 +414,9 @@ def estimate_bandwidth(q: np.ndarray, rate: float, fraction: float = 0.9999) -> 
     freqs = np.fft.rfftfreq(q.shape[0], 1.0 / rate)
     total = power.sum(axis=0)
     moving = total > 0
-    if (moving & ~held_still(q)).any():
-        moving &= ~held_still(q)
+    resolved = moving & ~held_still(q)
+    if resolved.any():
+        moving = resolved
     if not moving.any():
         raise DatasetError("the positions do not move: no excitation bandwidth")
     cum = np.cumsum(power[:, moving], axis=0) / total[moving]

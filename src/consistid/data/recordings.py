@@ -62,7 +62,7 @@ from ..progress import ProgressArg
 from ..robot.model import RobotModel
 from .chain import PreprocessOptions, run_chain
 from .dataset import Dataset, array_names, open_npz
-from .filters import real_array, transposed_hint
+from .filters import held_still, real_array, transposed_hint
 from .formats import Log, format_of, read_frame, read_log
 from .resample import resample
 from .timestamps import (
@@ -329,8 +329,9 @@ def _check_logged(t: np.ndarray, arrays: Mapping[str, np.ndarray],
     :data:`DERIVATIVE_WINDOW`, which keeps sensor noise out). A column of zeros while the joint
     moves (a driver that fills the field), a slope far from 1 (deg/s against rad: 57.3) or no
     correlation is named; ``derivatives="estimate"`` derives them from ``q`` instead. Samples
-    that are independent states rather than a trajectory (consecutive positions differ as much
-    as the whole log does, as in simulated regressor tests) have no derivatives to compare and
+    that are independent states rather than a trajectory (every joint varies, and consecutive
+    positions differ as much as the whole log does, :func:`~consistid.data.filters.held_still`,
+    as in simulated regressor tests) have no derivatives to compare and
     are not checked (said in the record)."""
     if t.size < 8:
         return
@@ -339,9 +340,7 @@ def _check_logged(t: np.ndarray, arrays: Mapping[str, np.ndarray],
     if h == 0.0:
         return
     q = arrays["q"]
-    spread = np.std(q, axis=0)
-    jumps = np.median(np.abs(np.diff(q, axis=0)), axis=0)
-    if np.all(jumps >= 0.5 * np.where(spread > 0, spread, np.inf)):
+    if np.all(held_still(q) & (np.ptp(q, axis=0) > 0)):
         steps.append("samples are independent states, not a trajectory (consecutive positions "
                      "differ as much as the whole log does): logged derivatives not checked")
         return
