@@ -153,7 +153,7 @@ class ResidualStatistics:
         samples (:func:`autocorrelation_windows`; ``None``: all of them), or more when the
         correlation time found there asks for them: the estimate of ``τ`` has a relative
         standard error ``√(2(2M + 1)/n)`` with Sokal's window ``M ≈ 5τ``, so ``τ`` within
-        :data:`TAU_PRECISION` needs ``n ≥ 2(10τ + 1)/TAU_PRECISION²`` samples (4 400 for a
+        :data:`TAU_PRECISION` needs ``n ≥ 2(10τ + 1)/TAU_PRECISION²`` samples (2 200 for a
         white residual, 400 000 for ``τ = 200``); the residual is then read again on that
         many. The sums and the count are those of the samples read."""
         part = autocorrelation_windows(dataset, samples)
