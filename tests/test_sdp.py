@@ -436,6 +436,23 @@ def test_log_det_prior_refuses_a_body_singular_to_working_precision(panda, sets)
         ci.identify(model, sets["train"], method="sdp", friction=FRICTION)
 
 
+def test_a_nonlinear_friction_law_falls_back_to_the_euclidean_prior_too(planar_2r):
+    """prior='auto' with a URDF body singular to working precision: the linear laws fall back
+    to the Euclidean prior with a warning; a Stribeck law (its own SDP per search step) was
+    refused instead, as if the user had asked for prior='logdet'."""
+    nominal = planar_2r.prior_parameters.copy()
+    nominal[10:20] = flattened(nominal[10:20])                              # link2
+    model = planar_2r.with_parameters(nominal)
+    d = ci.simulate.excitation_run(model, duration=10.0, rate=100.0, seed=3, torque_noise=0.05,
+                                   friction=("coulomb", "viscous")).dataset
+    with pytest.raises(InconsistentParametersError, match="link2"):
+        ci.identify(model, d, friction="stribeck", prior="logdet")
+    with pytest.warns(ModelWarning, match="link2.*prior='euclidean'"):
+        auto = ci.identify(model, d, friction="stribeck")
+    euclidean = ci.identify(model, d, friction="stribeck", prior="euclidean")
+    np.testing.assert_allclose(auto.parameters, euclidean.parameters, rtol=1e-9, atol=1e-12)
+
+
 def test_program_size_does_not_depend_on_the_number_of_samples(panda, sets):
     spec = RegressorSpec.make(panda, FRICTION)
     base = compute_base_parameters(panda, spec)

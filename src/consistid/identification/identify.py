@@ -264,6 +264,8 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
         if not isinstance(dataset, Dataset):
             raise OptionError("nonlinear friction laws need the data in memory (a Dataset or a "
                               "list of them), not a stream")
+        if method == "sdp" and prior == "auto":         # resolved once, not per search step
+            prior = default_prior(model)
         return identify_nonlinear(model, dataset, method, friction, armature, constraints, prior,
                                   covariance, **options)
     spec = RegressorSpec.make(model, friction, armature)
