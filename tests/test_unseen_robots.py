@@ -135,6 +135,21 @@ def test_a_non_physical_urdf_inertia_warns_on_load(inertia, reason):
         ci.RobotModel.from_urdf(text)
 
 
+def test_the_load_warning_says_what_identify_does_with_a_non_physical_body():
+    """The warning on load said the default log-det prior refuses such a body; since
+    prior='auto' falls back to the Euclidean prior, only an explicit prior='logdet' does."""
+    text = robot(TWO_R[0], link("l1", 2.0, (0.4, 0, 0), (0.01, 0.01, 0.1)), *TWO_R[2:])
+    with pytest.warns(ModelWarning, match=r"Euclidean.*prior='logdet' refuses them") as load:
+        model = ci.RobotModel.from_urdf(text)
+    assert "default log-det prior refuses" not in str(load[0].message)
+    q, dq, ddq = random_states(model, 400, 2)
+    data = ci.Dataset(t=0.005 * np.arange(400), q=q, dq=dq, ddq=ddq, tau=model.rnea(q, dq, ddq))
+    with pytest.raises(ci.errors.InconsistentParametersError, match="l1"):
+        ci.identify(model, data, friction=None, prior="logdet")
+    with pytest.warns(ModelWarning, match=r"l1.*prior='euclidean' instead"):
+        assert ci.identify(model, data, friction=None).is_consistent
+
+
 @pytest.mark.parametrize("text", [robot(*TWO_R), robot(TWO_R[0], link("l1", None), *TWO_R[2:]),
                                   PLANAR_2R.format(**PLANAR_2R_VALUES)])
 def test_physical_and_massless_bodies_load_without_a_model_warning(text):

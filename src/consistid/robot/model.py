@@ -489,10 +489,11 @@ def _warn_unphysical(robot: RobotModel, source: str) -> None:
     if found:
         warnings.warn(f"{source}: {len(found)} of {robot.n_bodies} bodies have an inertia no "
                       f"physical body has ({'; '.join(found[:3])}{' …' if len(found) > 3 else ''}"
-                      "). MuJoCo refuses them (consistid.simulate), identify(method='sdp') with "
-                      "the default log-det prior refuses them as a prior (prior='euclidean' or "
-                      "None does not), and a diagnosis measures against a robot that cannot "
-                      "exist", ModelWarning, stacklevel=3)
+                      "). MuJoCo refuses them (consistid.simulate), identify(method='sdp') centres "
+                      "its prior on them with the Euclidean metric, not the default log-det one "
+                      "(which cannot be centred there; prior='logdet' refuses them), and a "
+                      "diagnosis measures against a robot that cannot exist", ModelWarning,
+                      stacklevel=3)
 
 
 _TEXT_DIR: list[tempfile.TemporaryDirectory] = []
