@@ -362,6 +362,29 @@ def test_identify_output_of_clean_data_has_no_warning_notes(cli_project, capsys)
     assert not [k for k in res.details if k.startswith("warning")]
 
 
+def test_identify_output_keeps_only_the_warnings_the_filters_show(cli_project, capsys,
+                                                                  monkeypatch):
+    """A library's DeprecationWarning, ignored by the filters in force (Python's default
+    outside __main__), is no warning of the result: recording every warning ('always') put
+    it in result.json and on the terminal."""
+    identify = ci.identify
+
+    def deprecated_inside(*args, **kwargs):
+        warnings.warn("some_library.old_api is deprecated", DeprecationWarning)
+        return identify(*args, **kwargs)
+
+    monkeypatch.setattr(ci, "identify", deprecated_inside)
+    path = cli_project / "conf" / "run.toml"
+    path.write_text(CLI_MODEL + '[data]\ndir = "data"\nkeys = "consistid"\n'
+                    'train = ["run1.npz"]\n' + CLI_IDENTIFY)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        assert main(["-q", "identify", str(path), "--output", str(cli_project / "out")]) == 0
+    res = ci.IdentificationResult.load(cli_project / "out" / "result.json")
+    assert not [k for k in res.details if k.startswith("warning")], res.details
+    assert "deprecated" not in capsys.readouterr().err
+
+
 def test_diagnose_report_carries_the_warnings_of_its_data(cli_project, capsys):
     d = ci.Dataset.load(cli_project / "data" / "run1.npz")
     flipped = d.tau.copy()

@@ -222,7 +222,8 @@ def identify(args: argparse.Namespace) -> int:
 def _kept_warnings() -> Iterator[list[str]]:
     """Record the warnings raised in the block (a result's data read, the result computed:
     degrees beyond the joint limits, a flipped torque sign, a gravity in mm/s², poor excitation
-    …); when it ends, show each once as it was raised and append its ``"Category: message"``
+    …); when it ends, show each once that the filters in force let through (not a library's
+    DeprecationWarning that Python ignores by default) and append its ``"Category: message"``
     text to the yielded list — for the result, so that its summary and the files written from
     it carry them, not only the terminal."""
     found: list[str] = []
@@ -235,11 +236,14 @@ def _kept_warnings() -> Iterator[list[str]]:
             finally:
                 caught = list(recorded)
     finally:
-        for w in caught:
+        with warnings.catch_warnings(record=True) as shown:     # the filters in force decide
+            for w in caught:
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+        for w in shown:
             text = f"{w.category.__name__}: {w.message}"
             if text not in found:
                 found.append(text)
-                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+                warnings.showwarning(w.message, w.category, w.filename, w.lineno)
 
 
 def _toml_pair(key: str, value: object) -> str:
