@@ -94,6 +94,7 @@ def csv_log(tmp_path):
 @pytest.mark.parametrize("options, message", [
     ({"columns": "t"}, r"columns= must be a mapping"),
     ({"joints": "a"}, r"joints= must be a list of joint names \(e.g. joints=\['a'\]\)"),
+    ({"joints": 2}, r"joints= must be a list of joint names, got 2"),
     ({"trim_start": "2"}, r"trim_start must be seconds \(a number\), got '2'"),
     ({"trim_end": True}, r"trim_end must be seconds \(a number\), got True"),
 ])
@@ -107,6 +108,14 @@ def test_options_of_the_wrong_python_type_are_named(csv_log, options, message):
 def test_joints_as_a_string_is_not_read_letter_by_letter(csv_log):
     with pytest.raises(OptionError, match=r"joints=\['q_a'\]"):
         ci.load_recording(csv_log, joints="q_a")
+
+
+@pytest.mark.parametrize("joints", [("a", "b"), {"a": 0, "b": 1}.keys(), np.array(["a", "b"]),
+                                    iter(["a", "b"])])
+def test_joints_as_any_collection_of_names_is_read(csv_log, joints):
+    """Refusing a single string must not refuse what was read before: df.columns, dict.keys()
+    (not Sequences), an array or an iterator of names."""
+    assert ci.load_recording(csv_log, joints=joints).dataset.joint_names == ("a", "b")
 
 
 # ------------------------------------------------------------------ the CLI's [data] table

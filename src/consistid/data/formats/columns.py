@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass, field
-from typing import Mapping, Sequence
+from typing import Iterable, Mapping, Sequence
 
 import numpy as np
 
@@ -216,12 +216,14 @@ class ColumnMap:
 
 
 def check_selection(joints: object, columns: object) -> None:
-    """:class:`OptionError` unless ``joints`` is ``None`` or a sequence of names (a single
-    string would be read letter by letter) and ``columns`` ``None`` or a mapping."""
-    if joints is not None and (isinstance(joints, (str, bytes))
-                               or not isinstance(joints, (Sequence, np.ndarray))):
+    """:class:`OptionError` unless ``joints`` is ``None`` or a collection of names (a list, a
+    tuple, ``df.columns``, ``dict.keys()`` …; not a single string, which would be read letter
+    by letter) and ``columns`` ``None`` or a mapping."""
+    if isinstance(joints, (str, bytes)):
         raise OptionError(f"joints= must be a list of joint names (e.g. joints=[{joints!r}]), got "
-                          f"{joints!r}")
+                          f"the string {joints!r}")
+    if joints is not None and not isinstance(joints, Iterable):
+        raise OptionError(f"joints= must be a list of joint names, got {joints!r}")
     if columns is not None and not isinstance(columns, Mapping):
         raise OptionError("columns= must be a mapping from fields to column names (e.g. "
                           f"columns={{'t': 'stamp', 'q': 'pos_{{joint}}'}}), got {columns!r}")
