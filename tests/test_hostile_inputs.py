@@ -181,6 +181,22 @@ def test_a_parquet_time_column_of_durations_is_read_in_its_unit(tmp_path, csv_lo
     assert any("durations (duration[ns]): converted to seconds" in s for s in rec.steps)
 
 
+@pytest.mark.parametrize("convert", ["timedelta", "datetime"])
+def test_a_missing_parquet_time_stamp_is_named_not_read_as_minus_292_years(tmp_path, csv_log,
+                                                                          convert):
+    """A null in a duration or timestamp time column (NaT): before, its int64 minimum was read
+    as −9.2e9 s and the log refused as 'time goes back … sort the log first'."""
+    pd = pytest.importorskip("pandas")
+    pytest.importorskip("pyarrow")
+    frame = pd.read_csv(csv_log)
+    frame["t"] = (pd.to_timedelta(frame["t"], unit="s") if convert == "timedelta"
+                  else pd.Timestamp("2025-11-24 16:00") + pd.to_timedelta(frame["t"], unit="s"))
+    frame.loc[100, "t"] = pd.NaT
+    frame.to_parquet(tmp_path / "run.parquet")
+    with pytest.raises(DatasetError, match=r"row 100, column 't': an empty cell or NaN"):
+        ci.load_recording(tmp_path / "run.parquet")
+
+
 def test_a_csv_that_is_not_utf8_names_its_line(tmp_path, csv_log):
     """A Latin-1 '°' in a comment: before, a bare UnicodeDecodeError (no file, no line)."""
     path = tmp_path / "latin1.csv"

@@ -11,6 +11,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ...errors import DatasetError, MissingDependencyError
+from ..timestamps import seconds_of
 from .columns import Log, log_from_columns, map_columns
 
 
@@ -37,10 +38,8 @@ def read_parquet(path: str | Path, *, joints: Sequence[str] | None = None,
     def get(name: str) -> np.ndarray:
         col = table.column(name)
         a = col.to_numpy(zero_copy_only=False)
-        if a.dtype.kind == "M":
-            return (a - a[0]).astype("timedelta64[ns]").astype(np.int64) * 1e-9
-        if a.dtype.kind == "m":                   # a duration column: its unit is in its type
-            return a.astype("timedelta64[ns]").astype(np.int64) * 1e-9
+        if a.dtype.kind in "Mm":        # timestamps, durations (unit in the type); nulls: NaN
+            return seconds_of(a)
         if a.dtype == object:                     # nulls come back as None
             a = np.array([np.nan if v is None else v for v in a], dtype=object)
         return a
