@@ -153,6 +153,8 @@ def test_calibration_csv_in_other_habits_reads_like_the_plain_one(tmp_path, pand
     variants = {
         "semicolon, decimal comma": _write_poses(tmp_path / "a.csv", header, table, sep=";",
                                                  comma=True),
+        "tab, decimal comma": _write_poses(tmp_path / "t.csv", header, table, sep="\t",
+                                           comma=True),
         "BOM and CRLF": _write_poses(tmp_path / "b.csv", header, table, bom=True, eol="\r\n"),
         "units in brackets": _write_poses(
             tmp_path / "c.csv", [h + " [deg]" if k < 7 else h + " [mm]" if k < 10 else h

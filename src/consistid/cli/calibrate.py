@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from ..data.formats.csv import read_text, sniff_delimiter
+from ..data.formats.csv import read_text, reads_decimal_comma, sniff_delimiter
 from ..errors import (ConfigError, DataQualityWarning, DatasetError, MissingColumnsError,
                       OutputPathError)
 from ..kinematics.calibrate import calibrate_kinematics
@@ -172,7 +172,7 @@ MAX_REACH = 20.0
 
 def _read_table(path: Path) -> tuple[list[str], np.ndarray]:
     """Header names (units kept) and numbers of a calibration CSV: the delimiter sniffed as for
-    logs (``;`` with decimal commas too), a UTF-8 byte-order mark ignored."""
+    logs (decimal commas with any delimiter but ``,``), a UTF-8 byte-order mark ignored."""
     try:
         text = read_text(path, path.name)
     except DatasetError as exc:
@@ -185,7 +185,7 @@ def _read_table(path: Path) -> tuple[list[str], np.ndarray]:
     rows = lines[1:]
     if not rows:
         raise ConfigError(f"{path.name}: a header but no rows")
-    if delimiter == ";":
+    if reads_decimal_comma(delimiter, rows[0]):
         rows = [ln.replace(",", ".") for ln in rows]
     try:
         table = np.loadtxt(rows, delimiter=delimiter, ndmin=2)

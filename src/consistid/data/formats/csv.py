@@ -140,7 +140,7 @@ def read_csv(path: str | Path, *, joints: Sequence[str] | None = None,
                                   "the arrays to consistid.data.recordings.from_arrays")
     cmap = map_columns(names, source, joints=joints, columns=columns)
     data_lines = [ln for ln in lines[k + 1:] if ln.strip() and not ln.lstrip().startswith("#")]
-    decimal_comma = delimiter != "," and bool(data_lines) and "," in data_lines[0]
+    decimal_comma = bool(data_lines) and reads_decimal_comma(delimiter, data_lines[0])
     wanted = [cmap.time] + [c for cols in cmap.fields.values() for c in cols]
     usecols = sorted({names.index(c) for c in wanted})
     text = raw_text.replace("\r\n", "\n").replace("\r", "\n")     # universal line breaks
@@ -189,6 +189,12 @@ def read_csv(path: str | Path, *, joints: Sequence[str] | None = None,
         col[cmap.time] = stamps
         note += (f"; column {cmap.time!r} read as {CLOCKS[clock]}")
     return log_from_columns(col.__getitem__, cmap, source, table.shape[0], rows, (note,))
+
+
+def reads_decimal_comma(delimiter: str, first_row: str) -> bool:
+    """Whether the rows write decimal commas (``1,25``): a comma in the first data row when
+    the delimiter is another character (``;``, a tab, ``|``, spaces: module notes)."""
+    return delimiter != "," and "," in first_row
 
 
 def read_text(path: Path, source: str) -> str:
