@@ -358,14 +358,19 @@ def test_a_latin1_calibration_csv_names_its_line(tmp_path):
 
 
 # ------------------------------------------------------------------ warnings reach the files
-def test_identify_output_carries_the_warnings_of_its_data(cli_project, capsys):
-    """A torque channel with its sign flipped warns on the terminal; before, result.json and
-    report.html — what a colleague opens — had no trace of it."""
+def _write_flipped(cli_project) -> None:
+    """data/flipped.npz: run1.npz with joint 1's torque sign flipped (warns on reading)."""
     d = ci.Dataset.load(cli_project / "data" / "run1.npz")
     flipped = d.tau.copy()
     flipped[:, 0] *= -1
     ci.Dataset(t=d.t, q=d.q, dq=d.dq, ddq=d.ddq, tau=flipped).save(
         cli_project / "data" / "flipped.npz")
+
+
+def test_identify_output_carries_the_warnings_of_its_data(cli_project, capsys):
+    """A torque channel with its sign flipped warns on the terminal; before, result.json and
+    report.html — what a colleague opens — had no trace of it."""
+    _write_flipped(cli_project)
     path = cli_project / "conf" / "run.toml"
     path.write_text(CLI_MODEL + '[data]\ndir = "data"\nkeys = "consistid"\n'
                     'train = ["flipped.npz"]\n' + CLI_IDENTIFY)
@@ -411,11 +416,7 @@ def test_identify_output_keeps_only_the_warnings_the_filters_show(cli_project, c
 
 
 def test_diagnose_report_carries_the_warnings_of_its_data(cli_project, capsys):
-    d = ci.Dataset.load(cli_project / "data" / "run1.npz")
-    flipped = d.tau.copy()
-    flipped[:, 0] *= -1
-    ci.Dataset(t=d.t, q=d.q, dq=d.dq, ddq=d.ddq, tau=flipped).save(
-        cli_project / "data" / "flipped.npz")
+    _write_flipped(cli_project)
     path = cli_project / "conf" / "run.toml"
     path.write_text(CLI_MODEL + '[data]\ndir = "data"\nkeys = "consistid"\n'
                     'train = ["flipped.npz"]\nheld_out = ["run2.npz"]\n'
