@@ -566,12 +566,13 @@ def _make_setup(model: RobotModel, spec: RegressorSpec, prior_vec: np.ndarray,
         for name, body in zip(model.body_names, bodies):
             if is_degenerate(body):
                 lam = np.linalg.eigvalsh(pseudo_inertia(body))
+                what = ("no physical body, or a massless one" if not lam[0] > 0 else
+                        "a body with no extent along some direction")
                 raise InconsistentParametersError(
                     f"{name}: the prior (URDF) pseudo-inertia is not positive definite to "
-                    f"working precision (eigenvalues {lam[0]:.3g} … {lam[-1]:.3g}: a body with "
-                    "no extent along some direction); the log-det prior needs realisable prior "
-                    "bodies and weighs that direction without bound. Fix the URDF inertia or "
-                    "use prior='euclidean' / None")
+                    f"working precision (eigenvalues {lam[0]:.3g} … {lam[-1]:.3g}: {what}); "
+                    "the log-det prior needs realisable prior bodies and weighs that direction "
+                    "without bound. Fix the URDF inertia or use prior='euclidean' / None")
     lam_max = max(float(np.linalg.eigvalsh(pseudo_inertia(b))[-1]) for b in bodies)
     refs = np.concatenate([_reference(b, 1e-3 * max(lam_max, 1e-12)) for b in bodies])
     scalings = tuple(cons.BodyScaling.from_reference(refs[body_slice(i)])
