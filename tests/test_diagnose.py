@@ -158,6 +158,8 @@ def test_coulomb_parameters_and_friction_regimes(panda, tmp_path):
     assert diag.where.share[1] > 0.8
     text = diag.report()
     assert "coulomb" in text and "Coulomb friction" in text
+    # the ranking is by removal, the shrink column cumulative: the header says so
+    assert "ranked by how much the held-out residual grows without each" in text
     html = diag.report(tmp_path / "r.html").read_text()
     assert html.count("data:image/png;base64,") == 3
     folder = diag.report(tmp_path / "out")

@@ -226,8 +226,9 @@ class Diagnosis:
 
     Attributes
     ----------
-    effects : selected effects, ranked by held-out residual reduction (largest first: how much
-        the held-out residual grows when the effect is removed from all the selected ones);
+    effects : selected effects, ranked by how much the held-out residual grows when the effect
+        is removed from all the selected ones (largest first; their ``total_shrink``, each
+        measured after the ones above it, need not decrease down the list);
         ``rms_before``/``rms_after`` of each are cumulative in this order.
     where : where the nominal model's residual lies
         (:class:`~consistid.diagnosis.gap.GapBreakdown`).
