@@ -143,6 +143,27 @@ def test_no_effect_on_the_mujoco_robot_names_nothing(panda):
     assert diag.noise.reliable.all() and np.all(diag.noise.cutoff < 20)
 
 
+def test_remainder_names_the_candidate_min_gain_refused(panda):
+    """Ideal data: Coulomb 10 N·m and viscous 0.4 N·m·s/rad on joint 2. The viscous term is many
+    times the noise but under 1 % of the joint's nominal held-out sum of squares: min_gain stops
+    the selection before it, and the verdict says so (it said only: an effect outside the
+    candidate list). Following it — a smaller min_gain — explains the data."""
+    runs = [excitation_run(panda, duration=d, rate=RATE, torque_noise=0.05, seed=s).dataset
+            for s, d in ((4, 10.0), (5, 6.0))]
+    train, held = (d.with_torque(d.tau + np.outer(10.0 * np.sign(d.dq[:, 1]) + 0.4 * d.dq[:, 1],
+                                                  np.eye(7)[1])) for d in runs)
+    kw = {"sigma": 0.05, "effects": ["coulomb", "viscous"]}
+    diag = diagnose(panda, train, held_out=held, **kw)
+    assert [e.name for e in diag.effects] == ["coulomb"]
+    assert "panda_joint2" in diag.remainder.flagged
+    said = diag.remainder.verdict
+    assert "stopped at viscous (panda_joint2)" in said
+    assert "< min_gain 1%" in said and "a smaller min_gain" in said
+    smaller = diagnose(panda, train, held_out=held, min_gain=1e-4, **kw)
+    assert [e.name for e in smaller.effects] == ["coulomb", "viscous"]
+    assert smaller.verdict.startswith("explained")
+
+
 def test_coulomb_parameters_and_friction_regimes(panda, tmp_path):
     """Ideal data with f_c = 0.7 N·m on joint 2: estimate within 3σ of the truth, the regime means
     moving ± are ±f_c, and the report is written in every format."""
@@ -158,6 +179,8 @@ def test_coulomb_parameters_and_friction_regimes(panda, tmp_path):
     assert diag.where.share[1] > 0.8
     text = diag.report()
     assert "coulomb" in text and "Coulomb friction" in text
+    # the ranking is by removal, the shrink column cumulative: the header says so
+    assert "ranked by how much the held-out residual grows without each" in text
     html = diag.report(tmp_path / "r.html").read_text()
     assert html.count("data:image/png;base64,") == 3
     folder = diag.report(tmp_path / "out")

@@ -176,12 +176,34 @@ def test_repetition_floor_closed_form_and_linear_drift_cancels():
     data = Dataset(t=t, q=q, dq=np.zeros_like(q), ddq=np.zeros_like(q), tau=tau)
     p, lag = find_period(data)
     assert p == pytest.approx(period) and lag == 200
-    sigma, order = repetition_floor(data, tau, lag)
+    sigma, order = repetition_floor(data, tau, p)
     assert order == 2
     np.testing.assert_allclose(sigma, noise.std(axis=0), rtol=0.1)
     two = data.split(2 / 3)[0]
-    sigma2, order2 = repetition_floor(two, tau[:two.n_samples], lag)
+    sigma2, order2 = repetition_floor(two, tau[:two.n_samples], p)
     assert order2 == 1 and np.all(sigma2 > 2 * noise.std(axis=0))
+
+
+def test_repetition_floor_of_recordings_at_different_rates():
+    """Two logs of one periodic excitation resampled at different rates (jittered loggers each
+    get their own grid), and a third of another period: the floor is the noise σ. The lag in
+    samples found on the longest log (400) is 392 samples on the 49 Hz one: taken as is, the
+    differences there held the torque's change over 8 samples, not noise."""
+    rng = np.random.default_rng(5)
+    period, sigma = 4.0, 0.05
+    logs = []
+    for k, (rate, p) in enumerate(((100.0, period), (98.0, period), (100.0, 3.0))):
+        t = np.arange(int(3 * p * rate)) / rate
+        q = np.column_stack([np.sin(2 * np.pi * t / p), np.cos(4 * np.pi * t / p)])
+        tau = 20 * q + rng.normal(0.0, sigma, q.shape)
+        logs.append(Dataset(t=t + 100 * k, q=q, dq=np.zeros_like(q), ddq=np.zeros_like(q),
+                            tau=tau, segment=np.full(t.size, k)))
+    data = Dataset.concatenate(logs)
+    p, lag = find_period(data)
+    assert p == pytest.approx(period) and lag == 400
+    floor, order = repetition_floor(data, data.tau, p)
+    assert order == 2
+    np.testing.assert_allclose(floor, sigma, rtol=0.1)
 
 
 def test_no_period_found_in_a_chirp():

@@ -224,7 +224,8 @@ def test_recover_coefficients_without_beta(project, capsys):
 
 
 @pytest.mark.parametrize("args,message", [
-    (["--robot", "pandas"], "robot='pandas' is not supported"),
+    (["--robot", "pandas"], "--robot pandas is not an example robot; they are panda, ur3"),
+    (["--robot", "iiwa"], "For another arm: --urdf PATH"),
 ])
 def test_demo_and_simulate_name_bad_arguments(capsys, args, message):
     assert normal(message) in run(["demo", *args], capsys)
@@ -235,7 +236,7 @@ def test_demo_and_simulate_name_bad_arguments(capsys, args, message):
     (["demo", "--noise", "-1"], "--noise must be a finite number ≥ 0"),
     (["demo", "--duration", "nan"], "--duration must be a finite number > 0"),
     (["demo", "--rate", "0"], "--rate must be a finite number > 0"),
-    (["online", "--robot", "pandas"], "robot='pandas' is not supported"),
+    (["online", "--robot", "pandas"], "--robot pandas is not an example robot; they are panda"),
     (["online", "--duration", "-1"], "duration must be a finite number > 0"),
     (["online", "--forgetting", "1.5"], "forgetting must lie in (0, 1]"),
     (["simulate", "--duration", "-1", "--robot", "ur5"], "duration = -1.0"),

@@ -167,6 +167,22 @@ def test_report_writes_the_summary(panda, runs, tmp_path):
 
 
 
+def test_summary_says_at_bound_for_friction_held_at_zero(panda, runs):
+    # No friction in the simulation: the SDP's bounds fc, fv ≥ 0 hold some of them at 0, where
+    # σ % = 100·σ/|β| printed as ~1e10 % (σ over an estimate of 1e-12).
+    res = ci.identify(panda, runs[0], friction=["coulomb", "viscous"])
+    active = res.details["active_constraints"]
+    held = [name for name in res.base.names if f"{name} ≥ 0" in active]
+    assert held, "no bound active: this test would check nothing"
+    cells = {line.split()[0]: line.split(None, 4)[4] for line in res.summary().splitlines()
+             if line.split() and line.split()[0] in res.base.names}
+    assert [cells[name] for name in held] == ["at bound"] * len(held)
+    free = [cells[name] for name in res.base.names if name not in held]
+    assert all(c == "inf" or float(c) < 1e5 for c in free), free
+    np.testing.assert_array_equal(res.at_bound, [name in held for name in res.base.names])
+    assert np.all(np.abs(res.base_parameters[res.at_bound]) < 1e-3 * res.base_std[res.at_bound])
+
+
 @pytest.mark.parametrize("method", ["ols", "sdp"])
 def test_coloured_covariance_matches_spread_over_seeds(panda, method):
     # Ideal data on one fixed trajectory plus AR(1) torque noise (φ = 0.95, τ = 39 samples):

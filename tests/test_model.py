@@ -59,7 +59,8 @@ def test_with_parameters_changes_inertias_only(panda):
 
 
 def test_bad_inputs_raise_named_errors(tmp_path, panda):
-    with pytest.raises(ci.OptionError, match="allowed: 'panda'"):
+    with pytest.raises(ci.OptionError, match=r"name='iiwa' is not an example robot; they are "
+                       r"'panda', .* another arm: RobotModel\.from_urdf"):
         ci.RobotModel.example("iiwa")
     with pytest.raises(ci.ModelError, match="does not exist"):
         ci.RobotModel.from_urdf(tmp_path / "missing.urdf")

@@ -31,6 +31,7 @@ import consistid as ci
 from consistid.errors import (ConfigError, ConsistidError, OutputPathError, check_number,
                              check_option)
 from consistid.robot.export import MERGED
+from consistid.robot.model import EXAMPLE_ROBOTS
 
 from . import online_demo
 from .calibrate import run_calibrate
@@ -66,6 +67,9 @@ def _cli_model(args: argparse.Namespace) -> "ci.RobotModel":
     if args.lock:
         raise ConfigError("--lock applies to --urdf; the example robots lock their grippers "
                           "already")
+    if args.robot not in EXAMPLE_ROBOTS:
+        raise ConfigError(f"--robot {args.robot} is not an example robot; they are "
+                          f"{', '.join(EXAMPLE_ROBOTS)}. For another arm: --urdf PATH")
     return ci.RobotModel.example(args.robot)
 
 

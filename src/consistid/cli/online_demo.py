@@ -17,6 +17,7 @@ import numpy as np
 
 import consistid as ci
 from consistid.errors import OptionError, check_number
+from consistid.robot.model import EXAMPLE_ROBOTS
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -37,6 +38,9 @@ def run(args: argparse.Namespace) -> int:
     from consistid.online.adaptive_run import adaptive_run
     from consistid.online.scenario import payload_change_run
 
+    if args.robot not in EXAMPLE_ROBOTS:
+        raise OptionError(f"--robot {args.robot} is not an example robot; they are "
+                          f"{', '.join(EXAMPLE_ROBOTS)}")
     model = ci.RobotModel.example(args.robot)
     check_number("--periods", args.periods, 1, integer=True)       # every option before the work
     est = ci.RecursiveEstimator(model, forgetting=args.forgetting)

@@ -226,8 +226,9 @@ class Diagnosis:
 
     Attributes
     ----------
-    effects : selected effects, ranked by held-out residual reduction (largest first: how much
-        the held-out residual grows when the effect is removed from all the selected ones);
+    effects : selected effects, ranked by how much the held-out residual grows when the effect
+        is removed from all the selected ones (largest first; their ``total_shrink``, each
+        measured after the ones above it, need not decrease down the list);
         ``rms_before``/``rms_after`` of each are cumulative in this order.
     where : where the nominal model's residual lies
         (:class:`~consistid.diagnosis.gap.GapBreakdown`).
@@ -1072,7 +1073,8 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
                                   where.band_edges, reliable=noise.reliable,
                                   source="training" if tested is train else "held-out",
                                   cone=cone, unknown=unknown,
-                                  tried=bool(library.effects) and max_steps > 0)
+                                  tried=bool(library.effects) and max_steps > 0,
+                                  refused=_refused_by_min_gain(steps))
     if not noise.reliable.all():
         unseen = ("the noise floor cannot be seen on "
                   + ", ".join(names[j] for j in np.flatnonzero(~noise.reliable))
@@ -1085,6 +1087,15 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     return Diagnosis(model.name, tuple(names), tuple(findings), where, floor, noise_source,
                      rms_nominal, rms_final, library_floor, held_source, tuple(steps), fit,
                      tuple(notes), remainder, noise)
+
+
+def _refused_by_min_gain(steps: Sequence[Step]) -> str:
+    """``"<candidate>: <why>"`` when the selection stopped because its best candidate's
+    held-out gain was below ``min_gain`` (the stop reason :func:`_select` writes), else ``""``."""
+    if not steps or steps[-1].accepted or "< min_gain" not in steps[-1].reason:
+        return ""
+    why = steps[-1].reason.split("(best: ", 1)[-1].removesuffix(")")
+    return f"{steps[-1].chosen}: {why}"
 
 
 def _unpredictable(fit: GapModel, data: GapData) -> np.ndarray:

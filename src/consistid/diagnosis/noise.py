@@ -18,11 +18,13 @@ in this order of preference (:func:`estimate_noise_floor` says which one each jo
     ``τ(t+2P) − 2τ(t+P) + τ(t)`` (variance ``6σ²``) also cancel a torque whose size drifts
     linearly (friction warming in over the log). The period ``P`` is found on the joint
     positions (:func:`find_period`): the smallest whole number of samples after which ``q``
-    repeats to within :data:`REPEAT_TOLERANCE` of its variance. Needs two periods within one
-    recording; recordings without are estimated as below. A torque that repeats neither with
-    the excitation nor is noise (a disturbance at a frequency of its own, a load changed during
-    the log) enters ``d`` as well: where the spectrum below sees the noise level and the
-    repetition floor exceeds it by more than the two estimates' joint error
+    repeats to within :data:`REPEAT_TOLERANCE` of its variance, on the longest recording; every
+    recording is differenced at its own ``round(P / h)`` samples (logs resampled at other rates
+    line up in time), and one whose ``q`` does not repeat after ``P`` is left out. Needs two
+    periods within one recording; recordings without are estimated as below. A torque that
+    repeats neither with the excitation nor is noise (a disturbance at a frequency of its own, a
+    load changed during the log) enters ``d`` as well: where the spectrum below sees the noise
+    level and the repetition floor exceeds it by more than the two estimates' joint error
     (:data:`MAX_FLOOR_RATIO`), the floor is the spectral one, and the description says that the
     torque does not repeat (the remainder then shows the component, not a floor that hides it).
 ``spectrum``
@@ -176,10 +178,21 @@ def find_period(dataset: Dataset) -> tuple[float | None, int | None]:
     return lag * h, lag
 
 
-def repetition_floor(dataset: Dataset, tau: np.ndarray, lag: int
+def _repeats(q: np.ndarray, lag: int) -> bool:
+    """Whether ``q`` repeats after ``lag`` samples: ``mean_t |q(t+L) − q(t)|²`` at most
+    :data:`REPEAT_TOLERANCE` of ``2 Σ_j Var(q_j)`` (the criterion of :func:`find_period`)."""
+    scale = 2 * np.sum(np.var(q, axis=0))
+    return bool(scale > 0 and np.sum(np.mean((q[lag:] - q[:-lag]) ** 2, axis=0))
+                <= REPEAT_TOLERANCE * scale)
+
+
+def repetition_floor(dataset: Dataset, tau: np.ndarray, period: float
                      ) -> tuple[np.ndarray, int]:
-    """The noise from the repetition of the excitation every ``lag`` samples, pooled over the
-    recordings that hold it with :data:`MIN_OVERLAP` to spare.
+    """The noise from the repetition of the excitation every ``period`` seconds, pooled over the
+    recordings that hold it with :data:`MIN_OVERLAP` to spare and whose positions repeat after
+    it (to :data:`REPEAT_TOLERANCE`, as in :func:`find_period`). The lag in samples is each
+    recording's own, ``round(period / h)`` with its step ``h``: recordings resampled at other
+    rates (two jittered logs of one trajectory, a held-out log) line up in time, not in index.
 
     With three periods or more in a recording, second differences
     ``τ(t + 2P) − 2 τ(t + P) + τ(t)`` (variance ``6 σ²``) cancel a torque that drifts linearly
@@ -192,6 +205,9 @@ def repetition_floor(dataset: Dataset, tau: np.ndarray, lag: int
     for s in np.unique(dataset.segment):
         idx = np.flatnonzero(dataset.segment == s)
         h = float(np.median(np.diff(dataset.t[idx])))
+        lag = int(round(period / h))
+        if lag < 1 or idx.size <= lag or not _repeats(dataset.q[idx], lag):
+            continue
         for order, weight in ((1, 2.0), (2, 6.0)):
             span = order * lag
             if idx.size <= span or (idx.size - span) * h < MIN_OVERLAP:
@@ -465,8 +481,8 @@ def estimate_noise_floor(dataset: Dataset, tau: np.ndarray, residual: np.ndarray
                           f"given ({' and '.join(parts)})")
     spectral = spectral_estimate(*(spectrum_on or (dataset, residual, tau_nom)))
     spec_sigma, cut, reliable = spectral.sigma, spectral.cutoff, spectral.reliable
-    period, lag = find_period(dataset)
-    rep, order = repetition_floor(dataset, tau, lag) if lag else (np.full(nv, np.nan), 0)
+    period, _ = find_period(dataset)
+    rep, order = repetition_floor(dataset, tau, period) if period else (np.full(nv, np.nan), 0)
     repeats = np.isfinite(rep)
     # a torque that does not repeat, yet is no noise the spectrum sees (module notes)
     seen = (spectral if repeating is None or not repeats.any()

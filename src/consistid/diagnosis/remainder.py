@@ -179,11 +179,14 @@ class Remainder:
     """The unexplained remainder of a diagnosis: one :class:`JointRemainder` per joint and the
     verdict (``"explained"``, ``"remainder on <joints>"`` or ``"undetermined on <joints>"``);
     ``source``: the data it was judged on (``"training"`` or ``"held-out"``); ``tried``: whether
-    any candidate effect was tried (not with ``effects=[]`` or ``max_steps=0``)."""
+    any candidate effect was tried (not with ``effects=[]`` or ``max_steps=0``); ``refused``:
+    the candidate the selection stopped at because its gain was below ``min_gain``, and why
+    (empty when it stopped for another reason)."""
 
     joints: tuple[JointRemainder, ...]
     source: str = "held-out"
     tried: bool = True
+    refused: str = ""
 
     @property
     def flagged(self) -> tuple[str, ...]:
@@ -207,6 +210,12 @@ class Remainder:
             return (f"remainder on {', '.join(self.flagged)}: the nominal model leaves more than "
                     "the noise there, and no candidate effect was tried (effects=[] or "
                     "max_steps=0)")
+        if self.refused:
+            return (f"remainder on {', '.join(self.flagged)}: the selected effects leave more "
+                    f"than the noise there; the selection stopped at {self.refused} (min_gain is "
+                    "a fraction of each joint's nominal residual: a smaller min_gain lets "
+                    "smaller effects in), or an effect outside the candidate list (or a wrong "
+                    "floor: pass sigma)")
         return (f"remainder on {', '.join(self.flagged)}: the selected effects leave more than "
                 "the noise there; an effect outside the candidate list (or a wrong floor: "
                 "pass sigma)")
@@ -472,7 +481,7 @@ def analyse_remainder(data: GapData, remainder: np.ndarray, floor: np.ndarray,
                       relevance: float = REMAINDER_RELEVANCE,
                       reliable: np.ndarray | None = None, source: str = "held-out",
                       cone: np.ndarray | None = None, unknown: np.ndarray | None = None,
-                      tried: bool = True) -> Remainder:
+                      tried: bool = True, refused: str = "") -> Remainder:
     """The :class:`Remainder` of ``remainder`` (N, nv), the residual after every selected
     effect on ``data`` (``source``: which data), against ``floor`` (nv,); ``tau_corr`` (nv,)
     the residual's
@@ -580,4 +589,4 @@ def analyse_remainder(data: GapData, remainder: np.ndarray, floor: np.ndarray,
                                   spread, hysteresis, best, bands, band_edges, drift,
                                   tuple(pointers), determined, growth, shift, shift_share,
                                   0.0 if cone is None else float(cone[j]), tolerated))
-    return Remainder(tuple(out), source, tried)
+    return Remainder(tuple(out), source, tried, refused)

@@ -42,8 +42,9 @@ def diagnosis_text(diag: "Diagnosis") -> str:
              f"held-out data   {diag.held_out_source}",
              f"noise floor     {diag.noise_source}", ""]
     if diag.effects:
-        lines.append(f"Effects found ({len(diag.effects)}), ranked by held-out residual "
-                     "reduction:")
+        lines.append(f"Effects found ({len(diag.effects)}), ranked by how much the held-out "
+                     "residual grows without each; held-out shrink: what each removes of the "
+                     "residual the ones above it leave (so not in order):")
         rows = []
         for k, e in enumerate(diag.effects, 1):
             rival = (f"{e.runner_up} ({100 * (1 - e.margin):.0f} % as much)"

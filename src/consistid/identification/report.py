@@ -107,8 +107,8 @@ def base_rows(res: "IdentificationResult", max_rows: int | None = None) -> list[
     prior = res.base.project(res.prior)
     rows = []
     for i, (name, grouping) in enumerate(zip(res.base.names, res.base.groupings)):
-        rel = res.relative_std[i]
-        rows.append([name, res.base_parameters[i], res.base_std[i], (float(rel), ".3g"),
+        rel = "at bound" if res.at_bound[i] else (float(res.relative_std[i]), ".3g")
+        rows.append([name, res.base_parameters[i], res.base_std[i], rel,
                      prior[i], grouping])
         if max_rows is not None and len(rows) >= max_rows:
             break
@@ -122,7 +122,8 @@ STAR_TEXT = ("Torques determine only linear combinations of the standard paramet
              "the standard parameter it is named after plus the ones listed in “stands for”, "
              "which the data cannot tell apart from it. A name without * is the standard "
              "parameter itself. σ is the standard deviation of the estimate from the data "
-             "(for the SDP: of the unconstrained fit at the answer).")
+             "(for the SDP: of the unconstrained fit at the answer). σ % reads \"at bound\" "
+             "where a bound ≥ 0 (friction, armature) holds the estimate at 0.")
 
 
 def body_rows(res: "IdentificationResult") -> tuple[list[list[Any]], list[str]]:

@@ -166,6 +166,15 @@ class IdentificationResult(StandardParameterSet):
         with np.errstate(divide="ignore", invalid="ignore"):
             return np.where(std == 0, 0.0, 100.0 * std / beta)
 
+    @cached_property
+    def at_bound(self) -> np.ndarray:
+        """(n_base,) ``True`` where the base parameter is a standard one (no ``*``) that a
+        non-negativity bound of the SDP holds active (``panda_joint1.fc ≥ 0`` in
+        ``details["active_constraints"]``): its estimate is the bound, 0 to the solver's
+        tolerance, so its :attr:`relative_std` (σ over a value like 1e-12) says nothing."""
+        active = set(self.details.get("active_constraints", ()))
+        return np.array([f"{name} ≥ 0" in active for name in self.base.names], dtype=bool)
+
     @property
     def estimate(self) -> np.ndarray:
         """The estimated vector whose ``std``, ``covariance`` and ``conf_int`` are reported: the

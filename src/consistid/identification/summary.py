@@ -29,12 +29,20 @@ def table(header: Sequence[str], rows: Sequence[Sequence[object]], floatfmt: str
     return "\n".join(out)
 
 
+def _relative_cell(res: "IdentificationResult", i: int) -> str:
+    """The σ % cell of base parameter ``i``: "at bound" where a non-negativity bound holds it
+    (σ over an estimate of ~1e-12 would print as a huge, meaningless percentage)."""
+    if res.at_bound[i]:
+        return "at bound"
+    rel = res.relative_std[i]
+    return f"{rel:.1f}" if np.isfinite(rel) else "inf"
+
+
 def identification_summary(res: "IdentificationResult", max_rows: int | None = None) -> str:
     """Base parameters (prior, estimate, ±σ, %σ), per-joint fit, consistency and notes."""
     prior_beta = res.base.project(res.prior)
     rows = [(res.base.names[i], prior_beta[i], res.base_parameters[i], res.base_std[i],
-             f"{res.relative_std[i]:.1f}" if np.isfinite(res.relative_std[i]) else "inf")
-            for i in range(res.base.n_base)]
+             _relative_cell(res, i)) for i in range(res.base.n_base)]
     shown = rows if max_rows is None else rows[:max_rows]
     lines = [f"consistid identification of {res.model.name!r}: method={res.method}, "
              f"{res.n_samples} samples × {res.model.nv} joints, {res.spec.describe()}",
@@ -44,6 +52,9 @@ def identification_summary(res: "IdentificationResult", max_rows: int | None = N
              table(["base parameter", "prior", "estimate", "± std", "std %"], shown)]
     if len(shown) < len(rows):
         lines.append(f"… {len(rows) - len(shown)} more rows (summary(max_rows=None) shows all)")
+    if np.any(res.at_bound[:len(shown)]):
+        lines.append("at bound: held at 0 by its bound ≥ 0 (res.details['active_constraints']), "
+                     "so its σ % (σ over an estimate of about 0) says nothing")
     if any(name.endswith("*") for name in res.base.names):
         lines.append("* regroups others the data cannot tell apart from it (res.base.groupings "
                      "lists them; so do the report and parameters.csv)")

@@ -26,7 +26,7 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 import pinocchio as pin
 
-from ..errors import DatasetError, JointCountError, ModelError, ModelWarning, check_option
+from ..errors import DatasetError, JointCountError, ModelError, ModelWarning, OptionError
 from .export import write_urdf
 from .inertia import INERTIAL_NAMES, check_body, inertias_from_vector
 from .urdf import JointDynamics, check_urdf, joint_dynamics, strip_dynamics
@@ -268,7 +268,10 @@ class RobotModel:
 
         Known names: ``panda, ur3, ur5, ur10, xarm7, kinova, z1, double_pendulum``.
         """
-        check_option("robot", name, tuple(EXAMPLE_ROBOTS))
+        if name not in EXAMPLE_ROBOTS:
+            raise OptionError(f"name={name!r} is not an example robot; they are "
+                              f"{', '.join(map(repr, EXAMPLE_ROBOTS))}. For another arm: "
+                              "RobotModel.from_urdf('path/to/robot.urdf')")
         relative, locked = EXAMPLE_ROBOTS[name]
         return cls.from_urdf(example_robot_data_dir() / relative, locked_joints=locked, name=name)
 
