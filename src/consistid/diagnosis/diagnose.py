@@ -925,10 +925,14 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     # one, else on the held-out ones (what a spectrum floor is judged on)
     on = (held if everything.dataset.torque_filter is None
           and held.dataset.torque_filter is not None else everything)
+    # the level a repetition floor is checked against: that spectrum when it is of all
+    # recordings (the training ones among them, through the same filter), else the training
+    # recordings' own
     noise = estimate_noise_floor(everything.dataset, everything.tau, everything.residual,
                                  everything.tau_nom, given, resolution,
                                  spectrum_on=(on.dataset, on.residual, on.tau_nom),
-                                 repeating=(train.dataset, train.residual, train.tau_nom))
+                                 repeating=None if on is everything
+                                 else (train.dataset, train.residual, train.tau_nom))
     floor, noise_source = noise.sigma.copy(), noise.description
     library = EffectLibrary(model, tuple(effects))
 
