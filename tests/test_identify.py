@@ -165,6 +165,12 @@ def test_report_writes_the_summary(panda, runs, tmp_path):
     assert res.report() == res.summary()
 
 
+def test_summary_prints_numbers_to_six_significant_digits(panda, runs):
+    """The default prior weight 2/r² with r = 0.3 is 22.2… : the notes print 22.2222, not the
+    float's 16 digits."""
+    res = ci.identify(panda, runs[0], friction=None)
+    np.testing.assert_allclose(res.details["prior_weight"], 2 / 0.3 ** 2, rtol=1e-12)
+    assert "  - prior_weight: 22.2222\n" in res.summary()
 
 
 def test_summary_says_at_bound_for_friction_held_at_zero(panda, runs):

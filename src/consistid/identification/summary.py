@@ -69,7 +69,9 @@ def identification_summary(res: "IdentificationResult", max_rows: int | None = N
         notes.append(f"gravity in the base frame ({', '.join(f'{v:+.4f}' for v in g)}) m/s²: "
                      "these parameters hold with it (a URDF does not carry gravity)")
     for key, value in res.details.items():
-        if np.isscalar(value):
+        if isinstance(value, (float, np.floating)):
+            notes.append(f"{key}: {value:.6g}")
+        elif np.isscalar(value):
             notes.append(f"{key}: {value}")
     if res.condition_number > COND_WARN:
         notes.append("the condition number is large: some base parameters are poorly excited")
