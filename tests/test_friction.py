@@ -8,7 +8,7 @@ import warnings
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 import consistid as ci
@@ -367,6 +367,7 @@ def test_diagnosis_names_the_stribeck_hump_and_not_on_plain_coulomb(panda):
 
 @settings(max_examples=8, deadline=None)
 @given(seed=st.integers(0, 1000))
+@example(seed=305)  # a Stribeck column 1e-4 of the Coulomb one's size: cut unscaled, kept scaled
 def test_projection_is_least_squares_and_its_gradient_is_exact(planar_2r, seed):
     """Invariants of the variable projection on random shapes (2R arm, Stribeck on joint1,
     sigmoid on joint2): the projected residual equals numpy's least squares on the assembled

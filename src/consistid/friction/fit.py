@@ -523,10 +523,15 @@ def _names(model: RobotModel, laws: Sequence[str]) -> tuple[list[str], list[str]
 
 def _solve_sym(s_mat: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     """Minimum-norm solution of the (small) Schur system: a column that vanishes at some
-    shape (the search's bounds keep it rare) leaves its amplitude undetermined, not NaN."""
+    shape (the search's bounds keep it rare) leaves its amplitude undetermined, not NaN.
+    Solved equilibrated, ``D⁻¹ S D⁻¹ (D c) = D⁻¹ rhs`` with ``D = diag(S)^½`` (Jacobi scaling):
+    the rank tolerance then judges directions, not the columns' units (a Stribeck term whose
+    shape leaves it 10⁻⁴ of the Coulomb column's size was cut as if it were collinear)."""
     if rhs.size == 0:
         return rhs
-    return np.linalg.lstsq(s_mat, rhs, rcond=1e-12)[0]
+    d = np.sqrt(np.abs(np.diag(s_mat)))
+    d = np.where(d > 0, d, 1.0)
+    return np.linalg.lstsq(s_mat / np.outer(d, d), rhs / d, rcond=1e-12)[0] / d
 
 
 def _search(problem: Projection, u0: np.ndarray, max_nfev: int) -> tuple[np.ndarray, dict]:
