@@ -1,9 +1,12 @@
+import warnings
+
 import numpy as np
 import pytest
 
 import consistid as ci
 from consistid.identification.compression import SIGMA_FLOOR
-from consistid.errors import PoorExcitationWarning
+from consistid.errors import ModelMisfitWarning, PoorExcitationWarning
+from consistid.robot.joint_terms import STANDSTILL_SPEED
 from consistid.robot.inertia import perturb
 from consistid.identification.regressor import dataset_regressor
 
@@ -275,3 +278,42 @@ def test_results_read_a_recording_and_name_a_dataframe(tmp_path):
         res.to_urdf(model.source)
     with pytest.raises(ci.errors.ModelError, match="would write over the URDF"):
         res.to_mjcf(model.source)
+
+
+def _held_at_rest(model: ci.RobotModel, joint: int | None, seed: int) -> ci.Dataset:
+    """An excitation run (white noise σ = 0.05) whose torque, where ``joint`` stands still
+    (|q̇| < STANDSTILL_SPEED), carries a held torque of up to 10 σ that no law of q̇ predicts
+    (static friction holding it); ``joint=None``: none."""
+    run = ci.simulate.excitation_run(model, duration=40.0, rate=200.0, torque_noise=0.05,
+                                     seed=seed)
+    data = run.dataset
+    if joint is None:
+        return data
+    tau = data.tau.copy()
+    rest = np.abs(data.dq[:, joint]) < STANDSTILL_SPEED
+    assert rest.sum() >= 40, "too few samples at rest: the test would check nothing"
+    tau[rest, joint] += np.random.default_rng(seed).uniform(-0.5, 0.5, rest.sum())
+    return data.with_torque(tau)
+
+
+@pytest.mark.parametrize("method", ["ols", "sdp"])
+def test_a_residual_larger_at_standstill_is_said_and_kept(planar_2r, method):
+    """A torque held at rest on joint 2 only (up to 10 σ, uniform): identify warns, naming that
+    joint alone and its ratio (the RMS at rest over the RMS moving; the held torque's RMS is
+    0.29 N·m against σ = 0.05, so several times), and keeps the note in details."""
+    data = _held_at_rest(planar_2r, 1, seed=3)
+    with pytest.warns(ModelMisfitWarning, match="stands still") as caught:
+        res = ci.identify(planar_2r, data, method=method, friction=None)
+    text = str([w for w in caught if w.category is ModelMisfitWarning][0].message)
+    assert planar_2r.joint_names[1] in text and planar_2r.joint_names[0] not in text
+    ratio = float(text.split(planar_2r.joint_names[1] + ": ")[1].split(" ×")[0])
+    assert ratio > 3.0
+    assert res.details["standstill"] == text
+
+
+def test_equal_noise_at_rest_and_moving_is_not_called_a_misfit(planar_2r):
+    """White noise of one σ everywhere: no joint's residual at rest is larger beyond chance."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ModelMisfitWarning)
+        res = ci.identify(planar_2r, _held_at_rest(planar_2r, None, seed=3), friction=None)
+    assert "standstill" not in res.details

@@ -166,6 +166,12 @@ class DataQualityWarning(UserWarning):
     field, sample and joint, and what to do."""
 
 
+class ModelMisfitWarning(UserWarning):
+    """The fitted model leaves a residual that its noise model does not explain (e.g. larger
+    where a joint stands still, held by static friction that ``f_c sign(q̇)`` cannot describe):
+    names the joint, where and how much, and what to do."""
+
+
 class NothingFoundWarning(UserWarning):
     """An estimate found nothing (e.g. a payload on data that carry none): the answer is zero
     within its uncertainty, and what derives from it (a centre of mass) is undefined."""

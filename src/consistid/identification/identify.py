@@ -48,24 +48,31 @@ from .base import COND_WARN, RANK_RTOL, BaseParameters, compute_base_parameters
 from .compression import CompressedProblem, floor_sigma, joint_sigma
 from ..data.checks import check_for_identification
 from ..data.dataset import Dataset, as_dataset
-from ..errors import (ModelWarning, OptionError, PoorExcitationError, PoorExcitationWarning,
-                      check_option)
+from ..errors import (ModelMisfitWarning, ModelWarning, OptionError, PoorExcitationError,
+                      PoorExcitationWarning, check_option)
 from ..friction.fit import NONLINEAR_OPTIONS, identify_nonlinear, is_nonlinear
 from ..robot.inertia import is_degenerate
+from ..robot.joint_terms import STANDSTILL_SPEED
 from ..robot.model import RobotModel, require_model
 from .regressor import DEFAULT_FRICTION, FrictionArg, RegressorSpec, parameter_names, prior_vector
 from .result import IdentificationResult
 from .solver import SolverReport
 from .statistics import coloured_covariance
 from .uninformed import uninformed_directions
-from .streaming import (DataStream, as_stream, compress_data, is_one_pass, is_stream,
-                        residual_statistics)
+from .streaming import (DataStream, ResidualStatistics, as_stream, compress_data, is_one_pass,
+                        is_stream, residual_statistics)
 
 METHODS = ("ols", "wls", "sdp")
 #: ``covariance=`` choices: rows counted as independent, or as ``N / τ_j`` per joint.
 COVARIANCES = ("iid", "coloured")
 #: ... and ``"auto"``: ``"coloured"``, except ``"iid"`` with ``loss="huber"`` (re-weighted rows).
 COVARIANCE_OPTIONS = ("auto", *COVARIANCES)
+#: A joint's residual at standstill this many times its RMS where it moves (the factor the
+#: diagnosis flags a remainder at), beyond chance at level :data:`STANDSTILL_ALPHA`, is said
+#: (:func:`standstill_note`).
+STANDSTILL_RATIO = 1.5
+#: Level of that test (the diagnosis' remainder test's).
+STANDSTILL_ALPHA = 1e-3
 
 
 #: Base parameters computed per model object (weakly: they go with it), spec and gravity.
@@ -318,7 +325,30 @@ def with_covariance(result: IdentificationResult, problem: CompressedProblem,
     cov = coloured_covariance(result.base_covariance, grams, weights, tau,
                               np.where(variances > 0, variances, 1.0 / weights))
     shown = ", ".join(f"{n} {t:.3g}" for n, t in zip(result.model.joint_names, tau))
-    return dataclasses.replace(result, base_covariance=cov, details={
-        **result.details,
-        "covariance": f"coloured (sandwich, N/τ_j effective rows; τ_j in samples: {shown})",
-        "autocorrelation_time": tau})
+    details = {**result.details,
+               "covariance": f"coloured (sandwich, N/τ_j effective rows; τ_j in samples: {shown})",
+               "autocorrelation_time": tau}
+    note = standstill_note(stats, result.model.joint_names)
+    if note:
+        warnings.warn(note, ModelMisfitWarning, stacklevel=3)
+        details["standstill"] = note
+    return dataclasses.replace(result, base_covariance=cov, details=details)
+
+
+def standstill_note(stats: ResidualStatistics, joint_names: Sequence[str]) -> str:
+    """What to say of the joints whose residual is larger where they stand still than where
+    they move (:meth:`ResidualStatistics.standstill_excess`: by :data:`STANDSTILL_RATIO` in RMS
+    at least, and beyond chance at level :data:`STANDSTILL_ALPHA`), or ``""``."""
+    ratio, p = stats.standstill_excess()
+    bad = np.flatnonzero((p < STANDSTILL_ALPHA) & (ratio >= STANDSTILL_RATIO))
+    if not bad.size:
+        return ""
+    share = stats.rest_count / max(stats.n_samples, 1)
+    where = "; ".join(f"{joint_names[j]}: {ratio[j]:.3g} × (at rest in {share[j]:.0%} of the "
+                      f"samples read, p = {p[j]:.2g})" for j in bad)
+    return (f"the residual where a joint stands still (|q̇| < {STANDSTILL_SPEED:g} rad/s) is "
+            f"larger than where it moves, in RMS: {where}. A joint held by static friction "
+            "takes any torque up to its break-away, which f_c·sign(q̇) does not predict; the "
+            "fit's friction and its ± absorb it. Judge data with res.residual(data, "
+            "at_rest='cone'), fit a friction law that leaves rest rows out "
+            "(friction='stribeck'), or see consistid.diagnose")

@@ -41,10 +41,12 @@ from pathlib import Path
 from typing import Any, Callable, Iterable, Iterator
 
 import numpy as np
+import scipy.stats
 
 from ..data.checks import check_magnitudes
 from ..data.dataset import Dataset
 from ..errors import DatasetError, OptionError
+from ..robot.joint_terms import STANDSTILL_SPEED
 from ..robot.model import RobotModel
 from .base import BaseParameters
 from .compression import CompressedProblem, compress
@@ -98,6 +100,9 @@ AUTOCORRELATION_WINDOWS = 4
 #: Relative standard error of the autocorrelation time that :meth:`ResidualStatistics.of`
 #: reads enough samples for.
 TAU_PRECISION = 0.1
+#: Fewest effectively independent samples at standstill (``n_rest / τ``) on which
+#: :meth:`ResidualStatistics.standstill_excess` tests the residual there.
+MIN_REST_SAMPLES = 10
 
 
 def autocorrelation_windows(dataset: Dataset, samples: int | None = AUTOCORRELATION_SAMPLES
@@ -138,11 +143,16 @@ class ResidualStatistics:
         (:func:`consistid.identification.statistics.autocovariance_sum`), or ``None``.
     sum_squares : (nv,) residual sum of squares per joint (N·m)².
     n_samples : samples read.
+    rest_sum_squares, rest_count : (nv,) the part of ``sum_squares`` on the samples where the
+        joint stands still (``|q̇_j| <`` :data:`~consistid.robot.joint_terms.STANDSTILL_SPEED`),
+        and how many they are (:meth:`standstill_excess`).
     """
 
     autocovariance: np.ndarray | None
     sum_squares: np.ndarray
     n_samples: int
+    rest_sum_squares: np.ndarray
+    rest_count: np.ndarray
 
     @classmethod
     def of(cls, model: RobotModel, spec: RegressorSpec, theta: np.ndarray,
@@ -169,13 +179,38 @@ class ResidualStatistics:
     def _of(cls, model: RobotModel, spec: RegressorSpec, theta: np.ndarray,
             dataset: Dataset) -> "ResidualStatistics":
         residual = dataset.require_torque() - predict_torque(model, dataset, spec, theta)
+        rest = np.abs(dataset.dq) < STANDSTILL_SPEED
         return cls(autocovariance_sum(dataset, residual), np.sum(residual ** 2, axis=0),
-                   dataset.n_samples)
+                   dataset.n_samples, np.sum(np.where(rest, residual ** 2, 0.0), axis=0),
+                   np.sum(rest, axis=0))
 
     def __add__(self, other: "ResidualStatistics") -> "ResidualStatistics":
         pooled = add_lagged(self.autocovariance, other.autocovariance)
         return ResidualStatistics(pooled, self.sum_squares + other.sum_squares,
-                                  self.n_samples + other.n_samples)
+                                  self.n_samples + other.n_samples,
+                                  self.rest_sum_squares + other.rest_sum_squares,
+                                  self.rest_count + other.rest_count)
+
+    def standstill_excess(self) -> tuple[np.ndarray, np.ndarray]:
+        r"""``(ratio, p)`` per joint: the residual's RMS on the samples where the joint stands
+        still over its RMS where it moves, and the p-value of that excess under the fitted
+        model (the same noise everywhere): the one-sided F-test of the two variances,
+        ``F = s²_rest / s²_moving`` with ``n_rest/τ_j`` and ``n_moving/τ_j`` degrees of freedom
+        (``τ_j`` the residual's autocorrelation time: effectively independent samples). A joint
+        held by static friction takes any torque up to its break-away, which no law of ``q̇``
+        (``f_c sign(q̇)``) predicts: its residual at rest is larger. ``p = 1`` (ratio ``nan``)
+        where fewer than :data:`MIN_REST_SAMPLES` effective samples stand still or none move."""
+        tau = np.maximum(self.autocorrelation_time(), 1.0)
+        moving = self.n_samples - self.rest_count
+        n_rest, n_move = self.rest_count / tau, moving / tau
+        with np.errstate(divide="ignore", invalid="ignore"):
+            var_rest = self.rest_sum_squares / self.rest_count
+            var_move = (self.sum_squares - self.rest_sum_squares) / moving
+            ratio = np.sqrt(var_rest / var_move)
+        ok = (n_rest >= MIN_REST_SAMPLES) & (moving > 0) & (var_move > 0)
+        p = np.ones(ratio.shape)
+        p[ok] = scipy.stats.f.sf(ratio[ok] ** 2, n_rest[ok], n_move[ok])
+        return np.where(ok, ratio, np.nan), p
 
     def autocorrelation_time(self) -> np.ndarray:
         """``τ_j`` per joint (:func:`consistid.identification.statistics.integrated_time`)."""
