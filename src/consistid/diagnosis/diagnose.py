@@ -98,6 +98,10 @@ RIVAL_COSINE = 0.5
 #: Effects that are dry friction: set-valued at rest (judged against their cone there, see
 #: :func:`consistid.diagnosis.remainder.dry_friction_at_rest`).
 DRY_FRICTION = ("coulomb", "stribeck")
+#: Effects that are viscous friction: refitted beside the dry friction where that is judged
+#: set-valued through a filter
+#: (:func:`consistid.diagnosis.remainder.dry_friction_through_filter`).
+VISCOUS_FRICTION = ("viscous",)
 
 
 # --------------------------------------------------------------------------------- results
@@ -1139,7 +1143,8 @@ def _set_valued_friction(fit: GapModel, data: GapData, residual: np.ndarray,
     :func:`~consistid.diagnosis.remainder.dry_friction_at_rest`, against the fitted static
     friction ``f_c + Δf``; seen through a low-pass, where the dataset says which one the signal
     chain applied to the torques (``torque_filter``):
-    :func:`~consistid.diagnosis.remainder.dry_friction_through_filter`, on the joints whose
+    :func:`~consistid.diagnosis.remainder.dry_friction_through_filter`, with the joint's
+    viscous atoms refitted beside it (the point-valued fit biased them too), on the joints whose
     point-valued remainder would be flagged (above ``REMAINDER_RATIO`` × ``floor``): elsewhere
     the set-valued friction, which can only leave less, changes no verdict and its solve (a
     second or more per joint on a 30 s log) is skipped; and not where the remainder on the
@@ -1148,8 +1153,10 @@ def _set_valued_friction(fit: GapModel, data: GapData, residual: np.ndarray,
     load-dependent friction that the refitted amplitudes and the held torques near rest would
     otherwise take up in part). Through no recorded filter: not at all."""
     dry, cone = np.zeros((data.n, data.nv)), np.zeros(data.nv)
+    damped = np.zeros((data.n, data.nv))            # the selected viscous friction, as fitted
     filtered = np.zeros(data.nv, dtype=bool)
     laws: dict[int, list[np.ndarray]] = {}
+    slopes: dict[int, list[np.ndarray]] = {}
     for atom, th in zip(fit.atoms, fit.theta):
         if atom.effect in DRY_FRICTION and atom.joint is not None:
             dry += fit.library.columns(atom, data) @ th
@@ -1157,6 +1164,10 @@ def _set_valued_friction(fit: GapModel, data: GapData, residual: np.ndarray,
             filtered[atom.joint] |= bool(np.isfinite(atom.cutoff))
             law = REGISTRY[atom.effect].unfiltered(fit.library, atom, data)
             laws.setdefault(atom.joint, []).extend(np.reshape(law, (data.n, -1)).T)
+        elif atom.effect in VISCOUS_FRICTION and atom.joint is not None:
+            columns = fit.library.columns(atom, data)
+            damped += columns @ th
+            slopes.setdefault(atom.joint, []).extend(columns[:, atom.joint].T)
     left = dry_friction_at_rest(data, residual, dry, np.where(filtered, 0.0, cone))
     chain = data.dataset.torque_filter       # (cut-off Hz, order) of the chain's low-pass
     known = ~unknown
@@ -1167,9 +1178,10 @@ def _set_valued_friction(fit: GapModel, data: GapData, residual: np.ndarray,
                 or rms <= REMAINDER_RATIO * floor[j]):
             cone[j] = 0.0
             continue
-        judged = dry_friction_through_filter(data, int(j), residual[:, j], dry[:, j],
-                                             laws[int(j)], float(cone[j]), float(chain[0]),
-                                             known[:, j])
+        judged = dry_friction_through_filter(data, int(j), residual[:, j],
+                                             dry[:, j] + damped[:, j], laws[int(j)],
+                                             float(cone[j]), float(chain[0]), known[:, j],
+                                             viscous=slopes.get(int(j), []))
         # Held torques reach, through the filter, only the samples within its settling time of
         # a sample at rest: what the set-valued fit still leaves on the samples beyond (moving
         # well clear of standstill), if flagged on its own, is a remainder no set-valued
