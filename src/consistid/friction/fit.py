@@ -626,6 +626,16 @@ def identify_nonlinear(model: RobotModel, dataset: Dataset, method: str, frictio
                  else check_number("min_speed", min_speed, 0))
     keep = (np.abs(dataset.dq) >= min_speed).astype(float)
     n_kept = keep.sum(axis=0)
+    still = [name for name, k in zip(model.joint_names, n_kept) if k == 0]
+    if still:
+        # its rows all left out and its friction columns zero: the least-squares step would
+        # fail on a rank test naming no joint
+        raise PoorExcitationError(
+            f"{', '.join(still)} never move{'s' if len(still) == 1 else ''} in these data "
+            f"(|q̇| < min_speed = {min_speed:g} rad/s on every sample): no friction law can be "
+            f"fitted there; lock {'it' if len(still) == 1 else 'them'} "
+            f"(RobotModel.from_urdf(path, locked_joints={still!r}, locked_configuration=...)) "
+            "or record a motion that moves every joint")
     problem = Projection(x, tau, dataset.dq, selection.laws, np.ones(nv), keep)
     u = _starts(problem, start, model)
     amp_names, shape_names = _names(model, selection.laws)
