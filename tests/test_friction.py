@@ -524,3 +524,22 @@ def test_a_joint_that_never_moves_is_named(planar_2r):
     still = ci.Dataset(t=log.t, q=q, dq=dq, ddq=ddq, tau=tau)
     with pytest.raises(ci.PoorExcitationError, match=r"joint2 never moves .*locked_joints"):
         ci.identify(planar_2r, still, method="ols", friction="tanh")
+
+
+def test_a_joint_turning_one_way_is_refused_by_least_squares():
+    """Before: joint2 turning one way only (q̇ ≥ 0.4 rad/s) makes its tanh amplitude equal to its
+    offset (the search drove v_s to 0.002: tanh ≡ 1); identify(method="ols", friction="tanh")
+    returned fc = 0.10 ± inf with no word, where the linear law raises naming both."""
+    model = ci.RobotModel.example("double_pendulum")
+    data = ci.FourierTrajectory.random(model, harmonics=5, period=10.0, seed=0).sample(200.0,
+                                                                                       40.0)
+    q, dq, ddq, t = data.q.copy(), data.dq.copy(), data.ddq.copy(), data.t
+    q[:, 1], dq[:, 1], ddq[:, 1] = 0.6 * t + 0.2 * np.sin(t), 0.6 + 0.2 * np.cos(t), \
+        -0.2 * np.sin(t)
+    tau = model.rnea(q, dq, ddq) + 0.5 * np.tanh(dq / 0.05) + 0.2 * dq + np.array([0.1, -0.3])
+    tau += 0.05 * np.random.default_rng(0).standard_normal(tau.shape)
+    one_way = ci.Dataset(t=t, q=q, dq=dq, ddq=ddq, tau=tau)
+    with pytest.raises(ci.PoorExcitationError, match="joint2.fc"):
+        ci.identify(model, one_way, method="ols")                       # the linear law
+    with pytest.raises(ci.PoorExcitationError, match="determine joint2.fc, joint2.fo"):
+        ci.identify(model, one_way, method="ols", friction="tanh", min_speed=0.01)
