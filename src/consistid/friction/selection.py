@@ -61,8 +61,8 @@ class FrictionComparison(Reported):
     train_rms : (n_laws, nv) training RMS.
     results : the fits, by law.
     method, low_speed, min_speed : the settings.
-    noise_floor : (nv,) held-out torque noise σ (N·m; NaN: not estimated), ``noise_source``
-        how it was obtained.
+    noise_floor : (nv,) held-out torque noise σ (N·m; NaN where the estimate is unreliable:
+        pass ``sigma=``), ``noise_source`` how it was obtained.
     """
 
     joint_names: tuple[str, ...]
@@ -192,6 +192,8 @@ def compare_friction_models(model: RobotModel, train: Dataset, held_out: Dataset
     best = np.take_along_axis(np.array(predictions), np.argmin(rms_arr, axis=0)[None, None, :],
                               axis=0)[0]
     floor = estimate_noise_floor(held_out, tau, tau - best, best, sigma=sigma)
+    # a floor the spectrum cannot see (torques filtered below the motion band) judges nothing
     return FrictionComparison(tuple(model.joint_names), laws, rms_arr, np.array(low_rms),
                               low.sum(axis=0), np.array(train_rms), method, low_speed,
-                              min_speed, results, floor.sigma, floor.description)
+                              min_speed, results,
+                              np.where(floor.reliable, floor.sigma, np.nan), floor.description)
