@@ -3,12 +3,15 @@ against the simulated truth, and sample times that would corrupt the change log 
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 
 import consistid as ci
-from consistid.errors import DatasetError
+from consistid.errors import DatasetError, ModelWarning
 from consistid.online.scenario import payload_change_run
+from consistid.simulate import MountedPayload
 
 
 @pytest.fixture(scope="module")
@@ -107,3 +110,25 @@ def test_reset_forgets_enough_to_stay_honest_after_a_payload_change(planar_2r, s
     assert z.max() < 6.0                 # 6 base parameters + 6 friction/offset, 1900 samples
     pay = est.payload()
     assert abs(pay.mass - run.payload.mass) < max(5 * pay.mass_std, 0.02)
+
+
+def test_a_payload_on_another_body_is_not_reported_as_one_on_the_last(ur5_run):
+    """Before: 2 kg fixed to the UR5's forearm was flagged, then est.payload() reported
+    0.89 ± 0.0007 kg on wrist_3_link without a word (misfit χ² ≈ 10⁶ for 44 dof)."""
+    model, run = ur5_run
+    d = run.dataset
+    est = ci.RecursiveEstimator(model, forgetting=0.9999)
+    est.update_batch(d.q, d.dq, d.ddq, d.tau, t=d.t, record=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ModelWarning)
+        est.payload(0)                                   # a payload on the last body: no word
+    other = payload_change_run(model, duration=8.0, change_time=5.0, torque_noise=0.1, seed=2,
+                               payload=MountedPayload(2.0, (0.0, 0.0, 0.05),
+                                                      frame="forearm_link"))
+    d = other.dataset
+    est = ci.RecursiveEstimator(model, forgetting=0.9999)
+    est.update_batch(d.q, d.dq, d.ddq, d.tau, t=d.t, record=False)
+    assert est.changes and abs(est.changes[0].time - 5.0) < 0.05
+    with pytest.warns(ModelWarning, match="not a payload on 'wrist_3_link'"):
+        pay = est.payload(0)
+    assert any("not a payload" in note for note in pay.notes)

@@ -34,6 +34,7 @@ from typing import Any, Sequence
 
 import cvxpy as cp
 import numpy as np
+import scipy.stats
 
 from ..identification.base import BaseParameters, random_states
 from ..identification.compression import CompressedProblem, floor_sigma, joint_sigma
@@ -44,7 +45,7 @@ from ..identification.constraints import (BodyScaling, com_box, ellipsoid_lmi, m
 from ..data.checks import check_effort
 from ..data.dataset import Dataset
 from ..errors import (BoundActiveWarning, IdentificationError, InfeasibleError, ModelError,
-                     NothingFoundWarning,
+                     ModelWarning, NothingFoundWarning,
                      OptionError, PoorExcitationError, PoorExcitationWarning, check_bounds,
                      check_box, check_option)
 from ..report.html import Page
@@ -212,6 +213,10 @@ class Payload(Reported):
 
 #: A payload whose mass is not above this many standard deviations is reported as not found.
 NO_PAYLOAD_SIGMAS = 3.0
+#: False-alarm probability of the test that a change of coefficients is a payload at all
+#: (:func:`payload_from_base_change`: the unconstrained payload's weighted misfit against
+#: χ²(b − rank)).
+MISFIT_ALPHA = 1e-3
 
 
 # ------------------------------------------------------------------------------- frames
@@ -763,6 +768,21 @@ def payload_from_base_change(model: RobotModel, unloaded: IdentificationResult |
                                                com_bounds, mass_range, solver, solver_options)
     if bound_note is not None:
         notes = [bound_note, *notes]
+    # whether any payload on this body explains the change: the misfit of the unconstrained
+    # least-squares payload (bounds and consistency aside, which warn on their own)
+    free, _, rank, _ = np.linalg.lstsq(r, z, rcond=None)
+    misfit, dof = float(np.sum((r @ free - z) ** 2)), b - int(rank)
+    if cov_u is not None and cov_l is not None and dof > 0 \
+            and misfit > scipy.stats.chi2.ppf(1 - MISFIT_ALPHA, dof):
+        # the change has components a payload on this body cannot make: the mass moved
+        # elsewhere on the arm (or friction, an offset changed); the fit is only the nearest
+        text = (f"the change of coefficients is not a payload on {frame_name!r}: the best "
+                f"payload there leaves a weighted misfit χ² = {misfit:.4g} for {dof} degrees "
+                f"of freedom (p < {MISFIT_ALPHA:g}); "
+                "mass was added elsewhere on the arm (body=/frame=), or friction or an offset "
+                "changed: this payload is only the nearest one and its ± do not hold")
+        notes = [text, *notes]
+        warnings.warn(text, ModelWarning, stacklevel=2)
     return _payload_result(theta, _covariance(r, ident[2]), frame_name,
                            model.body_names[index], "base-change", ident, report,
                            notes_weight + notes,

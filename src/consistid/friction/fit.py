@@ -631,6 +631,16 @@ def identify_nonlinear(model: RobotModel, dataset: Dataset, method: str, frictio
                  else check_number("min_speed", min_speed, 0))
     keep = (np.abs(dataset.dq) >= min_speed).astype(float)
     n_kept = keep.sum(axis=0)
+    still = [name for name, k in zip(model.joint_names, n_kept) if k == 0]
+    if still:
+        # its rows all left out and its friction columns zero: the least-squares step would
+        # fail on a rank test naming no joint
+        raise PoorExcitationError(
+            f"{', '.join(still)} never move{'s' if len(still) == 1 else ''} in these data "
+            f"(|q̇| < min_speed = {min_speed:g} rad/s on every sample): no friction law can be "
+            f"fitted there; lock {'it' if len(still) == 1 else 'them'} "
+            f"(RobotModel.from_urdf(path, locked_joints={still!r}, locked_configuration=...)) "
+            "or record a motion that moves every joint")
     problem = Projection(x, tau, dataset.dq, selection.laws, np.ones(nv), keep)
     u = _starts(problem, start, model)
     amp_names, shape_names = _names(model, selection.laws)
@@ -694,6 +704,18 @@ def identify_nonlinear(model: RobotModel, dataset: Dataset, method: str, frictio
         tau_j = np.ones(nv)
         cov = s2 * info_inv
         cov_note = "iid (every row an independent sample)"
+    # the linear and amplitude block alone (shapes held: a degenerate shape is warned about
+    # above); singular as with identify(method="ols") and linear friction, which raises
+    # (e.g. a joint turning one way only: its Coulomb amplitude equals its offset)
+    n_lin = b + k_all
+    unseen = _unexcited(info[:n_lin, :n_lin], _extended_base(base, amp_names).names)
+    if unseen and method != "sdp":
+        raise PoorExcitationError(
+            f"the data do not determine {', '.join(unseen[:6])}{' …' if len(unseen) > 6 else ''}"
+            f" (a direction of [rigid body | friction] not excited) which "
+            f"least squares ({method}) cannot pick; use a richer excitation (a joint moving "
+            "both ways, a speed range that shows the law's shape), or method='sdp' with a "
+            "prior (res.uninformed names what the prior decides)")
     cov_lin = cov[:b + k_all, :b + k_all]
     std_u = np.sqrt(np.clip(np.diag(cov)[b + k_all:], 0.0, None))
     eta_all, jac_all = [], []
@@ -790,6 +812,23 @@ def _pinv_sym(info: np.ndarray) -> np.ndarray:
         cov[touched, :] = np.inf
         cov[:, touched] = np.inf
     return cov
+
+
+def _unexcited(info: np.ndarray, names: Sequence[str]) -> list[str]:
+    """Names in the directions the information matrix ``info`` (a Gram matrix ``JᵀJ``) leaves
+    unexcited, largest share first. Its diagonal is scaled to 1 so that units do not decide;
+    a direction is unexcited when its eigenvalue is at the rounding floor of the Gram matrix,
+    ``λ ≤ λ_max · p · ε`` (the default tolerance of ``numpy.linalg.matrix_rank``: an exactly
+    collinear pair of columns lands there, not at ``RANK_RTOL²``); each parameter is ranked by
+    its norm over those eigenvectors."""
+    d = np.sqrt(np.clip(np.diag(info), 1e-300, None))
+    lam, vec = np.linalg.eigh(info / np.outer(d, d))
+    null = lam <= lam[-1] * lam.size * np.finfo(float).eps
+    if not null.any():
+        return []
+    share = np.linalg.norm(vec[:, null], axis=1)
+    order = np.argsort(-share)
+    return [names[i] for i in order if share[i] > 1e-3 * share[order[0]]]
 
 
 def _sqrt_spd(s_mat: np.ndarray) -> np.ndarray:

@@ -14,6 +14,14 @@ low-speed band ``min_speed ≤ |q̇_j| < low_speed``, where the laws differ most
 much it beats the linear law (a preference worth a fraction of a percent is a tie in practice,
 and the table shows it). Held-out scoring, not training fit, is what penalises the extra shape
 parameters (a law that fits noise does worse on new data).
+
+The best of the laws compared need not be a good one (a friction that depends on the position,
+a dead band, hysteresis): the held-out torque noise floor ``σ_j``
+(:func:`consistid.diagnosis.noise.estimate_noise_floor`, or ``sigma=``) is estimated on the
+preferred law's residual, and a joint whose best held-out RMS exceeds
+``REMAINDER_RATIO · σ_j`` (:mod:`consistid.diagnosis.remainder`, the diagnosis' rule for an
+unexplained component) is listed in :attr:`FrictionComparison.unexplained`: none of the laws
+describes it.
 """
 
 from __future__ import annotations
@@ -24,6 +32,8 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..data.dataset import Dataset
+from ..diagnosis.noise import estimate_noise_floor
+from ..diagnosis.remainder import REMAINDER_RATIO
 from ..errors import OptionError, check_number
 from ..identification.summary import table
 from ..report.html import Page
@@ -51,6 +61,8 @@ class FrictionComparison(Reported):
     train_rms : (n_laws, nv) training RMS.
     results : the fits, by law.
     method, low_speed, min_speed : the settings.
+    noise_floor : (nv,) held-out torque noise σ (N·m; NaN where the estimate is unreliable:
+        pass ``sigma=``), ``noise_source`` how it was obtained.
     """
 
     joint_names: tuple[str, ...]
@@ -63,6 +75,18 @@ class FrictionComparison(Reported):
     low_speed: float
     min_speed: float
     results: dict[str, NonlinearFrictionResult] = field(default_factory=dict)
+    noise_floor: np.ndarray | None = None
+    noise_source: str = ""
+
+    @property
+    def unexplained(self) -> tuple[str, ...]:
+        """Joints whose best held-out RMS exceeds ``REMAINDER_RATIO`` × the noise floor: no law
+        compared describes their friction (module docstring)."""
+        if self.noise_floor is None:
+            return ()
+        best = np.min(self.rms, axis=0)
+        return tuple(name for name, r, s in zip(self.joint_names, best, self.noise_floor)
+                     if np.isfinite(s) and r > REMAINDER_RATIO * s)
 
     @property
     def preferred(self) -> tuple[str, ...]:
@@ -91,8 +115,21 @@ class FrictionComparison(Reported):
         text = (f"friction laws on held-out data (method={self.method}; RMS in N·m over "
                 f"|q̇| ≥ {self.min_speed:g} rad/s; 'low': {self.min_speed:g} ≤ |q̇| < "
                 f"{self.low_speed:g} rad/s)\n")
-        return text + table(["joint", *head, "n low", "preferred", "linear/best",
-                             "preferred (low)"], rows, floatfmt=".4g")
+        text += table(["joint", *head, "n low", "preferred", "linear/best",
+                       "preferred (low)"], rows, floatfmt=".4g")
+        if self.noise_floor is not None:
+            text += (f"\nnoise floor (N·m) {self.noise_source}: "
+                     + ", ".join(f"{n} {s:.4g}" for n, s in zip(self.joint_names,
+                                                                 self.noise_floor)))
+        if self.unexplained:
+            best = np.min(self.rms, axis=0)
+            text += "\nno law compared fits " + ", ".join(
+                f"{n} (best {best[j]:.4g} = {best[j] / self.noise_floor[j]:.3g} × the noise)"
+                for j, n in enumerate(self.joint_names) if n in self.unexplained) + (
+                f": above {REMAINDER_RATIO:g} × the noise floor; their preferred law is only the "
+                "least wrong (position-dependent friction, a dead band, hysteresis…? "
+                "consistid.diagnose looks further)")
+        return text
 
     def __str__(self) -> str:
         return self.summary()
@@ -114,12 +151,14 @@ class FrictionComparison(Reported):
 def compare_friction_models(model: RobotModel, train: Dataset, held_out: Dataset,
                             laws: Sequence[str] = LAWS, method: str = "ols",
                             low_speed: float = 0.1, min_speed: float = 0.0,
-                            covariance: str = "iid", **options: Any) -> FrictionComparison:
+                            covariance: str = "iid", sigma: float | Sequence[float] | None = None,
+                            **options: Any) -> FrictionComparison:
     """Fit each law on ``train``, score on ``held_out`` (module docstring).
 
     ``method``, ``covariance`` and ``options`` (e.g. ``armature=True``, ``max_nfev``) go to
     :func:`consistid.friction.fit.identify_nonlinear`; ``min_speed`` leaves standstill rows out
-    of the fits and the scores alike.
+    of the fits and the scores alike; ``sigma`` (N·m, a number or per joint): the torque noise,
+    default estimated on the held-out data (module docstring).
     """
     laws = tuple(laws)
     unknown = [law for law in laws if law != LINEAR and law not in MODELS]
@@ -133,16 +172,28 @@ def compare_friction_models(model: RobotModel, train: Dataset, held_out: Dataset
     speed = np.abs(held_out.dq)
     used = speed >= min_speed
     low = used & (speed < low_speed)
-    results, rms, low_rms, train_rms = {}, [], [], []
+    if sigma is not None:
+        sigma = np.broadcast_to(np.asarray(sigma, dtype=float), (model.nv,)).copy()
+        if not np.all(np.isfinite(sigma) & (sigma > 0)):
+            raise OptionError(f"sigma must be a positive torque noise (N·m), one number or "
+                              f"one per joint ({model.nv}), got {sigma!r}")
+    results, rms, low_rms, train_rms, predictions = {}, [], [], [], []
     for law in laws:
         res = identify_nonlinear(model, train, method, {j: law for j in range(model.nv)},
                                  covariance=covariance, min_speed=min_speed, **options)
-        e2 = (tau - res.predict(held_out)) ** 2
+        predictions.append(res.predict(held_out))
+        e2 = (tau - predictions[-1]) ** 2
         results[law] = res
         rms.append(np.sqrt(np.sum(e2 * used, axis=0) / np.maximum(used.sum(axis=0), 1)))
         with np.errstate(invalid="ignore"):
             low_rms.append(np.sqrt(np.sum(e2 * low, axis=0) / low.sum(axis=0)))
         train_rms.append(res.train_rms)
-    return FrictionComparison(tuple(model.joint_names), laws, np.array(rms), np.array(low_rms),
+    rms_arr = np.array(rms)
+    best = np.take_along_axis(np.array(predictions), np.argmin(rms_arr, axis=0)[None, None, :],
+                              axis=0)[0]
+    floor = estimate_noise_floor(held_out, tau, tau - best, best, sigma=sigma)
+    # a floor the spectrum cannot see (torques filtered below the motion band) judges nothing
+    return FrictionComparison(tuple(model.joint_names), laws, rms_arr, np.array(low_rms),
                               low.sum(axis=0), np.array(train_rms), method, low_speed,
-                              min_speed, results)
+                              min_speed, results,
+                              np.where(floor.reliable, floor.sigma, np.nan), floor.description)

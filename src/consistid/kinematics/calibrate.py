@@ -30,6 +30,7 @@ import scipy.optimize
 import scipy.stats
 
 from ..errors import (
+    DataQualityWarning,
     DatasetError,
     IdentificationError,
     OptionError,
@@ -374,6 +375,8 @@ def calibrate_kinematics(model: RobotModel, q: object, measurements: object,
     kept_order = np.argsort(np.argsort(order)[kept_idx])
     held_now = np.zeros(len(sel), dtype=bool)
     held_now[kept_idx] = _weak(prob, values, sel[kept_idx], kept_order)
+    if held_now.any():
+        _check_weak_data(gprob, n, sel, kept, held_now, kept_order, names)
     free = sel[kept & ~held_now]
 
     # --- solve; estimate σ; reject outliers
@@ -412,6 +415,10 @@ def calibrate_kinematics(model: RobotModel, q: object, measurements: object,
         limit = scipy.stats.chi2.ppf(1 - outlier_alpha, m)
         if given_cov is None:
             limit *= max(np.median(d2) / scipy.stats.chi2.median(m), 1e-300)
+        elif _bulk_exceeds(d2, m, outlier_alpha):
+            # most residuals, not a few, exceed the given σ (warned below): rejecting
+            # against it would drop good data one by one; scale the test to the median
+            limit *= np.median(d2) / scipy.stats.chi2.median(m)
         worst = int(np.argmax(d2))
         if d2[worst] <= limit:
             break
@@ -425,6 +432,18 @@ def calibrate_kinematics(model: RobotModel, q: object, measurements: object,
                 f"residuals) for {r} identifiable combinations; the data disagree with the "
                 f"model more than σ allows (rejected {sorted(rejected)})")
         updates = 1                  # one more σ estimate without the outliers
+
+    if given_cov is not None:
+        d2 = mahalanobis(res_active, whitening(cov[active])) ** 2
+        if _bulk_exceeds(d2, m, outlier_alpha):
+            ratio = float(np.sqrt(np.median(d2) / scipy.stats.chi2.median(m)))
+            warnings.warn(
+                f"the residuals of most of the {active.size} measurements exceed the given "
+                f"sigma (median ≈ {ratio:.3g} × it): sigma is too small, or the model misses "
+                f"an effect; every ± is about {ratio:.3g}× too small"
+                f"{' and outliers were judged against the median' if outliers == 'reject' else ''}"
+                "; give the tracker's real noise, or sigma=None to estimate it",
+                DataQualityWarning, stacklevel=2)
 
     # --- uncertainty and the unidentifiable directions at the solution
     final = _Problem(chart, qa[active], meas.subset(active), whitening(cov[active]), base0,
@@ -543,3 +562,35 @@ def _check_data_rank(prob: _Problem, values: np.ndarray, sel: np.ndarray, kept: 
         f"parameter combinations that {kind} measurements can: {len(lost)} are not seen "
         f"({', '.join(lost[:8])}{' …' if len(lost) > 8 else ''}); spread the configurations "
         "over the workspace (consistid.kinematics.select_poses)")
+
+
+def _check_weak_data(gprob: _Problem, n: int, sel: np.ndarray, kept: np.ndarray,
+                     held: np.ndarray, kept_order: np.ndarray, names: list[str]) -> None:
+    """:class:`PoorExcitationError` when a direction is too weak to solve for (σ above
+    :data:`WEAK_STD`) in these configurations but not in as many generic ones at the URDF.
+
+    Holding is meant for the URDF's own special geometry (the measured point on a joint axis),
+    where every configuration is blind; held because the configurations are (nearly
+    identical poses), the held parameter is a real error the identified ones absorb, and their
+    σ, conditional on it being 0, would be too small by orders of magnitude. The generic
+    conditional σ is scaled by ``√(N_generic / N)`` to the same number of measurements.
+    """
+    kept_idx = np.flatnonzero(kept)
+    std = _conditional_std(gprob.weighted(np.zeros(gprob.chart.size), sel[kept_idx])[1],
+                           kept_order) * np.sqrt(len(gprob.q) / n)
+    lost = [names[i] for i, s in zip(kept_idx, std) if held[i] and s <= WEAK_STD]
+    if lost:
+        raise PoorExcitationError(
+            f"the {n} configurations barely see {', '.join(lost[:8])}"
+            f"{' …' if len(lost) > 8 else ''} (σ > {WEAK_STD:g} given the others), which "
+            f"{n} configurations spread over the workspace would identify; spread the "
+            "configurations (consistid.kinematics.select_poses) or leave these out of "
+            "parameters=")
+
+
+def _bulk_exceeds(d2: np.ndarray, m: int, alpha: float) -> bool:
+    """Whether more squared Mahalanobis distances ``d2`` exceed the χ²(m) median than a correct
+    σ allows: a sign test, each exceeding it with probability ½ (outliers, a few, only add);
+    false alarm probability ``alpha``."""
+    above = int(np.count_nonzero(d2 > scipy.stats.chi2.median(m)))
+    return above > scipy.stats.binom.ppf(1 - alpha, d2.size, 0.5)
