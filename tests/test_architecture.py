@@ -8,6 +8,7 @@ imports; imports under ``if TYPE_CHECKING:`` are for type checkers and do not ru
 from __future__ import annotations
 
 import ast
+import concurrent.futures
 import subprocess
 import sys
 from pathlib import Path
@@ -178,3 +179,20 @@ def test_architecture_page_lists_every_module():
                if p.name not in folders.get(str(p.parent.relative_to(PACKAGE)).replace(".", ""),
                                             set())]
     assert not missing, f"modules missing from docs/architecture.md: {missing}"
+
+
+@pytest.mark.slow
+def test_every_module_imports_first_in_a_fresh_interpreter():
+    """Whatever module a user imports first, it loads: a cycle through a package's
+    ``__init__`` (``friction/__init__`` → ``selection`` → ``diagnosis.noise`` → … →
+    ``diagnosis.effects.stribeck`` → ``friction.models``) passes the graph test above, which
+    does not see the implicit import of a parent package, yet raised ImportError when a user's
+    first import was ``consistid.diagnosis.candidates``."""
+    def first(name: str) -> tuple[str, str]:
+        out = subprocess.run([sys.executable, "-c", f"import {name}"], capture_output=True,
+                             text=True)
+        return name, (out.stderr.strip().splitlines() or [""])[-1] if out.returncode else ""
+
+    with concurrent.futures.ThreadPoolExecutor(max_workers=2) as pool:
+        failed = [(n, err) for n, err in pool.map(first, sorted(MODULES)) if err]
+    assert not failed, f"modules that fail to import first: {failed}"

@@ -29,7 +29,7 @@ import numpy as np
 import scipy.signal
 
 from ..data.dataset import Dataset
-from .candidates import GapData
+from .gapdata import GapData
 
 REGIMES: tuple[str, ...] = ("near-zero velocity", "moving +", "moving −", "high acceleration",
                             "gravity-dominated")
