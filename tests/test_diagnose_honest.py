@@ -206,6 +206,23 @@ def test_repetition_floor_of_recordings_at_different_rates():
     np.testing.assert_allclose(floor, sigma, rtol=0.1)
 
 
+def test_repetition_floor_passes_over_a_one_sample_recording():
+    """A recording of one sample (no step, so no lag in samples) beside a periodic one: it is
+    passed over. Before: ``int(round(period / nan))`` raised ValueError."""
+    rng = np.random.default_rng(6)
+    h, period, sigma = 0.01, 2.0, 0.05
+    t = np.arange(int(3 * period / h)) * h
+    q = np.sin(2 * np.pi * t / period)[:, None]
+    log = Dataset(t=t, q=q, dq=np.zeros_like(q), ddq=np.zeros_like(q),
+                  tau=q + rng.normal(0.0, sigma, q.shape), segment=np.zeros(t.size, int))
+    one = Dataset(t=np.array([100.0]), q=np.zeros((1, 1)), dq=np.zeros((1, 1)),
+                  ddq=np.zeros((1, 1)), tau=np.zeros((1, 1)), segment=np.ones(1, int))
+    data = Dataset.concatenate([log, one])
+    floor, order = repetition_floor(data, data.tau, period)
+    assert order == 2
+    np.testing.assert_allclose(floor, sigma, rtol=0.15)
+
+
 def test_no_period_found_in_a_chirp():
     t = np.arange(4000) * 0.005
     q = np.sin(0.3 * t ** 2)[:, None]

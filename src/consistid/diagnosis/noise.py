@@ -204,6 +204,8 @@ def repetition_floor(dataset: Dataset, tau: np.ndarray, period: float
     sums = {1: [np.zeros(nv), 0], 2: [np.zeros(nv), 0]}
     for s in np.unique(dataset.segment):
         idx = np.flatnonzero(dataset.segment == s)
+        if idx.size < 2:
+            continue                        # one sample: no step, nothing repeats
         h = float(np.median(np.diff(dataset.t[idx])))
         lag = int(round(period / h))
         if lag < 1 or idx.size <= lag or not _repeats(dataset.q[idx], lag):
