@@ -515,6 +515,15 @@ def test_friction_comparison_says_when_no_law_fits(planar_2r, law, unexplained):
     assert ("no law compared fits" in cmp.summary()) == bool(unexplained)
 
 
+def test_friction_comparison_names_a_bad_sigma(planar_2r):
+    """sigma= of the wrong length or not numbers: the named OptionError, before any fit.
+    Before: numpy's ValueError ('operands could not be broadcast …', 'could not convert')."""
+    train, held = _planar_log(planar_2r, lambda q, dq: 0.5 * np.sign(dq)).split(0.7)
+    for bad in ([0.05, 0.05, 0.05], "low", [0.05, -1.0]):
+        with pytest.raises(OptionError, match="sigma must be a positive torque noise"):
+            compare_friction_models(planar_2r, train, held, laws=("coulomb",), sigma=bad)
+
+
 def test_a_joint_that_never_moves_is_named(planar_2r):
     """Before: 'the data do not excite the 10 base parameters of the linear columns (R factor
     diagonal ratio 0)', naming no joint, for a log in which joint2 is held still."""

@@ -173,10 +173,14 @@ def compare_friction_models(model: RobotModel, train: Dataset, held_out: Dataset
     used = speed >= min_speed
     low = used & (speed < low_speed)
     if sigma is not None:
-        sigma = np.broadcast_to(np.asarray(sigma, dtype=float), (model.nv,)).copy()
-        if not np.all(np.isfinite(sigma) & (sigma > 0)):
+        try:
+            given = np.broadcast_to(np.asarray(sigma, dtype=float), (model.nv,)).copy()
+        except (TypeError, ValueError):            # not numbers, or not 1 or nv of them
+            given = np.array([np.nan])
+        if not np.all(np.isfinite(given) & (given > 0)):
             raise OptionError(f"sigma must be a positive torque noise (N·m), one number or "
                               f"one per joint ({model.nv}), got {sigma!r}")
+        sigma = given
     results, rms, low_rms, train_rms, predictions = {}, [], [], [], []
     for law in laws:
         res = identify_nonlinear(model, train, method, {j: law for j in range(model.nv)},
