@@ -522,11 +522,12 @@ def _names(model: RobotModel, laws: Sequence[str]) -> tuple[list[str], list[str]
 
 
 def _solve_sym(s_mat: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """Minimum-norm solution of the (small) Schur system: a column that vanishes at some
-    shape (the search's bounds keep it rare) leaves its amplitude undetermined, not NaN.
-    Solved equilibrated, ``D⁻¹ S D⁻¹ (D c) = D⁻¹ rhs`` with ``D = diag(S)^½`` (Jacobi scaling):
-    the rank tolerance then judges directions, not the columns' units (a Stribeck term whose
-    shape leaves it 10⁻⁴ of the Coulomb column's size was cut as if it were collinear)."""
+    """Solution of the (small) Schur system, of least ``‖D c‖`` where it is singular: a column
+    that vanishes at some shape (the search's bounds keep it rare) leaves its amplitude
+    undetermined, not NaN. Solved equilibrated, ``D⁻¹ S D⁻¹ (D c) = D⁻¹ rhs`` with
+    ``D = diag(S)^½`` (Jacobi scaling): the rank tolerance then judges directions, not the
+    columns' units (a Stribeck term whose shape leaves it 10⁻⁴ of the Coulomb column's size was
+    cut as if it were collinear)."""
     if rhs.size == 0:
         return rhs
     d = np.sqrt(np.abs(np.diag(s_mat)))
