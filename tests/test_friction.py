@@ -513,6 +513,7 @@ def test_friction_comparison_says_when_no_law_fits(planar_2r, law, unexplained):
     assert np.allclose(cmp.noise_floor, 0.05, rtol=0.2)
     assert cmp.unexplained == unexplained
     assert ("no law compared fits" in cmp.summary()) == bool(unexplained)
+    assert ("no law compared fits" in cmp.page().fragment()) == bool(unexplained)
 
 
 def test_friction_comparison_names_a_bad_sigma(planar_2r):

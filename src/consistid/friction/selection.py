@@ -117,25 +117,32 @@ class FrictionComparison(Reported):
                 f"{self.low_speed:g} rad/s)\n")
         text += table(["joint", *head, "n low", "preferred", "linear/best",
                        "preferred (low)"], rows, floatfmt=".4g")
+        return "\n".join([text, *self._floor_lines()])
+
+    def _floor_lines(self) -> list[str]:
+        """The noise floor and, where a joint's best law stays above it, the verdict that no
+        law compared fits (the text summary and the HTML report alike)."""
+        lines = []
         if self.noise_floor is not None:
-            text += (f"\nnoise floor (N·m) {self.noise_source}: "
-                     + ", ".join(f"{n} {s:.4g}" for n, s in zip(self.joint_names,
-                                                                 self.noise_floor)))
+            lines.append(f"noise floor (N·m) {self.noise_source}: "
+                         + ", ".join(f"{n} {s:.4g}" for n, s in zip(self.joint_names,
+                                                                     self.noise_floor)))
         if self.unexplained:
             best = np.min(self.rms, axis=0)
-            text += "\nno law compared fits " + ", ".join(
+            lines.append("no law compared fits " + ", ".join(
                 f"{n} (best {best[j]:.4g} = {best[j] / self.noise_floor[j]:.3g} × the noise)"
                 for j, n in enumerate(self.joint_names) if n in self.unexplained) + (
                 f": above {REMAINDER_RATIO:g} × the noise floor; their preferred law is only the "
                 "least wrong (position-dependent friction, a dead band, hysteresis…? "
-                "consistid.diagnose looks further)")
-        return text
+                "consistid.diagnose looks further)"))
+        return lines
 
     def __str__(self) -> str:
         return self.summary()
 
     def page(self) -> Page:
-        """The HTML report: held-out RMS of each law per joint, overall and at low speed."""
+        """The HTML report: held-out RMS of each law per joint, overall and at low speed, the
+        noise floor and the joints no law fits (as :meth:`summary`)."""
         page = Page("consistid friction laws",
                     f"held-out RMS (N·m, method={self.method}) over |q̇| ≥ {self.min_speed:g} "
                     f"rad/s; low speed: {self.min_speed:g} ≤ |q̇| < {self.low_speed:g} rad/s")
@@ -145,6 +152,8 @@ class FrictionComparison(Reported):
                    [[name, *self.rms[:, j], *self.low_rms[:, j], int(self.n_low[j]),
                      self.preferred[j], self.gain[j], self.preferred_low_speed[j]]
                     for j, name in enumerate(self.joint_names)])
+        for line in self._floor_lines():
+            page.paragraph(line)
         return page
 
 
