@@ -221,7 +221,10 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
         ``"coloured"``, or ``"iid"`` with ``loss="huber"``, whose re-weighted rows the sandwich
         does not cover, and for a stream that can be read only once (a generator: the sandwich
         needs a second reading). ``details["covariance"]`` names the choice; with ``"coloured"``,
-        ``details["autocorrelation_time"]`` gives ``τ_j`` (samples, per joint).
+        ``details["autocorrelation_time"]`` gives ``τ_j`` (samples, per joint), and that pass
+        also tests each joint's residual where it stands still against where it moves
+        (:func:`standstill_note`: a :class:`~consistid.errors.ModelMisfitWarning` and
+        ``details["standstill"]``; not with ``"iid"``, which reads the data once).
     **options : keyword options of :func:`consistid.identification.sdp.identify_sdp`, for
         ``method="sdp"`` only.
         Options that only the SDP uses are refused for OLS/WLS, never silently ignored.
