@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import consistid as ci
-from consistid.errors import DatasetError, ModelWarning
+from consistid.errors import DatasetError, ModelMisfitWarning
 from consistid.online.scenario import payload_change_run
 from consistid.simulate import MountedPayload
 
@@ -120,7 +120,7 @@ def test_a_payload_on_another_body_is_not_reported_as_one_on_the_last(ur5_run):
     est = ci.RecursiveEstimator(model, forgetting=0.9999)
     est.update_batch(d.q, d.dq, d.ddq, d.tau, t=d.t, record=False)
     with warnings.catch_warnings():
-        warnings.simplefilter("error", ModelWarning)
+        warnings.simplefilter("error", ModelMisfitWarning)
         est.payload(0)                                   # a payload on the last body: no word
     other = payload_change_run(model, duration=8.0, change_time=5.0, torque_noise=0.1, seed=2,
                                payload=MountedPayload(2.0, (0.0, 0.0, 0.05),
@@ -129,6 +129,6 @@ def test_a_payload_on_another_body_is_not_reported_as_one_on_the_last(ur5_run):
     est = ci.RecursiveEstimator(model, forgetting=0.9999)
     est.update_batch(d.q, d.dq, d.ddq, d.tau, t=d.t, record=False)
     assert est.changes and abs(est.changes[0].time - 5.0) < 0.05
-    with pytest.warns(ModelWarning, match="not a payload on 'wrist_3_link'"):
+    with pytest.warns(ModelMisfitWarning, match="not a payload on 'wrist_3_link'"):
         pay = est.payload(0)
     assert any("not a payload" in note for note in pay.notes)

@@ -45,7 +45,7 @@ from ..identification.constraints import (BodyScaling, com_box, ellipsoid_lmi, m
 from ..data.checks import check_effort
 from ..data.dataset import Dataset
 from ..errors import (BoundActiveWarning, IdentificationError, InfeasibleError, ModelError,
-                     ModelWarning, NothingFoundWarning,
+                     ModelMisfitWarning, NothingFoundWarning,
                      OptionError, PoorExcitationError, PoorExcitationWarning, check_bounds,
                      check_box, check_option)
 from ..report.html import Page
@@ -782,7 +782,7 @@ def payload_from_base_change(model: RobotModel, unloaded: IdentificationResult |
                 "mass was added elsewhere on the arm (body=/frame=), or friction or an offset "
                 "changed: this payload is only the nearest one and its ± do not hold")
         notes = [text, *notes]
-        warnings.warn(text, ModelWarning, stacklevel=2)
+        warnings.warn(text, ModelMisfitWarning, stacklevel=2)
     return _payload_result(theta, _covariance(r, ident[2]), frame_name,
                            model.body_names[index], "base-change", ident, report,
                            notes_weight + notes,
