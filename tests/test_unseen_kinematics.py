@@ -14,25 +14,37 @@ from consistid.errors import DataQualityWarning, DatasetError, PoorExcitationErr
 from consistid.kinematics import KinematicParameters
 
 
-@pytest.fixture(scope="module")
-def ur5_positions():
-    """A UR5 whose zero offsets are off by ±0.5°, measured at tool0 (positions, 10 µm noise)."""
+def _ur5_with_offsets(rng: np.random.Generator):
+    """A UR5, its tool0 position chart, zero offsets drawn within ±0.5° and the robot that has
+    them: ``(model, chart, truth, real)``."""
     model = ci.RobotModel.example("ur5")
     chart = KinematicParameters(model, "tool0", "position")
-    rng = np.random.default_rng(3)
     truth = np.zeros(chart.size)
     for i, name in enumerate(chart.names[:chart.n_kinematic]):
         if name.endswith(".zero"):
             truth[i] = np.radians(rng.uniform(-0.5, 0.5))
-    real = chart.robot_model(truth)
-    lim = model.limits
-    q = rng.uniform(np.maximum(lim.lower, -np.pi), np.minimum(lim.upper, np.pi), (40, model.nv))
+    return model, chart, truth, chart.robot_model(truth)
+
+
+def _tool0_positions(real: ci.RobotModel, q: np.ndarray, rng: np.random.Generator
+                     ) -> np.ndarray:
+    """``real``'s tool0 positions at ``q`` (N, 3), with 10 µm noise."""
     data, fid = real.pin_model.createData(), real.pin_model.getFrameId("tool0")
     pos = []
     for qk in q:
         pin.framesForwardKinematics(real.pin_model, data, real.configuration(qk))
         pos.append(data.oMf[fid].translation + rng.normal(0, 1e-5, 3))
-    return model, chart, truth, q, np.array(pos)
+    return np.array(pos)
+
+
+@pytest.fixture(scope="module")
+def ur5_positions():
+    """A UR5 whose zero offsets are off by ±0.5°, measured at tool0 (positions, 10 µm noise)."""
+    rng = np.random.default_rng(3)
+    model, chart, truth, real = _ur5_with_offsets(rng)
+    lim = model.limits
+    q = rng.uniform(np.maximum(lim.lower, -np.pi), np.minimum(lim.upper, np.pi), (40, model.nv))
+    return model, chart, truth, q, _tool0_positions(real, q, rng)
 
 
 def test_empty_input_is_named(ur5_positions):
@@ -121,20 +133,9 @@ def test_a_sigma_ten_times_too_small_is_warned_not_used_to_reject_the_data(ur5_p
 def test_nearly_identical_poses_are_refused_not_held_with_tight_sigma():
     """Before: 40 poses within 1e-4 rad of one another held two zero offsets at 0 (as for a
     point on a joint axis) and gave the other three ± 0.001°, 100–600 σ from the truth."""
-    model = ci.RobotModel.example("ur5")
-    chart = KinematicParameters(model, "tool0", "position")
     rng = np.random.default_rng(2)
-    truth = np.zeros(chart.size)
-    for i, name in enumerate(chart.names[:chart.n_kinematic]):
-        if name.endswith(".zero"):
-            truth[i] = np.radians(rng.uniform(-0.5, 0.5))
-    real = chart.robot_model(truth)
+    model, _, _, real = _ur5_with_offsets(rng)
     q = rng.uniform(-1, 1, 6) + rng.normal(0, 1e-4, (40, 6))
-    data, fid = real.pin_model.createData(), real.pin_model.getFrameId("tool0")
-    pos = []
-    for qk in q:
-        pin.framesForwardKinematics(real.pin_model, data, real.configuration(qk))
-        pos.append(data.oMf[fid].translation + rng.normal(0, 1e-5, 3))
+    pos = _tool0_positions(real, q, rng)
     with pytest.raises(PoorExcitationError, match=r"40 configurations barely see \w+_joint\.zero"):
-        ci.calibrate_kinematics(model, q, np.array(pos), frame="tool0", parameters="zero",
-                                sigma=1e-5)
+        ci.calibrate_kinematics(model, q, pos, frame="tool0", parameters="zero", sigma=1e-5)
