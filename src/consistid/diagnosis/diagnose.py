@@ -70,7 +70,7 @@ from ..errors import (DataQualityWarning, ModelError, ModelMisfitWarning, Option
 from ..identification.regressor import joint_columns
 from ..identification.statistics import autocorrelation_time, coloured_covariance
 from ..progress import Progress
-from ..robot.inertia import is_degenerate
+from ..robot.inertia import degenerate_bodies
 from ..robot.model import RobotModel, require_model
 from .candidates import EFFECT_NAMES, SIGNATURES, Atom, EffectLibrary, GapData
 from .effects import REGISTRY, EffectParameter
@@ -791,9 +791,7 @@ def _sdp_inertia(model: RobotModel, train: GapData, nominal: np.ndarray, others:
     # link) is no prior at all: a Euclidean pull towards it held
     # the fitted link near zero mass and left most of the gap unexplained. Then the data and
     # the consistency constraints alone decide (the torques depend on the base parameters only).
-    bad = [name for name, body in zip(model.body_names,
-                                      nominal[:model.n_inertial].reshape(-1, 10))
-           if is_degenerate(body)]
+    bad = degenerate_bodies(nominal, model.body_names)
     prior = None if bad else "logdet"
     with warnings.catch_warnings():
         # the refit's torques have the other effects (dry friction among them) taken out; what

@@ -51,7 +51,7 @@ from ..data.dataset import Dataset, as_dataset
 from ..errors import (ModelMisfitWarning, ModelWarning, OptionError, PoorExcitationError,
                       PoorExcitationWarning, check_option)
 from ..friction.fit import NONLINEAR_OPTIONS, identify_nonlinear, is_nonlinear
-from ..robot.inertia import is_degenerate
+from ..robot.inertia import degenerate_bodies
 from ..robot.joint_terms import STANDSTILL_SPEED
 from ..robot.model import RobotModel, require_model
 from .regressor import DEFAULT_FRICTION, FrictionArg, RegressorSpec, parameter_names, prior_vector
@@ -168,8 +168,7 @@ def default_prior(model: RobotModel) -> str:
     :class:`ModelWarning` naming the bodies: a log-det divergence centred on a body with no
     extent along some direction (a point mass, a rod, a CAD export's non-physical inertia)
     weighs that direction by ``1/λ_min`` and is no prior at all."""
-    bodies = model.prior_parameters[:model.n_inertial].reshape(-1, 10)
-    bad = [name for name, body in zip(model.body_names, bodies) if is_degenerate(body)]
+    bad = degenerate_bodies(model.prior_parameters, model.body_names)
     if not bad:
         return "logdet"
     warnings.warn(f"{', '.join(bad)}: the URDF pseudo-inertia is not positive definite to "

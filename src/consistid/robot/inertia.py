@@ -117,6 +117,13 @@ def is_degenerate(p: np.ndarray) -> bool:
     return not lam[0] > DEGENERATE_RTOL * max(lam[-1], 0.0)
 
 
+def degenerate_bodies(parameters: np.ndarray, names: Sequence[str]) -> list[str]:
+    """The ``names`` of the bodies (10 inertial parameters each, in order, from the start of
+    ``parameters``) that are :func:`is_degenerate`."""
+    bodies = np.asarray(parameters, dtype=float)[:10 * len(names)].reshape(-1, 10)
+    return [name for name, body in zip(names, bodies) if is_degenerate(body)]
+
+
 def pseudo_inertia_map() -> np.ndarray:
     r"""The constant (16, 10) matrix ``P`` with ``vec(J) = P π`` (column-major ``vec``).
 
