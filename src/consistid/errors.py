@@ -161,6 +161,12 @@ class PoorExcitationWarning(UserWarning):
     """The data excite the base parameters poorly (large condition number)."""
 
 
+class ExtrapolationWarning(UserWarning):
+    """New data go where the training data never went (a velocity sign a joint never moved
+    with, a position, speed or acceleration range exceeded): the prediction there extrapolates,
+    and directions the training data barely informed may decide it. Names the joint and what."""
+
+
 class DataQualityWarning(UserWarning):
     """The data look suspicious but usable (e.g. a lone glitch in a torque channel): names the
     field, sample and joint, and what to do."""

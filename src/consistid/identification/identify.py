@@ -59,6 +59,8 @@ from .result import IdentificationResult
 from .solver import SolverReport
 from .statistics import coloured_covariance
 from .uninformed import uninformed_directions
+from .envelope import TrainingEnvelope
+from .weak import weakly_informed
 from .streaming import (DataStream, ResidualStatistics, as_stream, compress_data, is_one_pass,
                         is_stream, residual_statistics)
 
@@ -275,8 +277,9 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
                               "list of them), not a stream")
         if method == "sdp" and prior == "auto":         # resolved once, not per search step
             prior = default_prior(model)
-        return identify_nonlinear(model, dataset, method, friction, armature, constraints, prior,
-                                  covariance, **options)
+        return dataclasses.replace(identify_nonlinear(
+            model, dataset, method, friction, armature, constraints, prior, covariance,
+            **options), envelope=TrainingEnvelope.of(dataset))
     spec = RegressorSpec.make(model, friction, armature)
     base = base_parameters_of(model, spec)
     problem = compress_data(model, dataset, spec, base)
@@ -295,7 +298,33 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
                 prior=default_prior(model) if prior == "auto" else prior, **options)
         result = identify_sdp(model, problem, base, spec, given,
                               dataset=dataset if isinstance(dataset, Dataset) else None)
-    return with_covariance(result, problem, dataset, covariance)
+    return with_weak_directions(with_covariance(result, problem, dataset, covariance), problem,
+                                dataset)
+
+
+def with_weak_directions(result: IdentificationResult, problem: CompressedProblem,
+                         dataset: Dataset | DataStream) -> IdentificationResult:
+    """``result`` with its training :attr:`~IdentificationResult.envelope` and its
+    :attr:`~IdentificationResult.weakly_informed` directions
+    (:func:`consistid.identification.weak.weakly_informed`), warned with a
+    :class:`PoorExcitationWarning`; a stream (read part by part) keeps neither."""
+    if not isinstance(dataset, Dataset):
+        return dataclasses.replace(result, details={
+            **result.details, "weakly_informed": "not assessed (a stream: no training envelope)"})
+    envelope = TrainingEnvelope.of(dataset)
+    r_b, _, _ = problem.stacked(sigma=result.sigma, columns=result.base.independent)
+    weak = weakly_informed(result.model, result.spec, result.base, r_b, envelope,
+                           np.sqrt(problem.tau_sum_squares / max(problem.n_samples, 1)))
+    if weak:
+        decides = ("the SDP's priors decide them (the CAD bodies; for friction and offset the "
+                   "joint prior, details['joint_prior'])" if result.method == "sdp" else
+                   "least squares gives them whatever the noise does (± base_std)")
+        warnings.warn(f"the data barely inform {len(weak)} direction(s) of the parameters: "
+                      f"{'; '.join(weak[:3])}{' …' if len(weak) > 3 else ''}. {decides}; "
+                      "res.weakly_informed lists them, and predict warns on data beyond the "
+                      "training envelope (res.envelope). Move every joint both ways, over its "
+                      "range, to inform them", PoorExcitationWarning, stacklevel=3)
+    return dataclasses.replace(result, envelope=envelope, weakly_informed=weak)
 
 
 def with_covariance(result: IdentificationResult, problem: CompressedProblem,

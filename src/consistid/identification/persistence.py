@@ -13,9 +13,14 @@ literals, readable by ``jq`` or any language) with these top-level keys:
     the base-parameter map (``independent``, ``dependent``, ``K``, ``diag_r``, ``rtol``), and for
     a reader: each base parameter's ``names`` (``*`` marks a regrouped one), ``groupings``,
     ``values``, ``std`` and ``covariance``.
-``sigma``, ``condition_number``, ``train_rms``, ``n_samples``, ``uninformed``
+``sigma``, ``condition_number``, ``train_rms``, ``n_samples``, ``uninformed``, ``weakly_informed``
     per-joint noise, cond(W_b), training RMS per joint, samples, the base-parameter
-    directions the data do not inform.
+    directions the data do not inform and those they inform weakly (optional: files written
+    before it have none).
+``envelope``
+    where the training data went per joint (``q_min``, ``q_max``, ``dq_max``, ``ddq_max``, the
+    ``positive``/``negative`` moving-sample counts): optional, ``null`` or absent in a file
+    without it, whose ``predict`` then does not warn on extrapolation.
 ``solver``
     the solver report: name, status, times, iterations.
 ``consistency``
@@ -60,6 +65,7 @@ import numpy as np
 from ..errors import ModelError, ResultFileError
 from ..robot.model import RobotModel, model_without_dynamics
 from .base import BaseParameters
+from .envelope import TrainingEnvelope
 from .regressor import RegressorSpec
 from .solver import SolverReport
 
@@ -308,6 +314,9 @@ def result_dict(res: "IdentificationResult") -> dict[str, Any]:
         "solver": {"name": s.name, "status": s.status, "solve_time": s.solve_time,
                    "compile_time": s.compile_time, "iterations": s.iterations},
         "uninformed": list(getattr(res, "uninformed", ())),
+        "weakly_informed": list(getattr(res, "weakly_informed", ())),
+        "envelope": None if getattr(res, "envelope", None) is None
+        else encode(res.envelope.to_dict()),
         "consistency": consistency_dict(res), "spec": spec_dict(res.spec),
         "model": model_dict(res.model), "details": encode(dict(res.details)),
         "provenance": encode(make_provenance(res.provenance)),
@@ -337,6 +346,18 @@ def _array(doc: Mapping[str, Any], key: str, where: str, shape: tuple[int, ...])
     if out.shape != shape:
         raise ResultFileError(f"{where}: field {key!r} has shape {out.shape}, expected {shape}")
     return out
+
+
+def _envelope(value: Any, where: str) -> TrainingEnvelope | None:
+    """The training envelope of a result file; ``None`` when the file has none (written before
+    results kept it, or from a stream)."""
+    if value is None:
+        return None
+    try:
+        return TrainingEnvelope.from_dict(decode(value))
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ResultFileError(f"{where}: field 'envelope' is not a training envelope "
+                              f"({exc})") from exc
 
 
 def read_result_fields(path: str | Path, model: RobotModel | None = None,
@@ -386,6 +407,8 @@ def read_result_fields(path: str | Path, model: RobotModel | None = None,
                             float(s.get("compile_time", 0.0)), s.get("iterations")),
         details=decode(doc.get("details", {})),
         uninformed=tuple(doc.get("uninformed", ())),
+        weakly_informed=tuple(doc.get("weakly_informed", ())),
+        envelope=_envelope(doc.get("envelope"), where),
         provenance=decode(doc.get("provenance", {})),
         kind=str(doc.get("kind", "identification")), extra=decode(doc.get("extra", {})))
 

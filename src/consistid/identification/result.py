@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
+import warnings
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -14,9 +15,10 @@ import scipy.stats
 
 from . import persistence
 from .base import BaseParameters
+from .envelope import TrainingEnvelope
 from ..data.checks import check_magnitudes
 from ..data.dataset import Dataset, as_dataset
-from ..errors import ResultFileError, check_number, check_option
+from ..errors import ExtrapolationWarning, ResultFileError, check_number, check_option
 from ..robot.export import write_urdf
 from ..robot.mjcf import write_mjcf
 from ..robot.model import RobotModel
@@ -114,6 +116,15 @@ class IdentificationResult(StandardParameterSet):
         from the prior (or the constraints) alone, their ``base_std`` is ``inf``. Empty when
         the data inform every direction. Shown by :meth:`summary`; a
         :class:`~consistid.errors.PoorExcitationWarning` names them when the result is made.
+    weakly_informed : the directions the data inform so weakly that one σ along them moves
+        predictions by more than :data:`~consistid.identification.weak.WEAK_RATIO` of the
+        torque on the trained motions run with either velocity sign, and each joint that moved
+        one way only (its Coulomb and offset), in words
+        (:func:`consistid.identification.weak.weakly_informed`); warned when the result is made.
+    envelope : where the training data went, per joint
+        (:class:`~consistid.identification.envelope.TrainingEnvelope`); :meth:`predict` warns
+        (:class:`~consistid.errors.ExtrapolationWarning`) on data that leave it. ``None`` for a
+        stream or a result file written without it.
     """
 
     method: str
@@ -133,6 +144,8 @@ class IdentificationResult(StandardParameterSet):
     details: dict[str, Any] = field(default_factory=dict)
     provenance: dict[str, Any] = field(default_factory=dict)
     uninformed: tuple[str, ...] = ()
+    weakly_informed: tuple[str, ...] = ()
+    envelope: TrainingEnvelope | None = None
 
     #: What a saved file calls this kind of result (``"kind"`` in its JSON); each subclass names
     #: its own and :meth:`load` gives back that class.
@@ -207,7 +220,24 @@ class IdentificationResult(StandardParameterSet):
         dataset = as_dataset(dataset)
         dataset.check_joints(self.model.nv, self.model.joint_names)
         check_magnitudes(dataset, ("q", "dq", "ddq"), self.model.joint_names)
+        self._warn_extrapolation(dataset)
         return predict_torque(self.model, dataset, self.spec, self.parameters)
+
+    def _warn_extrapolation(self, dataset: Dataset) -> None:
+        """An :class:`~consistid.errors.ExtrapolationWarning` naming where ``dataset`` leaves
+        the training :attr:`envelope` (nothing without one)."""
+        envelope = getattr(self, "envelope", None)
+        if envelope is None or envelope.joint_names and len(envelope.joint_names) != dataset.nv:
+            return
+        away = envelope.departures(dataset)
+        if away:
+            weak = ("; the data barely informed " + "; ".join(self.weakly_informed[:2])
+                    if self.weakly_informed else "")
+            warnings.warn(f"these data go where the training data never went: "
+                          f"{'; '.join(away[:4])}{' …' if len(away) > 4 else ''}. The "
+                          f"prediction there extrapolates{weak}. Train on motions that cover "
+                          "them (res.envelope holds the trained ranges)", ExtrapolationWarning,
+                          stacklevel=3)
 
     def residual(self, dataset: Dataset, *, at_rest: str = "point",
                  rest_speed: float = STANDSTILL_SPEED) -> np.ndarray:

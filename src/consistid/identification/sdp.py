@@ -72,6 +72,7 @@ from . import priors
 from . import program as compiled_programs
 from .base import COND_WARN, RANK_RTOL, BaseParameters
 from .compression import CompressedProblem, compress, floor_sigma, joint_sigma
+from .joint_prior import append_rows, joint_prior_rows
 from .solver import DEFAULT_SOLVER, SolverReport, check_solver, solve
 from .uninformed import uninformed_directions
 from ..data.dataset import Dataset
@@ -162,6 +163,7 @@ class SDPOptions:
     mass_bounds: Mapping[str, tuple[float | None, float | None]] | None = None
     total_mass: tuple[float | None, float | None] | None = None
     friction_nonnegative: bool = True
+    joint_prior: bool = True
     margin: float = 1e-6
     sigma: Sequence[float] | None = None
     reweight: int | None = None
@@ -175,7 +177,7 @@ class SDPOptions:
         check_option("prior", self.prior, PRIORS)
         check_option("loss", self.loss, LOSSES)
         object.__setattr__(self, "solver", check_solver(self.solver))
-        for name in ("scale", "friction_nonnegative"):
+        for name in ("scale", "friction_nonnegative", "joint_prior"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise OptionError(f"{name} must be True or False, got {getattr(self, name)!r}")
         if self.solver_options is not None and not isinstance(self.solver_options, Mapping):
@@ -264,6 +266,10 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
     mass_bounds : ``{body: (lower, upper)}`` in kg (``None`` for no bound).
     total_mass : ``(lower, upper)`` bounds on the sum of the body masses (kg).
     friction_nonnegative : constrain Coulomb, viscous friction and armature to be ``≥ 0``.
+    joint_prior : a weak Gaussian prior on Coulomb, viscous friction and offset, σ the joint's
+        effort limit (viscous: effort / velocity limit), which decides the directions the data
+        leave free, e.g. ``f_c − f_o`` of a joint that moves one way only
+        (:mod:`consistid.identification.joint_prior`; default on, ``details["joint_prior"]``).
     margin : ``J_i ⪰ margin·J_ref,i`` for the pseudo-inertia levels (``M_i ⪰ margin·M_ref,i``,
         the 6×6 matrix, for ``"mass-inertia"``), ``J_ref`` the prior body (or its realisable
         stand-in when the prior is not realisable): a margin relative to the prior in every
@@ -346,13 +352,15 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
                               f"{sigma!r}")
     sig = floor_sigma(sig, problem)
 
+    prior_rows = (joint_prior_rows(model, spec, prior_vec) if opts.joint_prior
+                  else (np.zeros((0, prior_vec.size)), np.zeros(0), "off (joint_prior=False)"))
     work, theta = problem, None
     solve_time = compile_time = 0.0
     iterations = refinements = 0
     setup_time = time.perf_counter() - start
     for k in range(passes + 1):
         t0 = time.perf_counter()
-        r_full, z_full, _ = work.stacked(sigma=sig)
+        r_full, z_full = append_rows(*work.stacked(sigma=sig)[:2], *prior_rows[:2])
         program = _build(model, spec, r_full, z_full, prior_vec, setup, scale, solver=solver)
         setup_time += time.perf_counter() - t0
         try:
@@ -412,7 +420,7 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
                    solver=solver, sigma_source=source,
                    passes={"reweighting": k + 1, "refinements": refinements},
                    timing={"solve": solve_time, "compile": compile_time, "setup": setup_time},
-                   scaled=scale)
+                   scaled=scale, joint_prior=prior_rows[2])
     return IdentificationResult(
         method="sdp", model=model, spec=spec, base=base, parameters=theta,
         parameter_names=tuple(parameter_names(model, spec)), prior=prior_vec,

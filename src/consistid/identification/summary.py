@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING, Sequence
 import numpy as np
 
 from .base import COND_WARN
+from .weak import WEAK_RATIO
 
 if TYPE_CHECKING:
     from .result import IdentificationResult
@@ -83,4 +84,10 @@ def identification_summary(res: "IdentificationResult", max_rows: int | None = N
         lines += ["", f"Not informed by the data ({len(uninformed)} direction(s); their values "
                       f"come from {source}, ± std = inf):"]
         lines += [f"  - {u}" for u in uninformed]
+    weak = getattr(res, "weakly_informed", ())
+    if weak:
+        lines += ["", f"Weakly informed by the data ({len(weak)}; 1σ moves predictions by more "
+                      f"than {WEAK_RATIO:.0%} of the torque on the trained motions run either "
+                      "way, or a joint moved one way only; predict warns beyond res.envelope):"]
+        lines += [f"  - {w}" for w in weak]
     return "\n".join(lines)
