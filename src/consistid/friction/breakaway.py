@@ -390,7 +390,7 @@ def estimate_breakaway(model: RobotModel | StandardParameterSet, data: Dataset |
     problems: list[tuple[type, str]] = []
     for j in chosen:
         if windows is not None:
-            idx, tried = [], 0
+            idx, tried, still = [], 0, {1: 0, -1: 0}
             for ramp, first, last, moved in windows:
                 if ramp.joint != j:
                     continue
@@ -398,14 +398,23 @@ def estimate_breakaway(model: RobotModel | StandardParameterSet, data: Dataset |
                 found, _ = _events(data.dq[first:last + 1, j], data.t[first:last + 1],
                                    segment[first:last + 1], threshold, 0.0, first)
                 idx += found[:1]
+                still[ramp.direction] += not found
+            top = float(run.plan.max_torque[j])
             if not idx:
-                top = float(run.plan.max_torque[j])
                 problems.append((IdentificationError,
                                  f"joint {names[j]!r} did not move in any of its {tried} ramps "
                                  f"up to ±{top:.4g} N·m beyond g(q0): its break-away torque is "
-                                 "larger (raise max_torque within the effort limit) or the joint "
-                                 "is blocked"))
+                                 f"above {top:.4g} N·m, not a number (raise max_torque within "
+                                 "the effort limit) or the joint is blocked"))
                 continue
+            for sign, count in still.items():
+                if count:
+                    message = (f"{names[j]}: {count} ramp(s) towards {'+' if sign > 0 else '−'} "
+                               f"ended without motion at ±{top:.4g} N·m beyond g(q0): the "
+                               f"break-away that way is above {top:.4g} N·m in those; the "
+                               "estimate comes from the ramps that moved (raise max_torque)")
+                    warnings.warn(message, UserWarning, stacklevel=2)
+                    notes.append(message)
         else:
             idx, still = _events(data.dq[:, j], data.t, segment, threshold, min_still)
             if not still:

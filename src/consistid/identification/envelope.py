@@ -33,7 +33,7 @@ MIN_SIGN_SHARE = 0.01
 MIN_SAMPLES = 10
 #: New data leave a range (position, |q̇|, |q̈|) when they exceed it by more than this share of
 #: its width (position) or of its bound (|q̇|, |q̈|): noise on the edges is not extrapolation.
-RANGE_MARGIN = 0.05
+RANGE_MARGIN = 0.1
 
 
 def enough(count: np.ndarray, total: np.ndarray | int) -> np.ndarray:
