@@ -130,11 +130,13 @@ def test_all_zero_torque_is_a_dead_channel(arm, states, method):
         ci.identify(arm, dataset(states, tau=np.zeros((N, 2))), method=method, friction=None)
 
 
-def test_one_dead_torque_channel_is_named(arm, states):
+def test_one_dead_torque_channel_is_named_and_left_out(arm, states):
+    """Issue 26: a dead channel among live ones is warned and excluded, not fatal."""
     tau = states["tau"].copy()
     tau[:, 1] = 0.0
-    with pytest.raises(ci.DatasetError, match=r"dead torque channel\(s\): \['joint2'\]"):
-        ci.identify(arm, dataset(states, tau=tau), method="sdp", friction=None)
+    with pytest.warns(ci.errors.DataQualityWarning, match=r"\['joint2'\] read one value"):
+        res = ci.identify(arm, dataset(states, tau=tau), method="sdp", friction=None)
+    assert res.excluded_joints == ("joint2",) and np.isnan(res.sigma[1])
 
 
 @pytest.mark.parametrize("method", ["ols", "wls", "sdp"])

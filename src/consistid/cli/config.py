@@ -418,6 +418,12 @@ def config_identify(config: RunConfig) -> dict[str, Any]:
         raise ConfigError(f"{config.path.name}: [identify] armature must be true, false or an "
                           "array of joint names (e.g. armature = [\"joint1\", \"joint2\"]), "
                           f"got armature = {_toml(armature)}")
+    excluded = options.get("exclude_joints")
+    if excluded is not None and not (isinstance(excluded, list) and all(
+            isinstance(a, (str, int)) and not isinstance(a, bool) for a in excluded)):
+        raise ConfigError(f"{config.path.name}: [identify] exclude_joints must be an array of "
+                          "joint names (e.g. exclude_joints = [\"joint6\"]: their torque rows "
+                          f"are left out), got exclude_joints = {_toml(excluded)}")
     if "neighbourhood" in options:
         from ..identification.priors import Neighbourhood
 

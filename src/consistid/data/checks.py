@@ -83,14 +83,16 @@ def check_motion(dataset: Dataset) -> None:
             "excitation trajectory (consistid.design_excitation)")
 
 
-def check_torque(dataset: Dataset, joint_names: Sequence[str] | None = None) -> None:
+def check_torque(dataset: Dataset, joint_names: Sequence[str] | None = None,
+                 exclude: Sequence[int] = ()) -> None:
     """:class:`DatasetError` naming a torque channel that is zero in every sample, or whose RMS
     is below :data:`MIN_TORQUE_RMS` (no sensor resolves that: zero in disguise, or wrong
-    units; its noise weight ``1/σ`` would overflow)."""
+    units; its noise weight ``1/σ`` would overflow). Channels in ``exclude`` (joints left out
+    of the identification) are not checked."""
     tau = dataset.require_torque()
     scaled = np.ascontiguousarray(tau.T) / MAX_ABS       # per column, contiguous; no overflow
     rms = np.sqrt(np.einsum("ij,ij->i", scaled, scaled) / tau.shape[0]) * MAX_ABS
-    dead = np.flatnonzero(rms <= MIN_TORQUE_RMS)
+    dead = np.setdiff1d(np.flatnonzero(rms <= MIN_TORQUE_RMS), exclude)
     if dead.size:
         names = [_joint(dataset, j, joint_names) for j in dead]
         what = ("is 0" if not np.any(tau[:, dead[0]])
@@ -198,14 +200,16 @@ def check_effort(dataset: Dataset, effort: np.ndarray,
 
 
 def check_for_identification(dataset: Dataset, joint_names: Sequence[str] | None = None,
-                             limits: tuple[np.ndarray, ...] | None = None) -> None:
+                             limits: tuple[np.ndarray, ...] | None = None,
+                             exclude: Sequence[int] = ()) -> None:
     """All of the above, in order, for data about to be identified (needs torques);
     ``joint_names`` (the model's) name the joints when the dataset does not; ``limits``
-    ``(lower, upper[, effort])`` per joint (the model's) are checked when given."""
+    ``(lower, upper[, effort])`` per joint (the model's) are checked when given; the torque
+    channels in ``exclude`` are not checked for being dead."""
     dataset.require_torque()
     check_magnitudes(dataset, joint_names=joint_names)
     check_motion(dataset)
-    check_torque(dataset, joint_names)
+    check_torque(dataset, joint_names, exclude)
     check_glitches(dataset, FIELDS, joint_names=joint_names, stacklevel=5)
     if limits is not None:
         check_limits(dataset, *limits[:2], joint_names=joint_names, stacklevel=5)

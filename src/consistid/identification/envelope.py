@@ -16,7 +16,7 @@ a range exceeded by more than :data:`RANGE_MARGIN` of its width, in at least
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
@@ -69,10 +69,13 @@ class TrainingEnvelope:
     n_samples: int
 
     @classmethod
-    def of(cls, dataset: Dataset) -> "TrainingEnvelope":
-        """The envelope of a dataset (one pass over its arrays)."""
+    def of(cls, dataset: Dataset, joint_names: Sequence[str] | None = None
+           ) -> "TrainingEnvelope":
+        """The envelope of a dataset (one pass over its arrays); ``joint_names`` (the model's)
+        name the joints, else the dataset's own names or ``joint 1..n``."""
         pos, neg = _counts(dataset.dq)
-        names = dataset.joint_names or tuple(f"joint {j + 1}" for j in range(dataset.nv))
+        names = joint_names or dataset.joint_names or tuple(f"joint {j + 1}"
+                                                            for j in range(dataset.nv))
         return cls(tuple(names), dataset.q.min(axis=0), dataset.q.max(axis=0),
                    np.abs(dataset.dq).max(axis=0), np.abs(dataset.ddq).max(axis=0), pos, neg,
                    int(dataset.q.shape[0]))

@@ -48,8 +48,8 @@ from .base import COND_WARN, RANK_RTOL, BaseParameters, compute_base_parameters
 from .compression import CompressedProblem, floor_sigma, joint_sigma
 from ..data.checks import check_for_identification
 from ..data.dataset import Dataset, as_dataset
-from ..errors import (ModelMisfitWarning, ModelWarning, OptionError, PoorExcitationError,
-                      PoorExcitationWarning, check_option)
+from ..errors import (DataQualityWarning, ModelMisfitWarning, ModelWarning, OptionError,
+                      PoorExcitationError, PoorExcitationWarning, check_option)
 from ..friction.fit import NONLINEAR_OPTIONS, identify_nonlinear, is_nonlinear
 from ..robot.inertia import degenerate_bodies
 from ..robot.joint_terms import STANDSTILL_SPEED
@@ -61,6 +61,8 @@ from .statistics import coloured_covariance
 from .uninformed import uninformed_directions
 from .envelope import TrainingEnvelope
 from .weak import weakly_informed
+from .subset import (dead_channels, expand, lost_parameters, resolve_excluded, restricted,
+                     rows_base, without_joints)
 from .streaming import (DataStream, ResidualStatistics, as_stream, compress_data, is_one_pass,
                         is_stream, residual_statistics)
 
@@ -189,6 +191,7 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
              constraints: str | dict[str, str] = "auto",
              prior: str | None = "auto",
              covariance: str = "auto",
+             exclude_joints: Sequence[int | str] = (),
              **options: Any) -> IdentificationResult:
     """Identify a robot's dynamic parameters from measured torques.
 
@@ -226,6 +229,13 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
         also tests each joint's residual where it stands still against where it moves
         (:func:`standstill_note`: a :class:`~consistid.errors.ModelMisfitWarning` and
         ``details["standstill"]``; not with ``"iid"``, which reads the data once).
+    exclude_joints : joints (names or indices) whose torque rows are left out, e.g. a broken
+        sensor: the other joints' rows still inform the rigid-body parameters
+        (:mod:`consistid.identification.subset`); their friction columns are dropped, and
+        ``details["excluded_joints"]`` names what cannot be identified then. A channel that
+        reads one constant (0) throughout while the arm moves is excluded automatically, with
+        a :class:`~consistid.errors.DataQualityWarning`. ``sigma`` and ``train_rms`` are NaN
+        at excluded joints (no rows); ``res.excluded_joints`` names them.
     **options : keyword options of :func:`consistid.identification.sdp.identify_sdp`, for
         ``method="sdp"`` only.
         Options that only the SDP uses are refused for OLS/WLS, never silently ignored.
@@ -263,14 +273,21 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
             raise OptionError(f"option(s) {extra} apply to method='sdp' only, not {method!r} "
                               "(OLS/WLS are unconstrained and have no prior)")
     require_model(model)
+    excluded = resolve_excluded(model, exclude_joints)
     if is_stream(dataset):  # read part by part (joints checked per part)
         dataset = as_stream(dataset, covariance, options.get("loss"))
     else:
         dataset = as_dataset(dataset)
         dataset.check_joints(model.nv, model.joint_names)
+        excluded = with_dead_channels(model, dataset, excluded)
         # magnitudes, motion, dead channels, glitches, positions beyond the limits
         check_for_identification(dataset, model.joint_names,
-                                 (model.limits.lower, model.limits.upper, model.limits.effort))
+                                 (model.limits.lower, model.limits.upper, model.limits.effort),
+                                 exclude=excluded)
+    if excluded and (is_nonlinear(friction) or options.get("loss") == "huber"):
+        raise OptionError("exclude_joints (or a dead torque channel) works with the linear "
+                          "friction model and the squared loss: not with nonlinear friction "
+                          "laws nor loss='huber'")
     if is_nonlinear(friction):  # Stribeck / sigmoid / tanh laws: consistid.friction.fit
         if not isinstance(dataset, Dataset):
             raise OptionError("nonlinear friction laws need the data in memory (a Dataset or a "
@@ -279,10 +296,12 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
             prior = default_prior(model)
         return dataclasses.replace(identify_nonlinear(
             model, dataset, method, friction, armature, constraints, prior, covariance,
-            **options), envelope=TrainingEnvelope.of(dataset))
-    spec = RegressorSpec.make(model, friction, armature)
-    base = base_parameters_of(model, spec)
+            **options), envelope=TrainingEnvelope.of(dataset, model.joint_names))
+    spec = without_joints(RegressorSpec.make(model, friction, armature), excluded)
+    kept = np.setdiff1d(np.arange(model.nv), excluded)
+    base = base_parameters_of(model, spec) if not excluded else rows_base(model, spec, kept)
     problem = compress_data(model, dataset, spec, base)
+    problem = restricted(problem, kept) if excluded else problem
     if method in ("ols", "wls"):
         result = least_squares(model, problem, base, spec, weighted=method == "wls")
     else:
@@ -298,12 +317,55 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
                 prior=default_prior(model) if prior == "auto" else prior, **options)
         result = identify_sdp(model, problem, base, spec, given,
                               dataset=dataset if isinstance(dataset, Dataset) else None)
-    return with_weak_directions(with_covariance(result, problem, dataset, covariance), problem,
-                                dataset)
+    result = with_weak_directions(with_covariance(result, problem, dataset, covariance, kept),
+                                  problem, dataset, kept)
+    return with_excluded(result, excluded, kept, friction, armature) if excluded else result
+
+
+def with_dead_channels(model: RobotModel, dataset: Dataset, excluded: tuple[int, ...]
+                       ) -> tuple[int, ...]:
+    """``excluded`` with the dead torque channels (:func:`~consistid.identification.subset.
+    dead_channels`) added, each warned (:class:`~consistid.errors.DataQualityWarning`)."""
+    dead = [int(j) for j in dead_channels(dataset) if j not in excluded]
+    if not dead or len(dead) + len(excluded) == model.nv or (
+            not np.any(dataset.dq) and not np.any(dataset.ddq)):
+        return excluded          # no row left, or no motion: check_torque/check_motion say so
+    names = [model.joint_names[j] for j in dead]
+    value = dataset.tau[0, dead[0]]
+    warnings.warn(f"the torque channel(s) of {names} read one value ({value:g} N·m for "
+                  f"{names[0]}) in all {dataset.n_samples} samples while the arm moves: a dead "
+                  "sensor. identify leaves their rows out and identifies from the other joints "
+                  "(res.excluded_joints; details['excluded_joints'] names what cannot be "
+                  "identified then); pass exclude_joints= to say so yourself",
+                  DataQualityWarning, stacklevel=3)
+    return tuple(sorted(set(excluded) | set(dead)))
+
+
+def with_excluded(result: IdentificationResult, excluded: Sequence[int], kept: np.ndarray,
+                  friction: FrictionArg, armature: bool | Sequence[int | str]
+                  ) -> IdentificationResult:
+    """``result`` of the kept joints' rows with per-joint figures over every joint (NaN at the
+    excluded ones), ``excluded_joints`` and ``details["excluded_joints"]``: what the rows left
+    out would have informed (:func:`~consistid.identification.subset.lost_parameters`)."""
+    model = result.model
+    full = base_parameters_of(model, RegressorSpec.make(model, friction, armature))
+    lost = lost_parameters(full, result.base)
+    names = tuple(model.joint_names[j] for j in excluded)
+    details = {**result.details, "excluded_joints": (
+        f"{', '.join(names)}: torque rows left out; not identifiable then: "
+        f"{', '.join(lost) if lost else 'nothing beyond their rows'}")}
+    if "autocorrelation_time" in details:
+        details["autocorrelation_time"] = expand(details["autocorrelation_time"], kept,
+                                                 model.nv)
+    return dataclasses.replace(
+        result, sigma=expand(result.sigma, kept, model.nv),
+        train_rms=expand(result.train_rms, kept, model.nv), details=details,
+        excluded_joints=names)
 
 
 def with_weak_directions(result: IdentificationResult, problem: CompressedProblem,
-                         dataset: Dataset | DataStream) -> IdentificationResult:
+                         dataset: Dataset | DataStream, kept: np.ndarray
+                         ) -> IdentificationResult:
     """``result`` with its training :attr:`~IdentificationResult.envelope` and its
     :attr:`~IdentificationResult.weakly_informed` directions
     (:func:`consistid.identification.weak.weakly_informed`), warned with a
@@ -311,10 +373,10 @@ def with_weak_directions(result: IdentificationResult, problem: CompressedProble
     if not isinstance(dataset, Dataset):
         return dataclasses.replace(result, details={
             **result.details, "weakly_informed": "not assessed (a stream: no training envelope)"})
-    envelope = TrainingEnvelope.of(dataset)
+    envelope = TrainingEnvelope.of(dataset, result.model.joint_names)
     r_b, _, _ = problem.stacked(sigma=result.sigma, columns=result.base.independent)
     weak = weakly_informed(result.model, result.spec, result.base, r_b, envelope,
-                           np.sqrt(problem.tau_sum_squares / max(problem.n_samples, 1)))
+                           np.sqrt(problem.tau_sum_squares / max(problem.n_samples, 1)), kept)
     if weak:
         decides = ("the SDP's priors decide them (the CAD bodies; for friction and offset the "
                    "joint prior, details['joint_prior'])" if result.method == "sdp" else
@@ -328,13 +390,16 @@ def with_weak_directions(result: IdentificationResult, problem: CompressedProble
 
 
 def with_covariance(result: IdentificationResult, problem: CompressedProblem,
-                    dataset: Dataset | DataStream, covariance: str) -> IdentificationResult:
+                    dataset: Dataset | DataStream, covariance: str,
+                    kept: np.ndarray | None = None) -> IdentificationResult:
     """``result`` with its base covariance counted as ``covariance`` says (module docstring)
     and ``details["covariance"]``, ``details["autocorrelation_time"]`` recorded.
 
     ``problem`` is the (unweighted) compressed ``dataset`` the result was fitted on; its weights
-    are ``w_j = 1/σ_j²`` from ``result.sigma`` (OLS: one ``σ`` for all joints).
+    are ``w_j = 1/σ_j²`` from ``result.sigma`` (OLS: one ``σ`` for all joints). ``kept``: the
+    joints whose rows ``problem`` holds (default all).
     """
+    kept = np.arange(result.model.nv) if kept is None else np.asarray(kept)
     check_option("covariance", covariance, COVARIANCES)
     if covariance == "iid":
         once = isinstance(dataset, DataStream) and not dataset.rereadable
@@ -343,7 +408,7 @@ def with_covariance(result: IdentificationResult, problem: CompressedProblem,
                 "; a one-pass stream: the coloured sandwich needs a second reading)" if once
                 else ")")})
     stats = residual_statistics(result.model, result.spec, result.parameters, dataset)
-    tau = stats.autocorrelation_time()
+    tau = stats.autocorrelation_time()[kept]
     cols = result.base.independent
     r_b = problem.factors[:, :-1, :-1][:, :, cols]
     grams = np.matmul(r_b.transpose(0, 2, 1), r_b)  # BLAS per joint (einsum is not)
@@ -355,23 +420,25 @@ def with_covariance(result: IdentificationResult, problem: CompressedProblem,
                             result.base.n_base, tau) ** 2
     cov = coloured_covariance(result.base_covariance, grams, weights, tau,
                               np.where(variances > 0, variances, 1.0 / weights))
-    shown = ", ".join(f"{n} {t:.3g}" for n, t in zip(result.model.joint_names, tau))
+    shown = ", ".join(f"{result.model.joint_names[j]} {t:.3g}" for j, t in zip(kept, tau))
     details = {**result.details,
                "covariance": f"coloured (sandwich, N/τ_j effective rows; τ_j in samples: {shown})",
                "autocorrelation_time": tau}
-    note = standstill_note(stats, result.model.joint_names)
+    note = standstill_note(stats, result.model.joint_names, kept)
     if note:
         warnings.warn(note, ModelMisfitWarning, stacklevel=3)
         details["standstill"] = note
     return dataclasses.replace(result, base_covariance=cov, details=details)
 
 
-def standstill_note(stats: ResidualStatistics, joint_names: Sequence[str]) -> str:
+def standstill_note(stats: ResidualStatistics, joint_names: Sequence[str],
+                    kept: np.ndarray | None = None) -> str:
     """What to say of the joints whose residual is larger where they stand still than where
     they move (:meth:`ResidualStatistics.standstill_excess`: by :data:`STANDSTILL_RATIO` in RMS
     at least, and beyond chance at level :data:`STANDSTILL_ALPHA`), or ``""``."""
     ratio, p = stats.standstill_excess()
     bad = np.flatnonzero((p < STANDSTILL_ALPHA) & (ratio >= STANDSTILL_RATIO))
+    bad = bad if kept is None else np.intersect1d(bad, kept)   # excluded rows: no fit there
     if not bad.size:
         return ""
     share = stats.rest_count / max(stats.n_samples, 1)

@@ -21,6 +21,8 @@ literals, readable by ``jq`` or any language) with these top-level keys:
     where the training data went per joint (``q_min``, ``q_max``, ``dq_max``, ``ddq_max``, the
     ``positive``/``negative`` moving-sample counts): optional, ``null`` or absent in a file
     without it, whose ``predict`` then does not warn on extrapolation.
+``excluded_joints``
+    the joints whose torque rows were left out (optional; none in older files).
 ``solver``
     the solver report: name, status, times, iterations.
 ``consistency``
@@ -315,6 +317,7 @@ def result_dict(res: "IdentificationResult") -> dict[str, Any]:
                    "compile_time": s.compile_time, "iterations": s.iterations},
         "uninformed": list(getattr(res, "uninformed", ())),
         "weakly_informed": list(getattr(res, "weakly_informed", ())),
+        "excluded_joints": list(getattr(res, "excluded_joints", ())),
         "envelope": None if getattr(res, "envelope", None) is None
         else encode(res.envelope.to_dict()),
         "consistency": consistency_dict(res), "spec": spec_dict(res.spec),
@@ -408,6 +411,7 @@ def read_result_fields(path: str | Path, model: RobotModel | None = None,
         details=decode(doc.get("details", {})),
         uninformed=tuple(doc.get("uninformed", ())),
         weakly_informed=tuple(doc.get("weakly_informed", ())),
+        excluded_joints=tuple(doc.get("excluded_joints", ())),
         envelope=_envelope(doc.get("envelope"), where),
         provenance=decode(doc.get("provenance", {})),
         kind=str(doc.get("kind", "identification")), extra=decode(doc.get("extra", {})))

@@ -125,6 +125,9 @@ class IdentificationResult(StandardParameterSet):
         (:class:`~consistid.identification.envelope.TrainingEnvelope`); :meth:`predict` warns
         (:class:`~consistid.errors.ExtrapolationWarning`) on data that leave it. ``None`` for a
         stream or a result file written without it.
+    excluded_joints : joints whose torque rows were left out (``exclude_joints=``, or a dead
+        channel): their ``sigma`` and ``train_rms`` are NaN, and ``details["excluded_joints"]``
+        names what cannot be identified without them (:mod:`consistid.identification.subset`).
     """
 
     method: str
@@ -146,6 +149,7 @@ class IdentificationResult(StandardParameterSet):
     uninformed: tuple[str, ...] = ()
     weakly_informed: tuple[str, ...] = ()
     envelope: TrainingEnvelope | None = None
+    excluded_joints: tuple[str, ...] = ()
 
     #: What a saved file calls this kind of result (``"kind"`` in its JSON); each subclass names
     #: its own and :meth:`load` gives back that class.

@@ -72,22 +72,26 @@ def reference_states(envelope: TrainingEnvelope, n: int = REFERENCE_SAMPLES, see
 
 def weak_directions(model: RobotModel, spec: RegressorSpec, base: BaseParameters,
                     r_b: np.ndarray, envelope: TrainingEnvelope, torque_rms: np.ndarray,
-                    ratio: float = WEAK_RATIO, rtol: float = RANK_RTOL
+                    ratio: float = WEAK_RATIO, rtol: float = RANK_RTOL,
+                    joints: np.ndarray | None = None
                     ) -> list[tuple[np.ndarray, float, np.ndarray]]:
     """The weakly informed directions (module docstring), largest ratio first, as
     ``(v, ratio, effect)``: ``v`` (b,) the 1σ move of the base parameters, ``ratio`` its relative
     torque on the reference states, ``effect`` (b,) each base parameter's share of it (RMS
     relative torque of ``v_i`` alone). Directions the data do not inform at all (singular
     value below ``rtol``) are left to :func:`~consistid.identification.uninformed.
-    uninformed_directions`."""
+    uninformed_directions`. ``joints``: the joints whose torque rows the data hold (default
+    all; ``torque_rms`` is theirs)."""
     _, s, vt = np.linalg.svd(r_b)
     keep = s > rtol * s[0] if s.size and s[0] > 0 else np.zeros(s.size, dtype=bool)
     if not np.any(keep):
         return []
     q, dq, ddq = reference_states(envelope)
     n, nv = q.shape
+    rows = np.arange(nv) if joints is None else np.asarray(joints)
     scale = np.where(torque_rms > 0, torque_rms, max(float(np.max(torque_rms)), 1.0))
-    w = base.base_columns(regressor(model, q, dq, ddq, spec)).reshape(n, nv, -1)
+    w = base.base_columns(regressor(model, q, dq, ddq, spec)).reshape(n, nv, -1)[:, rows]
+    nv = rows.size
     w = (w / scale[None, :, None] / np.sqrt(n)).reshape(n * nv, -1)
     to_beta = vt[keep].T / s[keep]                         # unit χ² coordinates → δβ
     _, a, qt = np.linalg.svd(w @ to_beta, full_matrices=False)
@@ -115,7 +119,8 @@ def _standard(name: str) -> str:
 
 def weakly_informed(model: RobotModel, spec: RegressorSpec, base: BaseParameters,
                     r_b: np.ndarray, envelope: TrainingEnvelope, torque_rms: np.ndarray,
-                    ratio: float = WEAK_RATIO) -> tuple[str, ...]:
+                    joints: np.ndarray | None = None, ratio: float = WEAK_RATIO
+                    ) -> tuple[str, ...]:
     """The weakly informed directions in words (module docstring): each joint that moved one way
     only (``"j's Coulomb and offset: j moves one way only in these data (…)"``), then each
     direction of :func:`weak_directions` not already said so, with the base parameters that
@@ -132,7 +137,8 @@ def weakly_informed(model: RobotModel, spec: RegressorSpec, base: BaseParameters
         out.append(f"{_in_words(pair)}: {envelope.describe_one_way(j)}, so the data cannot "
                    f"tell f_c·sign(q̇) from f_o; predictions with {joint} moving the other way "
                    "are extrapolation")
-    for v, r, effect in weak_directions(model, spec, base, r_b, envelope, torque_rms, ratio):
+    for v, r, effect in weak_directions(model, spec, base, r_b, envelope, torque_rms, ratio,
+                                        joints=joints):
         order = np.argsort(-effect)
         shown = [i for i in order[:SHOWN_TERMS] if effect[i] >= SHOWN_SHARE * effect[order[0]]]
         terms = [names[i] for i in shown]
