@@ -77,6 +77,7 @@ def test_a_one_way_joint_is_named_and_warned(one_way, fitted):
     assert said and f"{joint}'s Coulomb and offset: {joint} moves one way only" in said[0]
     assert res.weakly_informed[0].startswith(f"{joint}'s Coulomb and offset")
     assert "Weakly informed by the data" in res.summary() and joint in res.summary()
+    assert "only weakly informed by the data" in res._repr_html_()
 
 
 def test_reversed_motion_warns_and_is_no_worse_than_nominal(one_way, fitted):
@@ -132,6 +133,14 @@ def synthetic(model, seed: int, one_way: bool, noise: float = 0.05):
     tau = (regressor(model, data.q, dq, data.ddq, spec) @ truth).reshape(-1, model.nv)
     return ci.Dataset(t=data.t, q=data.q, dq=dq, ddq=data.ddq,
                       tau=tau + noise * rng.standard_normal(tau.shape))
+
+
+def test_least_squares_refuses_a_one_way_joint_and_says_why():
+    model = ci.RobotModel.example("ur5")
+    with pytest.raises(ci.errors.PoorExcitationError,
+                       match=r"shoulder_pan_joint moves one way only in these data \(q̇ > 0; "
+                             r"0 of 2000 moving samples with q̇ < 0\)"):
+        ci.identify(model, synthetic(model, 1, one_way=True), method="ols")
 
 
 def test_the_joint_prior_splits_a_one_way_constant_equally():

@@ -60,7 +60,7 @@ from .solver import SolverReport
 from .statistics import coloured_covariance
 from .uninformed import uninformed_directions
 from .envelope import TrainingEnvelope
-from .weak import weakly_informed
+from .weak import one_way_note, weakly_informed
 from .subset import (dead_channels, expand, lost_parameters, resolve_excluded, restricted,
                      rows_base, without_joints)
 from .streaming import (DataStream, ResidualStatistics, as_stream, compress_data, is_one_pass,
@@ -303,7 +303,13 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
     problem = compress_data(model, dataset, spec, base)
     problem = restricted(problem, kept) if excluded else problem
     if method in ("ols", "wls"):
-        result = least_squares(model, problem, base, spec, weighted=method == "wls")
+        try:
+            result = least_squares(model, problem, base, spec, weighted=method == "wls")
+        except PoorExcitationError as exc:
+            if not isinstance(dataset, Dataset):
+                raise
+            raise PoorExcitationError(str(exc) + one_way_note(
+                model, spec, TrainingEnvelope.of(dataset, model.joint_names))) from exc
     else:
         from .sdp import SDPOptions, identify_sdp
 

@@ -68,6 +68,16 @@ def verdict(res: "IdentificationResult") -> tuple[str, list[str]]:
                      f"data (σ = inf): {'; '.join(uninformed[:4])}"
                      + (" …" if len(uninformed) > 4 else "")
                      + ". Their values come from the prior or the constraints alone.")
+    weak = tuple(getattr(res, "weakly_informed", ()))
+    if weak:
+        level = "bad" if level == "bad" else "warn"
+        lines.append(f"{len(weak)} direction(s) are only weakly informed by the data: "
+                     f"{'; '.join(weak[:3])}" + (" …" if len(weak) > 3 else "")
+                     + ". Predictions beyond the training envelope extrapolate along them.")
+    excluded = tuple(getattr(res, "excluded_joints", ()))
+    if excluded:
+        level = "bad" if level == "bad" else "warn"
+        lines.append(f"Torque rows left out: {res.details.get('excluded_joints', excluded)}.")
     if res.condition_number > COND_WARN:
         level = "bad" if level == "bad" else "warn"
         lines.append(f"cond(W_b) = {res.condition_number:.4g} > {COND_WARN:.0e}: some base "

@@ -44,7 +44,7 @@ from .envelope import TrainingEnvelope
 from .regressor import RegressorSpec, regressor
 from ..robot.model import RobotModel
 
-__all__ = ["WEAK_RATIO", "weak_directions", "weakly_informed"]
+__all__ = ["WEAK_RATIO", "weak_directions", "weakly_informed", "one_way_note"]
 
 #: Relative torque (of each joint's training RMS, root-sum-square over joints) that a 1σ move
 #: along a direction may change on the sign-symmetric envelope before it is weakly informed.
@@ -148,3 +148,15 @@ def weakly_informed(model: RobotModel, spec: RegressorSpec, base: BaseParameters
                    f"changes the predicted torque by {r:.3g} × the joints' torque RMS on the "
                    "trained motions run with either velocity sign")
     return tuple(out)
+
+
+def one_way_note(model: RobotModel, spec: RegressorSpec, envelope: TrainingEnvelope) -> str:
+    """What to add to a least-squares refusal when joints with a Coulomb column moved one way
+    only (their Coulomb and offset columns are then equal): ``""`` when none did."""
+    coulomb = dict(spec.masks)["coulomb"]
+    said = [envelope.describe_one_way(j) for j, _ in envelope.one_way() if coulomb[j]]
+    if not said:
+        return ""
+    return (f". {'; '.join(said)}: its Coulomb f_c·sign(q̇) and offset f_o are the same column "
+            "there. Record motion in both directions, or use method='sdp', whose joint prior "
+            "splits them (predictions for the other direction then warn)")
