@@ -249,8 +249,9 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
     Raises
     ------
     OptionError for an unknown method or friction term; JointCountError when the dataset's joint
-    count differs from the model's; DatasetError for values beyond ±1e8 (SI units) or a dead
-    torque channel, PoorExcitationError for data without any motion
+    count differs from the model's; DatasetError for values beyond ±1e8 (SI units) or every
+    torque channel dead (one dead channel among live ones is excluded, with a warning),
+    PoorExcitationError for data without any motion
     (:mod:`consistid.data.checks`, before any numerics; a lone glitch only warns,
     :class:`~consistid.errors.DataQualityWarning`); PoorExcitationError when the data cannot
     determine the base parameters (OLS/WLS, naming the directions); IdentificationError /
