@@ -69,6 +69,8 @@ _EXPORTS: dict[str, str] = {
     "identify_drive_gains": "drives.gains",
     "DriveGains": "drives.gains",
     "Transmission": "drives.transmission",
+    "identify_coupled": "drives.coupled",
+    "CoupledResult": "drives.coupled",
 }
 
 #: subpackages reachable as attributes (``ci.simulate.record``)
@@ -98,6 +100,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerl
     from .data.dataset import Dataset
     from .data.recordings import load_recording
     from .diagnosis.diagnose import Diagnosis, diagnose
+    from .drives.coupled import CoupledResult, identify_coupled
     from .drives.gains import DriveGains, identify_drive_gains
     from .drives.transmission import Transmission
     from .estimation.mounting import MountingEstimate, estimate_mounting
