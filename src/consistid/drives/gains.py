@@ -270,11 +270,14 @@ def identify_drive_gains(model: RobotModel, unloaded: Dataset, loaded: Dataset |
     spec = RegressorSpec.make(model, friction, armature)
     problem, blocks = gain_problem(model, runs[0], runs[1], spec, body, mass, g)
     n_theta = problem.n_columns - model.nv
-    fit = _maximum_likelihood(blocks, runs, g, _linear_start(problem, model.nv), n_theta)
+    x0, cov0, r0, cond0 = _linear_start(problem, model.nv)
+    _check_informed(model, r0, cov0, x0[n_theta:], cond0, n_theta, body_name, mass,
+                    max_relative_std)
+    fit = _maximum_likelihood(blocks, runs, g, x0, n_theta)
     x = fit.x
     gains = x[n_theta:]
     _check_informed(model, fit.r, fit.covariance, gains, fit.condition, n_theta, body_name,
-                    mass, max_relative_std)
+                    mass, max_relative_std)            # again, at the maximum-likelihood fit
     std = np.sqrt(np.diag(fit.covariance)[n_theta:])
     load = np.concatenate([[mass], problem.basis @ x[problem.base.n_base:n_theta]])
     details: dict[str, Any] = {"current_sigma": fit.sigma, "autocorrelation_time": fit.tau,
@@ -297,16 +300,19 @@ def identify_drive_gains(model: RobotModel, unloaded: Dataset, loaded: Dataset |
                       details)
 
 
-def _linear_start(problem: GainProblem, nv: int) -> np.ndarray:
+def _linear_start(problem: GainProblem, nv: int) -> tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                          float]:
     """OLS, then WLS with per-joint σ from its residual, of the linear system: the start of
-    :func:`_maximum_likelihood` (biased: the currents in its columns are noisy)."""
+    :func:`_maximum_likelihood` (biased: the currents in its columns are noisy). Returns
+    ``(x, covariance, R of the weighted stack, condition)``."""
     x, _, _ = _solve(problem, np.ones(nv))
     dof = problem.n_rows - problem.n_columns / nv
     if dof <= 0:
         raise PoorExcitationError(f"{problem.n_rows} samples per joint for "
                                   f"{problem.n_columns} unknowns")
     sigma = np.sqrt(_joint_sse(problem, x) / dof)
-    return _solve(problem, np.where(sigma > 0, sigma, 1.0))[0]
+    x, r, cond = _solve(problem, np.where(sigma > 0, sigma, 1.0))
+    return x, np.linalg.pinv(r.T @ r), r, cond
 
 
 @dataclass(frozen=True, eq=False)
@@ -343,6 +349,10 @@ def _maximum_likelihood(blocks: list, runs: list[Dataset], coupling: np.ndarray,
     n_samples, n = currents.shape
     theta, c = x0[:n_theta].copy(), 1.0 / x0[n_theta:]
     sigma = np.ones(n)
+
+    def cost(th: np.ndarray, cc: np.ndarray) -> float:
+        return float(np.sum(((cc * (am @ th - ym) - currents) / sigma) ** 2))
+
     for iteration in range(1, max_iterations + 1):
         p = am @ theta - ym
         resid = c * p - currents
@@ -353,6 +363,11 @@ def _maximum_likelihood(blocks: list, runs: list[Dataset], coupling: np.ndarray,
             / sigma[None, :, None]
         step = np.linalg.lstsq(jac.reshape(n_samples * n, -1),
                                -(resid / sigma).reshape(-1), rcond=None)[0]
+        before, shrink = cost(theta, c), 1.0
+        while shrink > 1e-6 and cost(theta + shrink * step[:n_theta],
+                                     c + shrink * step[n_theta:]) > before:
+            shrink /= 2.0                      # backtracking: the cost never rises
+        step = shrink * step
         theta, c = theta + step[:n_theta], c + step[n_theta:]
         if np.linalg.norm(step) <= tol * (1.0 + np.linalg.norm(np.concatenate([theta, c]))):
             break

@@ -34,9 +34,9 @@ def _vector(name: str, values: Sequence[float] | np.ndarray, nonzero: bool) -> n
         raise OptionError(f"{name} must be a list of numbers, one per motor, got {values!r}")
     bad = np.flatnonzero(~np.isfinite(a) | ((a == 0) if nonzero else False))
     if bad.size:
-        raise OptionError(f"{name}[{int(bad[0])}] = {a[bad[0]]!r}: every entry must be a finite "
-                          f"{'non-zero ' if nonzero else ''}number (the sign gives the "
-                          "direction)")
+        raise OptionError(f"{name}[{int(bad[0])}] = {float(a[bad[0]]):g}: every entry must be "
+                          f"a finite {'non-zero ' if nonzero else ''}number (the sign gives "
+                          "the direction)")
     return a
 
 
