@@ -172,3 +172,29 @@ def test_coupled_wrist_needs_its_motor_terms(ur5):
     truth = np.array([4e-5, 4e-4, 5e-3])
     assert np.all(np.abs(coupled.motor_terms - truth) <= 0.05 * truth)
     assert "drives.Iam6" in coupled.summary()
+
+
+# ----------------------------------------------------------------------------- datasheet path
+@pytest.mark.parametrize("coupling", [None, wrist_coupling(-0.5)])
+def test_load_recording_converts_a_motor_side_log(ur5, tmp_path, coupling):
+    """Motor angles and currents in, the simulation's joint states and drive torques out, the
+    conversion in the recording's steps."""
+    tr = ci.Transmission([101.0, 101, 101, -101, 80, 60], coupling=coupling,
+                         torque_constants=KT)
+    traj = FourierTrajectory.random(ur5, 4, 8.0, np.random.default_rng(4))
+    rec = record_drives(ur5, traj, SimulatedDrives(tr, viscous=1e-4), seed=4, duration=4.0,
+                        rate=500.0)
+    path = tmp_path / "motor_log.npz"
+    np.savez(path, time=rec.t, motor_angle=rec.motor_q, current=rec.currents)
+    loaded = ci.load_recording(path, keys={"t": "time", "q": "motor_angle", "tau": "current"},
+                               model=ur5, drives=tr)
+    data = loaded.dataset
+    assert any("motor side to joint side (drives=)" in s for s in loaded.steps)
+    at = np.searchsorted(rec.t, data.t)                 # the chain trims its filter's edges
+    assert np.allclose(rec.t[at], data.t, atol=1e-9)
+    truth = rec.truth
+    scale = np.abs(truth.tau).max(axis=0)
+    # the chain low-passes the currents (zero phase): the smooth torque passes unchanged
+    assert np.all(np.abs(data.tau - truth.tau[at]).max(axis=0) < 0.02 * scale)
+    np.testing.assert_allclose(data.q, truth.true_q[at], atol=1e-4)
+    assert np.abs(data.dq - truth.true_dq[at]).max() < 0.02
