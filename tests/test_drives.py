@@ -4,6 +4,7 @@ currents with a known load and a coupled wrist, each against the simulation's tr
 from __future__ import annotations
 
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -198,3 +199,53 @@ def test_load_recording_converts_a_motor_side_log(ur5, tmp_path, coupling):
     assert np.all(np.abs(data.tau - truth.tau[at]).max(axis=0) < 0.02 * scale)
     np.testing.assert_allclose(data.q, truth.true_q[at], atol=1e-4)
     assert np.abs(data.dq - truth.true_dq[at]).max() < 0.02
+
+
+# ----------------------------------------------------------------------------- TOML [drives]
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "ur5_drives"
+
+
+def with_drives(tmp_path, drives: str | None = None) -> Path:
+    """The UR5 drives example (its root pointing at the example) with its ``[drives]`` table's
+    body replaced by ``drives`` (``None``: kept)."""
+    text = (EXAMPLE / "identify.toml").read_text().replace('root = "."', f'root = "{EXAMPLE}"')
+    if drives is not None:
+        head, rest = text.split("\n[drives]", 1)
+        text = (head + "\n[drives]\n" + drives + "\n\n[identify]"
+                + rest.split("\n[identify]", 1)[1])
+    config = tmp_path / "identify.toml"
+    config.write_text(text)
+    return config
+
+
+@pytest.mark.parametrize("drives, match", [
+    ("ratios = [101, 101, 0, 101, 101, 101]\ntorque_constants = [0.1, 0.1, 0.1, 0.1, 0.1, 0.1]",
+     r"\[drives\] ratios\[2\] = 0"),
+    ("ratios = [101, 101, 101, 101, 101]\ntorque_constants = [0.1, 0.1, 0.1, 0.1, 0.1]",
+     r"\[drives\] ratios has 5 entries but ur5 has 6 joints"),
+    ("ratios = [101, 101, 101, 101, 101, 101]", r"\[drives\] needs torque_constants"),
+    ("ratios = [101, 101]\ntorque_constants = [0.1, 0.1]\ncoupling = [[1, 1], [2, 2]]",
+     r"\[drives\] coupling is singular"),
+    ("ratios = [101, 101]\ntorque_constants = [0.1, 0.1]\ngear = 3", r"unknown key.*\[drives\]"),
+])
+def test_bad_drives_table_is_named_in_toml_terms(tmp_path, ur5, drives, match):
+    from consistid.cli.config import config_recordings, load_config
+
+    with pytest.raises(ci.ConfigError, match=match):
+        config_recordings(load_config(with_drives(tmp_path, drives)), ur5)
+
+
+@pytest.mark.slow
+def test_the_drives_example_identifies_the_ur5(tmp_path, ur5):
+    """The example's motor-side logs, converted by ``[drives]``, give a consistent UR5 whose
+    held-out residual is at the example's current noise (0.02 A × κ)."""
+    import json
+
+    from consistid.cli import main
+
+    out = tmp_path / "out"
+    config = with_drives(tmp_path)
+    assert main(["-q", "identify", str(config), "--output", str(out)]) == 0
+    result = ci.IdentificationResult.load(out / "result.json")
+    assert ci.is_physically_consistent(result.parameters[:ur5.n_inertial])
+    assert (out / "robot.urdf").exists() and json.loads((out / "result.json").read_text())
