@@ -43,6 +43,8 @@ def log(model, drives, seed, payload=None, chain=False, physics_rate=1000.0):
 
 
 def gains_case(name, seed, chain, physics_rate=1000.0, viscous=(1e-4, 3e-4)):
+    """``viscous``: the range of the motor-side viscous friction (N·m·s/rad at the motor); the
+    joint sees ``r² f_v``."""
     model = ci.RobotModel.example(name)
     rng = np.random.default_rng(seed)
     n = model.nv
@@ -103,11 +105,10 @@ def main() -> None:
     for chain in (False, True):
         for seed in (1, 2, 3):
             gains_case("ur5", seed, chain)
-    # the xArm7's light wrist with r² f_v of motor damping is too stiff for Euler at 1 kHz:
-    # simulated without motor friction
-    for name, viscous in (("panda", (1e-4, 3e-4)), ("ur10", (1e-4, 3e-4)), ("xarm7", (0.0, 0.0))):
-        gains_case(name, 1, False, viscous=viscous)
-        gains_case(name, 1, True, viscous=viscous)
+    # light wrists take r² f_v ≲ 0.5 N·m·s/rad of damping at a 2 kHz Euler step (r ≤ 160)
+    for name in ("panda", "ur10", "xarm7"):
+        gains_case(name, 1, False, 2000.0, viscous=(4e-6, 2e-5))
+        gains_case(name, 1, True, 2000.0, viscous=(4e-6, 2e-5))
     print("* the floor is the raw current noise; the chain's zero-phase low-pass removes most "
           "of it from the held-out currents too")
     print("\ncoupled wrist (motor-side logs, known torque constants)")
