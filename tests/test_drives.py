@@ -249,3 +249,25 @@ def test_the_drives_example_identifies_the_ur5(tmp_path, ur5):
     result = ci.IdentificationResult.load(out / "result.json")
     assert ci.is_physically_consistent(result.parameters[:ur5.n_inertial])
     assert (out / "robot.urdf").exists() and json.loads((out / "result.json").read_text())
+
+
+def test_drive_gains_through_a_coupled_wrist(ur5):
+    """Unknown gains behind a coupled wrist whose motor has inertia and friction: the gains
+    within 1 % and 3σ, and the coupled motor's terms found with them."""
+    tr = ci.Transmission([101.0] * 6, coupling=wrist_coupling(), torque_constants=KT)
+    drives = SimulatedDrives(tr, rotor_inertia=[0.0] * 5 + [4e-5],
+                             viscous=[2e-4] * 5 + [4e-4], current_noise=NOISE)
+    unloaded, loaded = run(ur5, drives, 1), run(ur5, drives, 2, payload=LOAD)
+    ratios_only = ci.Transmission([101.0] * 6, coupling=wrist_coupling())
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ci.ModelMisfitWarning)
+        found = ci.identify_drive_gains(ur5, unloaded, loaded, payload_mass=LOAD.mass,
+                                        method="wls", friction=("viscous",),
+                                        transmission=ratios_only)
+    error = found.gains - tr.gains
+    assert np.all(np.abs(error) <= 0.01 * np.abs(tr.gains)), error / tr.gains
+    assert np.all(np.abs(error) <= 3.0 * found.std), error / found.std
+    terms = found.details["motor_terms"]
+    assert abs(terms["drives.Iam6"] / 4e-5 - 1) < 0.05
+    assert abs(terms["drives.fvm6"] / 4e-4 - 1) < 0.05
+    assert found.coupled is not None and found.coupled.result is found.result

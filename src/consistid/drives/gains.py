@@ -48,6 +48,9 @@ from ..identification.regressor import DEFAULT_FRICTION, FrictionArg, RegressorS
 from ..identification.result import IdentificationResult
 from ..identification.statistics import autocorrelation_time
 from ..robot.model import RobotModel, require_model
+from .coupled import CoupledResult, identify_coupled
+from .motor_terms import motor_column_names, motor_columns
+from .transmission import Transmission
 
 GAIN_METHODS = ("wls", "sdp")
 #: Default ``max_relative_std``: a gain whose standard deviation exceeds this fraction of it is
@@ -71,7 +74,10 @@ class DriveGains:
     payload_body : the body that carries the load.
     method : ``"wls"`` or ``"sdp"``.
     coupling : (n, n) the coupling ``G`` the gains go through.
-    details : what the estimate rests on (noise per joint, autocorrelation times, solver status).
+    details : what the estimate rests on (noise per joint, autocorrelation times, solver status;
+        ``"motor_terms"``: the coupled motors' terms of the maximum-likelihood fit).
+    coupled : with coupled motors, the :class:`~consistid.drives.coupled.CoupledResult` whose
+        ``result`` is :attr:`result` (its ``predict`` adds the coupled motors' torques).
     """
 
     gains: np.ndarray
@@ -83,6 +89,7 @@ class DriveGains:
     method: str
     coupling: np.ndarray
     details: dict[str, Any] = field(default_factory=dict)
+    coupled: CoupledResult | None = None
 
     def to_torque(self, dataset: Dataset) -> Dataset:
         """``dataset`` with its currents (``tau``, A) turned into joint torques (N·m)."""
@@ -124,6 +131,7 @@ class GainProblem:
     base: BaseParameters
     basis: np.ndarray
     mass: float
+    n_motor: int = 0
 
     @property
     def n_columns(self) -> int:
@@ -132,22 +140,25 @@ class GainProblem:
 
 def _blocks(model: RobotModel, data: Dataset, spec: RegressorSpec, base: BaseParameters,
             load_map: np.ndarray | None, mass_map: np.ndarray, mass: float,
-            coupling: np.ndarray, n_load: int) -> tuple[np.ndarray, np.ndarray]:
-    """``A`` (N, nv, b + r + n) and ``y`` (N, nv) of one run (``load_map`` ``None``:
-    unloaded)."""
+            transmission: Transmission, n_load: int) -> tuple[np.ndarray, np.ndarray]:
+    """``A`` (N, nv, b + c + r + n) and ``y`` (N, nv) of one run (``load_map`` ``None``:
+    unloaded); ``c`` the coupled motors' columns (:mod:`consistid.drives.motor_terms`)."""
     y_full = regressor(model, data.q, data.dq, data.ddq, spec, dq_sign=data.dq_sign)
     wb = y_full.reshape(data.n_samples, model.nv, -1)[:, :, base.independent]
+    motor = motor_columns(transmission, data.dq, data.ddq)
+    coupling = transmission.coupling
     currents = data.require_torque()
     drive = -currents[:, None, :] * coupling.T[None, :, :]         # (N, joint, motor)
     load = (wb @ load_map if load_map is not None
             else np.zeros((data.n_samples, model.nv, n_load)))
     rhs = (-mass * (wb @ mass_map) if load_map is not None
            else np.zeros((data.n_samples, model.nv)))
-    return np.concatenate([wb, load, drive], axis=2), rhs
+    return np.concatenate([wb, motor, load, drive], axis=2), rhs
 
 
 def gain_problem(model: RobotModel, unloaded: Dataset, loaded: Dataset, spec: RegressorSpec,
-                 body: int, mass: float, coupling: np.ndarray) -> tuple[GainProblem, list]:
+                 body: int, mass: float, transmission: Transmission
+                 ) -> tuple[GainProblem, list]:
     """Build :class:`GainProblem`; also returns the two runs' ``(A, y)`` for the residuals."""
     base = base_parameters_of(model, spec)
     b_map = base.matrix
@@ -156,14 +167,16 @@ def gain_problem(model: RobotModel, unloaded: Dataset, loaded: Dataset, spec: Re
     u, s, vt = np.linalg.svd(b_phi, full_matrices=False)
     rank = int(np.sum(s > RANK_RTOL * 1e3 * max(s[0], 1e-300)))
     basis = vt[:rank].T                                            # (9, r)
-    runs = [_blocks(model, unloaded, spec, base, None, b_map[:, cols[0]], mass, coupling, rank),
-            _blocks(model, loaded, spec, base, b_phi @ basis, b_map[:, cols[0]], mass, coupling,
-                    rank)]
+    runs = [_blocks(model, unloaded, spec, base, None, b_map[:, cols[0]], mass, transmission,
+                    rank),
+            _blocks(model, loaded, spec, base, b_phi @ basis, b_map[:, cols[0]], mass,
+                    transmission, rank)]
     a = np.concatenate([r[0] for r in runs])
     y = np.concatenate([r[1] for r in runs])
     factors = np.stack([np.linalg.qr(np.column_stack([a[:, j], y[:, j]]), mode="r")
                         for j in range(model.nv)])
-    return GainProblem(factors, a.shape[0], base, basis, mass), runs
+    return GainProblem(factors, a.shape[0], base, basis, mass,
+                       3 * int(transmission.coupled_motors.size)), runs
 
 
 def _solve(problem: GainProblem, sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
@@ -209,7 +222,7 @@ def identify_drive_gains(model: RobotModel, unloaded: Dataset, loaded: Dataset |
                          payload_mass: float | None = None, payload_body: str | None = None,
                          method: str = "sdp", friction: FrictionArg = DEFAULT_FRICTION,
                          armature: bool | Sequence[int | str] = False,
-                         coupling: np.ndarray | None = None,
+                         transmission: Transmission | None = None,
                          max_relative_std: float = MAX_RELATIVE_STD,
                          **identify_options: Any) -> DriveGains:
     """Identify the joint drive gains and the dynamic parameters from motor currents.
@@ -224,8 +237,10 @@ def identify_drive_gains(model: RobotModel, unloaded: Dataset, loaded: Dataset |
     method : ``"wls"`` (weighted least squares) or ``"sdp"`` (consistent: pseudo-inertia LMIs
         on every body and on the load).
     friction, armature : the per-joint columns, as in :func:`consistid.identify`.
-    coupling : (n, n) coupling ``G`` of a coupled transmission (``τ = Gᵀ diag(κ) i``); default
-        the identity.
+    transmission : a :class:`~consistid.drives.transmission.Transmission` whose coupling ``G``
+        the currents go through (``τ = Gᵀ diag(κ) i``) and whose coupled motors' inertia and
+        friction are identified with the rest (:mod:`consistid.drives.motor_terms`; its torque
+        constants, if any, are not used); default independent joints.
     max_relative_std : a gain known no better than this fraction (1σ) is refused.
     **identify_options : passed to :func:`consistid.identify` for :attr:`DriveGains.result`.
 
@@ -257,9 +272,9 @@ def identify_drive_gains(model: RobotModel, unloaded: Dataset, loaded: Dataset |
     body_name = model.body_names[-1] if payload_body is None else payload_body
     check_option("payload_body", body_name, model.body_names)
     body = model.body_names.index(body_name)
-    g = np.eye(model.nv) if coupling is None else np.asarray(coupling, dtype=float)
-    if g.shape != (model.nv, model.nv):
-        raise OptionError(f"coupling must be {model.nv}×{model.nv}, got shape {g.shape}")
+    transmission = transmission or Transmission(np.ones(model.nv))
+    transmission.check_joints(model.nv, model.joint_names)
+    g = transmission.coupling
     no_effort = (model.limits.lower, model.limits.upper, np.full(model.nv, np.inf))
     runs = []
     for name, data in (("unloaded", unloaded), ("loaded", loaded)):
@@ -268,7 +283,7 @@ def identify_drive_gains(model: RobotModel, unloaded: Dataset, loaded: Dataset |
         check_for_identification(data, model.joint_names, no_effort)
         runs.append(data)
     spec = RegressorSpec.make(model, friction, armature)
-    problem, blocks = gain_problem(model, runs[0], runs[1], spec, body, mass, g)
+    problem, blocks = gain_problem(model, runs[0], runs[1], spec, body, mass, transmission)
     n_theta = problem.n_columns - model.nv
     x0, cov0, r0, cond0 = _linear_start(problem, model.nv)
     _check_informed(model, r0, cov0, x0[n_theta:], cond0, n_theta, body_name, mass,
@@ -279,11 +294,15 @@ def identify_drive_gains(model: RobotModel, unloaded: Dataset, loaded: Dataset |
     _check_informed(model, fit.r, fit.covariance, gains, fit.condition, n_theta, body_name,
                     mass, max_relative_std)            # again, at the maximum-likelihood fit
     std = np.sqrt(np.diag(fit.covariance)[n_theta:])
-    load = np.concatenate([[mass], problem.basis @ x[problem.base.n_base:n_theta]])
+    start = problem.base.n_base + problem.n_motor
+    load = np.concatenate([[mass], problem.basis @ x[start:n_theta]])
     details: dict[str, Any] = {"current_sigma": fit.sigma, "autocorrelation_time": fit.tau,
                                "condition_number": fit.condition,
                                "gauss_newton_iterations": fit.iterations,
                                "wls_gains": gains.copy()}
+    if problem.n_motor:
+        details["motor_terms"] = dict(zip(motor_column_names(transmission),
+                                          x[problem.base.n_base:start]))
     if fit.condition > 1e8:
         warnings.warn(f"the drive-gain problem has condition number {fit.condition:.3g}: some "
                       "directions are barely excited; check the gains' std",
@@ -291,13 +310,17 @@ def identify_drive_gains(model: RobotModel, unloaded: Dataset, loaded: Dataset |
     if method == "sdp":
         gains, load, status = _consistent(model, problem, spec, fit, g, body)
         details["solver_status"] = status
-    gains_obj = DriveGains(gains, std, tuple(model.joint_names), None, load,  # type: ignore
-                           body_name, method, g, details)
-    torque = gains_obj.to_torque(runs[0])
-    result = identify(model, torque, method=method, friction=friction, armature=armature,
-                      **identify_options)
+    torque = runs[0].with_torque((runs[0].require_torque() * gains) @ g, keep_filter=True)
+    coupled = None
+    if problem.n_motor:
+        coupled = identify_coupled(model, torque, transmission, method=method,
+                                   friction=friction, armature=armature, **identify_options)
+        result = coupled.result
+    else:
+        result = identify(model, torque, method=method, friction=friction, armature=armature,
+                          **identify_options)
     return DriveGains(gains, std, tuple(model.joint_names), result, load, body_name, method, g,
-                      details)
+                      details, coupled)
 
 
 def _linear_start(problem: GainProblem, nv: int) -> tuple[np.ndarray, np.ndarray, np.ndarray,
@@ -428,7 +451,7 @@ def _consistent(model: RobotModel, problem: GainProblem, spec: RegressorSpec,
     from ..identification.constraints import BodyScaling, pseudo_inertia_lmi
     from ..robot.inertia import is_degenerate
 
-    nv = model.nv
+    nv, n_motor = model.nv, problem.n_motor
     factor = _compensated_cost(problem, fit, coupling)
     rx, rz = factor[:, :-1], factor[:, -1]
     scale = float(np.mean(np.sum(rx ** 2, axis=0)))
@@ -436,7 +459,9 @@ def _consistent(model: RobotModel, problem: GainProblem, spec: RegressorSpec,
     pi = cp.Variable(prior.size)
     phi = cp.Variable(9)
     kappa = cp.Variable(nv)
-    x = cp.hstack([problem.base.matrix @ pi, problem.basis.T @ phi, kappa])
+    zeta = cp.Variable(n_motor, nonneg=True) if n_motor else None   # inertia, friction ≥ 0
+    x = cp.hstack([problem.base.matrix @ pi, *([zeta] if n_motor else []),
+                   problem.basis.T @ phi, kappa])
     cost = cp.sum_squares(rx @ x - rz) / scale
     nudge = PRIOR_NUDGE * cp.sum_squares(pi - prior)
     constraints = []
