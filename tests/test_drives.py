@@ -128,7 +128,7 @@ def test_drive_gains_from_currents_and_a_known_load(ur5, current_runs, method):
     assert np.all(rms <= 1.1 * floor), rms / floor
     assert ci.is_physically_consistent(found.result.parameters[:ur5.n_inertial])
     assert found.load[0] == LOAD.mass
-    assert "drive gains" in found.summary()
+    assert "drive gains" in found.summary() and "wrist_3_joint" in found._repr_html_()
     lo, hi = found.conf_int().T
     assert np.all(lo < found.gains) and np.all(found.gains < hi)
 

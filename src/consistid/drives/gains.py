@@ -129,6 +129,17 @@ class DriveGains:
         shown = ", ".join(f"{g:.4g}±{s:.2g}" for g, s in zip(self.gains, self.std))
         return f"DriveGains({self.method}: [{shown}] N·m/A)"
 
+    def _repr_html_(self) -> str:
+        import html
+
+        rows = "".join(f"<tr><td>{html.escape(n)}</td><td>{g:.6g}</td><td>{s:.3g}</td>"
+                       f"<td>{s / abs(g):.2%}</td></tr>"
+                       for n, g, s in zip(self.joint_names, self.gains, self.std))
+        return (f"<p><b>drive gains</b> (N·m/A, joint side; {self.method}, load on "
+                f"{html.escape(self.payload_body)})</p><table><tr><th>joint</th><th>gain</th>"
+                f"<th>σ</th><th>σ/|gain|</th></tr>{rows}</table>"
+                + self.result._repr_html_())
+
 
 @dataclass(frozen=True, eq=False)
 class GainProblem:
