@@ -113,7 +113,7 @@ def current_runs(ur5):
 
 
 @pytest.mark.parametrize("method", ["wls", "sdp"])
-def test_drive_gains_from_currents_and_a_known_load(ur5, current_runs, method):
+def test_drive_gains_from_currents_and_a_known_load(ur5, current_runs, method, tmp_path):
     tr, unloaded, loaded, held_out, _ = current_runs
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ci.ModelMisfitWarning)
@@ -129,6 +129,8 @@ def test_drive_gains_from_currents_and_a_known_load(ur5, current_runs, method):
     assert ci.is_physically_consistent(found.result.parameters[:ur5.n_inertial])
     assert found.load[0] == LOAD.mass
     assert "drive gains" in found.summary() and "wrist_3_joint" in found._repr_html_()
+    saved = ci.IdentificationResult.load(found.result.save(tmp_path / "result.json"))
+    np.testing.assert_allclose(saved.details["drive_gain_values"], found.gains)
     lo, hi = found.conf_int().T
     assert np.all(lo < found.gains) and np.all(found.gains < hi)
 

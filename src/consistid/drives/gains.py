@@ -44,6 +44,7 @@ integrated autocorrelation time, :func:`consistid.identification.statistics.auto
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from dataclasses import dataclass, field
 from typing import Any, Sequence
@@ -343,8 +344,24 @@ def identify_drive_gains(model: RobotModel, unloaded: Dataset, loaded: Dataset |
     else:
         result = identify(model, torque, method=method, friction=friction, armature=armature,
                           **identify_options)
+    result = _with_gains(result, gains, std, model.joint_names, body_name, mass)
+    if coupled is not None:
+        coupled = dataclasses.replace(coupled, result=result)
     return DriveGains(gains, std, tuple(model.joint_names), result, load, body_name, method, g,
                       details, coupled)
+
+
+def _with_gains(result: IdentificationResult, gains: np.ndarray, std: np.ndarray,
+                joint_names: Sequence[str], body: str, mass: float) -> IdentificationResult:
+    """``result`` with the gains in its details, so that its summary, report and saved file
+    say which gains its torques came from."""
+    shown = "; ".join(f"{n} {g:.6g} ± {s:.2g}" for n, g, s in zip(joint_names, gains, std))
+    return dataclasses.replace(result, details={
+        **result.details,
+        "drive_gains": f"torques = currents × gains (N·m/A, identified with a {mass:g} kg load "
+                       f"on {body!r}): {shown}",
+        "drive_gain_values": np.asarray(gains, dtype=float),
+        "drive_gain_std": np.asarray(std, dtype=float)})
 
 
 def _linear_start(problem: GainProblem, nv: int) -> tuple[np.ndarray, np.ndarray, np.ndarray,
