@@ -19,7 +19,7 @@ from .conftest import SHARED
 ROOT = Path(__file__).resolve().parents[1]
 PAGES = sorted((ROOT / "docs").glob("*.md")) + sorted((ROOT / "docs" / "tutorials").glob("*.md"))
 #: pages whose code takes more than a few seconds
-SLOW = {"README.md", "tutorials/real_kuka.md", "real_kuka.md"}
+SLOW = {"README.md", "tutorials/real_kuka.md", "real_kuka.md", "currents.md"}
 BLOCK = re.compile(r"^```python\n(.*?)^```", re.S | re.M)
 
 

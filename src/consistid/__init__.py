@@ -66,11 +66,16 @@ _EXPORTS: dict[str, str] = {
     "estimate_breakaway": "friction",
     "compare_friction_models": "friction",
     "SlotineLiController": "online",
+    "identify_drive_gains": "drives.gains",
+    "DriveGains": "drives.gains",
+    "Transmission": "drives.transmission",
+    "identify_coupled": "drives.coupled",
+    "CoupledResult": "drives.coupled",
 }
 
 #: subpackages reachable as attributes (``ci.simulate.record``)
 _SUBPACKAGES = ("robot", "data", "identification", "estimation", "excitation", "simulate",
-                "diagnosis", "kinematics", "online", "friction", "cli")
+                "diagnosis", "kinematics", "online", "friction", "cli", "drives")
 
 __all__ = sorted([*_EXPORTS, "simulate", "errors", *_ERRORS])
 
@@ -95,6 +100,9 @@ if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerl
     from .data.dataset import Dataset
     from .data.recordings import load_recording
     from .diagnosis.diagnose import Diagnosis, diagnose
+    from .drives.coupled import CoupledResult, identify_coupled
+    from .drives.gains import DriveGains, identify_drive_gains
+    from .drives.transmission import Transmission
     from .estimation.mounting import MountingEstimate, estimate_mounting
     from .estimation.payload import Payload, estimate_payload, payload_from_base_change
     from .estimation.recover import RecoveryResult, recover_standard

@@ -77,6 +77,12 @@ class PoorExcitationError(IdentificationError):
     """The data do not excite the base parameters: the base regressor is rank deficient."""
 
 
+class UninformedGainError(PoorExcitationError):
+    """The runs of :func:`consistid.identify_drive_gains` do not determine a drive gain: the
+    load does not change that joint's torque enough (the message names the joint and what
+    experiment would)."""
+
+
 class UnrealizableCoefficientsError(InfeasibleError):
     """No physically consistent standard parameters reproduce the given base coefficients.
 

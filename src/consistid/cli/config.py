@@ -61,7 +61,8 @@ from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any, Iterable, Mapping, Sequence
 
-from ..errors import ConfigError, DataQualityWarning
+from ..drives.transmission import Transmission
+from ..errors import ConfigError, DataQualityWarning, OptionError
 from ..robot.model import EXAMPLE_ROBOTS, RobotModel
 from ..data.chain import PreprocessOptions
 from ..data.recordings import Recording, load_recording
@@ -73,11 +74,14 @@ else:  # pragma: no cover - exercised on Python 3.10 only
     import tomli as tomllib
 
 #: The top-level tables a configuration may have (besides the ``root`` key), one per command.
-TABLES = ("model", "data", "identify", "diagnose", "recover", "payload", "excite")
+TABLES = ("model", "data", "identify", "diagnose", "recover", "payload", "excite", "drives")
 MODEL_KEYS = ("urdf", "example", "strip_dynamics", "locked_joints", "gravity", "tilt", "name")
 DATA_KEYS = ("dir", "keys", "joint_names", "trim_start", "trim_end", "duplicates", "train",
              "held_out", "joints", "columns", "topic", "stamp", "delimiter", "time_unit",
              "timestamp", "derivatives", "signals")
+#: Keys of ``[drives]``: a motor-side log (motor angles, motor currents) and its transmission
+#: (:class:`consistid.drives.transmission.Transmission`).
+DRIVES_KEYS = ("ratios", "torque_constants", "coupling")
 #: Keys of ``[data.signals]``: the signal chain's options (the fields of
 #: :class:`consistid.data.chain.PreprocessOptions`, one schema for the API and the TOML) for
 #: logs without logged velocities and accelerations; ``duplicates``, ``timestamp`` and
@@ -321,6 +325,13 @@ def config_recordings(config: RunConfig, model: RobotModel | None = None
                                  "time_unit", "timestamp", "derivatives") if k in t}
     if "signals" in t:
         options.update(config.check_table("data.signals", t["signals"], SIGNAL_KEYS))
+    drives = config_drives(config)
+    if drives is not None:
+        if model is not None and drives.n != model.nv:
+            raise ConfigError(f"{config.path.name}: [drives] ratios has {drives.n} entries but "
+                              f"{model.name} has {model.nv} joints ({', '.join(model.joint_names)})"
+                              ": one gear ratio and torque constant per motor, in that order")
+        options["drives"] = drives
     keys = t.get("keys", "auto")
 
     def read(files: Any, what: str) -> Recording:
@@ -337,6 +348,33 @@ def config_recordings(config: RunConfig, model: RobotModel | None = None
     if held:
         _warn_shared(config, t["train"], held, t.get("dir"))
     return read(t["train"], "train"), (read(held, "held_out") if held else None)
+
+
+def config_drives(config: RunConfig) -> Transmission | None:
+    """The ``[drives]`` table as a :class:`~consistid.drives.transmission.Transmission`, or
+    ``None`` without one: the ``[data]`` logs then hold motor angles and motor currents (A),
+    converted to the joint side with the datasheet gear ratios and torque constants. Errors
+    name the TOML key."""
+    t = config.table("drives", DRIVES_KEYS, required=False)
+    if not t:
+        return None
+    name = config.path.name
+    for key in ("ratios", "torque_constants"):
+        if key not in t:
+            raise ConfigError(f"{name}: [drives] needs {key} = [...] (one per motor, in the "
+                              "joints' order; torque constants in N·m/A at the motor)")
+        config.expect("drives", key, t[key], "array of numbers")
+    coupling = t.get("coupling")
+    if coupling is not None and not (isinstance(coupling, list) and all(
+            isinstance(row, list) and config.expect("drives", "coupling", row,
+                                                    "array of numbers") for row in coupling)):
+        raise ConfigError(f"{name}: [drives] coupling must be an array of rows, one per motor "
+                          f"(e.g. coupling = [[1, 0], [1, 1]]), got coupling = {_toml(coupling)}")
+    try:
+        return Transmission(t["ratios"], coupling=coupling,
+                            torque_constants=t["torque_constants"])
+    except OptionError as exc:
+        raise ConfigError(f"{name}: [drives] {exc}") from exc
 
 
 def _distinct_logs(config: RunConfig, what: str, files: list[str], under: str | None

@@ -49,13 +49,14 @@ from __future__ import annotations
 
 import html
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Mapping, Sequence
 
 import numpy as np
 
+from ..drives.transmission import Transmission
 from ..errors import (DataQualityWarning, DatasetError, JointNameError, MissingColumnsError,
                       OptionError, check_option)
 from ..progress import ProgressArg
@@ -191,7 +192,8 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
                 model: RobotModel | None = None, trim_start: float = 0.0,
                 trim_end: float = 0.0, duplicates: str | None = None,
                 time_unit: str | None = None, timestamp: str | Mapping[str, str] = "centre",
-                source: str = "arrays", **signal_options: object) -> Recording:
+                source: str = "arrays", drives: Transmission | None = None,
+                **signal_options: object) -> Recording:
     """A :class:`Recording` from logged arrays (steps 2–5 of the module docstring).
 
     Parameters
@@ -216,6 +218,11 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
         ``"centre"`` (default; no shift), ``"start"`` or ``"end"`` (moved half a step to the
         interval centre and interpolated at the positions' stamps), or a mapping per field.
     source : label used in messages and in :attr:`Recording.source`.
+    drives : a :class:`~consistid.drives.transmission.Transmission` with torque constants: the
+        log's ``q`` are then motor angles and its ``tau`` motor currents (A), one column per
+        motor in the joints' order, converted after trimming (and before the checks against
+        ``model``) to joint angles ``q = G⁻¹(q_m / r)`` (and their derivatives) and joint
+        torques ``τ = Gᵀ(r ⊙ k_t ⊙ i)``, recorded in the steps.
 
     Raises
     ------
@@ -311,9 +318,36 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
         dataset = dataset.select(keep)
     else:
         steps.append("no trim_start/trim_end requested")
+    if drives is not None:
+        dataset = joint_side(dataset, drives, steps)
     if model is not None:
         _check_against_model(dataset, model, source, steps)
     return Recording(dataset, tuple(steps), source, t0)
+
+
+def joint_side(dataset: Dataset, drives: Transmission, steps: list[str]) -> Dataset:
+    """A motor-side dataset (motor angles, currents) on the joint side through ``drives``
+    (:mod:`consistid.drives.transmission`), the conversion appended to ``steps``. The Coulomb
+    signal of filtered currents (``dq_sign``) follows a diagonal transmission (its sign flips
+    with the ratio's); through a coupling it is not the filtered sign of a joint's speed, and
+    is dropped (the regressor then uses ``sign(q̇)``), which the step says."""
+    drives.check_joints(dataset.nv, dataset.joint_names)
+    gains = drives.gains
+    tau = drives.current_torque(dataset.require_torque())
+    coupled = bool(drives.coupled_motors.size)
+    dq_sign = None if dataset.dq_sign is None or coupled else \
+        dataset.dq_sign * np.sign(drives.ratios)
+    out = replace(dataset, q=drives.joint_positions(dataset.q),
+                  dq=drives.joint_positions(dataset.dq), ddq=drives.joint_positions(dataset.ddq),
+                  tau=tau, dq_sign=dq_sign)
+    shown = ", ".join(f"{g:.4g}" for g in gains)
+    steps.append(f"motor side to joint side (drives=): q = G⁻¹(q_m / r) with ratios "
+                 f"{', '.join(f'{r:g}' for r in drives.ratios)}"
+                 f"{' and a coupling G' if coupled else ''}; τ = Gᵀ(κ ⊙ i), drive gains "
+                 f"κ = r ⊙ k_t = [{shown}] N·m/A" + (
+                     "; the filtered Coulomb signal is dropped (coupled motors)"
+                     if coupled and dataset.dq_sign is not None else ""))
+    return out
 
 
 #: Logged derivatives are compared with differences of what they derive over about this many
@@ -561,7 +595,8 @@ def load_recording(path: str | Path, keys: str | Mapping[str, str] = "auto", *,
                    trim_start: float = 0.0, trim_end: float = 0.0,
                    duplicates: str | None = None, time_unit: str | None = None,
                    timestamp: str | Mapping[str, str] = "centre", derivatives: str = "auto",
-                   progress: ProgressArg = None, **signal_options: object) -> Recording:
+                   progress: ProgressArg = None, drives: Transmission | None = None,
+                   **signal_options: object) -> Recording:
     """Read a log file into a :class:`Recording` (module docstring: what is done, in order).
 
     The format is chosen by the suffix: ``.npz`` (below), ``.csv``/``.tsv``/``.txt``,
@@ -586,8 +621,8 @@ def load_recording(path: str | Path, keys: str | Mapping[str, str] = "auto", *,
     joint_names : ``.npz`` only: names of the log's joint columns; default the file's
         ``joint_names`` array if any (a mismatch between the two raises
         :class:`~consistid.errors.JointNameError`).
-    model, trim_start, trim_end, duplicates, time_unit, timestamp, signal_options : see
-        :func:`from_arrays`.
+    model, trim_start, trim_end, duplicates, time_unit, timestamp, drives, signal_options : see
+        :func:`from_arrays` (``drives=``: a motor-side log of motor angles and currents).
     derivatives : see :func:`from_log` (not for ``.npz``, whose ``keys`` say it).
     progress : ROS bags and MCAP: ``None`` (a bar on a terminal), ``True``, ``False`` or a
         callable (:mod:`consistid.progress`); the other formats read fast and ignore it.
@@ -603,7 +638,7 @@ def load_recording(path: str | Path, keys: str | Mapping[str, str] = "auto", *,
         raise DatasetError(f"recording {str(path)!r} does not exist")
     kind = format_of(path)
     common = dict(model=model, trim_start=trim_start, trim_end=trim_end, duplicates=duplicates,
-                  time_unit=time_unit, timestamp=timestamp, **signal_options)
+                  time_unit=time_unit, timestamp=timestamp, drives=drives, **signal_options)
     if kind != "npz":
         if keys != "auto" or joint_names is not None:
             raise DatasetError(f"{path.name}: keys= and joint_names= apply to .npz logs; for "

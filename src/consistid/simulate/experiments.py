@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass, replace
-from typing import Callable, Protocol
+from typing import Callable, Protocol, Sequence
 
 import numpy as np
 
@@ -240,7 +240,7 @@ def record(model: RobotModel, trajectory: DesiredMotion, effects: Effects | None
            controller: TrackingController | None = None, seed: int = 0,
            integrator: str = "Euler", max_tracking_error: float = MAX_TRACKING_ERROR,
            progress: Callable[[float], None] | None = None,
-           step_hook: Callable | None = None) -> SimulatedRecording:
+           step_hook: Callable | None = None, tendons: Sequence[str] = ()) -> SimulatedRecording:
     """Run the MuJoCo robot through ``trajectory`` and log ``(t, q, tau)`` like a real robot.
 
     Parameters
@@ -270,6 +270,8 @@ def record(model: RobotModel, trajectory: DesiredMotion, effects: Effects | None
     step_hook : called as ``step_hook(mj_model, mj_data)`` before every physics step
         (:meth:`~consistid.simulate.mujoco_robot.MujocoRobot.run`), e.g. the per-step torques of
         :mod:`consistid.simulate.disturbances`.
+    tendons : extra MJCF ``<fixed>`` tendon elements (:class:`MujocoRobot`), e.g. the motors
+        of :mod:`consistid.simulate.drives`.
 
     Returns
     -------
@@ -298,7 +300,7 @@ def record(model: RobotModel, trajectory: DesiredMotion, effects: Effects | None
         raise ModelError(f"physics_rate / rate = {physics_rate} / {rate} must be a positive "
                          "integer: the log takes every k-th physics step")
     robot = MujocoRobot(model, effects, true_parameters, timestep=1.0 / physics_rate,
-                        integrator=integrator)
+                        integrator=integrator, tendons=tendons)
     eff = robot.effects
     if np.max(eff.delay) > settle:
         raise ModelError(f"effects.delay up to {np.max(eff.delay)} s needs settle ≥ that; "

@@ -45,7 +45,7 @@ that effect.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, Sequence
 from xml.sax.saxutils import quoteattr
 
 import mujoco
@@ -125,9 +125,9 @@ def _payload_inertial(payload: MountedPayload, parameters: np.ndarray) -> str:
 
 
 def _mjcf(model: RobotModel, eff: Effects, payload: tuple[int, np.ndarray] | None,
-          timestep: float, integrator: str) -> str:
-    """The MJCF text of ``model`` (its current inertias) with the resolved effects ``eff`` and
-    the payload's ``(joint, 10-vector)``."""
+          timestep: float, integrator: str, tendons: Sequence[str] = ()) -> str:
+    """The MJCF text of ``model`` (its current inertias) with the resolved effects ``eff``, the
+    payload's ``(joint, 10-vector)`` and extra ``<fixed>`` tendon elements ``tendons``."""
     check_option("integrator", integrator, INTEGRATORS)
     pm = model.pin_model
     kinds, axes = joint_axes(model)
@@ -187,7 +187,8 @@ def _mjcf(model: RobotModel, eff: Effects, payload: tuple[int, np.ndarray] | Non
         f"<joint joint={quoteattr(model.joint_names[i] + '__motor')} coef=\"1\"/>"
         f"<joint joint={quoteattr(model.joint_names[i])} coef=\"-1\"/></fixed>"
         for i in np.flatnonzero(elastic)]
-    tendon = ["  <tendon>", *springs, "  </tendon>"] if springs else []
+    extra = [f"    {element}" for element in tendons]
+    tendon = ["  <tendon>", *springs, *extra, "  </tendon>"] if springs or extra else []
     return "\n".join([
         f"<mujoco model={quoteattr(model.name)}>",
         '  <compiler angle="radian" autolimits="true"/>',
@@ -237,6 +238,8 @@ class MujocoRobot:
     timestep : physics step (s).
     integrator : MuJoCo integrator, ``"Euler"`` (default, see the module notes), ``"RK4"`` or
         ``"implicitfast"``.
+    tendons : extra MJCF ``<fixed>`` tendon elements over the joints (e.g. the motors of a
+        coupled transmission, :mod:`consistid.simulate.drives`).
 
     Attributes
     ----------
@@ -250,7 +253,7 @@ class MujocoRobot:
 
     def __init__(self, model: RobotModel, effects: Effects | None = None,
                  parameters: np.ndarray | None = None, timestep: float = 1e-3,
-                 integrator: str = "Euler") -> None:
+                 integrator: str = "Euler", tendons: Sequence[str] = ()) -> None:
         if not (np.isfinite(timestep) and timestep > 0):
             raise ModelError(f"timestep = {timestep!r}; it must be a positive number of seconds")
         if effects is not None and not isinstance(effects, Effects):
@@ -261,7 +264,7 @@ class MujocoRobot:
         self.timestep = float(timestep)
         self.payload = (self.effects.payload.parameters(model)
                         if self.effects.payload is not None else None)
-        self.xml = _mjcf(self.model, self.effects, self.payload, timestep, integrator)
+        self.xml = _mjcf(self.model, self.effects, self.payload, timestep, integrator, tendons)
         try:
             self.mj_model = mujoco.MjModel.from_xml_string(self.xml)
         except ValueError as exc:  # MuJoCo's compiler errors name the element
