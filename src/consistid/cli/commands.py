@@ -37,7 +37,7 @@ from . import online_demo
 from .calibrate import run_calibrate
 from .config import config_inputs, load_config
 from .excite import load_excitation_config
-from .files import atomic_dir, atomic_path, check_output, check_output_dir
+from .files import atomic_dir, atomic_path, check_inputs, check_output, check_output_dir
 from .hints import toml_hints, toml_value
 from ..progress import silenced
 
@@ -191,6 +191,7 @@ def identify(args: argparse.Namespace) -> int:
         folder = (check_output_dir(args.output, IDENTIFY_OUTPUTS, inputs=inputs,
                                    force=args.force, what="--output") if args.output else None)
         train, held = config_recordings(config, model)
+        inputs = check_inputs(inputs)          # recordable (bag folders too), before the fit
         _log(str(train))
         if held is not None:
             _log(str(held))
@@ -284,7 +285,7 @@ def _write_identification(res: "ci.IdentificationResult", folder: Path, train: "
 def excite(args: argparse.Namespace) -> int:
     """Design an optimal excitation trajectory (:mod:`consistid.cli.excite`), write CSV."""
     config = load_excitation_config(args.config)
-    inputs = config_inputs(load_config(args.config), config.model)
+    inputs = check_inputs(config_inputs(load_config(args.config), config.model))
     output = check_output(args.output or config.output, inputs=inputs, force=args.force,
                           what="--output" if args.output else "[excite] output")
     _log(f"designing an excitation trajectory for {config.model.name} "
