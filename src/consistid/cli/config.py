@@ -31,6 +31,7 @@ code. Example (``examples/kuka_lwr4/identify.toml``)::
     # time_unit = "ms"           (or "auto"; default seconds, implausible stamps refused)
     # timestamp = "end"          (torques averaged over each interval, stamped at its end)
     # derivatives = "auto"       (or "logged", "estimate")
+    # angle_unit = "deg"         (q, dq, ddq of headers without a unit; default "rad", checked)
     # [data.signals]             the signal chain for logs without dq/ddq: cutoff = 20.0, ...
 
     [identify]                            # keyword arguments of consistid.identify
@@ -77,7 +78,7 @@ TABLES = ("model", "data", "identify", "diagnose", "recover", "payload", "excite
 MODEL_KEYS = ("urdf", "example", "strip_dynamics", "locked_joints", "gravity", "tilt", "name")
 DATA_KEYS = ("dir", "keys", "joint_names", "trim_start", "trim_end", "duplicates", "train",
              "held_out", "joints", "columns", "topic", "stamp", "delimiter", "time_unit",
-             "timestamp", "derivatives", "signals")
+             "timestamp", "derivatives", "signals", "angle_unit")
 #: Keys of ``[data.signals]``: the signal chain's options (the fields of
 #: :class:`consistid.data.chain.PreprocessOptions`, one schema for the API and the TOML) for
 #: logs without logged velocities and accelerations; ``duplicates``, ``timestamp`` and
@@ -305,7 +306,7 @@ def config_recordings(config: RunConfig, model: RobotModel | None = None
                       ("joints", "array of strings"), ("columns", "table"),
                       ("topic", "string"), ("stamp", "string"), ("delimiter", "string"),
                       ("time_unit", "string"), ("timestamp", "string or table"),
-                      ("derivatives", "string")):
+                      ("derivatives", "string"), ("angle_unit", "string")):
         if key in t:
             config.expect("data", key, t[key], kind)
     if not t.get("train"):
@@ -318,7 +319,8 @@ def config_recordings(config: RunConfig, model: RobotModel | None = None
         _check_folder(config, "dir", t["dir"])
     options = {k: t[k] for k in ("joint_names", "trim_start", "trim_end", "duplicates",
                                  "joints", "columns", "topic", "stamp", "delimiter",
-                                 "time_unit", "timestamp", "derivatives") if k in t}
+                                 "time_unit", "timestamp", "derivatives", "angle_unit")
+               if k in t}
     if "signals" in t:
         options.update(config.check_table("data.signals", t["signals"], SIGNAL_KEYS))
     keys = t.get("keys", "auto")

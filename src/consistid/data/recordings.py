@@ -65,6 +65,8 @@ from .dataset import Dataset, array_names, open_npz
 from .filters import held_still, real_array, transposed_hint
 from .formats import Log, format_of, read_frame, read_log
 from .resample import resample
+from .units import (check_angle_unit, convert_angles, degree_message, degree_suspects,
+                    model_limits, revolute_joints)
 from .timestamps import (
     DUPLICATES,
     check_stamps,
@@ -191,7 +193,8 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
                 model: RobotModel | None = None, trim_start: float = 0.0,
                 trim_end: float = 0.0, duplicates: str | None = None,
                 time_unit: str | None = None, timestamp: str | Mapping[str, str] = "centre",
-                source: str = "arrays", **signal_options: object) -> Recording:
+                source: str = "arrays", angle_unit: str | None = None,
+                **signal_options: object) -> Recording:
     """A :class:`Recording` from logged arrays (steps 2–5 of the module docstring).
 
     Parameters
@@ -216,6 +219,12 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
         ``"centre"`` (default; no shift), ``"start"`` or ``"end"`` (moved half a step to the
         interval centre and interpolated at the positions' stamps), or a mapping per field.
     source : label used in messages and in :attr:`Recording.source`.
+    angle_unit : the unit of ``q`` (and ``dq``, ``ddq``) of the revolute joints: ``"rad"``,
+        ``"deg"`` (converted by π/180; a model's prismatic joints stay in metres), or ``None``
+        (default: radians, and a log that looks like degrees — a range beyond two turns, speeds
+        beyond 720 °/s, positions beyond the model's limits that degrees would fit — warns
+        :class:`~consistid.errors.DataQualityWarning` naming the joints;
+        :mod:`consistid.data.units`).
 
     Raises
     ------
@@ -225,6 +234,7 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
     """
     check_option("duplicates", duplicates, (None, *DUPLICATES))
     shifts = check_timestamp(timestamp)
+    factor = check_angle_unit(angle_unit)
     steps: list[str] = []
     t = check_stamps(t, source)
     arrays = {"q": q, "tau": tau, "dq": dq, "ddq": ddq}
@@ -270,6 +280,11 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
     order, names = _match_joints(joint_names, nv, model, source, steps)
     if order is not None:
         arrays = {k: a[:, order] for k, a in arrays.items()}
+    revolute = revolute_joints(model) if model is not None else np.ones(nv, bool)
+    if angle_unit == "deg":
+        arrays = convert_angles(arrays, factor, revolute)
+        steps.append(f"angle_unit='deg': q, dq, ddq of {int(revolute.sum())} revolute joint(s) "
+                     "converted to radians (× π/180)")
     for name, value in (("trim_start", trim_start), ("trim_end", trim_end)):
         if isinstance(value, (bool, np.bool_)) \
                 or not isinstance(value, (int, float, np.integer, np.floating)):
@@ -311,9 +326,23 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
         dataset = dataset.select(keep)
     else:
         steps.append("no trim_start/trim_end requested")
+    if angle_unit is None:
+        _check_degrees(dataset, model, revolute, source, steps)
     if model is not None:
         _check_against_model(dataset, model, source, steps)
     return Recording(dataset, tuple(steps), source, t0)
+
+
+def _check_degrees(dataset: Dataset, model: RobotModel | None, revolute: np.ndarray,
+                   source: str, steps: list[str]) -> None:
+    """Warn (:class:`DataQualityWarning`) and record the joints whose positions look like
+    degrees read as radians (:func:`consistid.data.units.degree_suspects`)."""
+    found = degree_suspects(dataset.q, dataset.dq, dataset.joint_names, revolute,
+                            model_limits(model) if model is not None else None)
+    if found:
+        text = degree_message(found, source)
+        steps.append(text)
+        warnings.warn(text, DataQualityWarning, stacklevel=4)
 
 
 #: Logged derivatives are compared with differences of what they derive over about this many
@@ -479,13 +508,22 @@ def _shift_logged(t: np.ndarray, arrays: dict[str, np.ndarray], shifts: Mapping[
 def from_log(log: Log, *, model: RobotModel | None = None, trim_start: float = 0.0,
              trim_end: float = 0.0, duplicates: str | None = None,
              time_unit: str | None = None, timestamp: str | Mapping[str, str] = "centre",
-             derivatives: str = "auto", **signal_options: object) -> Recording:
+             derivatives: str = "auto", angle_unit: str | None = None,
+             **signal_options: object) -> Recording:
     """A :class:`Recording` from a log read by :mod:`consistid.data.formats`: the reader's notes
     first, then :func:`from_arrays`. ``time_unit`` defaults to the unit the file gives (a
     ``time_ms`` column, ROS stamps). ``derivatives``: ``"auto"`` (use logged ``dq`` and ``ddq``
     when both are there, else estimate both from ``q``; a logged ``dq`` alone is then set aside
-    and said), ``"logged"`` (refuse a log without them) or ``"estimate"``."""
+    and said), ``"logged"`` (refuse a log without them) or ``"estimate"``. ``angle_unit``
+    (:func:`from_arrays`) applies to columns whose header names no unit: with ``"deg"``, a
+    header that names one for an angle (``q1 [rad]``) raises :class:`OptionError`."""
     check_option("derivatives", derivatives, ("auto", "logged", "estimate"))
+    check_angle_unit(angle_unit)
+    named = [f for f in ("q", "dq", "ddq") if f in log.unit_fields]
+    if angle_unit == "deg" and named:
+        raise OptionError(f"{log.source}: angle_unit='deg' converts columns without a unit, and "
+                          f"the header names the unit of {named}; leave angle_unit out (the "
+                          "header's units are read), or remove the units from the header")
     fields = dict(log.fields)
     notes = list(log.notes)
     have = [f for f in ("dq", "ddq") if f in fields]
@@ -513,7 +551,7 @@ def from_log(log: Log, *, model: RobotModel | None = None, trim_start: float = 0
     rec = from_arrays(log.t, fields["q"], fields["tau"], fields.get("dq"), fields.get("ddq"),
                       joint_names=names, model=model, trim_start=trim_start, trim_end=trim_end,
                       duplicates=duplicates, time_unit=time_unit, timestamp=timestamp,
-                      source=log.source, **signal_options)
+                      source=log.source, angle_unit=angle_unit, **signal_options)
     steps = list(rec.steps)
     if log.origin:
         steps[0] = _describe_origin(log.origin + rec.time_origin)
@@ -561,7 +599,8 @@ def load_recording(path: str | Path, keys: str | Mapping[str, str] = "auto", *,
                    trim_start: float = 0.0, trim_end: float = 0.0,
                    duplicates: str | None = None, time_unit: str | None = None,
                    timestamp: str | Mapping[str, str] = "centre", derivatives: str = "auto",
-                   progress: ProgressArg = None, **signal_options: object) -> Recording:
+                   progress: ProgressArg = None, angle_unit: str | None = None,
+                   **signal_options: object) -> Recording:
     """Read a log file into a :class:`Recording` (module docstring: what is done, in order).
 
     The format is chosen by the suffix: ``.npz`` (below), ``.csv``/``.tsv``/``.txt``,
@@ -588,6 +627,8 @@ def load_recording(path: str | Path, keys: str | Mapping[str, str] = "auto", *,
         :class:`~consistid.errors.JointNameError`).
     model, trim_start, trim_end, duplicates, time_unit, timestamp, signal_options : see
         :func:`from_arrays`.
+    angle_unit : ``"rad"``, ``"deg"`` or ``None`` (radians, checked for degrees): see
+        :func:`from_arrays` (a unit in a column's header wins, :func:`from_log`).
     derivatives : see :func:`from_log` (not for ``.npz``, whose ``keys`` say it).
     progress : ROS bags and MCAP: ``None`` (a bar on a terminal), ``True``, ``False`` or a
         callable (:mod:`consistid.progress`); the other formats read fast and ignore it.
@@ -603,7 +644,8 @@ def load_recording(path: str | Path, keys: str | Mapping[str, str] = "auto", *,
         raise DatasetError(f"recording {str(path)!r} does not exist")
     kind = format_of(path)
     common = dict(model=model, trim_start=trim_start, trim_end=trim_end, duplicates=duplicates,
-                  time_unit=time_unit, timestamp=timestamp, **signal_options)
+                  time_unit=time_unit, timestamp=timestamp, angle_unit=angle_unit,
+                  **signal_options)
     if kind != "npz":
         if keys != "auto" or joint_names is not None:
             raise DatasetError(f"{path.name}: keys= and joint_names= apply to .npz logs; for "

@@ -44,6 +44,7 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 import scipy.linalg
 
+from .angle_units import flag_degrees
 from .base import COND_WARN, RANK_RTOL, BaseParameters, compute_base_parameters
 from .compression import CompressedProblem, floor_sigma, joint_sigma
 from ..data.checks import check_for_identification
@@ -295,7 +296,7 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
                 prior=default_prior(model) if prior == "auto" else prior, **options)
         result = identify_sdp(model, problem, base, spec, given,
                               dataset=dataset if isinstance(dataset, Dataset) else None)
-    return with_covariance(result, problem, dataset, covariance)
+    return flag_degrees(with_covariance(result, problem, dataset, covariance), dataset)
 
 
 def with_covariance(result: IdentificationResult, problem: CompressedProblem,

@@ -84,6 +84,7 @@ class Log:
     rows : the file line of each sample (text files), for messages.
     origin : seconds already subtracted from ``t`` (ROS stamps are read as integer nanoseconds
         and made relative before they become floats, which keeps their resolution).
+    unit_fields : the fields whose column headers named their unit (converted to SI already).
     """
 
     t: np.ndarray
@@ -94,6 +95,7 @@ class Log:
     time_unit: str | None = None
     rows: np.ndarray | None = field(default=None)
     origin: float = 0.0
+    unit_fields: tuple[str, ...] = ()
 
 
 def _clean(name: str) -> str:
@@ -476,4 +478,7 @@ def log_from_columns(get, cmap: ColumnMap, source: str, n_rows: int,
     if t.size != n_rows or t.size == 0:
         raise DatasetError(f"{source}: no data rows")
     notes = (cmap.describe(source), *unit_notes, *extra_notes)
-    return Log(t, fields, cmap.joint_names, source, notes, cmap.time_unit, rows)
+    named = tuple(f for f, cols in cmap.fields.items()
+                  if any(column_unit(c) is not None for c in cols))
+    return Log(t, fields, cmap.joint_names, source, notes, cmap.time_unit, rows,
+               unit_fields=named)

@@ -63,5 +63,6 @@ def read_frame(frame: Any, *, joints: Sequence[str] | None = None,
     if values[cmap.time].dtype.kind in "mM":
         return Log(log.t, log.fields, log.joint_names, log.source,
                    log.notes + (f"{cmap.time!r} holds {values[cmap.time].dtype} stamps: "
-                                "converted to seconds",), "s", log.rows)
+                                "converted to seconds",), "s", log.rows,
+                   unit_fields=log.unit_fields)
     return log
