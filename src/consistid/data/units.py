@@ -1,4 +1,4 @@
-r"""Angle units of joint logs: ``angle_unit="rad"`` or ``"deg"``, and logs in degrees read as radians.
+r"""Angle units of joint logs: ``angle_unit="rad"`` or ``"deg"``; degrees read as radians.
 
 A log whose header names no unit is read in SI units (rad, rad/s, rad/s²). A controller that
 logs degrees then gives positions 57.3 × too large, and identification fits those: the answer
