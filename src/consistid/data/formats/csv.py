@@ -138,8 +138,9 @@ def read_csv(path: str | Path, *, joints: Sequence[str] | None = None,
         raise MissingColumnsError(f"{source}: the first line {header_line.strip()[:80]!r} is data,"
                                   " not a header naming the columns; add a header line or pass "
                                   "the arrays to consistid.data.recordings.from_arrays")
-    cmap = map_columns(names, source, joints=joints, columns=columns)
     data_lines = [ln for ln in lines[k + 1:] if ln.strip() and not ln.lstrip().startswith("#")]
+    cmap = map_columns(names, source, joints=joints, columns=columns,
+                       first_row=_cells(data_lines[0], delimiter) if data_lines else None)
     decimal_comma = bool(data_lines) and reads_decimal_comma(delimiter, data_lines[0])
     wanted = [cmap.time] + [c for cols in cmap.fields.values() for c in cols]
     usecols = sorted({names.index(c) for c in wanted})

@@ -49,7 +49,8 @@ def read_frame(frame: Any, *, joints: Sequence[str] | None = None,
             values[name] = np.asarray(index.to_numpy())
             labels = [name, *labels]
             notes.append(f"time from the index {name!r}")
-    cmap = map_columns(labels, source, joints=joints, columns=columns)
+    cmap = map_columns(labels, source, joints=joints, columns=columns,
+                       first_row=[str(values[lab][0]) for lab in labels])
 
     def get(name: str) -> np.ndarray:
         a = values[name]
