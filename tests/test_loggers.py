@@ -166,3 +166,30 @@ def test_tutorial_names_reachable_after_import_consistid():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout
     assert "has no attribute 'no_such_module'" in out
+
+
+def test_logged_velocities_are_used_when_asked(tmp_path, ur5):
+    """velocities="logged": dq is the RTDE log's actual_qd through the chain (not q's
+    derivative) — shown by logging a velocity with a known bias, which q's derivative lacks —
+    and ddq is its derivative; the [data] key reaches the loader."""
+    model, d = ur5
+    cols = {"timestamp": d.t, **{f"actual_q_{j}": d.q[:, j] for j in range(6)},
+            **{f"actual_qd_{j}": d.dq[:, j] + 0.05 for j in range(6)},
+            **{f"target_moment_{j}": d.tau[:, j] for j in range(6)}}
+    path = write(tmp_path / "ur.csv", cols, sep=" ")
+    auto = load_recording(path, model=model).dataset
+    logged = load_recording(path, model=model, velocities="logged")
+    mid = slice(100, -100)
+    np.testing.assert_allclose(logged.dataset.dq[mid] - auto.dq[mid], 0.05, atol=2e-3)
+    np.testing.assert_allclose(logged.dataset.ddq[mid], auto.ddq[mid], atol=0.05)
+    np.testing.assert_array_equal(logged.dataset.q, auto.q)
+    assert any("velocities='logged'" in s for s in logged.steps)
+    from consistid.cli.config import config_recordings, load_config
+
+    config = tmp_path / "run.toml"
+    config.write_text('[model]\nexample = "ur5"\n[data]\ntrain = ["ur.csv"]\n'
+                      'velocities = "logged"\n')
+    train, _ = config_recordings(load_config(config), model)
+    np.testing.assert_array_equal(train.dataset.dq, logged.dataset.dq)
+    with pytest.raises(ci.OptionError, match="velocities='fast'"):
+        load_recording(path, model=model, velocities="fast")

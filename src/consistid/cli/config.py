@@ -32,6 +32,7 @@ code. Example (``examples/kuka_lwr4/identify.toml``)::
     # timestamp = "end"          (torques averaged over each interval, stamped at its end)
     # derivatives = "auto"       (or "logged", "estimate")
     # angle_unit = "deg"         (q, dq, ddq of headers without a unit; default "rad", checked)
+    # velocities = "logged"      (use the logged dq, ddq derived from it; default "auto")
     # [data.signals]             the signal chain for logs without dq/ddq: cutoff = 20.0, ...
 
     [identify]                            # keyword arguments of consistid.identify
@@ -78,7 +79,7 @@ TABLES = ("model", "data", "identify", "diagnose", "recover", "payload", "excite
 MODEL_KEYS = ("urdf", "example", "strip_dynamics", "locked_joints", "gravity", "tilt", "name")
 DATA_KEYS = ("dir", "keys", "joint_names", "trim_start", "trim_end", "duplicates", "train",
              "held_out", "joints", "columns", "topic", "stamp", "delimiter", "time_unit",
-             "timestamp", "derivatives", "signals", "angle_unit")
+             "timestamp", "derivatives", "signals", "angle_unit", "velocities")
 #: Keys of ``[data.signals]``: the signal chain's options (the fields of
 #: :class:`consistid.data.chain.PreprocessOptions`, one schema for the API and the TOML) for
 #: logs without logged velocities and accelerations; ``duplicates``, ``timestamp`` and
@@ -306,7 +307,8 @@ def config_recordings(config: RunConfig, model: RobotModel | None = None
                       ("joints", "array of strings"), ("columns", "table"),
                       ("topic", "string"), ("stamp", "string"), ("delimiter", "string"),
                       ("time_unit", "string"), ("timestamp", "string or table"),
-                      ("derivatives", "string"), ("angle_unit", "string")):
+                      ("derivatives", "string"), ("angle_unit", "string"),
+                      ("velocities", "string")):
         if key in t:
             config.expect("data", key, t[key], kind)
     if not t.get("train"):
@@ -319,7 +321,8 @@ def config_recordings(config: RunConfig, model: RobotModel | None = None
         _check_folder(config, "dir", t["dir"])
     options = {k: t[k] for k in ("joint_names", "trim_start", "trim_end", "duplicates",
                                  "joints", "columns", "topic", "stamp", "delimiter",
-                                 "time_unit", "timestamp", "derivatives", "angle_unit")
+                                 "time_unit", "timestamp", "derivatives", "angle_unit",
+                                 "velocities")
                if k in t}
     if "signals" in t:
         options.update(config.check_table("data.signals", t["signals"], SIGNAL_KEYS))

@@ -49,7 +49,7 @@ from __future__ import annotations
 
 import html
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Mapping, Sequence
@@ -194,7 +194,7 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
                 trim_end: float = 0.0, duplicates: str | None = None,
                 time_unit: str | None = None, timestamp: str | Mapping[str, str] = "centre",
                 source: str = "arrays", angle_unit: str | None = None,
-                **signal_options: object) -> Recording:
+                velocities: str = "auto", **signal_options: object) -> Recording:
     """A :class:`Recording` from logged arrays (steps 2–5 of the module docstring).
 
     Parameters
@@ -219,6 +219,11 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
         ``"centre"`` (default; no shift), ``"start"`` or ``"end"`` (moved half a step to the
         interval centre and interpolated at the positions' stamps), or a mapping per field.
     source : label used in messages and in :attr:`Recording.source`.
+    velocities : ``"auto"`` (``dq`` and ``ddq`` both given, or neither) or ``"logged"``:
+        ``dq`` given without ``ddq`` is the logged velocity — run through the same signal
+        chain as ``q`` (resampling, zero-phase low-pass at the positions' cut-off) and
+        differentiated for ``ddq``; the positions' own derivative is set aside (said) and
+        compared with it (:func:`_check_logged`).
     angle_unit : the unit of ``q`` (and ``dq``, ``ddq``) of the revolute joints: ``"rad"``,
         ``"deg"`` (converted by π/180; a model's prismatic joints stay in metres), or ``None``
         (default: radians, and a log that looks like degrees — a range beyond two turns, speeds
@@ -238,7 +243,11 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
     steps: list[str] = []
     t = check_stamps(t, source)
     arrays = {"q": q, "tau": tau, "dq": dq, "ddq": ddq}
-    if (dq is None) != (ddq is None):
+    check_option("velocities", velocities, ("auto", "logged"))
+    if velocities == "logged" and dq is None:
+        raise MissingColumnsError(f"{source}: velocities='logged' but no logged velocities "
+                                  "(dq) are given")
+    if (dq is None) != (ddq is None) and not (velocities == "logged" and ddq is None):
         given = "dq" if ddq is None else "ddq"
         raise MissingColumnsError(f"{source}: {given} is given without "
                                   f"{'ddq' if given == 'dq' else 'dq'}; give both or neither "
@@ -292,7 +301,7 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
     if trim_start < 0 or trim_end < 0 or not np.isfinite(trim_start + trim_end):
         raise DatasetError(f"{source}: trim_start and trim_end must be finite seconds ≥ 0, got "
                            f"{trim_start}, {trim_end}")
-    if "dq" in arrays:
+    if "ddq" in arrays:
         if signal_options:
             raise DatasetError(f"{source}: signal-chain options {sorted(signal_options)} apply "
                                "only to logs without velocities/accelerations (these are used as "
@@ -313,6 +322,8 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
                      f"{pre.cutoff:.4g} Hz):")
         steps.extend(f"  {s}" for s in pre.steps)
         dataset = Dataset.from_chain(pre, names)
+        if "dq" in arrays:
+            dataset = _logged_velocities(t, arrays, options, pre, dataset, source, steps)
     end = t[-1]
     keep = (dataset.t >= trim_start) & (dataset.t <= end - trim_end)
     if not keep.any():
@@ -331,6 +342,24 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
     if model is not None:
         _check_against_model(dataset, model, source, steps)
     return Recording(dataset, tuple(steps), source, t0)
+
+
+def _logged_velocities(t: np.ndarray, arrays: Mapping[str, np.ndarray],
+                       options: PreprocessOptions, pre: object, dataset: Dataset, source: str,
+                       steps: list[str]) -> Dataset:
+    """``dataset`` (the chain's, from ``q``) with ``dq`` the logged velocities through the same
+    chain — same grid, same cut-off — and ``ddq`` their derivative (``velocities="logged"``)."""
+    same = replace(options, cutoff=pre.cutoff, rate=pre.rate)
+    vel = run_chain(t, arrays["dq"], arrays["tau"], same)
+    if vel.t.shape != pre.t.shape or not np.allclose(vel.t, pre.t, rtol=0, atol=1e-9):
+        raise DatasetError(f"{source}: the logged velocities came out of the signal chain on "
+                           "other samples than the positions; load with velocities='auto'")
+    steps.append(f"velocities='logged': dq is the logged velocity through the same chain "
+                 f"(cut-off {pre.cutoff:.4g} Hz), ddq its derivative; the derivative of q set "
+                 "aside")
+    _check_logged(dataset.t, {"q": dataset.q, "dq": vel.q, "ddq": vel.dq},
+                  dataset.joint_names, source, steps)
+    return replace(dataset, dq=vel.q, ddq=vel.dq)
 
 
 def _check_degrees(dataset: Dataset, model: RobotModel | None, revolute: np.ndarray,
@@ -509,7 +538,7 @@ def from_log(log: Log, *, model: RobotModel | None = None, trim_start: float = 0
              trim_end: float = 0.0, duplicates: str | None = None,
              time_unit: str | None = None, timestamp: str | Mapping[str, str] = "centre",
              derivatives: str = "auto", angle_unit: str | None = None,
-             **signal_options: object) -> Recording:
+             velocities: str = "auto", **signal_options: object) -> Recording:
     """A :class:`Recording` from a log read by :mod:`consistid.data.formats`: the reader's notes
     first, then :func:`from_arrays`. ``time_unit`` defaults to the unit the file gives (a
     ``time_ms`` column, ROS stamps). ``derivatives``: ``"auto"`` (use logged ``dq`` and ``ddq``
@@ -518,7 +547,11 @@ def from_log(log: Log, *, model: RobotModel | None = None, trim_start: float = 0
     (:func:`from_arrays`) applies to columns whose header names no unit: with ``"deg"``, a
     header that names one for an angle (``q1 [rad]``) raises :class:`OptionError`."""
     check_option("derivatives", derivatives, ("auto", "logged", "estimate"))
+    check_option("velocities", velocities, ("auto", "logged"))
     check_angle_unit(angle_unit)
+    if velocities == "logged" and derivatives == "estimate":
+        raise OptionError(f"{log.source}: velocities='logged' uses the logged velocities and "
+                          "derivatives='estimate' sets them aside; choose one")
     named = [f for f in ("q", "dq", "ddq") if f in log.unit_fields]
     if angle_unit == "deg" and named:
         raise OptionError(f"{log.source}: angle_unit='deg' converts columns without a unit, and "
@@ -530,7 +563,9 @@ def from_log(log: Log, *, model: RobotModel | None = None, trim_start: float = 0
     if derivatives == "logged" and len(have) < 2:
         raise MissingColumnsError(f"{log.source}: derivatives='logged' but the log lacks "
                                   f"{[f for f in ('dq', 'ddq') if f not in fields]}")
-    if derivatives == "estimate" or len(have) < 2:
+    if velocities == "logged" and have == ["dq"]:
+        notes.append("logged dq used (velocities='logged'); ddq derived from it")
+    elif derivatives == "estimate" or len(have) < 2:
         if have:
             notes.append(f"logged {' and '.join(have)} set aside: "
                          + ("derivatives='estimate'" if derivatives == "estimate" else
@@ -551,7 +586,8 @@ def from_log(log: Log, *, model: RobotModel | None = None, trim_start: float = 0
     rec = from_arrays(log.t, fields["q"], fields["tau"], fields.get("dq"), fields.get("ddq"),
                       joint_names=names, model=model, trim_start=trim_start, trim_end=trim_end,
                       duplicates=duplicates, time_unit=time_unit, timestamp=timestamp,
-                      source=log.source, angle_unit=angle_unit, **signal_options)
+                      source=log.source, angle_unit=angle_unit, velocities=velocities,
+                      **signal_options)
     steps = list(rec.steps)
     if log.origin:
         steps[0] = _describe_origin(log.origin + rec.time_origin)
@@ -600,7 +636,7 @@ def load_recording(path: str | Path, keys: str | Mapping[str, str] = "auto", *,
                    duplicates: str | None = None, time_unit: str | None = None,
                    timestamp: str | Mapping[str, str] = "centre", derivatives: str = "auto",
                    progress: ProgressArg = None, angle_unit: str | None = None,
-                   **signal_options: object) -> Recording:
+                   velocities: str = "auto", **signal_options: object) -> Recording:
     """Read a log file into a :class:`Recording` (module docstring: what is done, in order).
 
     The format is chosen by the suffix: ``.npz`` (below), ``.csv``/``.tsv``/``.txt``,
@@ -630,6 +666,9 @@ def load_recording(path: str | Path, keys: str | Mapping[str, str] = "auto", *,
     angle_unit : ``"rad"``, ``"deg"`` or ``None`` (radians, checked for degrees): see
         :func:`from_arrays` (a unit in a column's header wins, :func:`from_log`).
     derivatives : see :func:`from_log` (not for ``.npz``, whose ``keys`` say it).
+    velocities : ``"logged"`` uses a log's velocities (``actual_qd``, ``dq``, ``velocity``)
+        and derives the accelerations from them (:func:`from_arrays`); ``"auto"`` (default)
+        sets logged velocities without accelerations aside and derives both from ``q``.
     progress : ROS bags and MCAP: ``None`` (a bar on a terminal), ``True``, ``False`` or a
         callable (:mod:`consistid.progress`); the other formats read fast and ignore it.
 
@@ -654,7 +693,7 @@ def load_recording(path: str | Path, keys: str | Mapping[str, str] = "auto", *,
             joints = model.joint_names
         log = read_log(path, joints=joints, columns=columns, topic=topic, delimiter=delimiter,
                        stamp=stamp, progress=progress if kind == "bag" else None)
-        rec = from_log(log, derivatives=derivatives, **common)
+        rec = from_log(log, derivatives=derivatives, velocities=velocities, **common)
         return Recording(rec.dataset, rec.steps, str(path), rec.time_origin)
     if columns is not None or topic is not None or delimiter is not None or joints is not None:
         raise DatasetError(f"{path.name}: columns=, topic=, delimiter= and joints= apply to "
@@ -676,5 +715,5 @@ def load_recording(path: str | Path, keys: str | Mapping[str, str] = "auto", *,
     rec = from_arrays(arrays["t"], arrays["q"], arrays["tau"], arrays.get("dq"),
                       arrays.get("ddq"),
                       joint_names=joint_names if joint_names is not None else file_names,
-                      source=path.name, **common)
+                      source=path.name, velocities=velocities, **common)
     return Recording(rec.dataset, (first, *rec.steps), str(path), rec.time_origin)
