@@ -193,3 +193,31 @@ def test_logged_velocities_are_used_when_asked(tmp_path, ur5):
     np.testing.assert_array_equal(train.dataset.dq, logged.dataset.dq)
     with pytest.raises(ci.OptionError, match="velocities='fast'"):
         load_recording(path, model=model, velocities="fast")
+
+
+def test_a_log_split_over_three_files(tmp_path, panda_run):
+    """Positions, velocities and efforts in three CSVs with ``- <joint>_position`` headers (as
+    FIGAROH's TIAGo logs are), the efforts' logger on its own clock (stamps 1 ms later): read as
+    one log, equal to the same numbers in one table where the stamps agree."""
+    model, d = panda_run
+    names = model.joint_names
+    write(tmp_path / "positions.csv",
+          {"time": d.t, **{f"- {n}_position": d.q[:, j] for j, n in enumerate(names)}})
+    write(tmp_path / "velocities.csv",
+          {"time": d.t, **{f"- {n}_velocity": d.dq[:, j] for j, n in enumerate(names)}})
+    write(tmp_path / "efforts.csv",
+          {"time": d.t, **{f"- {n}_effort": d.tau[:, j] for j, n in enumerate(names)}})
+    files = [tmp_path / f for f in ("positions.csv", "velocities.csv", "efforts.csv")]
+    rec = load_recording(files, model=model, velocities="logged")
+    ref = load_recording(plain(tmp_path / "p.csv", d, d.t), model=model)
+    np.testing.assert_array_equal(rec.dataset.q, ref.dataset.q)
+    np.testing.assert_array_equal(rec.dataset.tau, ref.dataset.tau)
+    assert rec.dataset.joint_names == tuple(names)
+    assert "velocities.csv" in rec.source and any("velocities='logged'" in s for s in rec.steps)
+    # efforts on another clock: interpolated onto the positions' stamps, said
+    write(tmp_path / "efforts.csv",
+          {"time": d.t + 1e-3, **{f"- {n}_effort": d.tau[:, j] for j, n in enumerate(names)}})
+    shifted = load_recording(files, model=model)
+    assert any("interpolated" in s for s in shifted.steps)
+    with pytest.raises(MissingColumnsError, match="no tau columns"):
+        load_recording(files[:2], model=model)

@@ -63,7 +63,7 @@ from ..robot.model import RobotModel
 from .chain import PreprocessOptions, run_chain
 from .dataset import Dataset, array_names, open_npz
 from .filters import held_still, real_array, transposed_hint
-from .formats import Log, format_of, read_frame, read_log
+from .formats import Log, format_of, read_frame, read_log, read_split
 from .resample import resample
 from .units import (check_angle_unit, convert_angles, degree_message, degree_suspects,
                     model_limits, revolute_joints)
@@ -627,7 +627,8 @@ def _resolve_layout(files: Sequence[str], keys: str | Mapping[str, str], source:
     return layout
 
 
-def load_recording(path: str | Path, keys: str | Mapping[str, str] = "auto", *,
+def load_recording(path: str | Path | Sequence[str | Path],
+                   keys: str | Mapping[str, str] = "auto", *,
                    joints: Sequence[str] | None = None,
                    columns: Mapping[str, object] | None = None, topic: str | None = None,
                    stamp: str = "header", delimiter: str | None = None,
@@ -644,9 +645,12 @@ def load_recording(path: str | Path, keys: str | Mapping[str, str] = "auto", *,
     (:mod:`consistid.data.formats`; their columns are matched by name,
     :mod:`consistid.data.formats.columns`).
 
+    A list of files is a log split over them (positions, velocities, torques each in a
+    table of its own, :mod:`consistid.data.formats.split`), joined on the positions' stamps.
+
     Parameters
     ----------
-    path : the file (or ROS 2 bag folder).
+    path : the file (or ROS 2 bag folder), or a list of the files of a split log.
     keys : ``.npz`` only: ``"auto"`` (recognise a :data:`NPZ_LAYOUTS` layout), a layout name,
         or a mapping ``{"t": ..., "q": ..., "dq": ..., "ddq": ..., "tau": ...[, "joint_names":
         ...]}`` from dataset fields to array names (``dq``/``ddq`` may be left out to estimate
@@ -678,13 +682,22 @@ def load_recording(path: str | Path, keys: str | Mapping[str, str] = "auto", *,
     >>> rec = load_recording("run.mcap", model=model, timestamp="end")          # doctest: +SKIP
     >>> print(rec)                       # the steps applied            # doctest: +SKIP
     """
+    common = dict(model=model, trim_start=trim_start, trim_end=trim_end, duplicates=duplicates,
+                  time_unit=time_unit, timestamp=timestamp, angle_unit=angle_unit,
+                  **signal_options)
+    if isinstance(path, (list, tuple)):
+        if keys != "auto" or joint_names is not None or columns is not None or topic is not None:
+            raise DatasetError("keys=, joint_names=, columns= and topic= do not apply to a log "
+                               "split over several files (its columns are read by name)")
+        log = read_split(path, delimiter=delimiter,
+                         joints=joints if joints is not None or model is None
+                         else model.joint_names)
+        rec = from_log(log, derivatives=derivatives, velocities=velocities, **common)
+        return Recording(rec.dataset, rec.steps, log.source, rec.time_origin)
     path = Path(path)
     if not path.exists():
         raise DatasetError(f"recording {str(path)!r} does not exist")
     kind = format_of(path)
-    common = dict(model=model, trim_start=trim_start, trim_end=trim_end, duplicates=duplicates,
-                  time_unit=time_unit, timestamp=timestamp, angle_unit=angle_unit,
-                  **signal_options)
     if kind != "npz":
         if keys != "auto" or joint_names is not None:
             raise DatasetError(f"{path.name}: keys= and joint_names= apply to .npz logs; for "
