@@ -9,8 +9,8 @@ factors drawn from [0.9, 1.1] (:func:`consistid.robot.inertia.perturb`, seed 7),
 viscous friction, white torque noise σ = 0.05 N·m and 19-bit encoders, following a random
 Fourier trajectory (5 harmonics, 8 s period; a stiff tracking controller, 100 rad/s) at
 100 Hz: 6 s to train on (seed 1), 3 s held out (seed 2). The arms are example-robot-data's:
-``ur5`` (the CB-series UR5 — example-robot-data has no UR5e/UR10e), ``xarm7``, and ``kinova`` (a Kinova Jaco2 j2s6s200 — it has no Gen3; no KUKA
-iiwa either). The layouts:
+``ur5`` (the CB-series UR5 — example-robot-data has no UR5e/UR10e), ``xarm7``, and
+``kinova`` (a Kinova Jaco2 j2s6s200 — it has no Gen3; no KUKA iiwa either). The layouts:
 
 ========  ===================================================  ==========================
 arm       file layout (what consistid recognises without a      time
