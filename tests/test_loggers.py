@@ -221,3 +221,13 @@ def test_a_log_split_over_three_files(tmp_path, panda_run):
     assert any("interpolated" in s for s in shifted.steps)
     with pytest.raises(MissingColumnsError, match="no tau columns"):
         load_recording(files[:2], model=model)
+    # in a configuration: an array inside train is one log split over its files
+    from consistid.cli.config import config_inputs, config_recordings, load_config
+
+    config = tmp_path / "run.toml"
+    config.write_text('[model]\nexample = "panda"\n[data]\n'
+                      'train = [["positions.csv", "velocities.csv", "efforts.csv"]]\n')
+    conf = load_config(config)
+    train, _ = config_recordings(conf, model)
+    np.testing.assert_array_equal(train.dataset.tau, shifted.dataset.tau)
+    assert {p.name for p in config_inputs(conf)} >= {f.name for f in files}
