@@ -3,6 +3,7 @@ _repr_html_ (consistid.report.result)."""
 
 from __future__ import annotations
 
+import sys
 from html.parser import HTMLParser
 
 import numpy as np
@@ -42,12 +43,33 @@ def results(panda):
 def test_std_covariance_and_intervals_agree(results, name):
     res = results[name]
     np.testing.assert_allclose(res.std, np.sqrt(np.diag(res.covariance)))
-    ci95 = res.conf_int()
+    ci95 = np.asarray(res.conf_int())            # a labelled frame for an identification
     z = norm.ppf(0.975)
     np.testing.assert_allclose(ci95[:, 0], res.estimate - z * res.std)
     np.testing.assert_allclose(ci95[:, 1], res.estimate + z * res.std)
-    assert np.all(res.conf_int(0.5)[:, 1] - res.conf_int(0.5)[:, 0]
-                  < ci95[:, 1] - ci95[:, 0])
+    half = np.asarray(res.conf_int(0.5))
+    assert np.all(half[:, 1] - half[:, 0] < ci95[:, 1] - ci95[:, 0])
+
+
+def test_identification_intervals_are_labelled_as_statsmodels_does(results, monkeypatch):
+    """A DataFrame indexed by base-parameter name (columns lower, upper, the level in attrs);
+    labelled=False gives the same numbers as an array, and works without pandas."""
+    pd = pytest.importorskip("pandas")
+    res = results["identification"]
+    frame = res.conf_int(0.1)
+    assert isinstance(frame, pd.DataFrame) and list(frame.columns) == ["lower", "upper"]
+    assert list(frame.index) == list(res.base.names) and frame.index.name == "parameter"
+    assert frame.attrs["alpha"] == 0.1
+    z = norm.ppf(0.95)
+    name = res.base.names[3]
+    assert frame.loc[name, "upper"] == pytest.approx(res.estimate[3] + z * res.std[3])
+    np.testing.assert_array_equal(frame.to_numpy(), res.conf_int(0.1, labelled=False))
+    monkeypatch.setitem(sys.modules, "pandas", None)
+    with pytest.raises(ci.MissingDependencyError, match=r"pip install 'consistid\[io\]'"):
+        res.conf_int()
+    assert res.conf_int(labelled=False).shape == (res.estimate.size, 2)
+    with pytest.raises(ci.OptionError, match="alpha"):
+        res.conf_int(1.5)
 
 
 @pytest.mark.parametrize("name", ["identification", "mounting", "excitation"])

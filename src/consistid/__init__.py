@@ -16,6 +16,7 @@ Pinocchio, cvxpy, MuJoCo or matplotlib until they are needed. The subpackages, b
 from __future__ import annotations
 
 import importlib
+import importlib.util
 from typing import TYPE_CHECKING, Any
 
 from . import errors
@@ -85,10 +86,35 @@ def __getattr__(name: str) -> Any:
         value = getattr(importlib.import_module(f".{_EXPORTS[name]}", __name__), name)
     elif name in _SUBPACKAGES:
         value = importlib.import_module(f".{name}", __name__)
+        _load_submodules_on_use(value)
     else:
         raise AttributeError(f"module 'consistid' has no attribute {name!r}")
     globals()[name] = value
     return value
+
+
+def _load_submodules_on_use(package: Any) -> None:
+    """Let ``package``'s submodules load on first use, as its public names do:
+    ``ci.data.recordings.from_arrays`` works after ``import consistid`` alone (PEP 562: a
+    module's ``__getattr__`` is asked for the names it lacks; a package's own one is asked
+    first)."""
+    own = vars(package).get("__getattr__")
+    if getattr(own, "loads_submodules", False):
+        return
+
+    def __getattr__(name: str) -> Any:
+        if own is not None:
+            try:
+                return own(name)
+            except AttributeError:
+                pass
+        if not name.startswith("_") and importlib.util.find_spec(
+                f"{package.__name__}.{name}") is not None:
+            return importlib.import_module(f".{name}", package.__name__)
+        raise AttributeError(f"module {package.__name__!r} has no attribute {name!r}")
+
+    __getattr__.loads_submodules = True          # type: ignore[attr-defined]
+    package.__getattr__ = __getattr__
 
 
 def __dir__() -> list[str]:

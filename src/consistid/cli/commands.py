@@ -37,8 +37,8 @@ from . import online_demo
 from .calibrate import run_calibrate
 from .config import config_inputs, load_config
 from .excite import load_excitation_config
-from .files import atomic_dir, atomic_path, check_output, check_output_dir
-from .hints import toml_hints, toml_value
+from .files import atomic_dir, atomic_path, check_inputs, check_output, check_output_dir
+from .hints import cli_text, toml_hints, toml_value
 from ..progress import silenced
 
 #: Set by ``-q``: no progress bars, no step messages on stderr (errors are still printed).
@@ -191,6 +191,7 @@ def identify(args: argparse.Namespace) -> int:
         folder = (check_output_dir(args.output, IDENTIFY_OUTPUTS, inputs=inputs,
                                    force=args.force, what="--output") if args.output else None)
         train, held = config_recordings(config, model)
+        inputs = check_inputs(inputs)          # recordable (bag folders too), before the fit
         _log(str(train))
         if held is not None:
             _log(str(held))
@@ -209,7 +210,7 @@ def identify(args: argparse.Namespace) -> int:
     if found:
         res = dataclasses.replace(res, details={
             **res.details, **{f"warning {k + 1}": text for k, text in enumerate(found)}})
-    print(res.summary(max_rows=None if args.all else 20))
+    print(cli_text(res.summary(max_rows=None if args.all else 20)))
     scored = [score(res, train.dataset, "train")]
     if held is not None:
         scored.append(score(res, held.dataset, "held-out"))
@@ -284,7 +285,7 @@ def _write_identification(res: "ci.IdentificationResult", folder: Path, train: "
 def excite(args: argparse.Namespace) -> int:
     """Design an optimal excitation trajectory (:mod:`consistid.cli.excite`), write CSV."""
     config = load_excitation_config(args.config)
-    inputs = config_inputs(load_config(args.config), config.model)
+    inputs = check_inputs(config_inputs(load_config(args.config), config.model))
     output = check_output(args.output or config.output, inputs=inputs, force=args.force,
                           what="--output" if args.output else "[excite] output")
     _log(f"designing an excitation trajectory for {config.model.name} "
@@ -364,7 +365,7 @@ def recover(args: argparse.Namespace) -> int:
         res = ci.identify(model, train.dataset, method="ols", friction=friction,
                           armature=armature)
         rec = ci.recover_standard(model, res, **options)
-    print(rec.summary(max_rows=None if args.all else 20))
+    print(cli_text(rec.summary(max_rows=None if args.all else 20)))
     if urdf is not None:
         with atomic_path(urdf) as tmp:
             rec.to_urdf(tmp, t.get("merged", "auto"))
@@ -541,7 +542,7 @@ def calibrate(args: argparse.Namespace) -> int:
     written over, existing files only with ``--force``, atomic writes)."""
     result, written = run_calibrate(args.config, urdf=args.urdf,
                                                   report=args.report, force=args.force)
-    print(result.summary(max_rows=None if args.all else 30))
+    print(cli_text(result.summary(max_rows=None if args.all else 30)))
     for path in written.values():
         _log(f"wrote {path}")
     return 0

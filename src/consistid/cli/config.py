@@ -19,7 +19,8 @@ code. Example (``examples/kuka_lwr4/identify.toml``)::
     trim_start = 2.0                      # seconds dropped at the start of each recording
     trim_end = 0.0
     duplicates = "average"
-    train = ["measurements_2.npz", "measurements_3.npz"]
+    train = ["measurements_2.npz", "measurements_3.npz"]   # [["pos.csv", "eff.csv"]]: one
+                                          # log split over files (positions, torques …)
     held_out = ["measurements_1.npz"]
     # any log format (consistid.data.formats): train = ["run1.csv", "run2.parquet",
     # "bag_folder", "run.mcap", "run.bag", "run.mat"], with, where they apply:
@@ -31,6 +32,8 @@ code. Example (``examples/kuka_lwr4/identify.toml``)::
     # time_unit = "ms"           (or "auto"; default seconds, implausible stamps refused)
     # timestamp = "end"          (torques averaged over each interval, stamped at its end)
     # derivatives = "auto"       (or "logged", "estimate")
+    # angle_unit = "deg"         (q, dq, ddq of headers without a unit; default "rad", checked)
+    # velocities = "logged"      (use the logged dq, ddq derived from it; default "auto")
     # [data.signals]             the signal chain for logs without dq/ddq: cutoff = 20.0, ...
 
     [identify]                            # keyword arguments of consistid.identify
@@ -78,7 +81,7 @@ TABLES = ("model", "data", "identify", "diagnose", "recover", "payload", "excite
 MODEL_KEYS = ("urdf", "example", "strip_dynamics", "locked_joints", "gravity", "tilt", "name")
 DATA_KEYS = ("dir", "keys", "joint_names", "trim_start", "trim_end", "duplicates", "train",
              "held_out", "joints", "columns", "topic", "stamp", "delimiter", "time_unit",
-             "timestamp", "derivatives", "signals")
+             "timestamp", "derivatives", "signals", "angle_unit", "velocities")
 #: Keys of ``[drives]``: a motor-side log (motor angles, motor currents) and its transmission
 #: (:class:`consistid.drives.transmission.Transmission`).
 DRIVES_KEYS = ("ratios", "torque_constants", "coupling")
@@ -147,6 +150,9 @@ class RunConfig:
             "array of numbers": lambda v: isinstance(v, list) and all(number(x) for x in v),
             "string or array of strings": lambda v: isinstance(v, str) or (
                 isinstance(v, list) and all(isinstance(x, str) for x in v)),
+            "logs": lambda v: isinstance(v, str) or (isinstance(v, list) and all(
+                isinstance(x, str) or (isinstance(x, list) and x
+                                       and all(isinstance(y, str) for y in x)) for x in v)),
             "string or table": lambda v: isinstance(v, (str, Mapping)),
             "table": lambda v: isinstance(v, Mapping),
         }
@@ -155,8 +161,11 @@ class RunConfig:
                        "integer": "3", "array of strings": '["a", "b"]',
                        "array of numbers": "[0.0, 1.0]",
                        "string or array of strings": '"a" or ["a", "b"]',
+                       "logs": '"a.csv" or ["a.csv", ["pos.csv", "vel.csv", "eff.csv"]]',
                        "string or table": '"name" or {t = "time", ...}',
                        "table": '{t = "time", ...}'}[kind]
+            kind = ("string or array of log names (a split log: an array of its files)"
+                    if kind == "logs" else kind)
             article = "an" if kind[0] in "aeiou" else "a"
             raise ConfigError(f"{self.path.name}: [{table}] {key} must be {article} {kind} (e.g. "
                               f"{key} = {example}), got {key} = {_toml(value)}")
@@ -230,7 +239,9 @@ def config_inputs(config: RunConfig, model: RobotModel | None = None) -> list[Pa
     def add(value: Any, under: str | None = None) -> None:
         values = [value] if isinstance(value, str) else value if isinstance(value, list) else []
         for v in values:
-            if isinstance(v, str) and v:
+            if isinstance(v, list):                     # the files of a split log
+                add(v, under)
+            elif isinstance(v, str) and v:
                 try:
                     out.append(config.resolve(v, under=under))
                 except (TypeError, ValueError, OSError):
@@ -304,12 +315,12 @@ def config_recordings(config: RunConfig, model: RobotModel | None = None
     for key, kind in (("dir", "string"), ("keys", "string or table"),
                       ("joint_names", "array of strings"), ("trim_start", "number"),
                       ("trim_end", "number"), ("duplicates", "string"),
-                      ("train", "string or array of strings"),
-                      ("held_out", "string or array of strings"),
+                      ("train", "logs"), ("held_out", "logs"),
                       ("joints", "array of strings"), ("columns", "table"),
                       ("topic", "string"), ("stamp", "string"), ("delimiter", "string"),
                       ("time_unit", "string"), ("timestamp", "string or table"),
-                      ("derivatives", "string")):
+                      ("derivatives", "string"), ("angle_unit", "string"),
+                      ("velocities", "string")):
         if key in t:
             config.expect("data", key, t[key], kind)
     if not t.get("train"):
@@ -322,7 +333,9 @@ def config_recordings(config: RunConfig, model: RobotModel | None = None
         _check_folder(config, "dir", t["dir"])
     options = {k: t[k] for k in ("joint_names", "trim_start", "trim_end", "duplicates",
                                  "joints", "columns", "topic", "stamp", "delimiter",
-                                 "time_unit", "timestamp", "derivatives") if k in t}
+                                 "time_unit", "timestamp", "derivatives", "angle_unit",
+                                 "velocities")
+               if k in t}
     if "signals" in t:
         options.update(config.check_table("data.signals", t["signals"], SIGNAL_KEYS))
     drives = config_drives(config)
@@ -337,10 +350,11 @@ def config_recordings(config: RunConfig, model: RobotModel | None = None
     def read(files: Any, what: str) -> Recording:
         if isinstance(files, str):
             files = [files]
-        if not isinstance(files, list) or not all(isinstance(f, str) for f in files):
-            raise ConfigError(f"{config.path.name}: [data] {what} must be a list of file names, "
-                              f"got {files!r}")
-        paths = _distinct_logs(config, what, files, t.get("dir"))
+        config.expect("data", what, files, "logs")
+        flat = [g for f in files for g in ([f] if isinstance(f, str) else f)]
+        found = iter(_distinct_logs(config, what, flat, t.get("dir")))
+        paths = [next(found) if isinstance(f, str) else [next(found) for _ in f]
+                 for f in files]           # a list inside the list: a log split over files
         recs = [load_recording(p, keys, model=model, **options) for p in paths]
         return recs[0] if len(recs) == 1 else Recording.concatenate(recs)
 

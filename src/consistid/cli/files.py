@@ -8,7 +8,10 @@ Rules (issue 14), for every ``consistid`` subcommand that writes files:
 2. **Never over an input.** An output that resolves (symlinks followed) to one of the run's
    inputs — the configuration, a URDF, a data file — is refused even with ``--force``.
 3. **No silent overwrite.** An existing output is refused unless ``force=True`` (``--force``).
-4. **Atomic.** :func:`atomic_path` hands the writer a temporary file in the same folder (same
+4. **Inputs exist.** :func:`check_inputs` runs before the work too: every input the result's
+   provenance will record (files, and ROS 2 bag folders) must be there, so that a run never
+   ends in an error after its work.
+5. **Atomic.** :func:`atomic_path` hands the writer a temporary file in the same folder (same
    suffix, so writers that choose the format by suffix still work) and renames it over the target
    only when the writer returned (``os.replace``: atomic on POSIX and Windows within one
    filesystem); on failure the temporary file is removed and the target is untouched.
@@ -33,9 +36,11 @@ import uuid
 from pathlib import Path
 from typing import Iterable, Iterator
 
-from ..errors import OutputPathError
+from ..errors import ConfigError, OutputPathError, ResultFileError
+from ..identification.persistence import check_input
 
-__all__ = ["check_output", "check_output_dir", "atomic_path", "atomic_dir", "same_file"]
+__all__ = ["check_output", "check_output_dir", "check_inputs", "atomic_path", "atomic_dir",
+           "same_file"]
 
 
 def _resolved(path: str | os.PathLike) -> Path:
@@ -52,6 +57,21 @@ def same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:
         return ra.exists() and rb.exists() and os.path.samefile(ra, rb)
     except OSError:
         return False
+
+
+def check_inputs(inputs: Iterable[str | os.PathLike]) -> list[Path]:
+    """The run's inputs resolved, each a file or a folder (a ROS 2 bag folder), else
+    :class:`ConfigError` naming it — called before the work, with the same rule the result's
+    provenance applies when it records them
+    (:func:`consistid.identification.persistence.input_record`)."""
+    out = []
+    for path in inputs:
+        try:
+            out.append(check_input(path))
+        except ResultFileError:
+            raise ConfigError(f"input {str(path)!r} does not exist: name a file, or a ROS 2 bag "
+                              "folder (the folder holding metadata.yaml)") from None
+    return out
 
 
 def _check_not_input(path: Path, inputs: Iterable[str | os.PathLike], what: str) -> None:

@@ -104,3 +104,15 @@ def _allowed(m: re.Match) -> str:
     out."""
     items = re.sub(r"'([^']*)'", r'"\1"', m.group(2))
     return m.group(1) + re.sub(r"\bNone\b", "(the key left out)", items)
+
+
+#: Python calls quoted by the library's text, and the ``consistid`` option that does the same.
+CLI_SPELLINGS = {"summary(max_rows=None)": "--all"}
+
+
+def cli_text(text: str) -> str:
+    """``text`` (a result's summary) with the Python calls it quotes written as the CLI's
+    options (:data:`CLI_SPELLINGS`): "… 12 more rows (--all shows all)"."""
+    for python, cli in CLI_SPELLINGS.items():
+        text = text.replace(python, cli)
+    return text

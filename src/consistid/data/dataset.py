@@ -361,6 +361,14 @@ class Dataset:
                 raise MissingColumnsError(f"{path.name}: the header names {len(header)} "
                                           f"columns, the rows have {data.shape[1]}")
             col = {name.strip(): data[:, i] for i, name in enumerate(header)}
+            named = [name[2:] for name in col if name.startswith("q_")]
+            if named and not any(name.startswith("q") and name[1:].isdigit() for name in col):
+                # columns named by joint (an excitation design's CSV): renamed q1.. in order
+                if joint_names is not None and tuple(joint_names) != tuple(named):
+                    raise JointNameError(f"{path.name} names its joints {named}, not "
+                                         f"{list(joint_names)}")
+                joint_names = tuple(named)
+                col = {_numbered(name, named): v for name, v in col.items()}
             nv = sum(1 for name in col if name.startswith("q") and name[1:].isdigit())
             raw_log = ("; for a robot's log (joint names in the header, no dq/ddq, any "
                        "delimiter) use consistid.load_recording")
@@ -385,6 +393,16 @@ class Dataset:
                        dq_sign=np.column_stack([col[c] for c in sign])
                        if all(c in col for c in sign) else None)
         raise DatasetError(f"unknown dataset format {path.suffix!r}; use .npz or .csv")
+
+
+def _numbered(column: str, joints: Sequence[str]) -> str:
+    """``q_<joint>`` → ``q<k>`` (1-based, in the order of ``joints``); other names as they
+    are."""
+    for f in ("q", "dq", "ddq", "tau", "dq_sign"):
+        joint = column[len(f) + 1:]
+        if column.startswith(f + "_") and joint in joints:
+            return f"{f}{list(joints).index(joint) + 1}"
+    return column
 
 
 def _check_filter(value: object) -> tuple[float, int]:

@@ -64,8 +64,10 @@ from ..robot.model import RobotModel
 from .chain import PreprocessOptions, run_chain
 from .dataset import Dataset, array_names, open_npz
 from .filters import held_still, real_array, transposed_hint
-from .formats import Log, format_of, read_frame, read_log
+from .formats import Log, format_of, read_frame, read_log, read_split
 from .resample import resample
+from .units import (check_angle_unit, convert_angles, degree_message, degree_suspects,
+                    model_limits, revolute_joints)
 from .timestamps import (
     DUPLICATES,
     check_stamps,
@@ -193,6 +195,7 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
                 trim_end: float = 0.0, duplicates: str | None = None,
                 time_unit: str | None = None, timestamp: str | Mapping[str, str] = "centre",
                 source: str = "arrays", drives: Transmission | None = None,
+                angle_unit: str | None = None, velocities: str = "auto",
                 **signal_options: object) -> Recording:
     """A :class:`Recording` from logged arrays (steps 2–5 of the module docstring).
 
@@ -223,6 +226,17 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
         motor in the joints' order, converted after trimming (and before the checks against
         ``model``) to joint angles ``q = G⁻¹(q_m / r)`` (and their derivatives) and joint
         torques ``τ = Gᵀ(r ⊙ k_t ⊙ i)``, recorded in the steps.
+    velocities : ``"auto"`` (``dq`` and ``ddq`` both given, or neither) or ``"logged"``:
+        ``dq`` given without ``ddq`` is the logged velocity — run through the same signal
+        chain as ``q`` (resampling, zero-phase low-pass at the positions' cut-off) and
+        differentiated for ``ddq``; the positions' own derivative is set aside (said) and
+        compared with it (:func:`_check_logged`).
+    angle_unit : the unit of ``q`` (and ``dq``, ``ddq``) of the revolute joints: ``"rad"``,
+        ``"deg"`` (converted by π/180; a model's prismatic joints stay in metres), or ``None``
+        (default: radians, and a log that looks like degrees — a range beyond two turns, speeds
+        beyond 720 °/s, positions beyond the model's limits that degrees would fit — warns
+        :class:`~consistid.errors.DataQualityWarning` naming the joints;
+        :mod:`consistid.data.units`).
 
     Raises
     ------
@@ -232,10 +246,15 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
     """
     check_option("duplicates", duplicates, (None, *DUPLICATES))
     shifts = check_timestamp(timestamp)
+    factor = check_angle_unit(angle_unit)
     steps: list[str] = []
     t = check_stamps(t, source)
     arrays = {"q": q, "tau": tau, "dq": dq, "ddq": ddq}
-    if (dq is None) != (ddq is None):
+    check_option("velocities", velocities, ("auto", "logged"))
+    if velocities == "logged" and dq is None:
+        raise MissingColumnsError(f"{source}: velocities='logged' but no logged velocities "
+                                  "(dq) are given")
+    if (dq is None) != (ddq is None) and not (velocities == "logged" and ddq is None):
         given = "dq" if ddq is None else "ddq"
         raise MissingColumnsError(f"{source}: {given} is given without "
                                   f"{'ddq' if given == 'dq' else 'dq'}; give both or neither "
@@ -277,6 +296,11 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
     order, names = _match_joints(joint_names, nv, model, source, steps)
     if order is not None:
         arrays = {k: a[:, order] for k, a in arrays.items()}
+    revolute = revolute_joints(model) if model is not None else np.ones(nv, bool)
+    if angle_unit == "deg":
+        arrays = convert_angles(arrays, factor, revolute)
+        steps.append(f"angle_unit='deg': q, dq, ddq of {int(revolute.sum())} revolute joint(s) "
+                     "converted to radians (× π/180)")
     for name, value in (("trim_start", trim_start), ("trim_end", trim_end)):
         if isinstance(value, (bool, np.bool_)) \
                 or not isinstance(value, (int, float, np.integer, np.floating)):
@@ -284,7 +308,7 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
     if trim_start < 0 or trim_end < 0 or not np.isfinite(trim_start + trim_end):
         raise DatasetError(f"{source}: trim_start and trim_end must be finite seconds ≥ 0, got "
                            f"{trim_start}, {trim_end}")
-    if "dq" in arrays:
+    if "ddq" in arrays:
         if signal_options:
             raise DatasetError(f"{source}: signal-chain options {sorted(signal_options)} apply "
                                "only to logs without velocities/accelerations (these are used as "
@@ -305,6 +329,8 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
                      f"{pre.cutoff:.4g} Hz):")
         steps.extend(f"  {s}" for s in pre.steps)
         dataset = Dataset.from_chain(pre, names)
+        if "dq" in arrays:
+            dataset = _logged_velocities(t, arrays, options, pre, dataset, source, steps)
     end = t[-1]
     keep = (dataset.t >= trim_start) & (dataset.t <= end - trim_end)
     if not keep.any():
@@ -320,6 +346,8 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
         steps.append("no trim_start/trim_end requested")
     if drives is not None:
         dataset = joint_side(dataset, drives, steps)
+    if angle_unit is None:
+        _check_degrees(dataset, model, revolute, source, steps)
     if model is not None:
         _check_against_model(dataset, model, source, steps)
     return Recording(dataset, tuple(steps), source, t0)
@@ -348,6 +376,36 @@ def joint_side(dataset: Dataset, drives: Transmission, steps: list[str]) -> Data
                      "; the filtered Coulomb signal is dropped (coupled motors)"
                      if coupled and dataset.dq_sign is not None else ""))
     return out
+
+
+def _logged_velocities(t: np.ndarray, arrays: Mapping[str, np.ndarray],
+                       options: PreprocessOptions, pre: object, dataset: Dataset, source: str,
+                       steps: list[str]) -> Dataset:
+    """``dataset`` (the chain's, from ``q``) with ``dq`` the logged velocities through the same
+    chain — same grid, same cut-off — and ``ddq`` their derivative (``velocities="logged"``)."""
+    same = replace(options, cutoff=pre.cutoff, rate=pre.rate)
+    vel = run_chain(t, arrays["dq"], arrays["tau"], same)
+    if vel.t.shape != pre.t.shape or not np.allclose(vel.t, pre.t, rtol=0, atol=1e-9):
+        raise DatasetError(f"{source}: the logged velocities came out of the signal chain on "
+                           "other samples than the positions; load with velocities='auto'")
+    steps.append(f"velocities='logged': dq is the logged velocity through the same chain "
+                 f"(cut-off {pre.cutoff:.4g} Hz), ddq its derivative; the derivative of q set "
+                 "aside")
+    _check_logged(dataset.t, {"q": dataset.q, "dq": vel.q, "ddq": vel.dq},
+                  dataset.joint_names, source, steps)
+    return replace(dataset, dq=vel.q, ddq=vel.dq)
+
+
+def _check_degrees(dataset: Dataset, model: RobotModel | None, revolute: np.ndarray,
+                   source: str, steps: list[str]) -> None:
+    """Warn (:class:`DataQualityWarning`) and record the joints whose positions look like
+    degrees read as radians (:func:`consistid.data.units.degree_suspects`)."""
+    found = degree_suspects(dataset.q, dataset.dq, dataset.joint_names, revolute,
+                            model_limits(model) if model is not None else None)
+    if found:
+        text = degree_message(found, source)
+        steps.append(text)
+        warnings.warn(text, DataQualityWarning, stacklevel=4)
 
 
 #: Logged derivatives are compared with differences of what they derive over about this many
@@ -513,20 +571,35 @@ def _shift_logged(t: np.ndarray, arrays: dict[str, np.ndarray], shifts: Mapping[
 def from_log(log: Log, *, model: RobotModel | None = None, trim_start: float = 0.0,
              trim_end: float = 0.0, duplicates: str | None = None,
              time_unit: str | None = None, timestamp: str | Mapping[str, str] = "centre",
-             derivatives: str = "auto", **signal_options: object) -> Recording:
+             derivatives: str = "auto", angle_unit: str | None = None,
+             velocities: str = "auto", **signal_options: object) -> Recording:
     """A :class:`Recording` from a log read by :mod:`consistid.data.formats`: the reader's notes
     first, then :func:`from_arrays`. ``time_unit`` defaults to the unit the file gives (a
     ``time_ms`` column, ROS stamps). ``derivatives``: ``"auto"`` (use logged ``dq`` and ``ddq``
     when both are there, else estimate both from ``q``; a logged ``dq`` alone is then set aside
-    and said), ``"logged"`` (refuse a log without them) or ``"estimate"``."""
+    and said), ``"logged"`` (refuse a log without them) or ``"estimate"``. ``angle_unit``
+    (:func:`from_arrays`) applies to columns whose header names no unit: with ``"deg"``, a
+    header that names one for an angle (``q1 [rad]``) raises :class:`OptionError`."""
     check_option("derivatives", derivatives, ("auto", "logged", "estimate"))
+    check_option("velocities", velocities, ("auto", "logged"))
+    check_angle_unit(angle_unit)
+    if velocities == "logged" and derivatives == "estimate":
+        raise OptionError(f"{log.source}: velocities='logged' uses the logged velocities and "
+                          "derivatives='estimate' sets them aside; choose one")
+    named = [f for f in ("q", "dq", "ddq") if f in log.unit_fields]
+    if angle_unit == "deg" and named:
+        raise OptionError(f"{log.source}: angle_unit='deg' converts columns without a unit, and "
+                          f"the header names the unit of {named}; leave angle_unit out (the "
+                          "header's units are read), or remove the units from the header")
     fields = dict(log.fields)
     notes = list(log.notes)
     have = [f for f in ("dq", "ddq") if f in fields]
     if derivatives == "logged" and len(have) < 2:
         raise MissingColumnsError(f"{log.source}: derivatives='logged' but the log lacks "
                                   f"{[f for f in ('dq', 'ddq') if f not in fields]}")
-    if derivatives == "estimate" or len(have) < 2:
+    if velocities == "logged" and have == ["dq"]:
+        notes.append("logged dq used (velocities='logged'); ddq derived from it")
+    elif derivatives == "estimate" or len(have) < 2:
         if have:
             notes.append(f"logged {' and '.join(have)} set aside: "
                          + ("derivatives='estimate'" if derivatives == "estimate" else
@@ -547,7 +620,8 @@ def from_log(log: Log, *, model: RobotModel | None = None, trim_start: float = 0
     rec = from_arrays(log.t, fields["q"], fields["tau"], fields.get("dq"), fields.get("ddq"),
                       joint_names=names, model=model, trim_start=trim_start, trim_end=trim_end,
                       duplicates=duplicates, time_unit=time_unit, timestamp=timestamp,
-                      source=log.source, **signal_options)
+                      source=log.source, angle_unit=angle_unit, velocities=velocities,
+                      **signal_options)
     steps = list(rec.steps)
     if log.origin:
         steps[0] = _describe_origin(log.origin + rec.time_origin)
@@ -587,7 +661,8 @@ def _resolve_layout(files: Sequence[str], keys: str | Mapping[str, str], source:
     return layout
 
 
-def load_recording(path: str | Path, keys: str | Mapping[str, str] = "auto", *,
+def load_recording(path: str | Path | Sequence[str | Path],
+                   keys: str | Mapping[str, str] = "auto", *,
                    joints: Sequence[str] | None = None,
                    columns: Mapping[str, object] | None = None, topic: str | None = None,
                    stamp: str = "header", delimiter: str | None = None,
@@ -596,6 +671,7 @@ def load_recording(path: str | Path, keys: str | Mapping[str, str] = "auto", *,
                    duplicates: str | None = None, time_unit: str | None = None,
                    timestamp: str | Mapping[str, str] = "centre", derivatives: str = "auto",
                    progress: ProgressArg = None, drives: Transmission | None = None,
+                   angle_unit: str | None = None, velocities: str = "auto",
                    **signal_options: object) -> Recording:
     """Read a log file into a :class:`Recording` (module docstring: what is done, in order).
 
@@ -604,9 +680,12 @@ def load_recording(path: str | Path, keys: str | Mapping[str, str] = "auto", *,
     (:mod:`consistid.data.formats`; their columns are matched by name,
     :mod:`consistid.data.formats.columns`).
 
+    A list of files is a log split over them (positions, velocities, torques each in a
+    table of its own, :mod:`consistid.data.formats.split`), joined on the positions' stamps.
+
     Parameters
     ----------
-    path : the file (or ROS 2 bag folder).
+    path : the file (or ROS 2 bag folder), or a list of the files of a split log.
     keys : ``.npz`` only: ``"auto"`` (recognise a :data:`NPZ_LAYOUTS` layout), a layout name,
         or a mapping ``{"t": ..., "q": ..., "dq": ..., "ddq": ..., "tau": ...[, "joint_names":
         ...]}`` from dataset fields to array names (``dq``/``ddq`` may be left out to estimate
@@ -623,7 +702,12 @@ def load_recording(path: str | Path, keys: str | Mapping[str, str] = "auto", *,
         :class:`~consistid.errors.JointNameError`).
     model, trim_start, trim_end, duplicates, time_unit, timestamp, drives, signal_options : see
         :func:`from_arrays` (``drives=``: a motor-side log of motor angles and currents).
+    angle_unit : ``"rad"``, ``"deg"`` or ``None`` (radians, checked for degrees): see
+        :func:`from_arrays` (a unit in a column's header wins, :func:`from_log`).
     derivatives : see :func:`from_log` (not for ``.npz``, whose ``keys`` say it).
+    velocities : ``"logged"`` uses a log's velocities (``actual_qd``, ``dq``, ``velocity``)
+        and derives the accelerations from them (:func:`from_arrays`); ``"auto"`` (default)
+        sets logged velocities without accelerations aside and derives both from ``q``.
     progress : ROS bags and MCAP: ``None`` (a bar on a terminal), ``True``, ``False`` or a
         callable (:mod:`consistid.progress`); the other formats read fast and ignore it.
 
@@ -633,12 +717,22 @@ def load_recording(path: str | Path, keys: str | Mapping[str, str] = "auto", *,
     >>> rec = load_recording("run.mcap", model=model, timestamp="end")          # doctest: +SKIP
     >>> print(rec)                       # the steps applied            # doctest: +SKIP
     """
+    common = dict(model=model, trim_start=trim_start, trim_end=trim_end, duplicates=duplicates,
+                  time_unit=time_unit, timestamp=timestamp, angle_unit=angle_unit,
+                  drives=drives, **signal_options)
+    if isinstance(path, (list, tuple)):
+        if keys != "auto" or joint_names is not None or columns is not None or topic is not None:
+            raise DatasetError("keys=, joint_names=, columns= and topic= do not apply to a log "
+                               "split over several files (its columns are read by name)")
+        log = read_split(path, delimiter=delimiter,
+                         joints=joints if joints is not None or model is None
+                         else model.joint_names)
+        rec = from_log(log, derivatives=derivatives, velocities=velocities, **common)
+        return Recording(rec.dataset, rec.steps, log.source, rec.time_origin)
     path = Path(path)
     if not path.exists():
         raise DatasetError(f"recording {str(path)!r} does not exist")
     kind = format_of(path)
-    common = dict(model=model, trim_start=trim_start, trim_end=trim_end, duplicates=duplicates,
-                  time_unit=time_unit, timestamp=timestamp, drives=drives, **signal_options)
     if kind != "npz":
         if keys != "auto" or joint_names is not None:
             raise DatasetError(f"{path.name}: keys= and joint_names= apply to .npz logs; for "
@@ -647,7 +741,7 @@ def load_recording(path: str | Path, keys: str | Mapping[str, str] = "auto", *,
             joints = model.joint_names
         log = read_log(path, joints=joints, columns=columns, topic=topic, delimiter=delimiter,
                        stamp=stamp, progress=progress if kind == "bag" else None)
-        rec = from_log(log, derivatives=derivatives, **common)
+        rec = from_log(log, derivatives=derivatives, velocities=velocities, **common)
         return Recording(rec.dataset, rec.steps, str(path), rec.time_origin)
     if columns is not None or topic is not None or delimiter is not None or joints is not None:
         raise DatasetError(f"{path.name}: columns=, topic=, delimiter= and joints= apply to "
@@ -669,5 +763,5 @@ def load_recording(path: str | Path, keys: str | Mapping[str, str] = "auto", *,
     rec = from_arrays(arrays["t"], arrays["q"], arrays["tau"], arrays.get("dq"),
                       arrays.get("ddq"),
                       joint_names=joint_names if joint_names is not None else file_names,
-                      source=path.name, **common)
+                      source=path.name, velocities=velocities, **common)
     return Recording(rec.dataset, (first, *rec.steps), str(path), rec.time_origin)

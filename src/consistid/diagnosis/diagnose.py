@@ -56,6 +56,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import Callable, Sequence
 
 import numpy as np
@@ -76,6 +77,7 @@ from .candidates import EFFECT_NAMES, SIGNATURES, Atom, EffectLibrary, GapData
 from .effects import REGISTRY, EffectParameter
 from .gap import GapBreakdown, gap_breakdown, residual_spectra
 from .noise import NoiseFloor, estimate_noise_floor, spectral_estimate
+from .persistence import read_diagnosis, write_diagnosis
 from .remainder import (
     LOWPASS_ORDER,
     REMAINDER_RATIO,
@@ -315,6 +317,16 @@ class Diagnosis:
         found = ", ".join(f"{e.name}({', '.join(e.joints)})" for e in self.effects) or "none"
         return (f"Diagnosis({self.model_name!r}, effects=[{found}], "
                 f"verdict={self.verdict!r})")
+
+    def save(self, path: str | Path) -> Path:
+        """Write this diagnosis as JSON (:mod:`consistid.diagnosis.persistence`); returns the
+        path. :meth:`load` gives back the same tables, verdict, report and corrected model."""
+        return write_diagnosis(self, path)
+
+    @classmethod
+    def load(cls, path: str | Path) -> "Diagnosis":
+        """A diagnosis written by :meth:`save`."""
+        return read_diagnosis(path)
 
     def report(self, path: str | None = None):
         """Write the report: ``*.html`` (plots embedded), ``*.txt``, or a directory (both, plus

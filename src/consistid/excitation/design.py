@@ -456,9 +456,9 @@ class ExcitationDesign(Reported):
         return self.trajectory.sample(rate, duration, joint_names=self.joint_names)
 
     def save_csv(self, path: str | Path, rate: float, duration: float | None = None) -> Path:
-        """CSV ``t, q1.., dq1.., ddq1..`` for a robot controller
-        (:meth:`Trajectory.save_csv`)."""
-        return self.trajectory.save_csv(path, rate, duration)
+        """CSV ``t, q_<joint>.., dq_<joint>.., ddq_<joint>..`` named by the robot's joints,
+        for a robot controller (:meth:`Trajectory.save_csv`)."""
+        return self.trajectory.save_csv(path, rate, duration, self.joint_names)
 
     def summary(self) -> str:
         return str(self)

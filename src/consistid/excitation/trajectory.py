@@ -470,14 +470,20 @@ class Trajectory:
         return Dataset(t=t, q=q, dq=dq, ddq=ddq,
                        joint_names=None if joint_names is None else tuple(joint_names))
 
-    def save_csv(self, path: str | Path, rate: float, duration: float | None = None) -> Path:
-        """Write ``t, q1..qn, dq1..dqn, ddq1..ddqn`` at ``rate`` Hz to a CSV file for a robot
+    def save_csv(self, path: str | Path, rate: float, duration: float | None = None,
+                 joint_names: Sequence[str] | None = None) -> Path:
+        """Write ``t, q_<joint>.., dq_<joint>.., ddq_<joint>..`` (``joint_names``; without
+        them ``q1..qn``, ``dq1..``, ``ddq1..``) at ``rate`` Hz to a CSV file for a robot
         controller (readable by :meth:`Dataset.load`). Returns the path."""
         data = self.sample(rate, duration)
         path = Path(path)
+        if joint_names is not None and len(joint_names) != data.nv:
+            raise ExcitationError(f"{len(joint_names)} joint names for {data.nv} joints")
+        label = ((lambda f, j: f"{f}_{joint_names[j]}") if joint_names is not None
+                 else (lambda f, j: f"{f}{j + 1}"))
         cols = {"t": data.t}
         for name in ("q", "dq", "ddq"):
-            cols.update({f"{name}{j + 1}": getattr(data, name)[:, j] for j in range(data.nv)})
+            cols.update({label(name, j): getattr(data, name)[:, j] for j in range(data.nv)})
         np.savetxt(path, np.column_stack(list(cols.values())), delimiter=",",
                    header=",".join(cols), comments="", fmt="%.10g")
         return path

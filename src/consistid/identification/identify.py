@@ -44,6 +44,7 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 import scipy.linalg
 
+from .angle_units import flag_degrees
 from .base import COND_WARN, RANK_RTOL, BaseParameters, compute_base_parameters
 from .compression import CompressedProblem, floor_sigma, joint_sigma
 from ..data.checks import check_for_identification
@@ -324,8 +325,8 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
                 prior=default_prior(model) if prior == "auto" else prior, **options)
         result = identify_sdp(model, problem, base, spec, given,
                               dataset=dataset if isinstance(dataset, Dataset) else None)
-    result = with_weak_directions(with_covariance(result, problem, dataset, covariance, kept),
-                                  problem, dataset, kept)
+    result = flag_degrees(with_covariance(result, problem, dataset, covariance, kept), dataset)
+    result = with_weak_directions(result, problem, dataset, kept)
     return with_excluded(result, excluded, kept, friction, armature) if excluded else result
 
 

@@ -36,7 +36,8 @@ literals, readable by ``jq`` or any language) with these top-level keys:
     the method's extra figures (SDP margins, active constraints, prior weight …).
 ``provenance``
     when and with what it was computed: package versions, platform, the input files (path,
-    size, SHA-256) and the run configuration.
+    size, SHA-256; a ROS 2 bag folder: total size and the SHA-256 of its file listing,
+    :func:`tree_sha256`) and the run configuration.
 ``kind``, ``extra``
     which result class wrote it (``"identification"``, or ``"nonlinear_friction"`` for
     :class:`consistid.friction.NonlinearFrictionResult`) and the fields that class adds (its
@@ -162,11 +163,34 @@ def package_versions() -> dict[str, str | None]:
     return out
 
 
-def input_record(path: str | Path) -> dict[str, Any]:
-    """``{"path", "bytes", "sha256"}`` of an input file (:class:`ResultFileError` if absent)."""
+def check_input(path: str | Path) -> Path:
+    """``path`` resolved, if it can be recorded as an input: a file, or a folder (a ROS 2 bag
+    folder: ``metadata.yaml`` and its storage files); else :class:`ResultFileError`."""
     p = Path(path).expanduser().resolve()
-    if not p.is_file():
-        raise ResultFileError(f"provenance input {str(path)!r} is not a file")
+    if not (p.is_file() or p.is_dir()):
+        raise ResultFileError(f"provenance input {str(path)!r} is not a file nor a folder (it "
+                              "does not exist)")
+    return p
+
+
+def tree_sha256(folder: Path) -> tuple[int, str]:
+    """``(bytes, SHA-256)`` of a folder: the SHA-256 of the lines ``<relative path> <SHA-256
+    of its bytes>`` of every file under it, sorted by path (the files' contents and names, not
+    their times), and the sum of their sizes."""
+    files = sorted(f for f in folder.rglob("*") if f.is_file())
+    listing = "".join(f"{f.relative_to(folder).as_posix()} {sha256(f)}\n" for f in files)
+    return (sum(f.stat().st_size for f in files),
+            hashlib.sha256(listing.encode("utf-8")).hexdigest())
+
+
+def input_record(path: str | Path) -> dict[str, Any]:
+    """``{"path", "bytes", "sha256"}`` of an input file, or of a folder (a ROS 2 bag folder:
+    the total size and :func:`tree_sha256`, and ``"folder": True``); :class:`ResultFileError`
+    if it is neither."""
+    p = check_input(path)
+    if p.is_dir():
+        size, digest = tree_sha256(p)
+        return {"path": str(p), "bytes": size, "sha256": digest, "folder": True}
     return {"path": str(p), "bytes": p.stat().st_size, "sha256": sha256(p)}
 
 

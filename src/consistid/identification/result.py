@@ -11,14 +11,15 @@ from pathlib import Path
 from typing import Any, ClassVar, Mapping, Sequence
 
 import numpy as np
-import scipy.stats
 
 from . import persistence
+from .intervals import interval_frame
 from .base import BaseParameters
 from .envelope import TrainingEnvelope
 from ..data.checks import check_magnitudes
 from ..data.dataset import Dataset, as_dataset
 from ..errors import ExtrapolationWarning, ResultFileError, check_number, check_option
+from ..report.result import normal_intervals
 from ..robot.export import write_urdf
 from ..robot.mjcf import write_mjcf
 from ..robot.model import RobotModel
@@ -209,11 +210,14 @@ class IdentificationResult(StandardParameterSet):
         """Covariance of :attr:`estimate` (the base parameters), as on every result."""
         return self.base_covariance
 
-    def conf_int(self, alpha: float = 0.05) -> np.ndarray:
-        """Two-sided ``1 − alpha`` confidence intervals of the base parameters, shape (b, 2)."""
-        z = scipy.stats.norm.ppf(1 - alpha / 2)
-        return np.column_stack([self.base_parameters - z * self.base_std,
-                                self.base_parameters + z * self.base_std])
+    def conf_int(self, alpha: float = 0.05, *, labelled: bool = True) -> Any:
+        """Two-sided ``1 − alpha`` confidence intervals of the base parameters, as statsmodels
+        gives them: a pandas ``DataFrame`` indexed by base-parameter name, columns ``lower``
+        and ``upper`` (:mod:`consistid.identification.intervals`); ``labelled=False``: the
+        bare ``(b, 2)`` array (no pandas needed)."""
+        if not labelled:
+            return normal_intervals(self.base_parameters, self.base_std, alpha)
+        return interval_frame(self.base_parameters, self.base_std, self.base.names, alpha)
 
     # ----------------------------------------------------------------------------- prediction
     def predict(self, dataset: Dataset) -> np.ndarray:

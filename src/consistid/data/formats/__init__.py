@@ -14,6 +14,7 @@ suffix             reader                                 needs
 or a bag folder
 ``.mat``           :func:`~.matlab.read_mat`               (scipy)
 DataFrame          :func:`~.frame.read_frame`              (pandas, any version)
+several files      :func:`~.split.read_split`              (numpy)
 =================  =====================================  ============================
 """
 
@@ -30,12 +31,13 @@ from .frame import read_frame
 from .matlab import read_mat
 from .parquet import read_parquet
 from .rosbag import read_bag
+from .split import read_split
 
 SUFFIXES = {".csv": "csv", ".tsv": "csv", ".txt": "csv", ".parquet": "parquet", ".pq": "parquet",
             ".bag": "bag", ".mcap": "bag", ".db3": "bag", ".mat": "mat"}
 
 __all__ = ["Log", "SUFFIXES", "format_of", "read_bag", "read_csv", "read_frame", "read_log",
-           "read_mat", "read_parquet"]
+           "read_mat", "read_parquet", "read_split"]
 
 
 def format_of(path: str | Path) -> str:

@@ -33,6 +33,7 @@ import numpy as np
 
 from ...errors import DatasetError, JointNameError, MissingColumnsError, OptionError
 from ..timestamps import check_resolution
+from .presets import PresetMatch, match_preset
 
 FIELDS = ("q", "dq", "ddq", "tau")
 #: Column-name spellings of each dataset field.
@@ -84,6 +85,7 @@ class Log:
     rows : the file line of each sample (text files), for messages.
     origin : seconds already subtracted from ``t`` (ROS stamps are read as integer nanoseconds
         and made relative before they become floats, which keeps their resolution).
+    unit_fields : the fields whose column headers named their unit (converted to SI already).
     """
 
     t: np.ndarray
@@ -94,6 +96,7 @@ class Log:
     time_unit: str | None = None
     rows: np.ndarray | None = field(default=None)
     origin: float = 0.0
+    unit_fields: tuple[str, ...] = ()
 
 
 def _clean(name: str) -> str:
@@ -173,15 +176,29 @@ def _template(spec: str | Sequence[str], joints: Sequence[str] | None, field_nam
         if "{joint}" in spec and joints is None:
             raise MissingColumnsError(f"{source}: columns[{field_name!r}] = {spec!r} needs joint "
                                       "names: pass joints=[...] or a model")
-        if "{joint}" not in spec and "{i}" not in spec:
+        if not any(k in spec for k in ("{joint}", "{i}", "{i0}", "{i1}")):
             raise MissingColumnsError(f"{source}: columns[{field_name!r}] = {spec!r} must contain "
-                                      "{joint} or {i}, or be a list of column names")
+                                      "{joint}, {i} (= {i1}, counting from 1) or {i0} (from 0), "
+                                      "or be a list of column names")
         n = len(joints) if joints is not None else None
         if n is None:
             raise MissingColumnsError(f"{source}: columns[{field_name!r}] = {spec!r} needs the "
                                       "joint count: pass joints=[...] or a model")
-        return [spec.format(joint=joints[i] if joints else i + 1, i=i + 1) for i in range(n)]
+        return [spec.format(joint=joints[i] if joints else i + 1, i=i + 1, i1=i + 1, i0=i)
+                for i in range(n)]
     return [str(c) for c in spec]
+
+
+def _base_hint(spec: object, joints: Sequence[str] | None, names: Sequence[str]) -> str:
+    """A hint when a template counting from 1 (``{i}``) misses columns that counting from 0
+    (``{i0}``) finds: ``actual_q_{i}`` looks for ``actual_q_6`` in a log of ``actual_q_0..5``."""
+    if not isinstance(spec, str) or "{i}" not in spec and "{i1}" not in spec or not joints:
+        return ""
+    zero = spec.replace("{i}", "{i0}").replace("{i1}", "{i0}")
+    cols = [zero.format(joint=j, i0=k) for k, j in enumerate(joints)]
+    if all(c in names for c in cols):
+        return f" ({{i}} counts from 1; these columns count from 0: write {zero!r})"
+    return ""
 
 
 @dataclass(frozen=True)
@@ -196,12 +213,19 @@ class ColumnMap:
     time_unit: str | None
     dropped: tuple[str, ...]
     ignored: tuple[str, ...]
+    #: the logger recognised (:mod:`consistid.data.formats.presets`) and what it adds
+    preset: str | None = None
+    preset_notes: tuple[str, ...] = ()
 
     def describe(self, source: str) -> str:
         parts = [f"t←{self.time!r}" + (f" ({self.time_unit})" if self.time_unit else "")]
         for f, cols in self.fields.items():
             parts.append(f"{f}←{cols[0]!r}…{cols[-1]!r}" if len(cols) > 1 else f"{f}←{cols[0]!r}")
         text = f"read {source}: " + ", ".join(parts)
+        if self.preset:
+            text = (f"read {source} as {self.preset} (recognised by its columns; columns= "
+                    "overrides): " + ", ".join(parts))
+            text += "".join(f"; {n}" for n in self.preset_notes)
         if self.joint_names:
             text += f"; joints {list(self.joint_names)}"
         if self.dropped:
@@ -230,8 +254,12 @@ def check_selection(joints: object, columns: object) -> None:
 
 
 def map_columns(names: Sequence[str], source: str, *, joints: Sequence[str] | None = None,
-                columns: Mapping[str, str | Sequence[str]] | None = None) -> ColumnMap:
-    """The :class:`ColumnMap` of a table with column ``names`` (module docstring).
+                columns: Mapping[str, str | Sequence[str]] | None = None,
+                first_row: Sequence[str] | None = None) -> ColumnMap:
+    """The :class:`ColumnMap` of a table with column ``names`` (module docstring); without
+    ``columns``, a logger's own layout is recognised first
+    (:mod:`~consistid.data.formats.presets`; ``first_row``, the cells of the first data row,
+    gives the joint names a ROS ``JointState`` log writes in its rows).
 
     Raises :class:`MissingColumnsError` naming the file, the field or joint that has no column
     and the columns the file has.
@@ -242,6 +270,10 @@ def map_columns(names: Sequence[str], source: str, *, joints: Sequence[str] | No
     if dup:
         raise MissingColumnsError(f"{source}: column name(s) {dup} appear more than once")
     joints = None if joints is None else [str(j) for j in joints]
+    if not columns:
+        preset = match_preset(names, first_row)
+        if preset is not None:
+            return _preset_map(preset, names, source, joints)
     if columns:
         unknown = sorted(set(columns) - {"t", *FIELDS})
         if unknown:
@@ -252,7 +284,8 @@ def map_columns(names: Sequence[str], source: str, *, joints: Sequence[str] | No
             missing = [c for c in cols if c not in names]
             if missing:
                 raise MissingColumnsError(f"{source}: columns[{f!r}] names {missing}, which the "
-                                          f"file lacks{have}")
+                                          f"file lacks{_base_hint(columns[f], joints, names)}"
+                                          f"{have}")
         lengths = {len(c) for c in explicit.values()}
         if len(lengths) > 1:
             raise MissingColumnsError(f"{source}: columns= gives different joint counts "
@@ -368,6 +401,41 @@ def map_columns(names: Sequence[str], source: str, *, joints: Sequence[str] | No
     return ColumnMap(time, fields, names_out, unit, tuple(dropped), ignored)
 
 
+def _preset_map(match: PresetMatch, names: Sequence[str], source: str,
+                joints: Sequence[str] | None) -> ColumnMap:
+    """The :class:`ColumnMap` of a recognised logger's table; ``joints`` select by name when
+    the log names its joints, else must be as many as its numbered columns."""
+    count = len(match.fields["q"])
+    label = f"{match.preset.label} (joints numbered from {match.base})"
+    names_out, keep = match.joint_names, list(range(count))
+    if joints is not None and match.joint_names is not None:
+        missing = [j for j in joints if j not in match.joint_names]
+        if missing:
+            raise JointNameError(f"{source} ({match.preset.label}) has no joint(s) {missing}; "
+                                 f"its joints are {list(match.joint_names)}")
+        keep = [match.joint_names.index(j) for j in joints]
+        names_out = tuple(joints)
+    elif joints is not None:
+        if len(joints) != count:
+            raise MissingColumnsError(f"{source} ({match.preset.label}): {count} numbered joint "
+                                      f"columns but joints= names {len(joints)}: {list(joints)}; "
+                                      "pass columns= to choose")
+        names_out = tuple(joints)
+    fields = {f: [cols[k] for k in keep] for f, cols in match.fields.items()}
+    dropped = tuple(c for cols in match.fields.values() for k, c in enumerate(cols)
+                    if k not in keep)
+    unit = match.preset.time_unit or time_unit_of(match.time)[1]
+    read = {match.time, *match.names_columns, *dropped} | {c for v in fields.values() for c in v}
+    notes = match.notes
+    if match.names_columns:
+        notes = (*notes, f"joint names from the first row of {match.names_columns[0]!r}…")
+    if match.joint_names is not None and len(keep) < count:
+        notes = (*notes, "joints not selected: "
+                 f"{[n for k, n in enumerate(match.joint_names) if k not in keep]}")
+    return ColumnMap(match.time, fields, names_out, unit, dropped,
+                     tuple(n for n in names if n not in read), label, tuple(notes))
+
+
 def _check_number_names(column: str, found: list[tuple[str, str | int]], joints: list[str],
                         by_name: Mapping[str, str], source: str) -> None:
     """:class:`MissingColumnsError` when ``column`` reads as two different joints: by number
@@ -476,4 +544,7 @@ def log_from_columns(get, cmap: ColumnMap, source: str, n_rows: int,
     if t.size != n_rows or t.size == 0:
         raise DatasetError(f"{source}: no data rows")
     notes = (cmap.describe(source), *unit_notes, *extra_notes)
-    return Log(t, fields, cmap.joint_names, source, notes, cmap.time_unit, rows)
+    named = tuple(f for f, cols in cmap.fields.items()
+                  if any(column_unit(c) is not None for c in cols))
+    return Log(t, fields, cmap.joint_names, source, notes, cmap.time_unit, rows,
+               unit_fields=named)

@@ -138,8 +138,9 @@ def read_csv(path: str | Path, *, joints: Sequence[str] | None = None,
         raise MissingColumnsError(f"{source}: the first line {header_line.strip()[:80]!r} is data,"
                                   " not a header naming the columns; add a header line or pass "
                                   "the arrays to consistid.data.recordings.from_arrays")
-    cmap = map_columns(names, source, joints=joints, columns=columns)
     data_lines = [ln for ln in lines[k + 1:] if ln.strip() and not ln.lstrip().startswith("#")]
+    cmap = map_columns(names, source, joints=joints, columns=columns,
+                       first_row=_cells(data_lines[0], delimiter) if data_lines else None)
     decimal_comma = bool(data_lines) and reads_decimal_comma(delimiter, data_lines[0])
     wanted = [cmap.time] + [c for cols in cmap.fields.values() for c in cols]
     usecols = sorted({names.index(c) for c in wanted})
@@ -189,6 +190,37 @@ def read_csv(path: str | Path, *, joints: Sequence[str] | None = None,
         col[cmap.time] = stamps
         note += (f"; column {cmap.time!r} read as {CLOCKS[clock]}")
     return log_from_columns(col.__getitem__, cmap, source, table.shape[0], rows, (note,))
+
+
+def read_table(path: str | Path, delimiter: str | None = None
+               ) -> tuple[list[str], np.ndarray, str]:
+    """``(column names, (N, k) numbers, note)`` of a delimited text file with one header line,
+    every column numeric (comments, delimiter sniffing and decimal commas as for
+    :func:`read_csv`; a bad value is named by line and column)."""
+    path = Path(path)
+    source = path.name
+    if not path.is_file():
+        raise DatasetError(f"log file {str(path)!r} does not exist")
+    text = read_text(path, source)
+    lines = text[:SNIFF_CHARS].splitlines()
+    k, header_line = _header(lines, source)
+    how = "given" if delimiter is not None else "sniffed"
+    delimiter = delimiter or sniff_delimiter(text[:SNIFF_CHARS], source)
+    names = _cells(header_line, delimiter)
+    rows = [ln for ln in lines[k + 1:] if ln.strip() and not ln.lstrip().startswith("#")]
+    comma = bool(rows) and reads_decimal_comma(delimiter, rows[0])
+    body = text.replace("\r\n", "\n").replace("\r", "\n")
+    try:
+        table = np.loadtxt(io.StringIO(body.replace(",", ".") if comma else body),
+                           delimiter=None if delimiter == " " else delimiter, skiprows=k + 1,
+                           comments="#", ndmin=2, dtype=float)
+    except ValueError:
+        _locate(path, k + 1, delimiter, names, comma, source, range(len(names)))
+        raise DatasetError(f"{source}: not readable as numbers after the header") from None
+    if table.shape[0] == 0 or table.shape[1] != len(names):
+        raise DatasetError(f"{source}: {table.shape[0]} rows of {table.shape[1]} numbers under "
+                           f"a header of {len(names)} columns")
+    return names, table, f"delimiter {delimiter!r} ({how}), {table.shape[0]} rows"
 
 
 def reads_decimal_comma(delimiter: str, first_row: str) -> bool:

@@ -49,7 +49,8 @@ def read_frame(frame: Any, *, joints: Sequence[str] | None = None,
             values[name] = np.asarray(index.to_numpy())
             labels = [name, *labels]
             notes.append(f"time from the index {name!r}")
-    cmap = map_columns(labels, source, joints=joints, columns=columns)
+    cmap = map_columns(labels, source, joints=joints, columns=columns,
+                       first_row=[str(values[lab][0]) for lab in labels])
 
     def get(name: str) -> np.ndarray:
         a = values[name]
@@ -63,5 +64,6 @@ def read_frame(frame: Any, *, joints: Sequence[str] | None = None,
     if values[cmap.time].dtype.kind in "mM":
         return Log(log.t, log.fields, log.joint_names, log.source,
                    log.notes + (f"{cmap.time!r} holds {values[cmap.time].dtype} stamps: "
-                                "converted to seconds",), "s", log.rows)
+                                "converted to seconds",), "s", log.rows,
+                   unit_fields=log.unit_fields)
     return log

@@ -51,5 +51,6 @@ def read_parquet(path: str | Path, *, joints: Sequence[str] | None = None,
         what = ("timestamps: converted to seconds from the first" if kind.startswith("timestamp")
                 else f"durations ({kind}): converted to seconds")
         return Log(log.t, log.fields, log.joint_names, log.source,
-                   log.notes + (f"{cmap.time!r} holds {what}",), "s", log.rows)
+                   log.notes + (f"{cmap.time!r} holds {what}",), "s", log.rows,
+                   unit_fields=log.unit_fields)
     return log
