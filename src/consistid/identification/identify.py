@@ -57,6 +57,7 @@ from ..robot.model import RobotModel, require_model
 from .regressor import DEFAULT_FRICTION, FrictionArg, RegressorSpec, parameter_names, prior_vector
 from .result import IdentificationResult
 from .solver import SolverReport
+from .model_error import rest_bias
 from .statistics import coloured_covariance
 from .uninformed import uninformed_directions
 from .streaming import (DataStream, ResidualStatistics, as_stream, compress_data, is_one_pass,
@@ -313,7 +314,8 @@ def with_covariance(result: IdentificationResult, problem: CompressedProblem,
             **result.details, "covariance": "iid (every row an independent sample" + (
                 "; a one-pass stream: the coloured sandwich needs a second reading)" if once
                 else ")")})
-    stats = residual_statistics(result.model, result.spec, result.parameters, dataset)
+    stats = residual_statistics(result.model, result.spec, result.parameters, dataset,
+                                result.base)
     tau = stats.autocorrelation_time()
     cols = result.base.independent
     r_b = problem.factors[:, :-1, :-1][:, :, cols]
@@ -324,17 +326,45 @@ def with_covariance(result: IdentificationResult, problem: CompressedProblem,
     # every sample's residual, exact from the factors (the autocorrelation may read fewer)
     variances = joint_sigma(problem.sum_squares(result.parameters), problem.n_samples,
                             result.base.n_base, tau) ** 2
-    cov = coloured_covariance(result.base_covariance, grams, weights, tau,
-                              np.where(variances > 0, variances, 1.0 / weights))
+    variances = np.where(variances > 0, variances, 1.0 / weights)
+    cov = coloured_covariance(result.base_covariance, grams, weights, tau, variances)
     shown = ", ".join(f"{n} {t:.3g}" for n, t in zip(result.model.joint_names, tau))
     details = {**result.details,
                "covariance": f"coloured (sandwich, N/τ_j effective rows; τ_j in samples: {shown})",
                "autocorrelation_time": tau}
+    cov, details = with_rest_error(result, problem, stats.rest, cov, details,
+                                   (weights, tau, variances))
     note = standstill_note(stats, result.model.joint_names)
     if note:
         warnings.warn(note, ModelMisfitWarning, stacklevel=3)
         details["standstill"] = note
     return dataclasses.replace(result, base_covariance=cov, details=details)
+
+
+def with_rest_error(result: IdentificationResult, problem: CompressedProblem,
+                    rest: CompressedProblem | None, cov: np.ndarray, details: dict,
+                    noise: tuple[np.ndarray, np.ndarray, np.ndarray]
+                    ) -> tuple[np.ndarray, dict]:
+    """``cov`` with the model-error term of the rows at rest added to its diagonal
+    (:mod:`consistid.identification.model_error`; ``noise`` = ``(w_j, τ_j, v_j)`` of the
+    sandwich), and ``details["model_error"]`` (per base parameter, its standard deviation ``b``,
+    N·m-consistent units of the parameter) with ``details["model_error_note"]`` saying what was
+    done. ``rest`` is the compressed problem of the rows at rest (``None``: there are none)."""
+    cols = result.base.independent
+    if rest is None:
+        return cov, {**details, "model_error": np.zeros(cols.size),
+                     "model_error_note": "none: no joint stands still in the data"}
+    b2, _ = rest_bias(problem, rest, cols, *noise)
+    finite = np.isfinite(np.diag(cov))
+    cov = cov + np.diag(np.where(finite, b2, 0.0))
+    wide = np.flatnonzero(b2 > np.where(finite, np.diag(cov) - b2, np.inf))
+    names = [result.base.names[i] for i in wide]
+    note = (f"the rows where a joint stands still move {len(wide)} base parameter(s) by more "
+            f"than their noise ± ({', '.join(names[:6])}{' …' if len(names) > 6 else ''}): "
+            "their intervals include that model error (Hausman difference of the fits with and "
+            "without those rows)" if wide.size else
+            "the rows at rest move no base parameter beyond its noise ±")
+    return cov, {**details, "model_error": np.sqrt(b2), "model_error_note": note}
 
 
 def standstill_note(stats: ResidualStatistics, joint_names: Sequence[str]) -> str:

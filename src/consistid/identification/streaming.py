@@ -50,6 +50,7 @@ from ..robot.joint_terms import STANDSTILL_SPEED
 from ..robot.model import RobotModel
 from .base import BaseParameters
 from .compression import CompressedProblem, compress
+from .model_error import rest_problem
 from .regressor import RegressorSpec, predict_torque
 from .statistics import add_lagged, autocovariance_sum, integrated_time
 
@@ -146,6 +147,9 @@ class ResidualStatistics:
     rest_sum_squares, rest_count : (nv,) the part of ``sum_squares`` on the samples where the
         joint stands still (``|q̇_j| <`` :data:`~consistid.robot.joint_terms.STANDSTILL_SPEED`),
         and how many they are (:meth:`standstill_excess`).
+    rest : the compressed problem of those samples' rows, every sample read
+        (:func:`consistid.identification.model_error.rest_problem`), when the statistics were
+        asked for with ``base``; else ``None``.
     """
 
     autocovariance: np.ndarray | None
@@ -153,11 +157,12 @@ class ResidualStatistics:
     n_samples: int
     rest_sum_squares: np.ndarray
     rest_count: np.ndarray
+    rest: CompressedProblem | None = None
 
     @classmethod
     def of(cls, model: RobotModel, spec: RegressorSpec, theta: np.ndarray,
-           dataset: Dataset, samples: int | None = AUTOCORRELATION_SAMPLES
-           ) -> "ResidualStatistics":
+           dataset: Dataset, samples: int | None = AUTOCORRELATION_SAMPLES,
+           base: BaseParameters | None = None) -> "ResidualStatistics":
         """The statistics of one in-memory dataset (by
         :func:`~consistid.identification.regressor.predict_torque`) over ``samples`` of its
         samples (:func:`autocorrelation_windows`; ``None``: all of them), or more when the
@@ -165,7 +170,8 @@ class ResidualStatistics:
         standard error ``√(2(2M + 1)/n)`` with Sokal's window ``M ≈ 5τ``, so ``τ`` within
         :data:`TAU_PRECISION` needs ``n ≥ 2(10τ + 1)/TAU_PRECISION²`` samples (2 200 for a
         white residual, 400 000 for ``τ = 200``); the residual is then read again on that
-        many. The sums and the count are those of the samples read."""
+        many. The sums and the count are those of the samples read; with ``base`` (of
+        ``(model, spec)``), :attr:`rest` is compressed from all of them."""
         part = autocorrelation_windows(dataset, samples)
         stats = cls._of(model, spec, theta, part)
         if part is not dataset:
@@ -173,6 +179,8 @@ class ResidualStatistics:
             needed = int(np.ceil(2.0 * (10.0 * tau + 1.0) / TAU_PRECISION ** 2))
             if needed > part.n_samples:
                 stats = cls._of(model, spec, theta, autocorrelation_windows(dataset, needed))
+        if base is not None:
+            stats = dataclasses.replace(stats, rest=rest_problem(model, dataset, spec, base))
         return stats
 
     @classmethod
@@ -189,7 +197,9 @@ class ResidualStatistics:
         return ResidualStatistics(pooled, self.sum_squares + other.sum_squares,
                                   self.n_samples + other.n_samples,
                                   self.rest_sum_squares + other.rest_sum_squares,
-                                  self.rest_count + other.rest_count)
+                                  self.rest_count + other.rest_count,
+                                  self.rest if other.rest is None else other.rest
+                                  if self.rest is None else merge(self.rest, other.rest))
 
     def standstill_excess(self) -> tuple[np.ndarray, np.ndarray]:
         r"""``(ratio, p)`` per joint: the residual's RMS on the samples where the joint stands
@@ -327,12 +337,14 @@ class DataStream:
         return problem
 
     def residual_statistics(self, model: RobotModel, spec: RegressorSpec,
-                            theta: np.ndarray) -> ResidualStatistics:
+                            theta: np.ndarray, base: BaseParameters | None = None
+                            ) -> ResidualStatistics:
         """:class:`ResidualStatistics` of ``τ − Y θ`` over every part (a second pass; each part
-        counts as its own recordings for the autocorrelation)."""
+        counts as its own recordings for the autocorrelation; ``base``: see
+        :meth:`ResidualStatistics.of`)."""
         total = None
         for _, data in self.parts(model):
-            stats = ResidualStatistics.of(model, spec, theta, data)
+            stats = ResidualStatistics.of(model, spec, theta, data, base=base)
             total = stats if total is None else total + stats
         if total is None:
             raise DatasetError("the data stream is empty on its second reading: a function "
@@ -391,11 +403,13 @@ def compress_data(model: RobotModel, data: Dataset | DataStream, spec: Regressor
 
 
 def residual_statistics(model: RobotModel, spec: RegressorSpec, theta: np.ndarray,
-                        data: Dataset | DataStream) -> ResidualStatistics:
-    """:class:`ResidualStatistics` of ``τ − Y θ`` on an in-memory dataset or a stream."""
+                        data: Dataset | DataStream, base: BaseParameters | None = None
+                        ) -> ResidualStatistics:
+    """:class:`ResidualStatistics` of ``τ − Y θ`` on an in-memory dataset or a stream
+    (``base``: also the rows at rest, :meth:`ResidualStatistics.of`)."""
     if isinstance(data, DataStream):
-        return data.residual_statistics(model, spec, theta)
-    return ResidualStatistics.of(model, spec, theta, data)
+        return data.residual_statistics(model, spec, theta, base)
+    return ResidualStatistics.of(model, spec, theta, data, base=base)
 
 
 __all__ = ["DataStream", "ResidualStatistics", "as_stream", "compress_data", "is_one_pass",
