@@ -31,6 +31,12 @@ one extra pass over the data), through the sandwich
 weighs the joints alike whatever their noise) and ``R_{jb}`` joint ``j``'s R factor restricted
 to the base columns (``Y_{jb}^\top Y_{jb} = R_{jb}^\top R_{jb}``).
 The estimate itself is unchanged. On white noise ``τ_j ≈ 1`` and the two agree.
+
+``"coloured"`` also adds a model-error term to the diagonal: where a joint stands still, dry
+friction takes any torque up to its break-away, which ``f_c sign(q̇)`` does not describe, and
+those rows bias the fit beyond any noise ± (:mod:`consistid.identification.model_error`: the
+Hausman difference of the least-squares fits with and without them, less its noise;
+``details["model_error"]``, ``details["model_error_note"]``).
 """
 
 from __future__ import annotations
@@ -216,7 +222,9 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
         ``None``/``"none"`` and refuse a prior.
     covariance : ``"coloured"`` widens ``base_covariance`` for residuals correlated in time
         (filtered torques), each joint's rows counting as ``N / τ_j`` (module docstring; one
-        extra pass over the data; the estimate is unchanged; on white noise ``τ_j ≈ 1``);
+        extra pass over the data; the estimate is unchanged; on white noise ``τ_j ≈ 1``),
+        plus the model error the rows at rest put into the fit (module docstring;
+        ``details["model_error"]`` per base parameter, ``details["model_error_note"]``);
         ``"iid"`` counts every row as an independent sample. ``"auto"`` (default):
         ``"coloured"``, or ``"iid"`` with ``loss="huber"``, whose re-weighted rows the sandwich
         does not cover, and for a stream that can be read only once (a generator: the sandwich
