@@ -13,7 +13,9 @@ the joint frame), mapped to the base parameters by the base map, and the simulat
 values (offset 0). ``identify(..., friction=("coulomb", "viscous", "offset"))`` with OLS and the
 SDP; a parameter is covered when ``|β̂ − β| ≤ 1.96 σ̂``. The table gives the share covered per
 group of base parameters (rigid body / viscous / Coulomb / offset), pooled over seeds, and the
-median ``|β̂ − β| / σ̂`` of the group (0.67 for honest Gaussian intervals).
+median ``|β̂ − β| / σ̂`` of the group (0.67 for honest Gaussian intervals). Rows ``<cov>-noise``
+are the same intervals without the model-error term of the rows at rest
+(:mod:`consistid.identification.model_error`): the noise-only sandwich.
 """
 
 from __future__ import annotations
@@ -81,10 +83,15 @@ def one_run(name: str, seed: int, duration: float, rate: float, covariances: lis
                 theta[names.index(f"{joint}.fc")] = fc[j]
                 theta[names.index(f"{joint}.fv")] = fv[j]
             beta = res.base.project(theta)
-            std = np.sqrt(np.clip(np.diag(res.base_covariance), 0, None))
-            z = np.abs(res.base_parameters - beta) / std
+            var = np.clip(np.diag(res.base_covariance), 0, None)
+            error = np.abs(res.base_parameters - beta)
             rows.append(dict(robot=name, seed=seed, method=method, covariance=cov,
-                             z=z, group=groups(res)))
+                             z=error / np.sqrt(var), group=groups(res)))
+            if "model_error" in res.details:         # the same without the model-error term
+                noise = var - res.details["model_error"] ** 2
+                rows.append(dict(robot=name, seed=seed, method=method,
+                                 covariance=f"{cov}-noise", z=error / np.sqrt(noise),
+                                 group=groups(res)))
     return rows
 
 
@@ -119,7 +126,8 @@ def main() -> None:
           + f"{'all':>18s}")
     for name in args.robots:
         for method in args.methods:
-            for cov in args.covariance:
+            shown = dict.fromkeys(r["covariance"] for r in rows)
+            for cov in shown:
                 sel = [r for r in rows if (r["robot"], r["method"], r["covariance"])
                        == (name, method, cov)]
                 z = np.concatenate([r["z"] for r in sel])

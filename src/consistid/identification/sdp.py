@@ -60,7 +60,7 @@ from __future__ import annotations
 
 import time
 import warnings
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from typing import Any, Mapping, Sequence
 
 import cvxpy as cp
@@ -72,6 +72,7 @@ from . import priors
 from . import program as compiled_programs
 from .base import COND_WARN, RANK_RTOL, BaseParameters
 from .compression import CompressedProblem, compress, floor_sigma, joint_sigma
+from .prior_weight import evidence_weight
 from .solver import DEFAULT_SOLVER, SolverReport, check_solver, solve
 from .uninformed import uninformed_directions
 from ..data.dataset import Dataset
@@ -93,6 +94,9 @@ DEFAULT_PRIOR_UNCERTAINTY = 0.3
 #: in the null space of the base map.)
 PRIORS = (None, "euclidean", "logdet")
 LOSSES = ("squared", "huber")
+#: ``prior_weight`` rules by name: the weight chosen from the data by empirical Bayes
+#: (:mod:`consistid.identification.prior_weight`).
+WEIGHT_RULES = ("evidence",)
 #: A constraint counts as active when its prior-normalised slack is below this …
 ACTIVE_TOL = 1e-6
 #: … and as violated (the answer is rejected) when its slack is below minus this.
@@ -153,7 +157,7 @@ class SDPOptions:
 
     constraints: str | Mapping[str, str] = "pseudo-inertia"
     prior: str | None = "logdet"
-    prior_weight: float | None = None
+    prior_weight: float | str | None = None
     prior_uncertainty: float | None = None
     prior_weights: np.ndarray | None = None
     neighbourhood: priors.Neighbourhood | None = None
@@ -194,7 +198,9 @@ class SDPOptions:
             check_number("huber_threshold", self.huber_threshold, 0, strict=True)
         if self.prior_uncertainty is not None:
             check_number("prior_uncertainty", self.prior_uncertainty, 0, strict=True)
-        if self.prior is not None and self.prior_weight is not None:
+        if isinstance(self.prior_weight, str):
+            check_option("prior_weight", self.prior_weight, WEIGHT_RULES)
+        elif self.prior is not None and self.prior_weight is not None:
             check_number("prior_weight", self.prior_weight, 0)
 
     @classmethod
@@ -221,10 +227,17 @@ class SDPOptions:
 
     @property
     def weight(self) -> float:
-        """The prior weight ``γ`` used: 0 without a prior, else ``prior_weight`` or the default."""
+        """The prior weight ``γ`` used: 0 without a prior, else ``prior_weight`` or the default
+        (for ``"evidence"``: the start of its search, :func:`identify_sdp` chooses it)."""
         if self.prior is None:
             return 0.0
-        return self.default_weight if self.prior_weight is None else float(self.prior_weight)
+        return (self.default_weight if self.prior_weight is None or self.from_data
+                else float(self.prior_weight))
+
+    @property
+    def from_data(self) -> bool:
+        """Whether the prior weight is chosen from the data (``prior_weight="evidence"``)."""
+        return self.prior is not None and self.prior_weight == "evidence"
 
 
 def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParameters,
@@ -246,7 +259,11 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
         body is exactly ``m ≥ 0`` plus the triangle inequalities. The log-det prior keeps every
         ``J ≻ 0`` by its domain whatever the level.
     prior : ``None``, ``"euclidean"`` or ``"logdet"``.
-    prior_weight : ``γ``; default :func:`default_prior_weight` of ``prior_uncertainty``.
+    prior_weight : ``γ``; default :func:`default_prior_weight` of ``prior_uncertainty``;
+        ``"evidence"``: chosen from the data (the evidence, marginal likelihood, of the
+        quadratic model of the prior: :mod:`consistid.identification.prior_weight`), after
+        the σ of the Fisher weighting and before the first solve; ``details["prior_weight"]``
+        gives it, ``details["prior_weight_rule"]`` says how it was found.
     prior_uncertainty : ``r`` of :func:`default_prior_weight` (default
         :data:`DEFAULT_PRIOR_UNCERTAINTY`); give it or ``prior_weight``, not both.
     prior_weights : Euclidean ``W`` on the inertial parameters, (10·nb,) diagonal or
@@ -345,6 +362,13 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
             raise OptionError(f"sigma must be {nv} finite values > 0 (one per joint), got "
                               f"{sigma!r}")
     sig = floor_sigma(sig, problem)
+    evidence = None
+    if opts.from_data:
+        t0 = time.perf_counter()
+        gamma, iterations_gamma = _evidence_gamma(problem, sig, prior_vec, setup, model.n_bodies,
+                                                  gamma_default)
+        setup = replace(setup, gamma=gamma)
+        evidence = (iterations_gamma, time.perf_counter() - t0)
 
     work, theta = problem, None
     solve_time = compile_time = 0.0
@@ -404,7 +428,7 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
                       "alone; consider prior='logdet'", PoorExcitationWarning, stacklevel=3)
     chi2 = float(np.sum(work.sum_squares(theta) / sig ** 2))
     details = _details(model, theta, setup, prior_vec, gamma_default, opts.prior_weight, active,
-                       chi2)
+                       chi2, evidence)
     size = program.problem.size_metrics
     details.update(program_size={"variables": int(size.num_scalar_variables),
                                  "constraints": len(program.problem.constraints),
@@ -641,6 +665,36 @@ def _prior_hessian(prior: str | None, setup: _Setup, nb: int,
     return 2.0 * metric.T @ metric
 
 
+def _normalising_map(r: np.ndarray, setup: _Setup, p: int, nb: int) -> np.ndarray:
+    """``T`` of the prior-normalised coordinates ``θ = T y``: per-body congruence
+    (:meth:`~consistid.identification.constraints.BodyScaling.parameter_map`), and each joint
+    column scaled to unit norm in ``r`` (unit scale where it has none)."""
+    p_in = 10 * nb
+    t = np.eye(p)
+    t[:p_in, :p_in] = scipy.linalg.block_diag(*(sc.parameter_map() for sc in setup.scalings))
+    d = np.sum((r @ t)[:, p_in:] ** 2, axis=0)
+    t[:, p_in:] /= np.sqrt(np.where(d > 0, d, 1.0))
+    return t
+
+
+def _evidence_gamma(problem: CompressedProblem, sig: np.ndarray, prior_vec: np.ndarray,
+                    setup: _Setup, nb: int, gamma_default: float) -> tuple[float, int]:
+    """The prior weight of :func:`~consistid.identification.prior_weight.evidence_weight` on
+    the σ-weighted ``problem``, in prior-normalised coordinates, within
+    :data:`PRIOR_WEIGHT_SOLVED` × the default; ``(γ, iterations)``."""
+    r, z, _ = problem.stacked(sigma=sig)
+    p, p_in = prior_vec.size, 10 * nb
+    t = _normalising_map(r, setup, p, nb)
+    s = np.zeros((p, p))
+    s[:p_in, :p_in] = 0.5 * (t[:p_in, :p_in].T @ _prior_hessian(setup.prior, setup, nb)
+                             @ t[:p_in, :p_in])
+    a = r @ t
+    b = z - a @ np.linalg.solve(t, prior_vec)
+    lo, hi = PRIOR_WEIGHT_SOLVED
+    return evidence_weight(a, s, b, p_in, (lo * gamma_default, hi * gamma_default),
+                           gamma_default)
+
+
 def _whitening(r: np.ndarray, z: np.ndarray, prior_vec: np.ndarray, setup: _Setup, nb: int,
                around: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """``(θ_c, Φ)`` with ``Φᵀ(RᵀR + ½γ_s H₀)Φ = 1`` and ``θ_c`` its quadratic-model minimiser
@@ -658,11 +712,7 @@ def _whitening(r: np.ndarray, z: np.ndarray, prior_vec: np.ndarray, setup: _Setu
     """
     prior, gamma = setup.prior, setup.gamma
     p, p_in = prior_vec.size, 10 * nb
-    t = np.eye(p)
-    t[:p_in, :p_in] = scipy.linalg.block_diag(*(sc.parameter_map() for sc in setup.scalings))
-    a = r @ t
-    d = np.sum(a[:, p_in:] ** 2, axis=0)
-    t[:, p_in:] /= np.sqrt(np.where(d > 0, d, 1.0))
+    t = _normalising_map(r, setup, p, nb)
     a = r @ t
     h0 = np.zeros((p, p))
     h0[:p_in, :p_in] = (t[:p_in, :p_in].T @ _prior_hessian(prior, setup, nb, around)
@@ -943,8 +993,8 @@ def _base_covariance(r_b: np.ndarray) -> tuple[float, np.ndarray]:
 
 
 def _details(model: RobotModel, theta: np.ndarray, setup: _Setup, prior_vec: np.ndarray,
-             gamma_default: float, given: float | None, active: tuple[str, ...],
-             chi2: float) -> dict[str, Any]:
+             gamma_default: float, given: float | str | None, active: tuple[str, ...],
+             chi2: float, evidence: tuple[int, float] | None = None) -> dict[str, Any]:
     nb, prior, gamma = model.n_bodies, setup.prior, setup.gamma
     lam, rel = {}, {}
     for i, b in enumerate(model.body_names):
@@ -968,7 +1018,11 @@ def _details(model: RobotModel, theta: np.ndarray, setup: _Setup, prior_vec: np.
         "constraints": f"{described}; active: {shown or 'none'}",
         "prior": str(prior),
         "prior_weight": gamma,
-        "prior_weight_rule": "no prior" if prior is None else "given" if given is not None
+        "prior_weight_rule": "no prior" if prior is None else (
+            f"chosen from the data (evidence of the quadratic prior model): "
+            f"{gamma / gamma_default:.3g} × the default 2/r², {evidence[0]} fixed-point "
+            f"iterations, {evidence[1] * 1e3:.2g} ms") if evidence is not None
+        else "given" if given is not None
         else f"default 2/r², r = {np.sqrt(2.0 / gamma_default):.3g}",
         # structured figures
         "active_constraints": active,
