@@ -37,6 +37,17 @@ friction takes any torque up to its break-away, which ``f_c sign(q̇)`` does not
 those rows bias the fit beyond any noise ± (:mod:`consistid.identification.model_error`: the
 Hausman difference of the least-squares fits with and without them, less its noise;
 ``details["model_error"]``, ``details["model_error_note"]``).
+
+``covariance="hac"`` replaces the per-joint ``τ_j`` by the heteroskedasticity- and
+autocorrelation-consistent sandwich of the least-squares scores
+(:func:`consistid.identification.statistics.hac_covariance`; Newey & West 1987, Andrews 1991),
+with the same model-error term. The default stays ``"coloured"``: it reads the residual on a few
+windows only (``"hac"`` needs the regressor of every sample once more, about as long as the
+compression), and measured coverage is the same or better — MuJoCo UR5 and Panda with dry
+friction: 1.000 with either; the benchmark's AR(1) noise (φ = 0.9, 2 000 samples): 0.85–0.92
+against 0.83–0.90 for ``"hac"``, whose batch sums are few on short logs; white noise: both
+0.93–0.97. ``"hac"`` is the one to use when the noise changes along the log (e.g. with the
+torque), which ``τ_j`` and one variance per joint do not describe.
 """
 
 from __future__ import annotations
@@ -64,14 +75,15 @@ from .regressor import DEFAULT_FRICTION, FrictionArg, RegressorSpec, parameter_n
 from .result import IdentificationResult
 from .solver import SolverReport
 from .model_error import rest_bias
-from .statistics import coloured_covariance
+from .statistics import ScoreSums, coloured_covariance, hac_covariance, score_sums
 from .uninformed import uninformed_directions
 from .streaming import (DataStream, ResidualStatistics, as_stream, compress_data, is_one_pass,
                         is_stream, residual_statistics)
 
 METHODS = ("ols", "wls", "sdp")
-#: ``covariance=`` choices: rows counted as independent, or as ``N / τ_j`` per joint.
-COVARIANCES = ("iid", "coloured")
+#: ``covariance=`` choices: rows counted as independent, as ``N / τ_j`` per joint, or the HAC
+#: sandwich of the scores.
+COVARIANCES = ("iid", "coloured", "hac")
 #: ... and ``"auto"``: ``"coloured"``, except ``"iid"`` with ``loss="huber"`` (re-weighted rows).
 COVARIANCE_OPTIONS = ("auto", *COVARIANCES)
 #: A joint's residual at standstill this many times its RMS where it moves (the factor the
@@ -225,6 +237,11 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
         extra pass over the data; the estimate is unchanged; on white noise ``τ_j ≈ 1``),
         plus the model error the rows at rest put into the fit (module docstring;
         ``details["model_error"]`` per base parameter, ``details["model_error_note"]``);
+        ``"hac"``: the heteroskedasticity- and autocorrelation-consistent sandwich of the
+        least-squares scores (:func:`~consistid.identification.statistics.hac_covariance`:
+        batch sums over Andrews' automatic bandwidth; no assumption of equal noise within a
+        joint or of columns slower than the noise; one more pass over the regressor, in memory
+        or a re-readable stream, not Dask), with the same model-error term;
         ``"iid"`` counts every row as an independent sample. ``"auto"`` (default):
         ``"coloured"``, or ``"iid"`` with ``loss="huber"``, whose re-weighted rows the sandwich
         does not cover, and for a stream that can be read only once (a generator: the sandwich
@@ -258,8 +275,9 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
     if covariance == "auto":
         covariance = ("iid" if options.get("loss") == "huber" or is_one_pass(dataset)
                       else "coloured")
-    if covariance == "coloured" and options.get("loss") == "huber":
-        raise OptionError("covariance='coloured' needs the unweighted rows: not with loss='huber'")
+    if covariance in ("coloured", "hac") and options.get("loss") == "huber":
+        raise OptionError(f"covariance={covariance!r} needs the unweighted rows: not with "
+                          "loss='huber'")
     prior = None if prior == "none" else prior
     if method in ("ols", "wls"):
         own = NONLINEAR_OPTIONS if is_nonlinear(friction) else ()   # the search's options
@@ -335,11 +353,19 @@ def with_covariance(result: IdentificationResult, problem: CompressedProblem,
     variances = joint_sigma(problem.sum_squares(result.parameters), problem.n_samples,
                             result.base.n_base, tau) ** 2
     variances = np.where(variances > 0, variances, 1.0 / weights)
-    cov = coloured_covariance(result.base_covariance, grams, weights, tau, variances)
     shown = ", ".join(f"{n} {t:.3g}" for n, t in zip(result.model.joint_names, tau))
-    details = {**result.details,
-               "covariance": f"coloured (sandwich, N/τ_j effective rows; τ_j in samples: {shown})",
-               "autocorrelation_time": tau}
+    details = {**result.details, "autocorrelation_time": tau}
+    if covariance == "hac":
+        sums = score_sums_of(result, weights, dataset)
+        meat, batch = sums.meat()
+        cov = hac_covariance(result.base_covariance, meat)
+        details["covariance"] = (
+            f"hac (sandwich of the scores' batch sums over {batch} samples, Andrews' bandwidth "
+            f"{sums.bandwidth():.3g}; τ_j in samples: {shown})")
+    else:
+        cov = coloured_covariance(result.base_covariance, grams, weights, tau, variances)
+        details["covariance"] = (f"coloured (sandwich, N/τ_j effective rows; τ_j in samples: "
+                                 f"{shown})")
     cov, details = with_rest_error(result, problem, stats.rest, cov, details,
                                    (weights, tau, variances))
     note = standstill_note(stats, result.model.joint_names)
@@ -347,6 +373,23 @@ def with_covariance(result: IdentificationResult, problem: CompressedProblem,
         warnings.warn(note, ModelMisfitWarning, stacklevel=3)
         details["standstill"] = note
     return dataclasses.replace(result, base_covariance=cov, details=details)
+
+
+def score_sums_of(result: IdentificationResult, weights: np.ndarray,
+                  dataset: Dataset | DataStream) -> ScoreSums:
+    """:class:`~consistid.identification.statistics.ScoreSums` of the fitted model on an
+    in-memory dataset or, one part at a time, on a re-readable stream (a third reading)."""
+    args = (result.model, result.spec, result.parameters, result.base.independent, weights)
+    if isinstance(dataset, Dataset):
+        return score_sums(*args, dataset)
+    if not hasattr(dataset, "parts") or type(dataset).compress is not DataStream.compress:
+        raise OptionError("covariance='hac' reads the data a third time, part by part: a Dask "
+                          "collection is not read that way; use covariance='coloured'")
+    total = None
+    for _, part in dataset.parts(result.model):
+        sums = score_sums(*args, part)
+        total = sums if total is None else total + sums
+    return total
 
 
 def with_rest_error(result: IdentificationResult, problem: CompressedProblem,

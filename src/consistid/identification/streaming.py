@@ -385,9 +385,9 @@ def as_stream(data: Any, covariance: str = "iid", loss: str | None = None) -> Da
         raise OptionError("loss='huber' re-weights every sample at every pass, which a stream of "
                           "recordings does not allow: load the data as one Dataset, or use "
                           "loss='squared'")
-    if covariance == "coloured" and not stream.rereadable:
-        raise OptionError("covariance='coloured' (the default) reads the data a second time for "
-                          "the residual's autocorrelation, and this stream (an iterator or "
+    if covariance in ("coloured", "hac") and not stream.rereadable:
+        raise OptionError(f"covariance={covariance!r} (the default: 'coloured') reads the data "
+                          "again for the residual's statistics, and this stream (an iterator or "
                           "generator) can be read once: pass covariance='iid', or a list of "
                           "files, or DataStream(function returning a fresh iterable)")
     return stream
