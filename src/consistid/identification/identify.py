@@ -77,8 +77,8 @@ from .solver import SolverReport
 from .model_error import rest_bias
 from .statistics import ScoreSums, coloured_covariance, hac_covariance, score_sums
 from .uninformed import uninformed_directions
-from .streaming import (DataStream, ResidualStatistics, as_stream, compress_data, is_one_pass,
-                        is_stream, residual_statistics)
+from .streaming import (BAND_ALPHA, BAND_RATIO, DataStream, ResidualStatistics, as_stream,
+                        compress_data, is_one_pass, is_stream, residual_statistics)
 
 METHODS = ("ols", "wls", "sdp")
 #: ``covariance=`` choices: rows counted as independent, as ``N / τ_j`` per joint, or the HAC
@@ -89,9 +89,9 @@ COVARIANCE_OPTIONS = ("auto", *COVARIANCES)
 #: A joint's residual at standstill this many times its RMS where it moves (the factor the
 #: diagnosis flags a remainder at), beyond chance at level :data:`STANDSTILL_ALPHA`, is said
 #: (:func:`standstill_note`).
-STANDSTILL_RATIO = 1.5
+STANDSTILL_RATIO = BAND_RATIO
 #: Level of that test (the diagnosis' remainder test's).
-STANDSTILL_ALPHA = 1e-3
+STANDSTILL_ALPHA = BAND_ALPHA
 
 
 #: Base parameters computed per model object (weakly: they go with it), spec and gravity.
@@ -368,6 +368,8 @@ def with_covariance(result: IdentificationResult, problem: CompressedProblem,
                                  f"{shown})")
     cov, details = with_rest_error(result, problem, stats.rest, cov, details,
                                    (weights, tau, variances))
+    # the speed per joint below which its rows counted as at rest (rad/s)
+    details["model_error_speed"] = stats.rest_speeds()
     note = standstill_note(stats, result.model.joint_names)
     if note:
         warnings.warn(note, ModelMisfitWarning, stacklevel=3)
@@ -400,7 +402,9 @@ def with_rest_error(result: IdentificationResult, problem: CompressedProblem,
     (:mod:`consistid.identification.model_error`; ``noise`` = ``(w_j, τ_j, v_j)`` of the
     sandwich), and ``details["model_error"]`` (per base parameter, its standard deviation ``b``,
     N·m-consistent units of the parameter) with ``details["model_error_note"]`` saying what was
-    done. ``rest`` is the compressed problem of the rows at rest (``None``: there are none)."""
+    done (``details["model_error_speed"]``, set by the caller: the speed per joint below which
+    its rows counted as at rest). ``rest`` is the compressed problem of the rows at rest
+    (``None``: there are none)."""
     cols = result.base.independent
     if rest is None:
         return cov, {**details, "model_error": np.zeros(cols.size),

@@ -25,10 +25,14 @@ move by more than chance widens by that much, the others (nothing at rest, or a 
 describes it) by a small fraction of their variance on average. Least squares' own estimate is
 used for ``δ`` whatever the method (the SDP sits on the same rows).
 
-The rows at rest, ``|q̇_j| <`` :data:`~consistid.robot.joint_terms.STANDSTILL_SPEED` for joint
-``j``'s rows, are compressed on their own (a few percent of the samples on an excitation
-trajectory; one more pass over those samples only): the Gram matrices of the moving rows are
-those of all rows less those of the rows at rest.
+The rows "at rest" are joint ``j``'s rows with ``|q̇_j|`` below a speed chosen from the
+residual: :data:`~consistid.robot.joint_terms.STANDSTILL_SPEED`, or higher where the residual of
+the slow speed bands is larger than that of the fast ones
+(:meth:`consistid.identification.streaming.ResidualStatistics.rest_speeds`: MuJoCo's soft
+``frictionloss`` on a light, slow arm leaves a structured residual up to ~0.1 rad/s). They are
+compressed on their own (a few percent of the samples on an excitation trajectory; one more
+pass over those samples only): the Gram matrices of the moving rows are those of all rows less
+those of the rows at rest.
 """
 
 from __future__ import annotations
@@ -45,11 +49,12 @@ from .statistics import coloured_covariance
 
 
 def rest_problem(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
-                 base: BaseParameters | None = None) -> CompressedProblem | None:
+                 base: BaseParameters | None = None, speeds: np.ndarray | float = STANDSTILL_SPEED
+                 ) -> CompressedProblem | None:
     """The compressed problem of the rows where a joint stands still (joint ``j``'s rows with
-    ``|q̇_j| < STANDSTILL_SPEED``, the other joints' rows of those samples weighted 0), or
-    ``None`` when no joint ever stands still."""
-    rest = np.abs(dataset.dq) < STANDSTILL_SPEED
+    ``|q̇_j| < speeds[j]``, the other joints' rows of those samples weighted 0), or ``None``
+    when no joint ever does."""
+    rest = np.abs(dataset.dq) < np.asarray(speeds, dtype=float)
     samples = np.flatnonzero(rest.any(axis=1))
     if samples.size == 0:
         return None
