@@ -14,7 +14,8 @@ Tables:
 1. well excited: OLS vs SDP (pseudo-inertia LMIs + log-det prior, default weight), and how many
    bodies of OLS's nearest standard vector are not realizable;
 2. poorly excited: OLS vs SDP with the log-det and the Euclidean prior at the library's default
-   weight (``γ = 2/r²``, ``r = 0.3``; no per-dataset tuning);
+   weight (chosen from the data within 10⁻² … 1 × ``2/r²``, ``r = 0.3``, which keeps ``2/r²``
+   on these data: ``benchmarks/prior_weight.py``; no per-dataset tuning);
 3. prior-weight sweep 10⁻⁶ … 10² × default on the poorly excited set, scaled (default) and
    unscaled (``scale=False``) programs: held-out RMS/σ and solver status;
 4. the same sweep on a 32-body fixed-base model (example-robot-data ``talos_reduced``, 320

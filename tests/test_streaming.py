@@ -207,6 +207,8 @@ def test_coloured_covariance_counts_every_sample_in_the_variance(planar_2r):
     w = 1.0 / np.asarray(iid.sigma, dtype=float) ** 2
     v = joint_sigma(np.sum(residual ** 2, axis=0), data.n_samples, res.base.n_base, tau) ** 2
     expected = coloured_covariance(iid.base_covariance, grams, w, tau, v)
+    # plus the model-error term of the rows at rest on its diagonal (test_model_error.py)
+    expected += np.diag(res.details["model_error"] ** 2)
     np.testing.assert_allclose(res.base_covariance, expected, rtol=1e-8)
 
 

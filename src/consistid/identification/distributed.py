@@ -79,12 +79,13 @@ def merge_partials(partials: Iterable[CompressedProblem | None]) -> CompressedPr
 
 
 def residual_partition(items: Iterable[Part], model: RobotModel, spec: RegressorSpec,
-                       theta: np.ndarray, loader: Callable[[Path], Dataset]
-                       ) -> ResidualStatistics | None:
-    """:class:`ResidualStatistics` of ``τ − Y θ`` on one partition (``None`` if empty)."""
+                       theta: np.ndarray, loader: Callable[[Path], Dataset],
+                       base: BaseParameters | None = None) -> ResidualStatistics | None:
+    """:class:`ResidualStatistics` of ``τ − Y θ`` on one partition (``None`` if empty;
+    ``base``: also its rows at rest, :meth:`ResidualStatistics.of`)."""
     out = None
     for k, p in enumerate(items):
-        stats = ResidualStatistics.of(model, spec, theta, _load(p, k, model, loader))
+        stats = ResidualStatistics.of(model, spec, theta, _load(p, k, model, loader), base=base)
         out = stats if out is None else out + stats
     return out
 
@@ -159,9 +160,10 @@ class DaskData(DataStream):
         return problem
 
     def residual_statistics(self, model: RobotModel, spec: RegressorSpec,
-                            theta: np.ndarray) -> ResidualStatistics:
+                            theta: np.ndarray, base: BaseParameters | None = None
+                            ) -> ResidualStatistics:
         per = partial(residual_partition, model=model, spec=spec,
-                      theta=np.asarray(theta, dtype=float), loader=self.loader)
+                      theta=np.asarray(theta, dtype=float), loader=self.loader, base=base)
         stats = self._compute(self.bag.reduction(per, add_partials,
                                                  split_every=self.split_every))
         if stats is None:

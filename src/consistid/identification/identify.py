@@ -31,6 +31,23 @@ one extra pass over the data), through the sandwich
 weighs the joints alike whatever their noise) and ``R_{jb}`` joint ``j``'s R factor restricted
 to the base columns (``Y_{jb}^\top Y_{jb} = R_{jb}^\top R_{jb}``).
 The estimate itself is unchanged. On white noise ``τ_j ≈ 1`` and the two agree.
+
+``"coloured"`` also adds a model-error term to the diagonal: where a joint stands still, dry
+friction takes any torque up to its break-away, which ``f_c sign(q̇)`` does not describe, and
+those rows bias the fit beyond any noise ± (:mod:`consistid.identification.model_error`: the
+Hausman difference of the least-squares fits with and without them, less its noise;
+``details["model_error"]``, ``details["model_error_note"]``).
+
+``covariance="hac"`` replaces the per-joint ``τ_j`` by the heteroskedasticity- and
+autocorrelation-consistent sandwich of the least-squares scores
+(:func:`consistid.identification.statistics.hac_covariance`; Newey & West 1987, Andrews 1991),
+with the same model-error term. The default stays ``"coloured"``: it reads the residual on a few
+windows only (``"hac"`` needs the regressor of every sample once more, about as long as the
+compression), and measured coverage is the same or better — MuJoCo UR5 and Panda with dry
+friction: 1.000 with either; the benchmark's AR(1) noise (φ = 0.9, 2 000 samples): 0.85–0.92
+against 0.83–0.90 for ``"hac"``, whose batch sums are few on short logs; white noise: both
+0.93–0.97. ``"hac"`` is the one to use when the noise changes along the log (e.g. with the
+torque), which ``τ_j`` and one variance per joint do not describe.
 """
 
 from __future__ import annotations
@@ -58,26 +75,28 @@ from ..robot.model import RobotModel, require_model
 from .regressor import DEFAULT_FRICTION, FrictionArg, RegressorSpec, parameter_names, prior_vector
 from .result import IdentificationResult
 from .solver import SolverReport
-from .statistics import coloured_covariance
+from .model_error import rest_bias
+from .statistics import ScoreSums, coloured_covariance, hac_covariance, score_sums
 from .uninformed import uninformed_directions
 from .envelope import TrainingEnvelope
 from .weak import one_way_note, weakly_informed
 from .subset import (dead_channels, expand, lost_parameters, resolve_excluded, restricted,
                      rows_base, without_joints)
-from .streaming import (DataStream, ResidualStatistics, as_stream, compress_data, is_one_pass,
-                        is_stream, residual_statistics)
+from .streaming import (BAND_ALPHA, BAND_RATIO, DataStream, ResidualStatistics, as_stream,
+                        compress_data, is_one_pass, is_stream, residual_statistics)
 
 METHODS = ("ols", "wls", "sdp")
-#: ``covariance=`` choices: rows counted as independent, or as ``N / τ_j`` per joint.
-COVARIANCES = ("iid", "coloured")
+#: ``covariance=`` choices: rows counted as independent, as ``N / τ_j`` per joint, or the HAC
+#: sandwich of the scores.
+COVARIANCES = ("iid", "coloured", "hac")
 #: ... and ``"auto"``: ``"coloured"``, except ``"iid"`` with ``loss="huber"`` (re-weighted rows).
 COVARIANCE_OPTIONS = ("auto", *COVARIANCES)
 #: A joint's residual at standstill this many times its RMS where it moves (the factor the
 #: diagnosis flags a remainder at), beyond chance at level :data:`STANDSTILL_ALPHA`, is said
 #: (:func:`standstill_note`).
-STANDSTILL_RATIO = 1.5
+STANDSTILL_RATIO = BAND_RATIO
 #: Level of that test (the diagnosis' remainder test's).
-STANDSTILL_ALPHA = 1e-3
+STANDSTILL_ALPHA = BAND_ALPHA
 
 
 #: Base parameters computed per model object (weakly: they go with it), spec and gravity.
@@ -221,7 +240,14 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
         ``None``/``"none"`` and refuse a prior.
     covariance : ``"coloured"`` widens ``base_covariance`` for residuals correlated in time
         (filtered torques), each joint's rows counting as ``N / τ_j`` (module docstring; one
-        extra pass over the data; the estimate is unchanged; on white noise ``τ_j ≈ 1``);
+        extra pass over the data; the estimate is unchanged; on white noise ``τ_j ≈ 1``),
+        plus the model error the rows at rest put into the fit (module docstring;
+        ``details["model_error"]`` per base parameter, ``details["model_error_note"]``);
+        ``"hac"``: the heteroskedasticity- and autocorrelation-consistent sandwich of the
+        least-squares scores (:func:`~consistid.identification.statistics.hac_covariance`:
+        batch sums over Andrews' automatic bandwidth; no assumption of equal noise within a
+        joint or of columns slower than the noise; one more pass over the regressor, in memory
+        or a re-readable stream, not Dask), with the same model-error term;
         ``"iid"`` counts every row as an independent sample. ``"auto"`` (default):
         ``"coloured"``, or ``"iid"`` with ``loss="huber"``, whose re-weighted rows the sandwich
         does not cover, and for a stream that can be read only once (a generator: the sandwich
@@ -263,8 +289,9 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
     if covariance == "auto":
         covariance = ("iid" if options.get("loss") == "huber" or is_one_pass(dataset)
                       else "coloured")
-    if covariance == "coloured" and options.get("loss") == "huber":
-        raise OptionError("covariance='coloured' needs the unweighted rows: not with loss='huber'")
+    if covariance in ("coloured", "hac") and options.get("loss") == "huber":
+        raise OptionError(f"covariance={covariance!r} needs the unweighted rows: not with "
+                          "loss='huber'")
     prior = None if prior == "none" else prior
     if method in ("ols", "wls"):
         own = NONLINEAR_OPTIONS if is_nonlinear(friction) else ()   # the search's options
@@ -415,7 +442,8 @@ def with_covariance(result: IdentificationResult, problem: CompressedProblem,
             **result.details, "covariance": "iid (every row an independent sample" + (
                 "; a one-pass stream: the coloured sandwich needs a second reading)" if once
                 else ")")})
-    stats = residual_statistics(result.model, result.spec, result.parameters, dataset)
+    stats = residual_statistics(result.model, result.spec, result.parameters, dataset,
+                                result.base)
     tau = stats.autocorrelation_time()[kept]
     cols = result.base.independent
     r_b = problem.factors[:, :-1, :-1][:, :, cols]
@@ -426,17 +454,78 @@ def with_covariance(result: IdentificationResult, problem: CompressedProblem,
     # every sample's residual, exact from the factors (the autocorrelation may read fewer)
     variances = joint_sigma(problem.sum_squares(result.parameters), problem.n_samples,
                             result.base.n_base, tau) ** 2
-    cov = coloured_covariance(result.base_covariance, grams, weights, tau,
-                              np.where(variances > 0, variances, 1.0 / weights))
+    variances = np.where(variances > 0, variances, 1.0 / weights)
     shown = ", ".join(f"{result.model.joint_names[j]} {t:.3g}" for j, t in zip(kept, tau))
-    details = {**result.details,
-               "covariance": f"coloured (sandwich, N/τ_j effective rows; τ_j in samples: {shown})",
-               "autocorrelation_time": tau}
+    details = {**result.details, "autocorrelation_time": tau}
+    if covariance == "hac":
+        if kept.size < result.model.nv:
+            raise OptionError("covariance='hac' sums the scores of every joint's rows; with "
+                              "exclude_joints= use covariance='coloured'")
+        sums = score_sums_of(result, weights, dataset)
+        meat, batch = sums.meat()
+        cov = hac_covariance(result.base_covariance, meat)
+        details["covariance"] = (
+            f"hac (sandwich of the scores' batch sums over {batch} samples, Andrews' bandwidth "
+            f"{sums.bandwidth():.3g}; τ_j in samples: {shown})")
+    else:
+        cov = coloured_covariance(result.base_covariance, grams, weights, tau, variances)
+        details["covariance"] = (f"coloured (sandwich, N/τ_j effective rows; τ_j in samples: "
+                                 f"{shown})")
+    rest = None if stats.rest is None else restricted(stats.rest, kept)
+    cov, details = with_rest_error(result, problem, rest, cov, details,
+                                   (weights, tau, variances))
+    # the speed per joint below which its rows counted as at rest (rad/s)
+    details["model_error_speed"] = stats.rest_speeds()
     note = standstill_note(stats, result.model.joint_names, kept)
     if note:
         warnings.warn(note, ModelMisfitWarning, stacklevel=3)
         details["standstill"] = note
     return dataclasses.replace(result, base_covariance=cov, details=details)
+
+
+def score_sums_of(result: IdentificationResult, weights: np.ndarray,
+                  dataset: Dataset | DataStream) -> ScoreSums:
+    """:class:`~consistid.identification.statistics.ScoreSums` of the fitted model on an
+    in-memory dataset or, one part at a time, on a re-readable stream (a third reading)."""
+    args = (result.model, result.spec, result.parameters, result.base.independent, weights)
+    if isinstance(dataset, Dataset):
+        return score_sums(*args, dataset)
+    if not hasattr(dataset, "parts") or type(dataset).compress is not DataStream.compress:
+        raise OptionError("covariance='hac' reads the data a third time, part by part: a Dask "
+                          "collection is not read that way; use covariance='coloured'")
+    total = None
+    for _, part in dataset.parts(result.model):
+        sums = score_sums(*args, part)
+        total = sums if total is None else total + sums
+    return total
+
+
+def with_rest_error(result: IdentificationResult, problem: CompressedProblem,
+                    rest: CompressedProblem | None, cov: np.ndarray, details: dict,
+                    noise: tuple[np.ndarray, np.ndarray, np.ndarray]
+                    ) -> tuple[np.ndarray, dict]:
+    """``cov`` with the model-error term of the rows at rest added to its diagonal
+    (:mod:`consistid.identification.model_error`; ``noise`` = ``(w_j, τ_j, v_j)`` of the
+    sandwich), and ``details["model_error"]`` (per base parameter, its standard deviation ``b``,
+    N·m-consistent units of the parameter) with ``details["model_error_note"]`` saying what was
+    done (``details["model_error_speed"]``, set by the caller: the speed per joint below which
+    its rows counted as at rest). ``rest`` is the compressed problem of the rows at rest
+    (``None``: there are none)."""
+    cols = result.base.independent
+    if rest is None:
+        return cov, {**details, "model_error": np.zeros(cols.size),
+                     "model_error_note": "none: no joint stands still in the data"}
+    b2, _ = rest_bias(problem, rest, cols, *noise)
+    finite = np.isfinite(np.diag(cov))
+    cov = cov + np.diag(np.where(finite, b2, 0.0))
+    wide = np.flatnonzero(b2 > np.where(finite, np.diag(cov) - b2, np.inf))
+    names = [result.base.names[i] for i in wide]
+    note = (f"the rows where a joint stands still move {len(wide)} base parameter(s) by more "
+            f"than their noise ± ({', '.join(names[:6])}{' …' if len(names) > 6 else ''}): "
+            "their intervals include that model error (Hausman difference of the fits with and "
+            "without those rows)" if wide.size else
+            "the rows at rest move no base parameter beyond its noise ±")
+    return cov, {**details, "model_error": np.sqrt(b2), "model_error_note": note}
 
 
 def standstill_note(stats: ResidualStatistics, joint_names: Sequence[str],

@@ -50,6 +50,7 @@ from ..robot.joint_terms import STANDSTILL_SPEED
 from ..robot.model import RobotModel
 from .base import BaseParameters
 from .compression import CompressedProblem, compress
+from .model_error import rest_problem
 from .regressor import RegressorSpec, predict_torque
 from .statistics import add_lagged, autocovariance_sum, integrated_time
 
@@ -103,6 +104,14 @@ TAU_PRECISION = 0.1
 #: Fewest effectively independent samples at standstill (``n_rest / τ``) on which
 #: :meth:`ResidualStatistics.standstill_excess` tests the residual there.
 MIN_REST_SAMPLES = 10
+#: Upper edges (rad/s) of the speed bands in which :class:`ResidualStatistics` sums the residual
+#: per joint (the last band is everything faster): ``STANDSTILL_SPEED × 2^k``.
+SPEED_EDGES = STANDSTILL_SPEED * 2.0 ** np.arange(5)
+#: A band's residual this many times the fastest band's RMS, beyond chance at level
+#: :data:`BAND_ALPHA`, is structured (the factor and level of ``identify``'s standstill test and
+#: of the diagnosis' remainder test).
+BAND_RATIO = 1.5
+BAND_ALPHA = 1e-3
 
 
 def autocorrelation_windows(dataset: Dataset, samples: int | None = AUTOCORRELATION_SAMPLES
@@ -146,6 +155,12 @@ class ResidualStatistics:
     rest_sum_squares, rest_count : (nv,) the part of ``sum_squares`` on the samples where the
         joint stands still (``|q̇_j| <`` :data:`~consistid.robot.joint_terms.STANDSTILL_SPEED`),
         and how many they are (:meth:`standstill_excess`).
+    band_sum_squares, band_count : (nv, len(SPEED_EDGES) + 1) the residual's sum of squares
+        and sample count per speed band of each joint (:data:`SPEED_EDGES`; the last band is
+        every faster sample), on the samples read (:meth:`rest_speeds`).
+    rest : the compressed problem of the rows at rest (below :meth:`rest_speeds`), every
+        sample read (:func:`consistid.identification.model_error.rest_problem`), when the
+        statistics were asked for with ``base``; else ``None``.
     """
 
     autocovariance: np.ndarray | None
@@ -153,11 +168,14 @@ class ResidualStatistics:
     n_samples: int
     rest_sum_squares: np.ndarray
     rest_count: np.ndarray
+    band_sum_squares: np.ndarray
+    band_count: np.ndarray
+    rest: CompressedProblem | None = None
 
     @classmethod
     def of(cls, model: RobotModel, spec: RegressorSpec, theta: np.ndarray,
-           dataset: Dataset, samples: int | None = AUTOCORRELATION_SAMPLES
-           ) -> "ResidualStatistics":
+           dataset: Dataset, samples: int | None = AUTOCORRELATION_SAMPLES,
+           base: BaseParameters | None = None) -> "ResidualStatistics":
         """The statistics of one in-memory dataset (by
         :func:`~consistid.identification.regressor.predict_torque`) over ``samples`` of its
         samples (:func:`autocorrelation_windows`; ``None``: all of them), or more when the
@@ -165,7 +183,8 @@ class ResidualStatistics:
         standard error ``√(2(2M + 1)/n)`` with Sokal's window ``M ≈ 5τ``, so ``τ`` within
         :data:`TAU_PRECISION` needs ``n ≥ 2(10τ + 1)/TAU_PRECISION²`` samples (2 200 for a
         white residual, 400 000 for ``τ = 200``); the residual is then read again on that
-        many. The sums and the count are those of the samples read."""
+        many. The sums and the count are those of the samples read; with ``base`` (of
+        ``(model, spec)``), :attr:`rest` is compressed from all of them."""
         part = autocorrelation_windows(dataset, samples)
         stats = cls._of(model, spec, theta, part)
         if part is not dataset:
@@ -173,23 +192,63 @@ class ResidualStatistics:
             needed = int(np.ceil(2.0 * (10.0 * tau + 1.0) / TAU_PRECISION ** 2))
             if needed > part.n_samples:
                 stats = cls._of(model, spec, theta, autocorrelation_windows(dataset, needed))
+        if base is not None:
+            stats = dataclasses.replace(stats, rest=rest_problem(model, dataset, spec, base,
+                                                                 stats.rest_speeds()))
         return stats
 
     @classmethod
     def _of(cls, model: RobotModel, spec: RegressorSpec, theta: np.ndarray,
             dataset: Dataset) -> "ResidualStatistics":
         residual = dataset.require_torque() - predict_torque(model, dataset, spec, theta)
-        rest = np.abs(dataset.dq) < STANDSTILL_SPEED
+        speed = np.abs(dataset.dq)
+        rest = speed < STANDSTILL_SPEED
+        band = np.searchsorted(SPEED_EDGES, speed, side="right")          # (N, nv)
+        nb = SPEED_EDGES.size + 1
+        band_ss, band_n = np.zeros((speed.shape[1], nb)), np.zeros((speed.shape[1], nb))
+        for j in range(speed.shape[1]):
+            band_ss[j] = np.bincount(band[:, j], residual[:, j] ** 2, minlength=nb)
+            band_n[j] = np.bincount(band[:, j], minlength=nb)
         return cls(autocovariance_sum(dataset, residual), np.sum(residual ** 2, axis=0),
                    dataset.n_samples, np.sum(np.where(rest, residual ** 2, 0.0), axis=0),
-                   np.sum(rest, axis=0))
+                   np.sum(rest, axis=0), band_ss, band_n)
 
     def __add__(self, other: "ResidualStatistics") -> "ResidualStatistics":
         pooled = add_lagged(self.autocovariance, other.autocovariance)
         return ResidualStatistics(pooled, self.sum_squares + other.sum_squares,
                                   self.n_samples + other.n_samples,
                                   self.rest_sum_squares + other.rest_sum_squares,
-                                  self.rest_count + other.rest_count)
+                                  self.rest_count + other.rest_count,
+                                  self.band_sum_squares + other.band_sum_squares,
+                                  self.band_count + other.band_count,
+                                  self.rest if other.rest is None else other.rest
+                                  if self.rest is None else merge(self.rest, other.rest))
+
+    def rest_speeds(self) -> np.ndarray:
+        r"""Per joint, the speed (rad/s) below which its residual is structured: the upper edge
+        of the last of the consecutive slow bands (from rest up, :data:`SPEED_EDGES`) whose
+        residual RMS is :data:`BAND_RATIO` times that of the fastest band or more, beyond chance
+        at level :data:`BAND_ALPHA` (one-sided F-test on ``n/τ_j`` effective samples, as
+        :meth:`standstill_excess`); at least
+        :data:`~consistid.robot.joint_terms.STANDSTILL_SPEED`. Dry friction that a simulator or
+        a gearbox smooths over a band of speeds (MuJoCo's soft ``frictionloss`` on a light
+        joint: up to ~0.1 rad/s) is not ``f_c sign(q̇)`` anywhere in that band."""
+        tau = np.maximum(self.autocorrelation_time(), 1.0)
+        out = np.full(self.sum_squares.size, STANDSTILL_SPEED)
+        for j in range(out.size):
+            ref_n = self.band_count[j, -1] / tau[j]
+            if ref_n < MIN_REST_SAMPLES or self.band_sum_squares[j, -1] <= 0:
+                continue
+            ref_var = self.band_sum_squares[j, -1] / self.band_count[j, -1]
+            for k in range(1, SPEED_EDGES.size):
+                n = self.band_count[j, k] / tau[j]
+                if n < MIN_REST_SAMPLES:
+                    break
+                f = self.band_sum_squares[j, k] / self.band_count[j, k] / ref_var
+                if f < BAND_RATIO ** 2 or scipy.stats.f.sf(f, n, ref_n) >= BAND_ALPHA:
+                    break
+                out[j] = SPEED_EDGES[k]
+        return out
 
     def standstill_excess(self) -> tuple[np.ndarray, np.ndarray]:
         r"""``(ratio, p)`` per joint: the residual's RMS on the samples where the joint stands
@@ -327,12 +386,14 @@ class DataStream:
         return problem
 
     def residual_statistics(self, model: RobotModel, spec: RegressorSpec,
-                            theta: np.ndarray) -> ResidualStatistics:
+                            theta: np.ndarray, base: BaseParameters | None = None
+                            ) -> ResidualStatistics:
         """:class:`ResidualStatistics` of ``τ − Y θ`` over every part (a second pass; each part
-        counts as its own recordings for the autocorrelation)."""
+        counts as its own recordings for the autocorrelation; ``base``: see
+        :meth:`ResidualStatistics.of`)."""
         total = None
         for _, data in self.parts(model):
-            stats = ResidualStatistics.of(model, spec, theta, data)
+            stats = ResidualStatistics.of(model, spec, theta, data, base=base)
             total = stats if total is None else total + stats
         if total is None:
             raise DatasetError("the data stream is empty on its second reading: a function "
@@ -373,9 +434,9 @@ def as_stream(data: Any, covariance: str = "iid", loss: str | None = None) -> Da
         raise OptionError("loss='huber' re-weights every sample at every pass, which a stream of "
                           "recordings does not allow: load the data as one Dataset, or use "
                           "loss='squared'")
-    if covariance == "coloured" and not stream.rereadable:
-        raise OptionError("covariance='coloured' (the default) reads the data a second time for "
-                          "the residual's autocorrelation, and this stream (an iterator or "
+    if covariance in ("coloured", "hac") and not stream.rereadable:
+        raise OptionError(f"covariance={covariance!r} (the default: 'coloured') reads the data "
+                          "again for the residual's statistics, and this stream (an iterator or "
                           "generator) can be read once: pass covariance='iid', or a list of "
                           "files, or DataStream(function returning a fresh iterable)")
     return stream
@@ -391,11 +452,13 @@ def compress_data(model: RobotModel, data: Dataset | DataStream, spec: Regressor
 
 
 def residual_statistics(model: RobotModel, spec: RegressorSpec, theta: np.ndarray,
-                        data: Dataset | DataStream) -> ResidualStatistics:
-    """:class:`ResidualStatistics` of ``τ − Y θ`` on an in-memory dataset or a stream."""
+                        data: Dataset | DataStream, base: BaseParameters | None = None
+                        ) -> ResidualStatistics:
+    """:class:`ResidualStatistics` of ``τ − Y θ`` on an in-memory dataset or a stream
+    (``base``: also the rows at rest, :meth:`ResidualStatistics.of`)."""
     if isinstance(data, DataStream):
-        return data.residual_statistics(model, spec, theta)
-    return ResidualStatistics.of(model, spec, theta, data)
+        return data.residual_statistics(model, spec, theta, base)
+    return ResidualStatistics.of(model, spec, theta, data, base=base)
 
 
 __all__ = ["DataStream", "ResidualStatistics", "as_stream", "compress_data", "is_one_pass",

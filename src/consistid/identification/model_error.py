@@ -1,0 +1,96 @@
+r"""The model error a fit takes from the samples where a joint stands still.
+
+A joint held by dry friction (a real gearbox, MuJoCo's ``frictionloss``) takes any torque up to
+its break-away at rest, which no law of the velocity describes: ``f_c \operatorname{sign}(q̇)``
+there is a guess, and the rows at rest pull the Coulomb (and, through them, other) parameters
+away from their value by far more than the noise-only covariance allows (a UR5 in MuJoCo with
+Coulomb and viscous friction: Coulomb terms 5–20 σ off; the residual is the noise's at every
+speed but below a few mrad/s). This bias is not noise, and no sandwich of the residual covers it.
+
+It is measured as Hausman's specification test measures it (Hausman 1978, "Specification tests
+in econometrics", Econometrica 46(6), 1251–1271, doi:10.2307/1913827): the same (weighted) least
+squares without those rows,
+
+.. math::  δ = \hat β_{\text{all}} − \hat β_{\text{moving}},
+           \qquad \operatorname{Cov}(δ) = V_{\text{moving}} − V_{\text{all}}
+
+when the model holds everywhere (the fit on all rows is then the efficient one, and the
+difference of the two covariances is that of ``δ``). Its excess over that noise,
+
+.. math::  b_i^2 = \max\big(0,\ δ_i^2 − (V_{\text{moving}} − V_{\text{all}})_{ii}\big),
+
+is an unbiased estimate of the squared bias of parameter ``i`` (clipped at zero), added to the
+diagonal of the covariance as a model-error term: the interval of a parameter the rows at rest
+move by more than chance widens by that much, the others (nothing at rest, or a model that
+describes it) by a small fraction of their variance on average. Least squares' own estimate is
+used for ``δ`` whatever the method (the SDP sits on the same rows).
+
+The rows "at rest" are joint ``j``'s rows with ``|q̇_j|`` below a speed chosen from the
+residual: :data:`~consistid.robot.joint_terms.STANDSTILL_SPEED`, or higher where the residual of
+the slow speed bands is larger than that of the fast ones
+(:meth:`consistid.identification.streaming.ResidualStatistics.rest_speeds`: MuJoCo's soft
+``frictionloss`` on a light, slow arm leaves a structured residual up to ~0.1 rad/s). They are
+compressed on their own (a few percent of the samples on an excitation trajectory; one more
+pass over those samples only): the Gram matrices of the moving rows are those of all rows less
+those of the rows at rest.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..data.dataset import Dataset
+from ..robot.joint_terms import STANDSTILL_SPEED
+from ..robot.model import RobotModel
+from .base import BaseParameters
+from .compression import CompressedProblem, compress
+from .regressor import RegressorSpec
+from .statistics import coloured_covariance
+
+
+def rest_problem(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
+                 base: BaseParameters | None = None, speeds: np.ndarray | float = STANDSTILL_SPEED
+                 ) -> CompressedProblem | None:
+    """The compressed problem of the rows where a joint stands still (joint ``j``'s rows with
+    ``|q̇_j| < speeds[j]``, the other joints' rows of those samples weighted 0), or ``None``
+    when no joint ever does."""
+    rest = np.abs(dataset.dq) < np.asarray(speeds, dtype=float)
+    samples = np.flatnonzero(rest.any(axis=1))
+    if samples.size == 0:
+        return None
+    return compress(model, dataset.select(samples), spec, weights=rest[samples].astype(float),
+                    base=base)
+
+
+def joint_grams(problem: CompressedProblem, columns: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """``(Φ_jᵀΦ_j, Φ_jᵀτ_j)`` per joint on ``columns``, from the R factors."""
+    r = problem.factors[:, :-1, :]
+    r_b = r[:, :, columns]
+    return np.matmul(r_b.transpose(0, 2, 1), r_b), np.einsum("jkp,jk->jp", r_b, r[:, :, -1])
+
+
+def rest_bias(problem: CompressedProblem, rest: CompressedProblem, columns: np.ndarray,
+              weights: np.ndarray, tau: np.ndarray, variances: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray]:
+    r"""``(b², δ)`` of the module docstring: the squared bias per base parameter that the rows
+    at rest (``rest``, part of ``problem``) put into the least squares of weights ``w_j``, and
+    the difference ``δ`` it is estimated from. The covariances ``V`` are the coloured sandwich's
+    (:func:`~consistid.identification.statistics.coloured_covariance`, ``τ_j`` and ``v_j`` as
+    there). ``b² = 0`` where removing the rows at rest leaves a direction unexcited."""
+    g_all, h_all = joint_grams(problem, columns)
+    g_rest, h_rest = joint_grams(rest, columns)
+    g_move, h_move = g_all - g_rest, h_all - h_rest
+    w = np.asarray(weights, dtype=float)
+    zero = np.zeros(columns.size)
+    try:
+        c_all = np.linalg.inv(np.einsum("j,jpq->pq", w, g_all))
+        c_move = np.linalg.inv(np.einsum("j,jpq->pq", w, g_move))
+    except np.linalg.LinAlgError:
+        return zero, zero
+    delta = c_all @ (w @ h_all) - c_move @ (w @ h_move)
+    v_all = np.diag(coloured_covariance(c_all, g_all, w, tau, variances))
+    v_move = np.diag(coloured_covariance(c_move, g_move, w, tau, variances))
+    if not (np.all(np.isfinite(v_move)) and np.all(np.isfinite(delta))):
+        return zero, zero
+    return np.maximum(delta ** 2 - np.maximum(v_move - v_all, 0.0), 0.0), delta
