@@ -66,11 +66,17 @@ _EXPORTS: dict[str, str] = {
     "estimate_breakaway": "friction",
     "compare_friction_models": "friction",
     "SlotineLiController": "online",
+    "calibrate_simulator": "simulator",
+    "SimulatorCalibration": "simulator",
+    "validate_rollout": "simulator",
+    "RolloutValidation": "simulator",
+    "RolloutOptions": "simulator",
+    "PDGains": "simulator",
 }
 
 #: subpackages reachable as attributes (``ci.simulate.record``)
 _SUBPACKAGES = ("robot", "data", "identification", "estimation", "excitation", "simulate",
-                "diagnosis", "kinematics", "online", "friction", "cli")
+                "diagnosis", "kinematics", "online", "friction", "simulator", "cli")
 
 __all__ = sorted([*_EXPORTS, "simulate", "errors", *_ERRORS])
 
@@ -114,3 +120,5 @@ if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerl
     from .robot.inertia import InertialParameters, is_physically_consistent
     from .robot.model import RobotModel
     from .robot.shapes import Ellipsoid
+    from .simulator import (PDGains, RolloutOptions, RolloutValidation, SimulatorCalibration,
+                            calibrate_simulator, validate_rollout)

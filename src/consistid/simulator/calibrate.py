@@ -1,0 +1,272 @@
+r"""Simulator calibration: the terms only a simulator has, fitted by batched rollouts.
+
+An identification gives the *physical* parameters: inertias (consistent), armature ``I_a``,
+viscous ``f_v`` and Coulomb ``f_c`` friction, from the inverse-dynamics equation error. A
+simulator at step ``h`` does not reproduce that physics exactly: ``implicitfast`` integrates
+the joint damping ``d`` and the servo's velocity gain ``K_d`` implicitly, which acts as an added
+inertia of about ``h (K_d + d)`` on the joint, and MuJoCo's dry friction (``frictionloss``) is a
+soft constraint, not ``f_c sign q̇``. :func:`calibrate_simulator` keeps the physical inertias
+(the convex, consistent estimate) and fits per joint the simulator's
+
+* ``armature`` (``dof_armature``; its offset from the physical ``I_a`` is the integrator's share),
+* ``damping`` (``dof_damping``), ``frictionloss`` (``dof_frictionloss``),
+
+by output error in closed loop (the direct-and-inverse-dynamics identification, DIDIM:
+Gautier, Janot, Vandanjon 2013, doi:10.1109/TCST.2012.2185697): the log is replayed under the
+PD of :mod:`.options` with the logged torque as feed-forward, and the correction torque
+``c_k(θ)`` the simulated robot needs to follow the log is minimised,
+
+.. math:: \min_{\theta \ge 0} \sum_{k,j} \big(c_{kj}(\theta) / s_j\big)^2,
+
+``s_j`` the identification's residual RMS of joint ``j`` on the same data, by bounded
+Gauss–Newton (``scipy.optimize.least_squares``, trust-region reflective) with the Jacobian from
+forward differences, all ``p + 1`` rollouts of one Jacobian in one ``mujoco.rollout`` call. The
+positions the simulated robot reaches (not the logged accelerations) carry the information,
+which is what makes it work on short, poorly exciting runs. A candidate whose rollout diverges
+gets a large finite residual and the step is rejected; it does not abort the fit.
+
+Uncertainty: ``Cov θ = ŝ² τ (JᵀJ)⁻¹`` with ``ŝ²`` the whitened residual's mean square and
+``τ`` its integrated autocorrelation time (:func:`consistid.identification.statistics.
+autocorrelation_time`; closed-loop residuals are strongly correlated, so counting samples as
+independent would make σ far too small).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import scipy.optimize
+
+from ..data.dataset import Dataset
+from ..errors import OptionError
+from ..identification.statistics import autocorrelation_time
+from ..report.html import Page
+from ..report.result import Reported
+from .engine import Simulator, build_simulator, integrator_name
+from .options import PDGains, RolloutOptions
+from .replay import LogGrid, closed_loop
+
+#: The simulator terms, per joint, in the order of the calibrated vector.
+TERMS = ("armature", "damping", "frictionloss")
+#: Typical magnitudes (kg·m², N·m·s/rad, N·m) that set the finite-difference steps.
+TYPICAL = {"armature": 0.05, "damping": 0.1, "frictionloss": 0.1}
+#: Relative finite-difference step.
+FD_STEP = 1e-3
+#: Whitened residual given to a diverged rollout's samples.
+DIVERGED_RESIDUAL = 1e3
+
+
+@dataclass(frozen=True, eq=False)
+class SimulatorCalibration(Reported):
+    """Simulator-only terms calibrated by rollouts on top of an identification.
+
+    Attributes
+    ----------
+    result : the identification (its physical parameters, base σ: ``result.std``).
+    names : ``"<joint>.<term>"`` of each simulator parameter (``term`` in :data:`TERMS`).
+    start, values, std : (p,) the physical starting values, the calibrated values and their σ.
+    timestep, integrator : the simulator they were calibrated for.
+    kp, kd : (nv,) the PD gains of the closed-loop replay.
+    cost_start, cost : mean square whitened correction torque before and after.
+    evaluations : rollouts of the residual; seconds : wall time.
+    message : the optimiser's.
+    """
+
+    result: Any
+    names: tuple[str, ...]
+    start: np.ndarray
+    values: np.ndarray
+    std: np.ndarray
+    timestep: float
+    integrator: str
+    kp: np.ndarray
+    kd: np.ndarray
+    cost_start: float
+    cost: float
+    evaluations: int
+    seconds: float
+    message: str
+
+    @property
+    def estimate(self) -> np.ndarray:
+        """The calibrated simulator parameters (``std`` are theirs)."""
+        return self.values
+
+    def term(self, name: str) -> np.ndarray:
+        """(nv,) the calibrated values of one term of :data:`TERMS`."""
+        if name not in TERMS:
+            raise OptionError(f"term={name!r}; choose one of {TERMS}")
+        k = TERMS.index(name)
+        return self.values.reshape(len(TERMS), -1)[k]
+
+    @property
+    def armature_offset(self) -> np.ndarray:
+        """(nv,) calibrated minus physical armature: the integrator's share."""
+        k = TERMS.index("armature")
+        return (self.values - self.start).reshape(len(TERMS), -1)[k]
+
+    def simulator(self, *, mjcf: str | Path | None = None, timestep: float | None = None,
+                  integrator: str | None = None) -> Simulator:
+        """The identified robot in the simulator with the calibrated terms."""
+        r = self.result
+        sim = build_simulator(r.model, r.parameters, r.parameter_names, mjcf=mjcf,
+                              timestep=timestep, integrator=integrator)
+        v = self.values.reshape(len(TERMS), -1)
+        for field, row in zip(("dof_armature", "dof_damping", "dof_frictionloss"), v):
+            getattr(sim.mj_model, field)[sim.dofs] = row
+        return replace(sim, compensate=True)
+
+    def table(self) -> list[dict[str, Any]]:
+        """One row per simulator parameter: physical start, calibrated value, σ."""
+        return [{"parameter": n, "physical": s, "simulator": v, "std": d}
+                for n, s, v, d in zip(self.names, self.start, self.values, self.std)]
+
+    def summary(self) -> str:
+        lines = [f"Simulator calibration at {self.timestep:g} s {self.integrator}: "
+                 f"{self.evaluations} rollouts, {self.seconds:.2f} s ({self.message})",
+                 f"closed-loop correction cost {self.cost_start:.4g} → {self.cost:.4g} "
+                 "(mean square, in units of the identification's residual RMS)",
+                 f"physical parameters: {self.result.method} identification, "
+                 f"{len(self.result.base_parameters)} base parameters (result.std), consistent: "
+                 f"{self.result.is_consistent}",
+                 f"{'simulator parameter':<30}{'physical':>12}{'simulator':>12}{'± σ':>12}"]
+        lines += [f"{r['parameter']:<30}{r['physical']:>12.4g}{r['simulator']:>12.4g}"
+                  f"{r['std']:>12.3g}" for r in self.table()]
+        return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.summary()
+
+    def page(self) -> Page:
+        page = Page("consistid simulator calibration", self.summary().splitlines()[0])
+        page.paragraph(self.summary().splitlines()[1])
+        page.table(["parameter", "physical", "simulator", "σ"],
+                   [tuple(r.values()) for r in self.table()])
+        return page
+
+    def save(self, path: str | Path) -> Path:
+        """The calibrated terms as JSON (``*.json``; the identification is saved on its own,
+        ``result.save``)."""
+        path = Path(path)
+        if path.suffix.lower() != ".json":
+            raise OptionError(f"save path {str(path)!r}: give a .json file")
+        doc = {"kind": "simulator_calibration", "names": list(self.names),
+               "start": self.start.tolist(), "values": self.values.tolist(),
+               "std": self.std.tolist(), "timestep": self.timestep,
+               "integrator": self.integrator, "kp": self.kp.tolist(), "kd": self.kd.tolist(),
+               "cost_start": self.cost_start, "cost": self.cost,
+               "evaluations": self.evaluations, "seconds": self.seconds,
+               "message": self.message}
+        path.write_text(json.dumps(doc, indent=1), encoding="utf-8")
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path, result: Any) -> "SimulatorCalibration":
+        """Read :meth:`save`'s file back, with the identification ``result`` it was made on."""
+        doc = json.loads(Path(path).read_text(encoding="utf-8"))
+        if doc.get("kind") != "simulator_calibration":
+            raise OptionError(f"{str(path)!r} is not a saved SimulatorCalibration")
+        arr = {k: np.asarray(doc[k], float) for k in ("start", "values", "std", "kp", "kd")}
+        return cls(result, tuple(doc["names"]), arr["start"], arr["values"], arr["std"],
+                   doc["timestep"], doc["integrator"], arr["kp"], arr["kd"], doc["cost_start"],
+                   doc["cost"], doc["evaluations"], doc["seconds"], doc["message"])
+
+
+class _Problem:
+    """The whitened closed-loop correction as a function of the simulator terms."""
+
+    def __init__(self, sim: Simulator, log: LogGrid, kp: np.ndarray, kd: np.ndarray,
+                 scale: np.ndarray, threads: int) -> None:
+        self.sim, self.log, self.kp, self.kd = sim, log, kp, kd
+        self.scale, self.threads = scale, threads
+        self.evaluations = 0
+        self.typical = np.repeat([TYPICAL[t] for t in TERMS], sim.nv)
+
+    def models(self, xs: list[np.ndarray]) -> list[Any]:
+        nv = self.sim.nv
+        return [self.sim.variant(x[:nv], x[nv:2 * nv], x[2 * nv:]) for x in xs]
+
+    def residuals(self, xs: list[np.ndarray]) -> np.ndarray:
+        """(len(xs), S·nv) whitened corrections, one rollout batch."""
+        run = closed_loop(self.sim, self.models(xs), self.log, self.kp, self.kd, self.threads)
+        self.evaluations += len(xs)
+        r = run.correction / self.scale
+        r[run.diverged] = DIVERGED_RESIDUAL
+        return np.nan_to_num(r, nan=DIVERGED_RESIDUAL).reshape(len(xs), -1)
+
+    def fun(self, x: np.ndarray) -> np.ndarray:
+        return self.residuals([x])[0]
+
+    def jac(self, x: np.ndarray) -> np.ndarray:
+        steps = FD_STEP * (np.abs(x) + self.typical)
+        xs = [x] + [x + np.eye(x.size)[i] * steps[i] for i in range(x.size)]
+        r = self.residuals(xs)
+        return ((r[1:] - r[0]) / steps[:, None]).T
+
+
+def calibrate_simulator(result: Any, data: Dataset, mjcf: str | Path | None = None,
+                        timestep: float = 0.002, integrator: str = "implicitfast",
+                        controller: PDGains | None = None, *, max_iterations: int = 30,
+                        threads: int = 1) -> SimulatorCalibration:
+    """Calibrate the simulator-only terms (module docstring) on top of ``result``.
+
+    Parameters
+    ----------
+    result : an :class:`~consistid.IdentificationResult` (its inertias are kept; its ``Ia``,
+        ``fv``, ``fc``, where identified, are the starting values, else 0).
+    data : one continuous recording with torques (the training data of ``result``, or more).
+    mjcf : the user's MJCF file (loaded as is, not changed); default the robot's
+        dynamics-only MJCF.
+    timestep, integrator : the user's simulator (``RolloutOptions`` explains them).
+    controller : :class:`PDGains` of the closed-loop replay (default ω = 20 rad/s, ζ = 1).
+    max_iterations : Gauss–Newton iterations (Jacobians), ≥ 1.
+    threads : threads of ``mujoco.rollout``.
+
+    Returns
+    -------
+    SimulatorCalibration
+    """
+    options = RolloutOptions(timestep=timestep, integrator=integrator,
+                             controller=controller or PDGains(), threads=threads)
+    if not all(hasattr(result, a) for a in ("model", "parameters", "parameter_names", "rms")):
+        raise OptionError(f"calibrate_simulator: result must be an IdentificationResult, got "
+                          f"{type(result).__name__}")
+    started = time.perf_counter()
+    sim = build_simulator(result.model, result.parameters, result.parameter_names, mjcf=mjcf,
+                          timestep=options.timestep, integrator=options.integrator)
+    log = LogGrid.from_dataset(data, float(sim.mj_model.opt.timestep))
+    kp, kd = options.controller.resolve(sim.mass_diagonal(log.q[::max(1, log.t.size // 50)]))
+    scale = np.maximum(np.asarray(result.rms(data), dtype=float), 1e-6)
+    sim = replace(sim, compensate=True)
+    problem = _Problem(sim, log, kp, kd, scale, options.threads)
+    start = np.concatenate(list(sim.joint_terms().values()))
+    fit = scipy.optimize.least_squares(problem.fun, start, jac=problem.jac,
+                                       bounds=(np.zeros_like(start), np.inf), method="trf",
+                                       x_scale="jac", max_nfev=max_iterations)
+    std = _std(fit.jac, fit.fun, log, sim.nv)
+    names = tuple(f"{j}.{t}" for t in TERMS for j in sim.joint_names)
+    cost0 = float(np.mean(problem.fun(start) ** 2))
+    return SimulatorCalibration(result, names, start, fit.x, std,
+                                float(sim.mj_model.opt.timestep),
+                                integrator_name(int(sim.mj_model.opt.integrator)), kp, kd,
+                                cost0, float(np.mean(fit.fun ** 2)), problem.evaluations,
+                                time.perf_counter() - started, str(fit.message))
+
+
+def _std(jac: np.ndarray, fun: np.ndarray, log: LogGrid, nv: int) -> np.ndarray:
+    """σ of the calibrated terms (module docstring); ``inf`` for a term in a direction the
+    rollouts do not inform (an eigenvalue of ``JᵀJ`` below 1e-12 of the largest)."""
+    n, p = jac.shape
+    grid = Dataset(t=log.t, q=log.q, dq=log.dq, ddq=np.zeros_like(log.q), tau=log.tau)
+    tau = max(1.0, float(np.max(autocorrelation_time(grid, fun.reshape(-1, nv)))))
+    s2 = float(fun @ fun) / max(n - p, 1)
+    w, v = np.linalg.eigh(jac.T @ jac)
+    informed = w > 1e-12 * max(w.max(), np.finfo(float).tiny)
+    var = (v[:, informed] ** 2 / w[informed]).sum(axis=1) * s2 * tau
+    blind = np.any(np.abs(v[:, ~informed]) > 1e-3, axis=1)
+    return np.where(blind, np.inf, np.sqrt(var))
