@@ -19,8 +19,9 @@ PD of :mod:`.options` with the logged torque as feed-forward, and the correction
 .. math:: \min_{\theta \ge 0} \sum_{k,j} \big(c_{kj}(\theta) / s_j\big)^2,
 
 ``s_j`` the identification's residual RMS of joint ``j`` on the same data, by bounded
-Gauss–Newton (``scipy.optimize.least_squares``, trust-region reflective) with the Jacobian from
-forward differences, all ``p + 1`` rollouts of one Jacobian in one ``mujoco.rollout`` call. The
+Gauss–Newton (:func:`gauss_newton`: Levenberg–Marquardt damping, the bounds as an active set,
+a line search over a few step lengths run as one batch) with the Jacobian from forward
+differences, all ``p + 1`` rollouts of one Jacobian in one ``mujoco.rollout`` call. The
 positions the simulated robot reaches (not the logged accelerations) carry the information,
 which is what makes it work on short, poorly exciting runs. A candidate whose rollout diverges
 gets a large finite residual and the step is rejected; it does not abort the fit.
@@ -35,12 +36,11 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import scipy.optimize
 
 from ..data.dataset import Dataset
 from ..errors import OptionError
@@ -119,7 +119,7 @@ class SimulatorCalibration(Reported):
         v = self.values.reshape(len(TERMS), -1)
         for field, row in zip(("dof_armature", "dof_damping", "dof_frictionloss"), v):
             getattr(sim.mj_model, field)[sim.dofs] = row
-        return replace(sim, compensate=True)
+        return sim
 
     def table(self) -> list[dict[str, Any]]:
         """One row per simulator parameter: physical start, calibrated value, σ."""
@@ -199,19 +199,17 @@ class _Problem:
         r[run.diverged] = DIVERGED_RESIDUAL
         return np.nan_to_num(r, nan=DIVERGED_RESIDUAL).reshape(len(xs), -1)
 
-    def fun(self, x: np.ndarray) -> np.ndarray:
-        return self.residuals([x])[0]
-
-    def jac(self, x: np.ndarray) -> np.ndarray:
+    def jac_and_fun(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Forward-difference Jacobian and the residual at ``x``, one batch of ``p + 1``."""
         steps = FD_STEP * (np.abs(x) + self.typical)
         xs = [x] + [x + np.eye(x.size)[i] * steps[i] for i in range(x.size)]
         r = self.residuals(xs)
-        return ((r[1:] - r[0]) / steps[:, None]).T
+        return ((r[1:] - r[0]) / steps[:, None]).T, r[0]
 
 
 def calibrate_simulator(result: Any, data: Dataset, mjcf: str | Path | None = None,
                         timestep: float = 0.002, integrator: str = "implicitfast",
-                        controller: PDGains | None = None, *, max_iterations: int = 30,
+                        controller: PDGains | None = None, *, max_iterations: int = 10,
                         threads: int = 1) -> SimulatorCalibration:
     """Calibrate the simulator-only terms (module docstring) on top of ``result``.
 
@@ -242,20 +240,88 @@ def calibrate_simulator(result: Any, data: Dataset, mjcf: str | Path | None = No
     log = LogGrid.from_dataset(data, float(sim.mj_model.opt.timestep))
     kp, kd = options.controller.resolve(sim.mass_diagonal(log.q[::max(1, log.t.size // 50)]))
     scale = np.maximum(np.asarray(result.rms(data), dtype=float), 1e-6)
-    sim = replace(sim, compensate=True)
     problem = _Problem(sim, log, kp, kd, scale, options.threads)
     start = np.concatenate(list(sim.joint_terms().values()))
-    fit = scipy.optimize.least_squares(problem.fun, start, jac=problem.jac,
-                                       bounds=(np.zeros_like(start), np.inf), method="trf",
-                                       x_scale="jac", max_nfev=max_iterations)
+    fit = gauss_newton(problem, start, max_iterations)
     std = _std(fit.jac, fit.fun, log, sim.nv)
     names = tuple(f"{j}.{t}" for t in TERMS for j in sim.joint_names)
-    cost0 = float(np.mean(problem.fun(start) ** 2))
     return SimulatorCalibration(result, names, start, fit.x, std,
                                 float(sim.mj_model.opt.timestep),
                                 integrator_name(int(sim.mj_model.opt.integrator)), kp, kd,
-                                cost0, float(np.mean(fit.fun ** 2)), problem.evaluations,
-                                time.perf_counter() - started, str(fit.message))
+                                fit.cost_start, float(np.mean(fit.fun ** 2)),
+                                problem.evaluations, time.perf_counter() - started, fit.message)
+
+
+@dataclass(frozen=True, eq=False)
+class Fit:
+    """What :func:`gauss_newton` found: ``x``, the residual ``fun`` and Jacobian ``jac`` there,
+    the mean square residual at the start, and why it stopped."""
+
+    x: np.ndarray
+    fun: np.ndarray
+    jac: np.ndarray
+    cost_start: float
+    message: str
+
+
+#: Step lengths tried at each Gauss–Newton iteration (one batch of rollouts).
+STEP_LENGTHS = (1.0, 0.5, 0.25)
+#: Stop when an iteration lowers the cost by less than this fraction.
+RELATIVE_DECREASE = 1e-4
+
+
+def gauss_newton(problem: _Problem, x0: np.ndarray, max_iterations: int) -> Fit:
+    r"""Bounded Gauss–Newton (``x ≥ 0``) on ``problem``'s residual.
+
+    Each iteration solves ``(JᵀJ + λ diag JᵀJ) δ = −Jᵀr`` over the free variables (a variable
+    at its bound whose step points out of the box is held there, and the system solved again
+    without it), tries the step lengths :data:`STEP_LENGTHS` in one batch, keeps the best if it
+    lowers the cost (``λ`` ÷ 10) or raises ``λ`` × 10; it stops when the cost falls by less
+    than :data:`RELATIVE_DECREASE` or after ``max_iterations`` Jacobians (Nocedal & Wright,
+    *Numerical Optimization*, 2nd ed., §10.3, doi:10.1007/978-0-387-40065-5).
+    """
+    x, lam = np.maximum(x0, 0.0), 1e-6
+    jac, r = problem.jac_and_fun(x)
+    cost0 = cost = float(r @ r)
+    message = f"stopped after {max_iterations} iterations (max_iterations)"
+    for _ in range(max_iterations):
+        step = _step(jac, r, x, lam)
+        xs = [np.maximum(x + a * step, 0.0) for a in STEP_LENGTHS]
+        rs = problem.residuals(xs)
+        costs = np.einsum("ij,ij->i", rs, rs)
+        best = int(np.argmin(costs))
+        if costs[best] >= cost:
+            lam *= 10.0
+            if lam > 1e6:
+                message = "no step lowers the cost (converged)"
+                break
+            continue
+        decrease = (cost - costs[best]) / cost
+        x, lam = xs[best], max(lam / 10.0, 1e-9)
+        jac, r = problem.jac_and_fun(x)
+        cost = float(r @ r)
+        if decrease < RELATIVE_DECREASE:
+            message = f"cost decrease below {RELATIVE_DECREASE:g} (converged)"
+            break
+    n = r.size
+    return Fit(x, r, jac, cost0 / n, message)
+
+
+def _step(jac: np.ndarray, r: np.ndarray, x: np.ndarray, lam: float) -> np.ndarray:
+    """The damped Gauss–Newton step with the bound ``x ≥ 0`` as an active set."""
+    a, g = jac.T @ jac, jac.T @ r
+    free = np.ones(x.size, dtype=bool)
+    step = np.zeros(x.size)
+    for _ in range(2):
+        sub = a[np.ix_(free, free)]
+        damped = sub + lam * np.diag(np.diag(sub)) + 1e-12 * np.trace(sub) * np.eye(free.sum())
+        step[:] = 0.0
+        step[free] = np.linalg.solve(damped, -g[free])
+        blocked = (x <= 0.0) & (step < 0.0)
+        if not blocked.any():
+            break
+        free &= ~blocked
+    return step
 
 
 def _std(jac: np.ndarray, fun: np.ndarray, log: LogGrid, nv: int) -> np.ndarray:

@@ -52,16 +52,12 @@ class Simulator:
     mj_model : ``mujoco.MjModel`` with one PD actuator per robot joint (actuators ``0..nv-1``).
     dofs, qpos : (nv,) MuJoCo dof and ``qpos`` index of each robot joint (joint order).
     joint_names : the robot's joints.
-    compensate : the armature holds the torque-driven (controller-free) value and a closed-loop
-        replay removes the integrator's share of its PD, ``h K_d`` (:meth:`with_gains`); set
-        for a calibrated simulator (:mod:`.calibrate`).
     """
 
     mj_model: Any
     dofs: np.ndarray
     qpos: np.ndarray
     joint_names: tuple[str, ...]
-    compensate: bool = False
 
     @property
     def nv(self) -> int:
@@ -88,21 +84,16 @@ class Simulator:
         r"""A copy of ``model`` (this simulator's or a variant) with PD gains on the added
         actuators, ``force = K_p ctrl − K_p q − K_d q̇``.
 
-        With :attr:`compensate` and an implicit integrator, the copy's armature is lowered by
-        ``h K_d``: ``implicit``/``implicitfast`` step with ``M + A + h D`` where ``D`` holds
-        the actuator's ``K_d`` (MuJoCo's documentation, "Numerical integration"), an inertia
-        the robot does not have; ``A − h K_d`` gives back ``M + A``.
         """
         out = mujoco.MjModel.__copy__(model)
         out.actuator_gainprm[:self.nv, 0] = kp
         out.actuator_biasprm[:self.nv, :3] = np.column_stack([np.zeros_like(kp), -kp, -kd])
-        if self.compensate and self.implicit:
-            out.dof_armature[self.dofs] -= out.opt.timestep * kd
         return out
 
     @property
     def implicit(self) -> bool:
-        """The integrator treats actuator velocity gains implicitly."""
+        """The integrator treats actuator velocity gains implicitly (``implicit``,
+        ``implicitfast``): their damping acts on the velocity at the end of the step."""
         return integrator_name(int(self.mj_model.opt.integrator)) in ("implicit", "implicitfast")
 
     def initial_state(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:

@@ -7,8 +7,12 @@ torque loop applies it). Two replays:
 * **closed loop** (:func:`closed_loop`): from the logged start state, the PD of
   :mod:`.options` around the logged motion with the logged torque as feed-forward; reported are
   the tracking error ``e_k = q_k − q_{log,k}`` and the correction torque
-  ``c_k = K_p(q_{log,k} − q_k) + K_d(q̇_{log,k} − q̇_k)`` (the torque the simulated robot needs
-  beyond the logged one to follow the log);
+  ``c_k = K_p(q_{log,k} − q_k) + K_d(q̇_{log,k+a} − q̇_{k+a})`` (the torque the simulated robot
+  needs beyond the logged one to follow the log). ``a = 1`` under an implicit integrator, which
+  applies the damping at the end of the step, ``(M + A + h K_d) Δv = h (f + K_d (q̇_{ref} −
+  q̇_k))``: with the reference one step ahead, a robot that follows the log needs no correction,
+  and the PD adds no inertia ``h K_d`` of its own (with ``a = 0`` it would, the bias that
+  ``mujoco.sysid``'s armature absorbs); ``a = 0`` under ``Euler`` and ``RK4``;
 * **open loop** (:func:`open_loop`): the logged torque alone, the state reset to the logged
   one every ``W`` seconds (windows run as one batch); reported is the drift ``q − q_log`` per
   window. Open-loop replays of an arm under gravity diverge without feedback; the window keeps
@@ -92,7 +96,7 @@ def _controls(sim: Simulator, q_ref: np.ndarray, tau: np.ndarray) -> np.ndarray:
 @dataclass(frozen=True, eq=False)
 class ClosedLoop:
     """Closed-loop replays of a batch of models: ``error`` (B, S, nv) rad, ``correction``
-    (B, S, nv) N·m, ``diverged`` (B,)."""
+    (B, S − 1, nv) N·m (one per step), ``diverged`` (B,)."""
 
     error: np.ndarray
     correction: np.ndarray
@@ -104,7 +108,9 @@ def closed_loop(sim: Simulator, models: Sequence[Any], log: LogGrid, kp: np.ndar
     """Closed-loop replay (module docstring) of each of ``models`` (variants of ``sim``'s,
     copied with the gains, :meth:`Simulator.with_gains`), one ``mujoco.rollout`` call."""
     models = [sim.with_gains(m, kp, kd) for m in models]
-    ref = log.q[:-1] + (kd / kp) * log.dq[:-1]
+    a = int(sim.implicit)
+    steps = log.t.size - 1
+    ref = log.q[:-1] + (kd / kp) * log.dq[a:steps + a]
     controls = _controls(sim, ref, log.tau[:-1])
     start = sim.initial_state(log.q[0], log.dq[0])
     states = _rollout(models, sim, np.tile(start, (len(models), 1)), controls[None], threads)
@@ -114,7 +120,8 @@ def closed_loop(sim: Simulator, models: Sequence[Any], log: LogGrid, kp: np.ndar
     q, dq = np.concatenate([q0, q], axis=1), np.concatenate([dq0, dq], axis=1)
     error = q - log.q
     with np.errstate(invalid="ignore", over="ignore"):
-        correction = kp * (log.q - q) + kd * (log.dq - dq)
+        correction = kp * (log.q[:-1] - q[:, :-1]) + kd * (log.dq[a:steps + a]
+                                                            - dq[:, a:steps + a])
         diverged = ~np.all(np.isfinite(error), axis=(1, 2)) | (
             np.nanmax(np.abs(error), axis=(1, 2)) > DIVERGED)
     return ClosedLoop(error, correction, diverged)
