@@ -197,22 +197,13 @@ def _write_parameters(sim: Simulator, model: RobotModel, params: np.ndarray,
                       names: Sequence[str]) -> None:
     """Put the inertial parameters and per-joint terms into ``sim.mj_model`` by name."""
     mj = sim.mj_model
-    for i, (body_name, joint_name) in enumerate(zip(model.body_names, model.joint_names)):
+    for joint_name in model.joint_names:
         jid = mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_JOINT, joint_name)
-        body = int(mj.jnt_bodyid[jid])
         if np.linalg.norm(mj.jnt_pos[jid]) > 1e-9:
             raise ModelError(f"joint {joint_name!r} sits at {mj.jnt_pos[jid]} in its MJCF body; "
                              "its inertia is identified in the joint's frame, so the body "
                              "frame must be the joint frame (joint pos = 0)")
-        inertia = pin.Inertia.FromDynamicParameters(params[body_slice(i)])
-        moments, axes = np.linalg.eigh(np.asarray(inertia.inertia))
-        if np.linalg.det(axes) < 0:
-            axes[:, 0] *= -1.0
-        quat = pin.Quaternion(axes)
-        mj.body_mass[body] = inertia.mass
-        mj.body_ipos[body] = inertia.lever
-        mj.body_inertia[body] = np.maximum(moments, 0.0)
-        mj.body_iquat[body] = [quat.w, quat.x, quat.y, quat.z]
+    write_inertias(sim, mj, params[:model.n_inertial])
     terms = joint_terms_of(model, params, names)
     pm = model.pin_model
     for i, joint in enumerate(model.joint_names):
@@ -225,3 +216,20 @@ def _write_parameters(sim: Simulator, model: RobotModel, params: np.ndarray,
         if "fc" in values:
             mj.dof_frictionloss[dof] = values["fc"]
     mujoco.mj_setConst(mj, mujoco.MjData(mj))
+
+
+def write_inertias(sim: Simulator, mj: Any, inertial: np.ndarray) -> None:
+    """Put the standard parameters ``inertial`` (10 per body, joint order) into ``mj`` (this
+    simulator's model or a variant): mass, CoM, and the inertia about the CoM in its principal
+    axes (``body_inertia``, ``body_iquat``), the body frame being the joint frame. Call
+    ``mujoco.mj_setConst`` afterwards."""
+    for i, body in enumerate(mj.dof_bodyid[sim.dofs]):
+        inertia = pin.Inertia.FromDynamicParameters(inertial[body_slice(i)])
+        moments, axes = np.linalg.eigh(np.asarray(inertia.inertia))
+        if np.linalg.det(axes) < 0:
+            axes[:, 0] *= -1.0
+        quat = pin.Quaternion(axes)
+        mj.body_mass[body] = inertia.mass
+        mj.body_ipos[body] = inertia.lever
+        mj.body_inertia[body] = np.maximum(moments, 0.0)
+        mj.body_iquat[body] = [quat.w, quat.x, quat.y, quat.z]
