@@ -9,6 +9,7 @@ The truth (inertias, armature, damping) is what that simulation was given.
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -152,3 +153,41 @@ def test_gains_need_both_or_neither():
         PDGains(kp=10.0)
     with pytest.raises(ci.OptionError, match="1 or 7"):
         PDGains(kp=(1.0, 2.0), kd=(1.0, 2.0)).resolve(np.ones(7))
+
+
+def _config(tmp_path, rollout: str) -> str:
+    data = Path(__file__).resolve().parents[1] / "examples" / "panda" / "data"
+    path = tmp_path / "rollout.toml"
+    path.write_text(f"""
+[model]
+example = "panda"
+[data]
+dir = "{data.as_posix()}"
+train = ["panda_train.csv"]
+held_out = ["panda_held_out.csv"]
+trim_start = 0.5
+[identify]
+method = "sdp"
+friction = ["coulomb", "viscous"]
+[rollout]
+{rollout}
+""")
+    return str(path)
+
+
+def test_cli_rollout_writes_its_report(tmp_path, capsys):
+    from consistid.cli.commands import main
+
+    out = tmp_path / "rollout.html"
+    assert main(["rollout", _config(tmp_path, 'window = 0.5'), "--output", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "nominal" in text and "identified" in text and out.read_text().count("<table") >= 2
+
+
+def test_cli_rollout_names_a_bad_key_in_toml(tmp_path, capsys):
+    from consistid.cli.commands import main
+
+    assert main(["rollout", _config(tmp_path, 'integrator = "semi"')]) == 2
+    assert "RolloutOptions.integrator" in capsys.readouterr().err
+    assert main(["rollout", _config(tmp_path, 'stepsize = 0.001')]) == 2
+    assert "[rollout]" in capsys.readouterr().err
