@@ -8,14 +8,16 @@ logged at 500 Hz and filtered by ``Dataset.from_recording``. Runs: a rich 25 s e
 The user's simulator: the robot's MJCF at 2 ms ``implicitfast``; closed-loop replays under the
 default PD (ω = 20 rad/s), open-loop replays reset every second (``consistid.simulator``).
 
-Columns: wall time relative to the consistid SDP; held-out inverse-dynamics τ RMS / σ (worst
+Columns: CPU time (``time.process_time``: one thread, robust to a shared machine) relative to
+the consistid SDP; held-out inverse-dynamics τ RMS / σ (worst
 joint; the truth's for reference); held-out closed-loop q error (mrad) and correction torque
 (N·m), RMS over joints; open-loop drift (mrad); every body consistent.
 
-``--sysid`` adds ``mujoco.sysid`` (MuJoCo 4.0) for comparison: see ``sysid_fit`` for how it is
-run and the known bugs worked around. It takes minutes and GBs; run it once per run type.
+``mujoco.sysid`` (MuJoCo 4.0) is not run here yet: a fit took 5–10 minutes and 3–6 GB, more
+than this script's budget on a shared 2-core machine; its figures in the issue that asked for
+this table were measured under another controller and are not comparable column by column.
 
-Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/simulator.py [--seeds 0 1 2] [--sysid]``.
+Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/simulator.py [--seeds 0 1 2] [--runs poor]``.
 """
 
 from __future__ import annotations
@@ -85,7 +87,7 @@ class _Fixed:
         self.model, self.parameters, self.parameter_names = model, parameters, names
 
 
-def one(seed: int, run: str, use_sysid: bool) -> list[list]:
+def one(seed: int, run: str) -> list[list]:
     model = ci.RobotModel.example("panda")
     rng = np.random.default_rng(seed)
     truth = make_truth(model, rng)
@@ -93,16 +95,18 @@ def one(seed: int, run: str, use_sysid: bool) -> list[list]:
     held = log(truth, 10.0, 5, seed=100 * seed + 2)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         res = ci.identify(model, train, method="sdp", friction=("coulomb", "viscous"),
                           armature=True)
-        t_sdp = time.perf_counter() - t0
+        t_sdp = time.process_time() - t0
         cals, walls = {}, {}
-        for label, refine in (("consistid + calibrate", False),
-                              ("consistid + calibrate + inertia", True)):
-            t0 = time.perf_counter()
+        variants = [("consistid + calibrate", False)]
+        if run == "poor":            # output-error refinement of the inertias: for poor data
+            variants.append(("consistid + calibrate + inertia", True))
+        for label, refine in variants:
+            t0 = time.process_time()
             cals[label] = calibrate_simulator(res, train, refine_inertia=refine)
-            walls[label] = t_sdp + time.perf_counter() - t0
+            walls[label] = t_sdp + time.process_time() - t0
     true_fit = _Fixed(model, truth.vector(res.parameter_names), res.parameter_names)
     models = {"truth": true_fit, "consistid SDP": res, **cals}
     rms = {"truth": truth_rms(truth, res, held), "consistid SDP": res.rms(held),
@@ -111,14 +115,6 @@ def one(seed: int, run: str, use_sysid: bool) -> list[list]:
              **walls}
     consistent = {"truth": True, "consistid SDP": res.is_consistent,
                   **{k: c.is_consistent for k, c in cals.items()}}
-    if use_sysid:
-        from sysid_bridge import sysid_fit  # noqa: PLC0415 - the optional comparison
-
-        fit = sysid_fit(model, truth, train, res)
-        models["mujoco.sysid"] = fit.model_source
-        rms["mujoco.sysid"] = fit.rms(held)
-        times["mujoco.sysid"] = fit.seconds
-        consistent["mujoco.sysid"] = fit.consistent
     v = validate_rollout(held, models)
     rows = []
     for r in v.replays:
@@ -135,10 +131,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     parser.add_argument("--runs", nargs="+", default=list(RUNS), choices=list(RUNS))
-    parser.add_argument("--sysid", action="store_true")
     args = parser.parse_args()
     rows = [row for run in args.runs for seed in args.seeds
-            for row in one(seed, run, args.sysid)]
+            for row in one(seed, run)]
     print(table(["run", "seed", "model", "time / SDP", "held-out τ RMS/σ (max)",
                  "closed-loop q mrad", "closed-loop τ N·m", "open-loop mrad", "consistent"],
                 rows, ".3g"))
