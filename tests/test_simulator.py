@@ -14,6 +14,8 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import consistid as ci
 from consistid.robot.mjcf import mjcf_spec, write_mjcf
@@ -191,3 +193,13 @@ def test_cli_rollout_names_a_bad_key_in_toml(tmp_path, capsys):
     assert "RolloutOptions.integrator" in capsys.readouterr().err
     assert main(["rollout", _config(tmp_path, 'stepsize = 0.001')]) == 2
     assert "[rollout]" in capsys.readouterr().err
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.floats(-3.0, 3.0), min_size=10, max_size=10))
+def test_every_log_cholesky_vector_is_a_consistent_body_and_round_trips(u):
+    from consistid.simulator.logcholesky import from_log_cholesky, to_log_cholesky
+
+    pi = from_log_cholesky(np.array(u))
+    assert ci.is_physically_consistent(pi, "pseudo-inertia").ok
+    assert np.allclose(to_log_cholesky(pi), u, atol=1e-6 * (1 + np.abs(u).max()))
