@@ -203,3 +203,13 @@ def test_every_log_cholesky_vector_is_a_consistent_body_and_round_trips(u):
     pi = from_log_cholesky(np.array(u))
     assert ci.is_physically_consistent(pi, "pseudo-inertia").ok
     assert np.allclose(to_log_cholesky(pi), u, atol=1e-6 * (1 + np.abs(u).max()))
+
+
+def test_a_calibration_warns_in_another_simulator(panda, truth):
+    _, params, names, *_ = truth
+    log = _simulated_log(panda, params, names, 1.0, seed=6)
+    res = ci.identify(panda, log, method="sdp", friction=("viscous",), armature=True)
+    cal = calibrate_simulator(res, log, max_iterations=1)
+    with pytest.warns(ci.ModelMisfitWarning, match="calibrated at 0.002 s implicitfast"):
+        cal.simulator(timestep=0.001, integrator="RK4")
+    assert cal.simulator(timestep=0.002, integrator="implicitfast").nv == panda.nv

@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import json
 import time
+import warnings
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -44,7 +45,7 @@ import mujoco
 import numpy as np
 
 from ..data.dataset import Dataset
-from ..errors import OptionError, check_number
+from ..errors import ModelMisfitWarning, OptionError, check_number
 from ..identification.statistics import autocorrelation_time
 from ..report.html import Page
 from ..robot.inertia import is_physically_consistent
@@ -165,7 +166,15 @@ class SimulatorCalibration(Reported):
 
     def simulator(self, *, mjcf: str | Path | None = None, timestep: float | None = None,
                   integrator: str | None = None) -> Simulator:
-        """The identified robot in the simulator with the calibrated terms."""
+        """The identified robot in the simulator with the calibrated terms; warns
+        (:class:`~consistid.errors.ModelMisfitWarning`) at another step or integrator than the
+        calibration's, for which they were not fitted."""
+        if (timestep is not None and not np.isclose(timestep, self.timestep)) or (
+                integrator is not None and integrator != self.integrator):
+            warnings.warn(f"the simulator terms were calibrated at {self.timestep:g} s "
+                          f"{self.integrator}, not at {timestep} s {integrator}: the armature "
+                          "offset and damping are the integrator's; calibrate again for this "
+                          "simulator", ModelMisfitWarning, stacklevel=2)
         r = self.result
         params = np.asarray(r.parameters, dtype=float).copy()
         params[:r.model.n_inertial] = self.inertial
