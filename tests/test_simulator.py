@@ -213,3 +213,15 @@ def test_a_calibration_warns_in_another_simulator(panda, truth):
     with pytest.warns(ci.ModelMisfitWarning, match="calibrated at 0.002 s implicitfast"):
         cal.simulator(timestep=0.001, integrator="RK4")
     assert cal.simulator(timestep=0.002, integrator="implicitfast").nv == panda.nv
+
+
+def test_a_diagnosis_carries_the_rollout(panda, truth, tmp_path):
+    _, params, names, *_ = truth
+    log = _simulated_log(panda, params, names, 4.0, seed=7, noise=0.05)
+    diag = ci.diagnose(panda, log, effects=("inertia", "viscous", "armature"))
+    v = validate_rollout(log, {"nominal": panda, "truth": _Fixed(panda, params, names)})
+    carried = diag.with_rollout(v)
+    assert diag.rollout is None and carried.rollout is v
+    text = carried.summary()
+    assert "How far the gap shrinks in your simulator" in text and v.summary() in text
+    assert 'id="rollout"' in carried.report(tmp_path / "d.html").read_text()
