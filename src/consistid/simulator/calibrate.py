@@ -8,7 +8,10 @@ inertia of about ``h (K_d + d)`` on the joint, and MuJoCo's dry friction (``fric
 soft constraint, not ``f_c sign q̇``. :func:`calibrate_simulator` keeps the physical inertias
 (the convex, consistent estimate) and fits per joint the simulator's
 
-* ``armature`` (``dof_armature``; its offset from the physical ``I_a`` is the integrator's share),
+* ``armature`` (``dof_armature``; its offset from the physical ``I_a`` is the integrator's share
+  for joint damping, ``≈ −h d``, and what else the step and the friction model change; the
+  replay's own PD adds no inertia, :mod:`.replay`, so for a servo of velocity gain ``k_v`` in
+  the user's MJCF subtract ``h k_v`` more),
 * ``damping`` (``dof_damping``), ``frictionloss`` (``dof_frictionloss``),
 
 by output error in closed loop (the direct-and-inverse-dynamics identification, DIDIM:
@@ -22,14 +25,16 @@ PD of :mod:`.options` with the logged torque as feed-forward, and the correction
 Gauss–Newton (:func:`gauss_newton`: Levenberg–Marquardt damping, the bounds as an active set,
 a line search over a few step lengths run as one batch) with the Jacobian from forward
 differences, all ``p + 1`` rollouts of one Jacobian in one ``mujoco.rollout`` call. The
-positions the simulated robot reaches (not the logged accelerations) carry the information,
-which is what makes it work on short, poorly exciting runs. A candidate whose rollout diverges
+positions the simulated robot reaches (not the logged accelerations) carry the information.
+A candidate whose rollout diverges
 gets a large finite residual and the step is rejected; it does not abort the fit.
 
-Uncertainty: ``Cov θ = ŝ² τ (JᵀJ)⁻¹`` with ``ŝ²`` the whitened residual's mean square and
+Uncertainty: ``Cov θ = ŝ² τ (JᵀJ)⁻¹`` with ``ŝ²`` the residual's mean square at the answer and
 ``τ`` its integrated autocorrelation time (:func:`consistid.identification.statistics.
 autocorrelation_time`; closed-loop residuals are strongly correlated, so counting samples as
-independent would make σ far too small).
+independent would make σ far too small); with ``refine_inertia`` the prior's rows add their
+information. The σ of the simulator terms are conditional on the physical inertias unless they
+were refined.
 """
 
 from __future__ import annotations
@@ -372,9 +377,10 @@ def calibrate_simulator(result: Any, data: Dataset, mjcf: str | Path | None = No
         [start, *(to_log_cholesky(prior.estimate[10 * b:10 * b + 10])
                   for b in range(prior.estimate.size // 10))])
     n_out = (log.t.size - 1) * sim.nv
-    problem.weight = _row_weight(problem.residuals([x0])[0][:n_out], log, sim.nv)
+    r0 = problem.residuals([x0])[0][:n_out]
+    problem.weight, tau = _row_weight(r0, log, sim.nv)
     fit = gauss_newton(problem, x0, max_iterations)
-    cov = _covariance(fit.jac)
+    cov = _covariance(fit.jac, n_out, float(np.mean(fit.fun[:n_out] ** 2)) * tau)
     n = 3 * sim.nv
     names = tuple(f"{j}.{t}" for t in TERMS for j in sim.joint_names)
     inertial = problem.inertial(fit.x) if prior is not None else result.inertial_parameters
@@ -382,25 +388,30 @@ def calibrate_simulator(result: Any, data: Dataset, mjcf: str | Path | None = No
     return SimulatorCalibration(result, names, start, fit.x[:n], np.sqrt(np.diag(cov))[:n],
                                 float(sim.mj_model.opt.timestep),
                                 integrator_name(int(sim.mj_model.opt.integrator)), kp, kd,
-                                fit.cost_start, float(np.mean(fit.fun ** 2)),
+                                float(np.mean(r0 ** 2)),
+                                float(np.mean(fit.fun[:n_out] ** 2)) / problem.weight ** 2,
                                 problem.evaluations, time.perf_counter() - started, fit.message,
                                 inertial, base, base_std, prior is not None)
 
 
-def _row_weight(r: np.ndarray, log: LogGrid, nv: int) -> float:
-    """``1/√(v τ)`` for the closed-loop rows ``r``: ``v`` their mean square, ``τ`` their
-    integrated autocorrelation time (samples), so that ``S·nv`` correlated rows count as the
-    ``S·nv/τ`` independent ones they are worth."""
+def _row_weight(r: np.ndarray, log: LogGrid, nv: int) -> tuple[float, float]:
+    """``(1/√(v τ), τ)`` for the closed-loop rows ``r`` at the start: ``v`` their mean square,
+    ``τ`` their integrated autocorrelation time (samples), so that ``S·nv`` correlated rows
+    count as the ``S·nv/τ`` independent ones they are worth, each of unit variance beside the
+    inertia prior's rows."""
     grid = Dataset(t=log.t[:-1], q=log.q[:-1], dq=log.dq[:-1], ddq=np.zeros_like(log.q[:-1]),
                    tau=log.tau[:-1])
     tau = max(1.0, float(np.max(autocorrelation_time(grid, r.reshape(-1, nv)))))
-    return 1.0 / np.sqrt(tau)
+    return 1.0 / np.sqrt(max(float(np.mean(r ** 2)), 1e-12) * tau), tau
 
 
-def _covariance(jac: np.ndarray) -> np.ndarray:
-    """``(JᵀJ)⁻¹`` of whitened rows; ``inf`` on the diagonal of a parameter in a direction the
-    data do not inform (an eigenvalue below 1e-12 of the largest)."""
-    w, v = np.linalg.eigh(jac.T @ jac)
+def _covariance(jac: np.ndarray, n_out: int, s2: float) -> np.ndarray:
+    """``(J_oᵀJ_o / ŝ² + J_pᵀJ_p)⁻¹``: the closed-loop rows ``J_o`` (the first ``n_out``) with
+    their variance ``ŝ²`` at the answer (mean square × τ: correlated rows, the sandwich's
+    leading term), the inertia prior's rows ``J_p`` with unit variance; ``inf`` on the diagonal
+    of a parameter in a direction neither informs (an eigenvalue below 1e-12 of the largest)."""
+    j_out, j_prior = jac[:n_out], jac[n_out:]
+    w, v = np.linalg.eigh(j_out.T @ j_out / max(s2, 1e-300) + j_prior.T @ j_prior)
     informed = w > 1e-12 * max(w.max(), np.finfo(float).tiny)
     cov = (v[:, informed] / w[informed]) @ v[:, informed].T
     blind = np.any(np.abs(v[:, ~informed]) > 1e-3, axis=1)
@@ -432,12 +443,11 @@ def _physical(result: Any, problem: _Problem, x: np.ndarray, cov: np.ndarray
 @dataclass(frozen=True, eq=False)
 class Fit:
     """What :func:`gauss_newton` found: ``x``, the residual ``fun`` and Jacobian ``jac`` there,
-    the mean square residual at the start, and why it stopped."""
+    and why it stopped."""
 
     x: np.ndarray
     fun: np.ndarray
     jac: np.ndarray
-    cost_start: float
     message: str
 
 
@@ -460,7 +470,7 @@ def gauss_newton(problem: _Problem, x0: np.ndarray, max_iterations: int) -> Fit:
     lower = problem.lower
     x, lam = np.maximum(x0, lower), 1e-2
     jac, r = problem.jac_and_fun(x)
-    cost0 = cost = float(r @ r)
+    cost = float(r @ r)
     message = f"stopped after {max_iterations} iterations (max_iterations)"
     for _ in range(max_iterations):
         step = _step(jac, r, x <= lower, lam)
@@ -481,8 +491,7 @@ def gauss_newton(problem: _Problem, x0: np.ndarray, max_iterations: int) -> Fit:
         if decrease < RELATIVE_DECREASE:
             message = f"cost decrease below {RELATIVE_DECREASE:g} (converged)"
             break
-    n = r.size
-    return Fit(x, r, jac, cost0 / n, message)
+    return Fit(x, r, jac, message)
 
 
 def _step(jac: np.ndarray, r: np.ndarray, at_bound: np.ndarray, lam: float) -> np.ndarray:
