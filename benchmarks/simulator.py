@@ -13,9 +13,8 @@ the consistid SDP; held-out inverse-dynamics τ RMS / σ (worst
 joint; the truth's for reference); held-out closed-loop q error (mrad) and correction torque
 (N·m), RMS over joints; open-loop drift (mrad); every body consistent.
 
-``mujoco.sysid`` (MuJoCo 4.0) is not run here yet: a fit took 5–10 minutes and 3–6 GB, more
-than this script's budget on a shared 2-core machine; its figures in the issue that asked for
-this table were measured under another controller and are not comparable column by column.
+``mujoco.sysid`` (MuJoCo 4.0) on the same runs: ``simulator_sysid.py`` (minutes per fit; run
+once per run type).
 
 Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/simulator.py [--seeds 0 1 2] [--runs poor]``.
 """
