@@ -72,11 +72,17 @@ _EXPORTS: dict[str, str] = {
     "Transmission": "drives.transmission",
     "identify_coupled": "drives.coupled",
     "CoupledResult": "drives.coupled",
+    "calibrate_simulator": "simulator",
+    "SimulatorCalibration": "simulator",
+    "validate_rollout": "simulator",
+    "RolloutValidation": "simulator",
+    "RolloutOptions": "simulator",
+    "PDGains": "simulator",
 }
 
 #: subpackages reachable as attributes (``ci.simulate.record``)
 _SUBPACKAGES = ("robot", "data", "identification", "estimation", "excitation", "simulate",
-                "diagnosis", "kinematics", "online", "friction", "cli", "drives")
+                "diagnosis", "kinematics", "online", "friction", "simulator", "cli", "drives")
 
 __all__ = sorted([*_EXPORTS, "simulate", "errors", *_ERRORS])
 
@@ -148,3 +154,5 @@ if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerl
     from .robot.inertia import InertialParameters, is_physically_consistent
     from .robot.model import RobotModel
     from .robot.shapes import Ellipsoid
+    from .simulator import (PDGains, RolloutOptions, RolloutValidation, SimulatorCalibration,
+                            calibrate_simulator, validate_rollout)

@@ -548,6 +548,15 @@ def calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
+def rollout(args: argparse.Namespace) -> int:
+    """Rollout validation from a TOML configuration (:mod:`consistid.cli.rollout`)."""
+    from .rollout import run_rollout  # heavy: MuJoCo, loaded with the command
+
+    validation, _ = run_rollout(args.config, output=args.output, force=args.force, log=_log)
+    print(validation.summary())
+    return 0
+
+
 COMMANDS: dict[str, tuple[Callable[[argparse.Namespace], int], str]] = {
     "demo": (demo, "simulate an excitation run, identify it, print a report"),
     "identify": (identify, "identify a robot from the logs named in a TOML config"),
@@ -557,6 +566,8 @@ COMMANDS: dict[str, tuple[Callable[[argparse.Namespace], int], str]] = {
     "payload": (payload, "estimate a payload from unloaded and loaded logs (TOML config)"),
     "diagnose": (diagnose, "sim-to-real gap diagnosis of a model against logs (TOML config)"),
     "calibrate": (calibrate, "kinematic calibration from measured poses (TOML config)"),
+    "rollout": (rollout, "replay logs in your MuJoCo simulator before and "
+                                            "after identification and calibration (TOML config)"),
     "online": (online_demo.run, "recursive estimation with a payload change, and Slotine–Li "
                                 "adaptive control on the MuJoCo robot (demo)"),
 }
@@ -619,6 +630,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--urdf", help="calibrated URDF path (default: [calibrate] urdf)")
     p.add_argument("--report", help="HTML report path (default: [calibrate] report)")
     p.add_argument("--all", action="store_true", help="list every parameter")
+    _add_force(p)
+    p = sub.add_parser("rollout", help=COMMANDS["rollout"][1])
+    p.add_argument("config", help="TOML file with [model], [data] and optionally [identify], "
+                                  "[rollout]")
+    p.add_argument("--output", help="HTML report (default: [rollout] output)")
     _add_force(p)
     online_demo.add_arguments(sub.add_parser("online", help=COMMANDS["online"][1]))
     for p in sub.choices.values():

@@ -77,7 +77,8 @@ else:  # pragma: no cover - exercised on Python 3.10 only
     import tomli as tomllib
 
 #: The top-level tables a configuration may have (besides the ``root`` key), one per command.
-TABLES = ("model", "data", "identify", "diagnose", "recover", "payload", "excite", "drives")
+TABLES = ("model", "data", "identify", "diagnose", "recover", "payload", "excite", "drives",
+          "rollout")
 MODEL_KEYS = ("urdf", "example", "strip_dynamics", "locked_joints", "gravity", "tilt", "name")
 DATA_KEYS = ("dir", "keys", "joint_names", "trim_start", "trim_end", "duplicates", "train",
              "held_out", "joints", "columns", "topic", "stamp", "delimiter", "time_unit",

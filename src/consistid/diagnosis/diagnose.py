@@ -57,7 +57,7 @@ from __future__ import annotations
 import warnings
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 import scipy.optimize
@@ -253,6 +253,8 @@ class Diagnosis:
     remainder : the unexplained remainder per joint, its verdict and where it lies
         (:class:`~consistid.diagnosis.remainder.Remainder`).
     noise : how the noise floor was obtained (:class:`~consistid.diagnosis.noise.NoiseFloor`).
+    rollout : how far the gap shrinks in the user's simulator, when given
+        (:meth:`with_rollout`: a :class:`~consistid.simulator.rollout.RolloutValidation`).
     """
 
     model_name: str
@@ -270,6 +272,13 @@ class Diagnosis:
     notes: tuple[str, ...] = ()
     remainder: Remainder | None = None
     noise: NoiseFloor | None = None
+    rollout: Any = None
+
+    def with_rollout(self, validation: Any) -> "Diagnosis":
+        """This diagnosis carrying a rollout validation (closed- and open-loop replays in the
+        user's simulator, :func:`consistid.simulator.validate_rollout`), shown in its summary
+        and report."""
+        return replace(self, rollout=validation)
 
     @property
     def verdict(self) -> str:

@@ -98,6 +98,8 @@ def diagnosis_text(diag: "Diagnosis") -> str:
         last = diag.steps[-1]
         lines += ["", f"Selection stopped: {last.reason} (next candidate {last.chosen})."
                   if not last.accepted else "", ]
+    if diag.rollout is not None:
+        lines += ["", "How far the gap shrinks in your simulator:", diag.rollout.summary()]
     if diag.notes:
         lines += ["Notes:"] + [f"  - {n}" for n in diag.notes]
     return "\n".join(line for line in lines).rstrip() + "\n"
@@ -251,6 +253,9 @@ def diagnosis_page(diag: "Diagnosis", figures: bool = True) -> Page:
         last = diag.steps[-1]
         if not last.accepted:
             page.paragraph(f"Selection stopped: {last.reason} (next candidate {last.chosen}).")
+    if diag.rollout is not None:
+        page.heading("How far the gap shrinks in your simulator", anchor="rollout")
+        page.raw(diag.rollout.page().fragment())
     if diag.notes:
         page.heading("Notes", anchor="notes")
         page.bullets(diag.notes)

@@ -1,0 +1,102 @@
+r"""``consistid rollout CONFIG``: how far the gap shrinks in the user's simulator.
+
+The ``[model]``, ``[data]`` and ``[identify]`` tables as for ``consistid identify``, and::
+
+    [rollout]
+    mjcf = "robot.xml"          # your MJCF (read, never written); default the robot's own
+    timestep = 0.002            # s; with mjcf, default the file's
+    integrator = "implicitfast" # "Euler", "implicit", "implicitfast", "RK4"; with mjcf, the file's
+    window = 1.0                # s, open-loop replays restart from the log this often
+    bandwidth = 20.0            # rad/s of the replay's PD (or kp = [...], kd = [...] per joint)
+    damping_ratio = 1.0
+    calibrate = true            # also calibrate_simulator on the training logs
+    refine_inertia = false      # … and refine the inertias by output error
+    output = "rollout.html"     # report (optional)
+
+The training logs are identified (``[identify]``), then the first held-out log (else the first
+training log) is replayed in the simulator with the nominal model, the identification and, with
+``calibrate = true``, the calibrated simulator. The output is checked before the work and
+written atomically (:mod:`consistid.cli.files`).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..errors import ConfigError
+from ..identification.identify import identify
+from ..simulator import PDGains, RolloutOptions, calibrate_simulator, validate_rollout
+from .config import (RunConfig, config_identify, config_inputs, config_model,
+                     config_recordings, load_config)
+from .files import atomic_path, check_output
+
+#: Keys of the ``[rollout]`` table.
+ROLLOUT_KEYS = ("mjcf", "timestep", "integrator", "window", "bandwidth", "damping_ratio", "kp",
+                "kd", "calibrate", "refine_inertia", "output", "threads")
+_KINDS = {"mjcf": "string", "timestep": "number", "integrator": "string", "window": "number",
+          "bandwidth": "number", "damping_ratio": "number", "kp": "array of numbers",
+          "kd": "array of numbers", "calibrate": "boolean", "refine_inertia": "boolean",
+          "output": "string", "threads": "integer"}
+
+
+def rollout_options(config: RunConfig, table: dict[str, Any]) -> RolloutOptions:
+    """The :class:`RolloutOptions` of a ``[rollout]`` table (types checked in TOML terms)."""
+    for key, value in table.items():
+        config.expect("rollout", key, value, _KINDS[key])
+    gains = PDGains(**{k: (tuple(table[k]) if k in ("kp", "kd") else table[k])
+                       for k in ("bandwidth", "damping_ratio", "kp", "kd") if k in table})
+    mjcf = "mjcf" in table
+    return RolloutOptions(timestep=table.get("timestep", None if mjcf else 0.002),
+                          integrator=table.get("integrator", None if mjcf else "implicitfast"),
+                          window=table.get("window", 1.0), controller=gains,
+                          threads=table.get("threads", 1))
+
+
+def run_rollout(config_path: str, *, output: str | None = None, force: bool = False,
+                log: Any = print) -> tuple[Any, Any]:
+    """Run ``consistid rollout`` (module docstring); returns the validation and, when asked,
+    the calibration."""
+    config = load_config(config_path)
+    model = config_model(config)
+    table = config.table("rollout", ROLLOUT_KEYS, required=False)
+    options = rollout_options(config, table)
+    mjcf = config.resolve(table["mjcf"]) if "mjcf" in table else None
+    if mjcf is not None and not mjcf.is_file():
+        raise ConfigError(f"{config.path.name}: [rollout] mjcf = {table['mjcf']!r} does not "
+                          f"exist ({mjcf})")
+    inputs = config_inputs(config, model) + ([mjcf] if mjcf else [])
+    target = output or (config.resolve(table["output"]) if "output" in table else None)
+    if target is not None:
+        what = "--output" if output else "[rollout] output"
+        if str(target).lower().endswith((".html", ".htm")) is False:
+            raise ConfigError(f"{config.path.name}: {what} {str(target)!r} must be an .html "
+                              "file")
+        target = check_output(target, inputs=inputs, force=force, what=what)
+    train, held = config_recordings(config, model)
+    res = identify(model, train.dataset, **config_identify(config))
+    replay = _first_log((held or train).dataset)
+    models: dict[str, Any] = {"nominal": model, "identified": res}
+    cal = None
+    if table.get("calibrate", False):
+        cal = calibrate_simulator(res, _first_log(train.dataset), mjcf=mjcf,
+                                  timestep=options.timestep or 0.002,
+                                  integrator=options.integrator or "implicitfast",
+                                  controller=options.controller,
+                                  refine_inertia=table.get("refine_inertia", False),
+                                  threads=options.threads)
+        log(cal.summary())
+        models["calibrated"] = cal
+    validation = validate_rollout(replay, models, mjcf=mjcf, options=options)
+    if target is not None:
+        with atomic_path(target) as tmp:
+            validation.report(tmp)
+        log(f"wrote {target}")
+    return validation, cal
+
+
+def _first_log(data: Any) -> Any:
+    """The first recording of a stacked dataset (a replay runs one continuous log)."""
+    seg = np.asarray(data.segment)
+    return data.select(seg == seg[0]) if np.unique(seg).size > 1 else data

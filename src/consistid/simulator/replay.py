@@ -1,0 +1,149 @@
+r"""Replays of a log in the simulator, batched through ``mujoco.rollout``.
+
+The log is put on the simulator's time grid ``t_k = t_0 + k h`` (positions and velocities
+interpolated linearly, the torque held from the last logged sample: a zero-order hold, as a
+torque loop applies it). Two replays:
+
+* **closed loop** (:func:`closed_loop`): from the logged start state, the PD of
+  :mod:`.options` around the logged motion with the logged torque as feed-forward; reported are
+  the tracking error ``e_k = q_k − q_{log,k}`` and the correction torque
+  ``c_k = K_p(q_{log,k} − q_k) + K_d(q̇_{log,k+a} − q̇_{k+a})`` (the torque the simulated robot
+  needs beyond the logged one to follow the log). ``a = 1`` under an implicit integrator, which
+  applies the damping at the end of the step, ``(M + A + h K_d) Δv = h (f + K_d (q̇_{ref} −
+  q̇_k))``: with the reference one step ahead, a robot that follows the log needs no correction,
+  and the PD adds no inertia ``h K_d`` of its own (with ``a = 0`` it would, the bias that
+  ``mujoco.sysid``'s armature absorbs); ``a = 0`` under ``Euler`` and ``RK4``;
+* **open loop** (:func:`open_loop`): the logged torque alone, the state reset to the logged
+  one every ``W`` seconds (windows run as one batch); reported is the drift ``q − q_log`` per
+  window. Open-loop replays of an arm under gravity diverge without feedback; the window keeps
+  the measure finite and comparable.
+
+A rollout that diverges (a non-finite state, MuJoCo's ``BADQACC`` reset, or a tracking error
+beyond :data:`DIVERGED` rad) is flagged rather than raised, so that one bad candidate does not
+abort a calibration (unlike ``mujoco.sysid`` 4.0.0).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import mujoco
+import mujoco.rollout
+import numpy as np
+
+from ..data.dataset import Dataset
+from ..errors import DatasetError
+from .engine import CONTROLS, Simulator
+
+#: A tracking error beyond this (rad) marks a closed-loop rollout as diverged.
+DIVERGED = 1.0
+
+
+@dataclass(frozen=True, eq=False)
+class LogGrid:
+    """A log on the simulator's grid: ``t`` (S,), ``q``, ``dq``, ``tau`` (S, nv)."""
+
+    t: np.ndarray
+    q: np.ndarray
+    dq: np.ndarray
+    tau: np.ndarray
+
+    @classmethod
+    def from_dataset(cls, data: Dataset, timestep: float) -> "LogGrid":
+        """The one-segment dataset ``data`` on the grid of step ``timestep`` (module notes)."""
+        if data.tau is None:
+            raise DatasetError("a replay needs logged torques; the dataset has tau=None")
+        if data.segment is not None and np.unique(data.segment).size > 1:
+            raise DatasetError("a replay runs one continuous recording; select one segment "
+                               "(Dataset.select(data.segment == k))")
+        t = data.t[0] + timestep * np.arange(int(np.floor((data.t[-1] - data.t[0]) / timestep
+                                                           + 1e-9)) + 1)
+        if t.size < 3:
+            raise DatasetError(f"the log lasts {data.t[-1] - data.t[0]:.3g} s, less than three "
+                               f"simulator steps of {timestep:g} s")
+        q = np.column_stack([np.interp(t, data.t, c) for c in data.q.T])
+        dq = np.column_stack([np.interp(t, data.t, c) for c in data.dq.T])
+        held = np.clip(np.searchsorted(data.t, t + 1e-9 * timestep, side="right") - 1, 0, None)
+        return cls(t, q, dq, np.asarray(data.tau, dtype=float)[held])
+
+
+def _rollout(models: Sequence[Any], sim: Simulator, states: np.ndarray, controls: np.ndarray,
+             threads: int) -> np.ndarray:
+    """``mujoco.rollout`` of ``models`` (one per batch row) from ``states`` under ``controls``
+    (batch, steps, nu + nv); returns the states after each step (batch, steps, nstate)."""
+    datas = [mujoco.MjData(sim.mj_model) for _ in range(threads)]
+    out, _ = mujoco.rollout.rollout(list(models), datas, states, controls,
+                                    control_spec=int(CONTROLS))
+    return out
+
+
+def _positions(sim: Simulator, states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Joint positions and velocities out of full-physics states (…, nstate)."""
+    nq = sim.mj_model.nq
+    return states[..., 1 + sim.qpos], states[..., 1 + nq + sim.dofs]
+
+
+def _controls(sim: Simulator, q_ref: np.ndarray, tau: np.ndarray) -> np.ndarray:
+    """Per-step controls (steps, nu + nv): PD set points, the torque as applied force."""
+    m = sim.mj_model
+    out = np.zeros((tau.shape[0], m.nu + m.nv))
+    out[:, :sim.nv] = q_ref
+    out[:, m.nu + sim.dofs] = tau
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class ClosedLoop:
+    """Closed-loop replays of a batch of models: ``error`` (B, S, nv) rad, ``correction``
+    (B, S − 1, nv) N·m (one per step), ``diverged`` (B,)."""
+
+    error: np.ndarray
+    correction: np.ndarray
+    diverged: np.ndarray
+
+
+def closed_loop(sim: Simulator, models: Sequence[Any], log: LogGrid, kp: np.ndarray,
+                kd: np.ndarray, threads: int = 1) -> ClosedLoop:
+    """Closed-loop replay (module docstring) of each of ``models`` (variants of ``sim``'s,
+    copied with the gains, :meth:`Simulator.with_gains`), one ``mujoco.rollout`` call."""
+    models = [sim.with_gains(m, kp, kd) for m in models]
+    a = int(sim.implicit)
+    steps = log.t.size - 1
+    ref = log.q[:-1] + (kd / kp) * log.dq[a:steps + a]
+    controls = _controls(sim, ref, log.tau[:-1])
+    start = sim.initial_state(log.q[0], log.dq[0])
+    states = _rollout(models, sim, np.tile(start, (len(models), 1)), controls[None], threads)
+    q, dq = _positions(sim, states)
+    q0 = np.broadcast_to(log.q[0], (len(models), 1, sim.nv))
+    dq0 = np.broadcast_to(log.dq[0], (len(models), 1, sim.nv))
+    q, dq = np.concatenate([q0, q], axis=1), np.concatenate([dq0, dq], axis=1)
+    error = q - log.q
+    with np.errstate(invalid="ignore", over="ignore"):
+        correction = kp * (log.q[:-1] - q[:, :-1]) + kd * (log.dq[a:steps + a]
+                                                            - dq[:, a:steps + a])
+        diverged = ~np.all(np.isfinite(error), axis=(1, 2)) | (
+            np.nanmax(np.abs(error), axis=(1, 2)) > DIVERGED)
+    return ClosedLoop(error, correction, diverged)
+
+
+def open_loop(sim: Simulator, log: LogGrid, window: float, threads: int = 1) -> np.ndarray:
+    """Open-loop replay under the logged torque, reset every ``window`` s: the drift
+    ``q − q_log``, (windows, steps per window, nv); NaN where a window diverged."""
+    steps = max(1, int(round(window / float(sim.mj_model.opt.timestep))))
+    starts = np.arange(0, log.t.size - steps, steps)
+    if starts.size == 0:
+        starts, steps = np.array([0]), log.t.size - 1
+    m = sim.with_gains(sim.mj_model, np.zeros(sim.nv), np.zeros(sim.nv))   # no feedback
+    controls = np.stack([_controls(sim, np.zeros((steps, sim.nv)), log.tau[k:k + steps])
+                         for k in starts])
+    states = np.stack([sim.initial_state(log.q[k], log.dq[k]) for k in starts])
+    out = _rollout([m] * starts.size, sim, states, controls, threads)
+    q, _ = _positions(sim, out)
+    idx = starts[:, None] + np.arange(1, steps + 1)[None, :]
+    drift = q - log.q[idx]
+    with np.errstate(invalid="ignore"):
+        bad = ~np.all(np.isfinite(drift), axis=(1, 2)) | (np.nanmax(np.abs(drift), axis=(1, 2))
+                                                          > 10 * DIVERGED)
+    drift[bad] = np.nan
+    return drift

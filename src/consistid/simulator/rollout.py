@@ -1,0 +1,226 @@
+r"""Rollout validation: how well a model replays a log in the user's simulator.
+
+:func:`validate_rollout` replays one log (:mod:`.replay`) with several models — the nominal
+:class:`~consistid.robot.model.RobotModel`, an :class:`~consistid.IdentificationResult`, a
+:class:`~consistid.simulator.calibrate.SimulatorCalibration` — in the same simulator (the
+user's MJCF, or the dynamics-only MJCF of the robot), at the user's step and integrator, with
+the same PD gains, and reports per joint:
+
+* closed loop: the RMS tracking error ``e = q − q_log`` (rad) and the RMS correction torque
+  ``c`` (N·m), the torque the simulated robot needs beyond the logged one;
+* open loop: the RMS drift ``q − q_log`` within each window of ``W`` s (mean over windows).
+
+The first model is "before", the last "after": :class:`RolloutValidation` says how far the gap
+shrinks in the user's simulator.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from ..data.dataset import Dataset
+from ..errors import OptionError
+from ..report.html import Page
+from ..robot.model import RobotModel
+from .engine import Simulator, build_simulator, integrator_name
+from .options import RolloutOptions
+from .replay import LogGrid, closed_loop, open_loop
+
+
+@dataclass(frozen=True, eq=False)
+class Replay:
+    """One model's replay. ``q_error``, ``tau_error``, ``drift``: (nv,) RMS per joint (rad,
+    N·m, rad); ``drift_max``: (nv,) the worst window's; ``diverged``: the closed loop left the
+    log (then its errors are NaN)."""
+
+    label: str
+    q_error: np.ndarray
+    tau_error: np.ndarray
+    drift: np.ndarray
+    drift_max: np.ndarray
+    diverged: bool
+
+    def row(self) -> dict[str, Any]:
+        return {"model": self.label, "q_error_mrad": 1e3 * _rms(self.q_error),
+                "tau_error_Nm": _rms(self.tau_error), "open_loop_mrad": 1e3 * _rms(self.drift),
+                "diverged": self.diverged}
+
+
+def _rms(per_joint: np.ndarray) -> float:
+    """The RMS over joints of per-joint RMS values."""
+    return float(np.sqrt(np.mean(np.square(per_joint))))
+
+
+@dataclass(frozen=True, eq=False)
+class RolloutValidation:
+    """Replays of one log by several models in one simulator (module docstring).
+
+    Attributes
+    ----------
+    replays : one :class:`Replay` per model, "before" first, "after" last.
+    joint_names : the robot's joints.
+    timestep, integrator, window : the simulator's step (s), integrator, open-loop window (s).
+    kp, kd : (nv,) the PD gains every model was replayed with.
+    duration : seconds replayed.
+    """
+
+    replays: tuple[Replay, ...]
+    joint_names: tuple[str, ...]
+    timestep: float
+    integrator: str
+    window: float
+    kp: np.ndarray
+    kd: np.ndarray
+    duration: float
+
+    @property
+    def shrink(self) -> dict[str, float]:
+        """``after / before`` of the closed-loop q and τ errors and of the open-loop drift."""
+        a, b = self.replays[-1].row(), self.replays[0].row()
+        return {k: a[k] / b[k] if b[k] > 0 else float("nan")
+                for k in ("q_error_mrad", "tau_error_Nm", "open_loop_mrad")}
+
+    def table(self) -> list[dict[str, Any]]:
+        """One row per model: RMS over joints of the closed-loop q error (mrad), correction
+        torque (N·m), open-loop drift (mrad), and whether it diverged."""
+        return [r.row() for r in self.replays]
+
+    def joint_table(self) -> list[dict[str, Any]]:
+        """One row per (model, joint)."""
+        return [{"model": r.label, "joint": j, "q_error_mrad": 1e3 * r.q_error[i],
+                 "tau_error_Nm": r.tau_error[i], "open_loop_mrad": 1e3 * r.drift[i]}
+                for r in self.replays for i, j in enumerate(self.joint_names)]
+
+    def summary(self) -> str:
+        lines = [f"Rollout validation: {self.duration:.3g} s replayed at {self.timestep:g} s "
+                 f"{self.integrator}; closed loop under PD (mean K_p "
+                 f"{np.mean(self.kp):.3g}), open loop reset every {self.window:g} s",
+                 f"{'model':<22}{'q error mrad':>14}{'τ error N·m':>14}{'open loop mrad':>16}"]
+        for r in self.table():
+            flag = "  DIVERGED" if r["diverged"] else ""
+            lines.append(f"{r['model']:<22}{r['q_error_mrad']:>14.4g}{r['tau_error_Nm']:>14.4g}"
+                         f"{r['open_loop_mrad']:>16.4g}{flag}")
+        if len(self.replays) > 1:
+            s = self.shrink
+            lines.append(f"after/before: q error ×{s['q_error_mrad']:.3g}, τ error "
+                         f"×{s['tau_error_Nm']:.3g}, open loop ×{s['open_loop_mrad']:.3g}")
+        return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.summary()
+
+    def page(self) -> Page:
+        page = Page("consistid rollout validation", self.summary().splitlines()[0])
+        page.table(["model", "q error (mrad)", "τ error (N·m)", "open loop (mrad)", "diverged"],
+                   [tuple(r.values()) for r in self.table()])
+        page.table(["model", "joint", "q error (mrad)", "τ error (N·m)", "open loop (mrad)"],
+                   [tuple(r.values()) for r in self.joint_table()], keys=(0, 1))
+        return page
+
+    def report(self, path: str | Path) -> Path:
+        """Write the HTML report (``*.html``) and return its path."""
+        path = Path(path)
+        if path.suffix.lower() not in (".html", ".htm"):
+            raise OptionError(f"report path {str(path)!r}: give an .html file")
+        return self.page().write(path)
+
+    def _repr_html_(self) -> str:
+        return self.page().fragment()
+
+    def save(self, path: str | Path) -> Path:
+        """Write the figures as JSON (``*.json``); :meth:`load` reads them back."""
+        path = Path(path)
+        if path.suffix.lower() != ".json":
+            raise OptionError(f"save path {str(path)!r}: give a .json file")
+        doc = {"joint_names": list(self.joint_names), "timestep": self.timestep,
+               "integrator": self.integrator, "window": self.window, "kp": self.kp.tolist(),
+               "kd": self.kd.tolist(), "duration": self.duration,
+               "replays": [{"label": r.label, "q_error": r.q_error.tolist(),
+                            "tau_error": r.tau_error.tolist(), "drift": r.drift.tolist(),
+                            "drift_max": r.drift_max.tolist(), "diverged": r.diverged}
+                           for r in self.replays]}
+        path.write_text(json.dumps(doc, indent=1, allow_nan=True), encoding="utf-8")
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path) -> "RolloutValidation":
+        doc = json.loads(Path(path).read_text(encoding="utf-8"))
+        replays = tuple(Replay(r["label"], *(np.asarray(r[k], float) for k in
+                                              ("q_error", "tau_error", "drift", "drift_max")),
+                               bool(r["diverged"])) for r in doc["replays"])
+        return cls(replays, tuple(doc["joint_names"]), doc["timestep"], doc["integrator"],
+                   doc["window"], np.asarray(doc["kp"]), np.asarray(doc["kd"]), doc["duration"])
+
+
+def simulator_of(source: Any, *, mjcf: str | Path | None, options: RolloutOptions
+                 ) -> Simulator:
+    """The simulator of a model source: a :class:`RobotModel` (its own inertias, no joint
+    terms), or anything with ``model``, ``parameters`` and ``parameter_names`` (an
+    identification result), or a :class:`~consistid.simulator.calibrate.SimulatorCalibration`
+    (its ``simulator(...)``)."""
+    if hasattr(source, "simulator") and callable(source.simulator):
+        return source.simulator(mjcf=mjcf, timestep=options.timestep,
+                                integrator=options.integrator)
+    if isinstance(source, RobotModel):
+        return build_simulator(source, mjcf=mjcf, timestep=options.timestep,
+                               integrator=options.integrator)
+    if all(hasattr(source, a) for a in ("model", "parameters", "parameter_names")):
+        return build_simulator(source.model, source.parameters, source.parameter_names,
+                               mjcf=mjcf, timestep=options.timestep,
+                               integrator=options.integrator)
+    raise OptionError(f"cannot replay a {type(source).__name__}: give a RobotModel, an "
+                      "IdentificationResult or a SimulatorCalibration")
+
+
+def replay_one(sim: Simulator, label: str, log: LogGrid, kp: np.ndarray, kd: np.ndarray,
+               options: RolloutOptions) -> Replay:
+    """One model's closed- and open-loop replay as a :class:`Replay`."""
+    closed = closed_loop(sim, [sim.mj_model], log, kp, kd, options.threads)
+    drift = open_loop(sim, log, options.window, options.threads)
+    per_window = np.sqrt(np.nanmean(drift ** 2, axis=1))
+    diverged = bool(closed.diverged[0])
+    nan = np.full(sim.nv, np.nan)
+    return Replay(label, nan if diverged else np.sqrt(np.mean(closed.error[0] ** 2, axis=0)),
+                  nan if diverged else np.sqrt(np.mean(closed.correction[0] ** 2, axis=0)),
+                  np.sqrt(np.nanmean(per_window ** 2, axis=0)), np.nanmax(per_window, axis=0),
+                  diverged)
+
+
+def validate_rollout(data: Dataset, models: Mapping[str, Any], *,
+                     mjcf: str | Path | None = None,
+                     options: RolloutOptions | None = None) -> RolloutValidation:
+    """Replay ``data`` in the user's simulator with each of ``models`` (module docstring).
+
+    Parameters
+    ----------
+    data : one continuous recording with torques (a held-out one, to judge a fit).
+    models : ``{label: source}``, "before" first and "after" last; a source is a
+        :class:`RobotModel` (e.g. the nominal), an identification result, or a
+        :class:`~consistid.simulator.calibrate.SimulatorCalibration`.
+    mjcf : the user's MJCF file, loaded as is (its actuators replaced by the replay's PD);
+        default the dynamics-only MJCF of each model.
+    options : :class:`RolloutOptions` (step, integrator, window, gains).
+
+    Returns
+    -------
+    RolloutValidation
+    """
+    options = options or RolloutOptions()
+    if not models:
+        raise OptionError("validate_rollout: models is empty; give {label: model}")
+    sims = {label: simulator_of(src, mjcf=mjcf, options=options)
+            for label, src in models.items()}
+    first = next(iter(sims.values()))
+    timestep = float(first.mj_model.opt.timestep)
+    log = LogGrid.from_dataset(data, timestep)
+    stride = max(1, log.t.size // 50)
+    kp, kd = options.controller.resolve(first.mass_diagonal(log.q[::stride]))
+    replays = tuple(replay_one(sim, label, log, kp, kd, options) for label, sim in sims.items())
+    integrator = integrator_name(int(first.mj_model.opt.integrator))
+    return RolloutValidation(replays, first.joint_names, timestep, integrator, options.window,
+                             kp, kd, float(log.t[-1] - log.t[0]))

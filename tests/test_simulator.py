@@ -1,0 +1,231 @@
+"""Rollout validation and simulator calibration (consistid.simulator).
+
+The logs here are made by a plain ``mj_step`` loop of MuJoCo on the MJCF of
+:func:`consistid.robot.mjcf.mjcf_spec` (not by the code under test): a PD plus gravity
+compensation tracks a Fourier trajectory, and the applied torque is logged with each state.
+The truth (inertias, armature, damping) is what that simulation was given.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
+
+import consistid as ci
+from consistid.robot.mjcf import mjcf_spec, write_mjcf
+from consistid.simulator import PDGains, RolloutOptions, calibrate_simulator, validate_rollout
+
+H = 0.002
+
+
+def _terms(model: ci.RobotModel, armature: np.ndarray, damping: np.ndarray):
+    names = [f"{j}.{s}" for s in ("Ia", "fv") for j in model.joint_names]
+    return np.concatenate([armature, damping]), names
+
+
+def _simulated_log(model: ci.RobotModel, parameters: np.ndarray, names, duration: float,
+                   seed: int, noise: float = 0.0) -> ci.Dataset:
+    """A log of MuJoCo itself at step H, implicitfast: (t, q, q̇, q̈ = Δq̇/h, τ + noise)."""
+    spec = mjcf_spec(model, parameters, names)
+    spec.option.timestep = H
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    mj = spec.compile()
+    data = mujoco.MjData(mj)
+    rng = np.random.default_rng(seed)
+    traj = ci.FourierTrajectory.random(model, 4, 4.0, rng)
+    t = H * np.arange(int(round(duration / H)) + 1)
+    des = traj.sample(1.0 / H, t[-1] + 2 * H)
+    data.qpos[:], data.qvel[:] = des.q[0], des.dq[0]
+    q, dq, tau = (np.empty((t.size, model.nv)) for _ in range(3))
+    for k in range(t.size):
+        mujoco.mj_forward(mj, data)
+        u = data.qfrc_bias + 400.0 * (des.q[k] - data.qpos) + 40.0 * (des.dq[k] - data.qvel)
+        q[k], dq[k], tau[k] = data.qpos, data.qvel, u
+        data.qfrc_applied[:] = u
+        mujoco.mj_step(mj, data)
+    ddq = np.vstack([np.diff(dq, axis=0) / H, np.zeros((1, model.nv))])
+    tau = tau + noise * rng.standard_normal(tau.shape)
+    return ci.Dataset(t=t[:-1], q=q[:-1], dq=dq[:-1], ddq=ddq[:-1], tau=tau[:-1],
+                      joint_names=tuple(model.joint_names))
+
+
+@pytest.fixture(scope="module")
+def truth(panda):
+    rng = np.random.default_rng(3)
+    inertial = panda.prior_parameters * np.repeat(1 + 0.2 * rng.uniform(-1, 1, panda.n_bodies),
+                                                  10)
+    armature = np.linspace(0.12, 0.04, panda.nv)
+    damping = np.linspace(0.8, 0.3, panda.nv)
+    extra, names = _terms(panda, armature, damping)
+    return (panda.with_parameters(inertial), np.concatenate([inertial, extra]),
+            list(panda.parameter_names) + names, armature, damping)
+
+
+class _Fixed:
+    """A model with given parameters, as validate_rollout reads an identification result."""
+
+    def __init__(self, model, parameters, names):
+        self.model, self.parameters, self.parameter_names = model, parameters, names
+
+
+def test_the_true_model_replays_its_own_log(panda, truth):
+    true_model, params, names, *_ = truth
+    log = _simulated_log(panda, params, names, 2.0, seed=0)
+    v = validate_rollout(log, {"nominal": panda, "truth": _Fixed(panda, params, names)})
+    nominal, exact = v.replays
+    assert np.all(exact.q_error < 1e-9) and np.all(exact.tau_error < 1e-6)
+    assert np.all(exact.drift < 1e-9)                              # open loop too
+    assert np.max(nominal.q_error) > 1e-4 and np.max(nominal.drift) > 1e-3
+    assert v.shrink["q_error_mrad"] < 1e-4
+
+
+def test_the_true_model_replays_through_the_users_mjcf(panda, truth, tmp_path):
+    """The user's MJCF (written with the nominal inertias) gets the true ones in memory."""
+    _, params, names, *_ = truth
+    log = _simulated_log(panda, params, names, 1.0, seed=1)
+    path = write_mjcf(panda, tmp_path / "robot.xml")
+    before = path.read_bytes()
+    v = validate_rollout(log, {"nominal": panda, "truth": _Fixed(panda, params, names)},
+                         mjcf=path)
+    assert path.read_bytes() == before
+    assert np.all(v.replays[1].q_error < 1e-8)
+    assert np.max(v.replays[0].q_error) > 1e-4
+
+
+def test_noise_only_leaves_a_small_closed_loop_error(panda, truth):
+    _, params, names, *_ = truth
+    log = _simulated_log(panda, params, names, 2.0, seed=2, noise=0.1)
+    v = validate_rollout(log, {"truth": _Fixed(panda, params, names)},
+                         options=RolloutOptions(controller=PDGains(bandwidth=30.0)))
+    r = v.replays[0]
+    assert not r.diverged
+    # τ noise of 0.1 N·m through a 30 rad/s PD: sub-mrad tracking, correction below the noise
+    assert np.all(r.q_error < 1e-3) and np.all(r.tau_error < 0.1)
+
+
+def test_calibration_recovers_armature_and_damping(panda, truth):
+    _, params, names, armature, damping = truth
+    log = _simulated_log(panda, params, names, 4.0, seed=4, noise=0.02)
+    res = ci.identify(panda, log, method="sdp", friction=("viscous",), armature=True)
+    start = res.parameters.copy()
+    for k, n in enumerate(res.parameter_names):
+        if n.endswith((".Ia", ".fv")):
+            start[k] = 0.0                    # the simulator terms start from nothing
+    cal = calibrate_simulator(dataclasses.replace(res, parameters=start), log)
+    assert cal.cost < cal.cost_start
+    assert np.all(np.isfinite(cal.std)) and np.all(cal.std > 0)
+    got_a, got_d = cal.term("armature"), cal.term("damping")
+    # joints 1-2: the armature trades with link 1's Izz in the identification; from joint 3 on
+    # each armature is its own
+    assert np.allclose(got_a[2:], armature[2:], rtol=0.1, atol=4e-3), (got_a, armature)
+    assert np.allclose(got_d, damping, rtol=0.1, atol=0.03), (got_d, damping)
+    assert np.all(np.abs(cal.term("frictionloss")) < 0.05)     # none was simulated
+
+
+def test_results_save_and_report(panda, truth, tmp_path):
+    _, params, names, *_ = truth
+    log = _simulated_log(panda, params, names, 1.0, seed=5)
+    v = validate_rollout(log, {"nominal": panda, "truth": _Fixed(panda, params, names)})
+    back = type(v).load(v.save(tmp_path / "rollout.json"))
+    assert np.array_equal(back.replays[0].q_error, v.replays[0].q_error)
+    assert "nominal" in v.summary() and v.report(tmp_path / "r.html").read_text().count("<table")
+    with pytest.raises(ci.OptionError, match="json"):
+        v.save(tmp_path / "rollout.txt")
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    (dict(timestep=0.0), "RolloutOptions.timestep"),
+    (dict(integrator="semi"), "RolloutOptions.integrator"),
+    (dict(window=-1.0), "RolloutOptions.window"),
+    (dict(controller=PDGains(kp=100.0, kd=10.0), threads=0), "RolloutOptions.threads"),
+])
+def test_bad_options_name_the_keyword(kwargs, match):
+    with pytest.raises(ci.OptionError, match=match):
+        RolloutOptions(**kwargs)
+
+
+def test_gains_need_both_or_neither():
+    with pytest.raises(ci.OptionError, match="both kp and kd"):
+        PDGains(kp=10.0)
+    with pytest.raises(ci.OptionError, match="1 or 7"):
+        PDGains(kp=(1.0, 2.0), kd=(1.0, 2.0)).resolve(np.ones(7))
+
+
+def _config(tmp_path, rollout: str) -> str:
+    data = Path(__file__).resolve().parents[1] / "examples" / "panda" / "data"
+    path = tmp_path / "rollout.toml"
+    path.write_text(f"""
+[model]
+example = "panda"
+[data]
+dir = "{data.as_posix()}"
+train = ["panda_train.csv"]
+held_out = ["panda_held_out.csv"]
+trim_start = 0.5
+[identify]
+method = "sdp"
+friction = ["coulomb", "viscous"]
+[rollout]
+{rollout}
+""")
+    return str(path)
+
+
+def test_cli_rollout_writes_its_report(tmp_path, capsys):
+    from consistid.cli.commands import main
+
+    out = tmp_path / "rollout.html"
+    assert main(["rollout", _config(tmp_path, 'window = 0.5'), "--output", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "nominal" in text and "identified" in text and out.read_text().count("<table") >= 2
+
+
+def test_cli_rollout_names_a_bad_key_in_toml(tmp_path, capsys):
+    from consistid.cli.commands import main
+
+    assert main(["rollout", _config(tmp_path, 'integrator = "semi"')]) == 2
+    assert "RolloutOptions.integrator" in capsys.readouterr().err
+    assert main(["rollout", _config(tmp_path, 'stepsize = 0.001')]) == 2
+    assert "[rollout]" in capsys.readouterr().err
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.floats(-3.0, 3.0), min_size=10, max_size=10))
+def test_every_log_cholesky_vector_is_a_consistent_body_and_round_trips(u):
+    from consistid.simulator.logcholesky import (from_log_cholesky, pseudo_inertia,
+                                                 to_log_cholesky)
+
+    pi = from_log_cholesky(np.array(u))
+    assert ci.is_physically_consistent(pi, "pseudo-inertia").ok
+    j = pseudo_inertia(pi)
+    # near the boundary (J almost singular) to_log_cholesky first moves the body inside
+    assume(np.linalg.eigvalsh(j)[0] > 1e-6 * np.trace(j))
+    assert np.allclose(to_log_cholesky(pi), u, atol=1e-6 * (1 + np.abs(u).max()))
+
+
+def test_a_calibration_warns_in_another_simulator(panda, truth):
+    _, params, names, *_ = truth
+    log = _simulated_log(panda, params, names, 1.0, seed=6)
+    res = ci.identify(panda, log, method="sdp", friction=("viscous",), armature=True)
+    cal = calibrate_simulator(res, log, max_iterations=1)
+    with pytest.warns(ci.ModelMisfitWarning, match="calibrated at 0.002 s implicitfast"):
+        cal.simulator(timestep=0.001, integrator="RK4")
+    assert cal.simulator(timestep=0.002, integrator="implicitfast").nv == panda.nv
+
+
+def test_a_diagnosis_carries_the_rollout(panda, truth, tmp_path):
+    _, params, names, *_ = truth
+    log = _simulated_log(panda, params, names, 4.0, seed=7, noise=0.05)
+    diag = ci.diagnose(panda, log, effects=("inertia", "viscous", "armature"))
+    v = validate_rollout(log, {"nominal": panda, "truth": _Fixed(panda, params, names)})
+    carried = diag.with_rollout(v)
+    assert diag.rollout is None and carried.rollout is v
+    text = carried.summary()
+    assert "How far the gap shrinks in your simulator" in text and v.summary() in text
+    assert 'id="rollout"' in carried.report(tmp_path / "d.html").read_text()
