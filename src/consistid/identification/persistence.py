@@ -58,9 +58,11 @@ from typing import TYPE_CHECKING, Any, Iterable, Mapping
 import numpy as np
 
 from ..errors import ModelError, ResultFileError
+from ..filesafety import interrupted_files
 from ..robot.model import RobotModel, model_without_dynamics
 from .base import BaseParameters
 from .regressor import RegressorSpec
+from .resultschema import check_document, check_dtype, read_document
 from .solver import SolverReport
 
 if TYPE_CHECKING:
@@ -113,8 +115,8 @@ def decode(value: Any) -> Any:
     if not isinstance(value, dict):
         return value
     if "__ndarray__" in value:
-        return np.array(decode(value["__ndarray__"]), dtype=np.dtype(value["dtype"])).reshape(
-            value["shape"])
+        return np.array(decode(value["__ndarray__"]),
+                        dtype=check_dtype(value["dtype"], "__ndarray__")).reshape(value["shape"])
     if "__float__" in value:
         return float(value["__float__"])
     if "__tuple__" in value:
@@ -192,10 +194,11 @@ def model_dict(model: RobotModel) -> dict[str, Any]:
     source = Path(model.source).resolve() if model.source is not None else None
     text = source.read_text(encoding="utf-8") if source is not None and source.is_file() \
         else None
-    return {"name": model.name,
-            "source": None if source is None else str(source),
-            "urdf_sha256": None if text is None else sha256(source),
-            "urdf": text,
+    record = {"source": None if source is None else str(source),
+              "urdf_sha256": None if text is None else sha256(source), "urdf": text}
+    if source is None and model.urdf_record is not None:     # a reloaded result's, as read
+        record = dict(model.urdf_record)
+    return {"name": model.name, **record,
             "locked_joints": list(model.locked_joints),
             "locked_configuration": {k: float(v) for k, v in model.locked_configuration.items()},
             "gravity": _floats(model.gravity),
@@ -219,15 +222,18 @@ def _rebuild(m: Mapping[str, Any], urdf: Path, source: Path | None) -> RobotMode
 
 
 def model_from_dict(m: Mapping[str, Any], where: str, model: RobotModel | None = None,
-                    urdf: str | Path | None = None) -> RobotModel:
+                    urdf: str | Path | None = None, follow_source: bool = False) -> RobotModel:
     """The robot of :func:`model_dict`. Order of preference: ``model`` as given (its joints and
-    bodies must match), ``urdf``, the saved source path when its SHA-256 still matches, else
-    the URDF text stored in the file (the model then has no ``source``: pass ``urdf=`` to
-    export it). The saved inertias, armature and gravity are applied."""
+    bodies must match), ``urdf``, the saved source path when ``follow_source`` and its SHA-256
+    still matches, else the URDF text stored in the file (the model then has no ``source``:
+    pass ``urdf=`` to export it). The saved inertias, armature and gravity are applied.
+
+    A result file is data: the path it names is opened only when the caller asks
+    (``follow_source=True``), never because the file says so."""
     if model is None:
         if urdf is not None:
             model = _rebuild(m, Path(urdf), Path(urdf))
-        elif m.get("source") and Path(m["source"]).is_file() \
+        elif follow_source and m.get("source") and Path(m["source"]).is_file() \
                 and sha256(m["source"]) == m.get("urdf_sha256"):
             model = _rebuild(m, Path(m["source"]), Path(m["source"]))
         elif m.get("urdf"):
@@ -236,8 +242,9 @@ def model_from_dict(m: Mapping[str, Any], where: str, model: RobotModel | None =
                 path.write_text(m["urdf"], encoding="utf-8")
                 model = _rebuild(m, path, None)
         else:
-            raise ResultFileError(f"{where}: the model's URDF is neither stored nor found at "
-                                  f"{m.get('source')!r}; pass model= or urdf= to load()")
+            raise ResultFileError(f"{where}: the model's URDF is not stored in the file; pass "
+                                  "model= or urdf= to load() (or follow_source=True to use "
+                                  f"{m.get('source')!r}, the path it names)")
     for key, have in (("joint_names", model.joint_names), ("body_names", model.body_names)):
         if list(have) != list(m[key]):
             raise ResultFileError(f"{where}: the model's {key} {list(have)} differ from the "
@@ -256,6 +263,8 @@ def model_from_dict(m: Mapping[str, Any], where: str, model: RobotModel | None =
         model = RobotModel(pm, name=model.name, source=model.source,
                            locked_joints=model.locked_joints,
                            locked_configuration=model.locked_configuration)
+    if model.source is None:
+        model.urdf_record = {key: m.get(key) for key in ("source", "urdf_sha256", "urdf")}
     return model
 
 
@@ -340,23 +349,29 @@ def _array(doc: Mapping[str, Any], key: str, where: str, shape: tuple[int, ...])
 
 
 def read_result_fields(path: str | Path, model: RobotModel | None = None,
-                       urdf: str | Path | None = None) -> dict[str, Any]:
+                       urdf: str | Path | None = None,
+                       follow_source: bool = False) -> dict[str, Any]:
     """The constructor arguments of the result saved at ``path`` (:func:`write_result`), with
-    its ``kind`` and the ``extra`` fields of that kind.
+    its ``kind`` and the ``extra`` fields of that kind. The whole document is checked
+    (:func:`~consistid.identification.resultschema.check_document`) before anything is built;
+    the URDF path it names is opened only with ``follow_source=True``.
 
     Raises
     ------
     ResultFileError : the file is missing, not JSON, not a consistid result of a known
-        version, or a field is missing or has the wrong shape (named).
+        version, part of a result set whose writing was interrupted, or a field is missing, of
+        the wrong type or shape, not finite, too large or too deep (named).
     """
     path = Path(path)
     where = str(path)
-    if not path.is_file():
-        raise ResultFileError(f"result file {where!r} does not exist")
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ResultFileError(f"{where} is not a JSON file: {exc}") from exc
+    doc = read_document(path, where)
+    interrupted = interrupted_files(path.parent)
+    if interrupted is not None and (path.name in interrupted or not interrupted):
+        raise ResultFileError(f"{where}: the writing of the result set in {str(path.parent)!r} "
+                              f"was interrupted ({', '.join(interrupted) or 'files'} being "
+                              "replaced): its files may come from two runs; run again with "
+                              "--force, or remove the file '.consistid-incomplete' if you know "
+                              "the set is whole")
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         raise ResultFileError(f"{where} is not a consistid identification result (format "
                               f"{doc.get('format') if isinstance(doc, dict) else None!r}, "
@@ -364,9 +379,10 @@ def read_result_fields(path: str | Path, model: RobotModel | None = None,
     if doc.get("version") != VERSION:
         raise ResultFileError(f"{where}: result file version {doc.get('version')!r}; this "
                               f"consistid reads version {VERSION}")
+    check_document(doc, where)
     names = tuple(_field(doc, "parameter_names", where))
     p = len(names)
-    robot = model_from_dict(_field(doc, "model", where), where, model, urdf)
+    robot = model_from_dict(_field(doc, "model", where), where, model, urdf, follow_source)
     spec = spec_from_dict(_field(doc, "spec", where))
     b = _field(doc, "base", where)
     base = base_from_dict(b, names)
@@ -384,10 +400,18 @@ def read_result_fields(path: str | Path, model: RobotModel | None = None,
         n_samples=int(_field(doc, "n_samples", where)),
         solver=SolverReport(s["name"], s["status"], float(s["solve_time"]),
                             float(s.get("compile_time", 0.0)), s.get("iterations")),
-        details=decode(doc.get("details", {})),
-        uninformed=tuple(doc.get("uninformed", ())),
-        provenance=decode(doc.get("provenance", {})),
-        kind=str(doc.get("kind", "identification")), extra=decode(doc.get("extra", {})))
+        details=_decoded(doc, "details", where), uninformed=tuple(doc.get("uninformed", ())),
+        provenance=_decoded(doc, "provenance", where),
+        kind=str(doc.get("kind", "identification")), extra=_decoded(doc, "extra", where))
+
+
+def _decoded(doc: Mapping[str, Any], key: str, where: str) -> Any:
+    """:func:`decode` of the free-form field ``key``; a malformed tag named."""
+    try:
+        return decode(doc.get(key, {}))
+    except (TypeError, ValueError, KeyError, AttributeError, OverflowError) as exc:
+        raise ResultFileError(f"{where}: field {key!r} holds a malformed tagged value "
+                              f"({type(exc).__name__}: {exc})") from exc
 
 
 # ----------------------------------------------------------------------------- CSV

@@ -150,6 +150,9 @@ class RobotModel:
         self.source = Path(source) if source is not None else None
         self.locked_joints = tuple(locked_joints)
         self.locked_configuration = dict(locked_configuration or {})
+        #: A reloaded result's record of its URDF (``source``, ``urdf_sha256``, ``urdf`` text),
+        #: written back by ``save`` as it was read; the path in it is never opened.
+        self.urdf_record: dict[str, str | None] | None = None
 
     # ----------------------------------------------------------------------------- construction
     @classmethod
