@@ -39,7 +39,7 @@ from pathlib import Path
 from typing import Iterable, Iterator
 
 from ..errors import OutputPathError
-from ..filesafety import commit_folder, lock_output
+from ..filesafety import commit_folder, lock_output, signals_deferred
 
 __all__ = ["check_output", "check_output_dir", "atomic_path", "atomic_dir", "same_file"]
 
@@ -156,9 +156,13 @@ def atomic_dir(path: str | os.PathLike) -> Iterator[Path]:
     interruption the temporary folder is removed and ``path`` untouched."""
     out = _resolved(path)
     parent = out if out.is_dir() else out.parent
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.part-", dir=parent))
+    tmp = None
     try:
+        with signals_deferred():                # a signal here must not leak the folder
+            tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.part-", dir=parent))
         yield tmp
         commit_folder(tmp, out)
     finally:
-        shutil.rmtree(tmp, ignore_errors=True)
+        if tmp is not None:
+            with signals_deferred():            # nor one during the clean-up
+                shutil.rmtree(tmp, ignore_errors=True)

@@ -59,6 +59,7 @@ import numpy as np
 
 from ..errors import ModelError, ResultFileError
 from ..filesafety import interrupted_files
+from ..textsafety import spreadsheet_cell
 from ..robot.model import RobotModel, model_without_dynamics
 from .base import BaseParameters
 from .regressor import RegressorSpec
@@ -424,7 +425,8 @@ def write_csv(res: "IdentificationResult", path: str | Path) -> Path:
     then one per standard parameter (``kind = standard``: value and prior; ``std`` is empty,
     since only base parameters have a standard deviation from the data), then one per shape
     parameter of a nonlinear friction law (``kind = shape``: value ± std, its unit as
-    ``definition``). Numbers carry 17 significant digits."""
+    ``definition``). Numbers carry 17 significant digits; a text cell that a spreadsheet would
+    read as a formula is written with a leading ``'`` (:mod:`consistid.textsafety`)."""
     path = Path(path)
     prior_beta = res.base.project(res.prior)
 
@@ -435,11 +437,13 @@ def write_csv(res: "IdentificationResult", path: str | Path) -> Path:
         w = csv.writer(fh)
         w.writerow(CSV_COLUMNS)
         for i, (name, grouping) in enumerate(zip(res.base.names, res.base.groupings)):
-            w.writerow(["base", name, num(res.base_parameters[i]), num(res.base_std[i]),
-                        num(res.relative_std[i]), num(prior_beta[i]), grouping])
+            w.writerow(["base", spreadsheet_cell(name), num(res.base_parameters[i]),
+                        num(res.base_std[i]), num(res.relative_std[i]), num(prior_beta[i]),
+                        spreadsheet_cell(grouping)])
         for name, value, prior in zip(res.parameter_names, res.parameters, res.prior):
-            w.writerow(["standard", name, num(value), "", "", num(prior), ""])
+            w.writerow(["standard", spreadsheet_cell(name), num(value), "", "", num(prior), ""])
         for name, value, std, unit in res.shape_rows():
-            w.writerow(["shape", name, num(value), num(std),
-                        num(100 * std / abs(value)) if value else "", "", unit])
+            w.writerow(["shape", spreadsheet_cell(name), num(value), num(std),
+                        num(100 * std / abs(value)) if value else "", "",
+                        spreadsheet_cell(unit)])
     return path
