@@ -19,7 +19,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
 
+import defusedxml.ElementTree as safe_et
 import numpy as np
+from defusedxml import DefusedXmlException
 
 from ..errors import ModelError
 from ..textsafety import check_writable_name
@@ -41,9 +43,6 @@ def parse_urdf(path: Path) -> ET.ElementTree:
     local file, or slip a name past Pinocchio's parser, which leaves ``&n;`` unexpanded). A
     default namespace (``<robot xmlns="…">``) is removed from the tags, as URDF readers ignore
     it."""
-    import defusedxml.ElementTree as safe_et
-    from defusedxml import DefusedXmlException
-
     if path.is_dir():
         raise ModelError(f"URDF file {str(path)!r} is a folder, not a file")
     if not path.is_file():
