@@ -90,7 +90,7 @@ class Dataset:
     torque_filter: tuple[float, int] | None = None
 
     def __post_init__(self) -> None:
-        t = np.asarray(self.t, dtype=float)
+        t = real_array("dataset.t", self.t)
         if t.ndim != 1:
             raise DatasetError(f"dataset.t must be 1-D (N,), got shape {t.shape}")
         n = t.shape[0]
