@@ -40,6 +40,7 @@ from .config import config_inputs, load_config
 from .excite import load_excitation_config
 from .files import atomic_dir, atomic_path, check_output, check_output_dir
 from .hints import toml_hints, toml_value
+from ..data.npzfile import open_npz
 from ..filesafety import Terminated, release_output_locks, sigterm_interrupts
 from ..progress import silenced
 
@@ -385,7 +386,7 @@ def _coefficients(path, written: str
         raise ConfigError(f"[recover] coefficients = {written!r}: file {str(path)!r} does not "
                           "exist")
     try:
-        with np.load(path, allow_pickle=False) as f:
+        with open_npz(path) as f:          # headers checked: no pickles, no forged sizes
             if "beta" not in f.files:
                 raise ConfigError(f"[recover] coefficients = {written!r}: needs an array 'beta'"
                                   f"; it has {sorted(f.files)}")
@@ -394,7 +395,7 @@ def _coefficients(path, written: str
             names = [str(n) for n in f["base_names"]] if "base_names" in f.files else None
     except (OSError, ValueError, EOFError) as exc:    # not an npz, a pickled array …
         raise ConfigError(f"[recover] coefficients = {written!r}: not a readable .npz file "
-                          f"({exc})") from exc
+                          f"({exc})") from None
     return beta, cov, names
 
 
