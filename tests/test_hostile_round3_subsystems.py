@@ -124,3 +124,61 @@ def test_an_excitation_of_2e8_samples_is_refused_with_its_size(arm, monkeypatch)
     assert not allocated
     monkeypatch.undo()
     assert traj.sample(100.0).n_samples == int(round(100.0 * traj.period))
+
+
+class _DyingClient:
+    """A ``distributed.Client`` stand-in whose reduction fails as a killed worker does."""
+
+    class scheduler:                                     # noqa: N801 (mirrors the attribute)
+        address = "tcp://fake:0"
+
+    def __init__(self, task):
+        self.task = task
+
+    def compute(self, item):
+        distributed = pytest.importorskip("distributed")
+        task = self.task
+
+        class Future:
+            def result(self):
+                worker = type("WorkerState", (), {"address": "tcp://worker:1"})()
+                raise distributed.scheduler.KilledWorker(task, worker, 3)
+        return Future()
+
+
+def test_a_killed_dask_worker_names_the_partition_and_its_files(tmp_path, planar_2r):
+    pytest.importorskip("dask.bag")
+    from consistid.identification.distributed import on_dask
+    paths = [str(tmp_path / f"log{k}.npz") for k in range(4)]
+    data = on_dask(paths, client=_DyingClient(("compress_partition-part-abc", 1)),
+                   npartitions=2)
+    with pytest.raises(ci.IdentificationError,
+                       match=r"died .*partition 1: '.*log2.npz', '.*log3.npz'"):
+        ci.identify(planar_2r, data, method="ols")
+
+
+@pytest.mark.slow
+def test_a_worker_killed_for_real_is_named(tmp_path, planar_2r):
+    """A LocalCluster of worker processes; the loader of one file kills its worker (as an
+    out-of-memory kill would): the error names that file's partition."""
+    distributed = pytest.importorskip("distributed")
+    from consistid.identification.distributed import on_dask
+    paths = []
+    for k in range(2):
+        q, dq, ddq = random_states(planar_2r, 50, k)
+        ci.Dataset(t=0.01 * np.arange(50), q=q, dq=dq, ddq=ddq,
+                   tau=planar_2r.rnea(q, dq, ddq)).save(tmp_path / f"log{k}.npz")
+        paths.append(str(tmp_path / f"log{k}.npz"))
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                  dashboard_address=":0") as cluster, \
+            distributed.Client(cluster) as client, \
+            pytest.raises(ci.IdentificationError, match=r"partition 1: '.*log1.npz'"):
+        data = on_dask(paths, client=client, npartitions=2, loader=_dies_on_log1)
+        ci.identify(planar_2r, data, method="ols")
+
+
+def _dies_on_log1(path):
+    import os
+    if path.name == "log1.npz":
+        os._exit(1)
+    return ci.Dataset.load(path)
