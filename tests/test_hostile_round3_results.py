@@ -333,3 +333,37 @@ def test_a_namespaced_urdf_is_accepted(tmp_path):
                                     gravity=(0.0, -9.81, 0.0))
     assert model.joint_names == plain.joint_names
     assert np.array_equal(model.prior_parameters, plain.prior_parameters)
+
+
+# ----------------------------------------------------------------------------- half-writes
+def test_an_interrupted_save_leaves_the_old_files_whole(saved, tmp_path, monkeypatch):
+    res = ci.IdentificationResult.load(saved[0])
+    json_path, csv_path = res.save(tmp_path / "r.json"), res.to_csv(tmp_path / "p.csv")
+    old_json, old_csv = json_path.read_bytes(), csv_path.read_bytes()
+    real_write = Path.write_text
+
+    def half_then_interrupt(self, text, *args, **kwargs):
+        real_write(self, text[: len(text) // 2], *args, **kwargs)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(Path, "write_text", half_then_interrupt)
+    with pytest.raises(KeyboardInterrupt):
+        res.save(json_path)
+    monkeypatch.undo()
+    rows = []
+
+    class Writer:
+        def __init__(self, fh):
+            self.fh = fh
+
+        def writerow(self, row):
+            rows.append(row)
+            self.fh.write(",".join(map(str, row)) + "\n")
+            if len(rows) == 3:
+                raise KeyboardInterrupt
+
+    monkeypatch.setattr(persistence.csv, "writer", Writer)
+    with pytest.raises(KeyboardInterrupt):
+        res.to_csv(csv_path)
+    assert json_path.read_bytes() == old_json and csv_path.read_bytes() == old_csv
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["p.csv", "r.json"]

@@ -27,13 +27,14 @@ import contextlib
 import os
 import signal
 import threading
+import uuid
 from pathlib import Path
 from typing import Iterator
 
 from .errors import OutputPathError
 
 __all__ = ["JOURNAL", "Terminated", "lock_output", "release_output_locks", "interrupted_files",
-           "commit_folder", "signals_deferred", "sigterm_interrupts"]
+           "commit_folder", "replacing", "signals_deferred", "sigterm_interrupts"]
 
 #: The file an output folder holds while a set of files is renamed into it (one name a line).
 JOURNAL = ".consistid-incomplete"
@@ -195,3 +196,21 @@ def commit_folder(staging: Path, out: Path) -> list[str]:
             os.replace(staging / name, out / name)
         journal.unlink()
     return names
+
+
+@contextlib.contextmanager
+def replacing(path: str | os.PathLike) -> Iterator[Path]:
+    """A fresh temporary path beside ``path`` (same suffix, so writers that choose the format
+    by suffix still work) for a writer of one file; renamed over ``path`` when the block ends
+    without an exception (``os.replace``: atomic within one filesystem), removed otherwise, so
+    ``path`` is never half-written."""
+    out = Path(path).expanduser().resolve()
+    tmp = out.parent / f".{out.stem}.{uuid.uuid4().hex[:12]}.part{out.suffix}"
+    try:
+        yield tmp
+        if not tmp.is_file():
+            raise OutputPathError(f"the writer of {str(out)!r} wrote no file")
+        os.replace(tmp, out)
+    finally:
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()

@@ -34,12 +34,11 @@ import contextlib
 import os
 import shutil
 import tempfile
-import uuid
 from pathlib import Path
 from typing import Iterable, Iterator
 
 from ..errors import OutputPathError
-from ..filesafety import commit_folder, lock_output, signals_deferred
+from ..filesafety import commit_folder, lock_output, replacing, signals_deferred
 
 __all__ = ["check_output", "check_output_dir", "atomic_path", "atomic_dir", "same_file"]
 
@@ -134,18 +133,10 @@ def check_output_dir(path: str | os.PathLike, names: Iterable[str], *,
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     """A temporary path beside ``path`` (same suffix) for a writer; renamed over ``path`` when
-    the ``with`` block ends without an exception, removed otherwise (``path`` untouched)."""
-    out = _resolved(path)
-    # a fresh name, not a created file: the writer creates it with the usual permissions
-    tmp = out.parent / f".{out.stem}.{uuid.uuid4().hex[:12]}.part{out.suffix}"
-    try:
+    the ``with`` block ends without an exception, removed otherwise (``path`` untouched;
+    :func:`consistid.filesafety.replacing`)."""
+    with replacing(path) as tmp:
         yield tmp
-        if not tmp.is_file():
-            raise OutputPathError(f"the writer of {str(out)!r} wrote no file")
-        os.replace(tmp, out)
-    finally:
-        with contextlib.suppress(FileNotFoundError):
-            tmp.unlink()
 
 
 @contextlib.contextmanager

@@ -58,7 +58,7 @@ from typing import TYPE_CHECKING, Any, Iterable, Mapping
 import numpy as np
 
 from ..errors import ModelError, ResultFileError
-from ..filesafety import interrupted_files
+from ..filesafety import interrupted_files, replacing
 from ..textsafety import spreadsheet_cell
 from ..robot.model import RobotModel, model_without_dynamics
 from .base import BaseParameters
@@ -328,7 +328,8 @@ def write_result(res: "IdentificationResult", path: str | Path) -> Path:
     """Write ``res`` as JSON to ``path`` (module docstring); returns the path."""
     path = Path(path)
     text = json.dumps(result_dict(res), indent=1, allow_nan=False, ensure_ascii=False)
-    path.write_text(text + "\n", encoding="utf-8")
+    with replacing(path) as tmp:                # never a half-written result file
+        tmp.write_text(text + "\n", encoding="utf-8")
     return path
 
 
@@ -433,7 +434,7 @@ def write_csv(res: "IdentificationResult", path: str | Path) -> Path:
     def num(x: float) -> str:
         return repr(float(x))
 
-    with open(path, "w", newline="", encoding="utf-8") as fh:
+    with replacing(path) as tmp, open(tmp, "w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh)
         w.writerow(CSV_COLUMNS)
         for i, (name, grouping) in enumerate(zip(res.base.names, res.base.groupings)):
