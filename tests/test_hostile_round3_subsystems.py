@@ -182,3 +182,36 @@ def _dies_on_log1(path):
     if path.name == "log1.npz":
         os._exit(1)
     return ci.Dataset.load(path)
+
+
+def _tool_poses(model, q, turn=None):
+    import pinocchio as pin
+    pm = model.pin_model
+    data, fid = pm.createData(), pm.getFrameId("tool0")
+    out = []
+    for k, qk in enumerate(q):
+        pin.framesForwardKinematics(pm, data, model.configuration(qk))
+        m = data.oMf[fid]
+        rot = np.array(m.rotation) if turn is None else np.array(m.rotation) @ turn[k]
+        out.append(np.block([[rot, np.array(m.translation)[:, None]],
+                             [np.zeros((1, 3)), 1.0]]))
+    return np.array(out)
+
+
+def test_a_calibration_its_offsets_cannot_explain_warns(arm):
+    """Orientations off by up to ~0.6 rad (what degrees read as radians, or another measured
+    frame, look like): no offset explains them, and the result says so; clean poses of the
+    same configurations do not warn."""
+    import warnings
+
+    from scipy.spatial.transform import Rotation
+
+    from consistid.kinematics.parameters import random_configurations
+    rng = np.random.default_rng(4)
+    q = random_configurations(arm, 30, rng)
+    turn = Rotation.from_rotvec(rng.normal(0.0, 0.35, (30, 3))).as_matrix()
+    with pytest.warns(ModelMisfitWarning, match="orientation error is still .* degrees"):
+        ci.calibrate_kinematics(arm, q, _tool_poses(arm, q, turn), frame="tool0")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ModelMisfitWarning)
+        ci.calibrate_kinematics(arm, q, _tool_poses(arm, q), frame="tool0")
