@@ -215,3 +215,22 @@ def test_a_calibration_its_offsets_cannot_explain_warns(arm):
     with warnings.catch_warnings():
         warnings.simplefilter("error", ModelMisfitWarning)
         ci.calibrate_kinematics(arm, q, _tool_poses(arm, q), frame="tool0")
+
+
+def test_a_500_link_urdf_is_refused_up_front(tmp_path):
+    """Pinocchio's createData for 500 joints takes ~30 s at every call (and cannot be
+    interrupted): the model is refused when built, naming the count and what to do."""
+    n = 500
+    links = ['<link name="base"/>'] + [
+        f'<link name="l{k}"><inertial><origin xyz="0.1 0 0"/><mass value="1"/><inertia '
+        'ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>'
+        for k in range(n)]
+    parents = ["base"] + [f"l{k}" for k in range(n - 1)]
+    joints = [f'<joint name="j{k}" type="revolute"><parent link="{parents[k]}"/>'
+              f'<child link="l{k}"/><origin xyz="0.1 0 0"/><axis xyz="0 0 1"/>'
+              '<limit lower="-3" upper="3" velocity="5" effort="100"/></joint>' for k in range(n)]
+    path = tmp_path / "chain.urdf"
+    path.write_text('<?xml version="1.0"?><robot name="chain">' + "".join(links + joints)
+                    + "</robot>")
+    with pytest.raises(ModelError, match="500 moving joints, more than the 256.*locked_joints"):
+        ci.RobotModel.from_urdf(path)
