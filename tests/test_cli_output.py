@@ -261,7 +261,7 @@ def test_identify_on_the_kuka_example(kuka_dir, tmp_path, capsys):
     assert main(["-q", "identify", str(config), "--output", str(out)]) == 0
     assert {p.name for p in out.iterdir()} >= {"result.json", "parameters.csv", "robot.urdf",
                                                "report.html"}
-    res = ci.IdentificationResult.load(out / "result.json")
+    res = ci.IdentificationResult.load(out / "result.json", follow_source=True)
     saved = json.loads((out / "result.json").read_text())
     assert json.loads(res.save(tmp_path / "again.json").read_text()) == saved
     assert res.model.source == (kuka_dir / "kuka_lwr4.urdf").resolve()  # found by SHA-256

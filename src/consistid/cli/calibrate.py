@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from ..data.npzfile import open_npz
 from ..data.formats.csv import read_text, reads_decimal_comma, sniff_delimiter
 from ..errors import (ConfigError, DataQualityWarning, DatasetError, MissingColumnsError,
                       OutputPathError)
@@ -127,7 +128,7 @@ def read_calibration_data(path: Path, model: RobotModel) -> tuple[np.ndarray, np
     if not path.is_file():
         raise ConfigError(f"calibration data file {str(path)!r} does not exist")
     if path.suffix.lower() == ".npz":
-        with np.load(path) as f:
+        with open_npz(path) as f:          # headers checked: no pickles, no forged sizes
             if "q" not in f.files:
                 raise MissingColumnsError(f"{path.name}: needs an array 'q' (N, {model.nv})")
             found = [k for k in ("poses", "positions", "distances") if k in f.files]

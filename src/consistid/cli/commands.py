@@ -19,6 +19,7 @@ import dataclasses
 import importlib.metadata
 import os
 import platform
+import signal
 import sys
 import time
 import warnings
@@ -39,6 +40,8 @@ from .config import config_inputs, load_config
 from .excite import load_excitation_config
 from .files import atomic_dir, atomic_path, check_inputs, check_output, check_output_dir
 from .hints import cli_text, toml_hints, toml_value
+from ..data.npzfile import open_npz
+from ..filesafety import Terminated, release_output_locks, sigterm_interrupts
 from ..progress import silenced
 
 #: Set by ``-q``: no progress bars, no step messages on stderr (errors are still printed).
@@ -384,7 +387,7 @@ def _coefficients(path, written: str
         raise ConfigError(f"[recover] coefficients = {written!r}: file {str(path)!r} does not "
                           "exist")
     try:
-        with np.load(path, allow_pickle=False) as f:
+        with open_npz(path) as f:          # headers checked: no pickles, no forged sizes
             if "beta" not in f.files:
                 raise ConfigError(f"[recover] coefficients = {written!r}: needs an array 'beta'"
                                   f"; it has {sorted(f.files)}")
@@ -393,7 +396,7 @@ def _coefficients(path, written: str
             names = [str(n) for n in f["base_names"]] if "base_names" in f.files else None
     except (OSError, ValueError, EOFError) as exc:    # not an npz, a pickled array …
         raise ConfigError(f"[recover] coefficients = {written!r}: not a readable .npz file "
-                          f"({exc})") from exc
+                          f"({exc})") from None
     return beta, cov, names
 
 
@@ -688,8 +691,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     warnings.formatwarning = lambda message, category, *_, **__: (
         f"consistid {args.command}: warning: {category.__name__}: {toml_hints(str(message))}\n")
     try:
-        with silenced(QUIET):                     # -q: no bar from any library call either
+        with silenced(QUIET), sigterm_interrupts():   # -q: no bar from any library call either
             return COMMANDS[args.command][0](args)
+    except KeyboardInterrupt as exc:
+        # SIGINT or SIGTERM: the temporaries are gone (``finally`` clauses), outputs untouched
+        # or whole (consistid.filesafety); the shell's 128 + signal number
+        sig = signal.SIGTERM if isinstance(exc, Terminated) else signal.SIGINT
+        print(f"consistid {args.command}: interrupted ({sig.name}); no output was left "
+              "half-written", file=sys.stderr, flush=True)
+        return 128 + int(sig)
     except ConsistidError as exc:
         print(f"consistid {args.command}: error: {toml_hints(str(exc))}", file=sys.stderr,
               flush=True)
@@ -702,6 +712,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 1
     finally:
         warnings.formatwarning = previous
+        release_output_locks()
 
 
 if __name__ == "__main__":

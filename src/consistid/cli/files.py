@@ -15,7 +15,12 @@ Rules (issue 14), for every ``consistid`` subcommand that writes files:
    suffix, so writers that choose the format by suffix still work) and renames it over the target
    only when the writer returned (``os.replace``: atomic on POSIX and Windows within one
    filesystem); on failure the temporary file is removed and the target is untouched.
-   :func:`atomic_dir` does the same for a folder of files (each file renamed into place).
+   :func:`atomic_dir` does the same for a folder of files: a new folder appears whole (one
+   rename), files into an existing one are renamed under a journal that readers check, and
+   SIGINT/SIGTERM wait for the renames (:mod:`consistid.filesafety`).
+5. **One writer.** A checked output is locked until the command ends
+   (:func:`consistid.filesafety.lock_output`): a second run asking for the same output is
+   refused by name instead of replacing the first one's files.
 
 Usage in a subcommand::
 
@@ -32,12 +37,12 @@ import contextlib
 import os
 import shutil
 import tempfile
-import uuid
 from pathlib import Path
 from typing import Iterable, Iterator
 
 from ..errors import ConfigError, OutputPathError, ResultFileError
 from ..identification.persistence import check_input
+from ..filesafety import commit_folder, lock_output, replacing, signals_deferred
 
 __all__ = ["check_output", "check_output_dir", "check_inputs", "atomic_path", "atomic_dir",
            "same_file"]
@@ -116,6 +121,7 @@ def check_output(path: str | os.PathLike, *, inputs: Iterable[str | os.PathLike]
         raise OutputPathError(f"{what} {str(out)!r} exists; pass --force to replace it (or "
                               "choose another path)")
     _check_folder(out.parent, what, out)
+    lock_output(out, what)
     return out
 
 
@@ -140,38 +146,34 @@ def check_output_dir(path: str | os.PathLike, names: Iterable[str], *,
             raise OutputPathError(f"{what}: {str(target)!r} exists; pass --force to replace it "
                                   "(or choose another folder)")
     _check_folder(out if out.is_dir() else out.parent, what, out)
+    lock_output(out, what)
     return out
 
 
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     """A temporary path beside ``path`` (same suffix) for a writer; renamed over ``path`` when
-    the ``with`` block ends without an exception, removed otherwise (``path`` untouched)."""
-    out = _resolved(path)
-    # a fresh name, not a created file: the writer creates it with the usual permissions
-    tmp = out.parent / f".{out.stem}.{uuid.uuid4().hex[:12]}.part{out.suffix}"
-    try:
+    the ``with`` block ends without an exception, removed otherwise (``path`` untouched;
+    :func:`consistid.filesafety.replacing`)."""
+    with replacing(path) as tmp:
         yield tmp
-        if not tmp.is_file():
-            raise OutputPathError(f"the writer of {str(out)!r} wrote no file")
-        os.replace(tmp, out)
-    finally:
-        with contextlib.suppress(FileNotFoundError):
-            tmp.unlink()
 
 
 @contextlib.contextmanager
 def atomic_dir(path: str | os.PathLike) -> Iterator[Path]:
-    """A temporary folder beside ``path`` for a writer of several files; on success each file
-    is renamed into ``path`` (created if missing; other files there are left alone), on failure
-    the temporary folder is removed and ``path`` untouched."""
+    """A temporary folder beside ``path`` for a writer of several files; on success the set is
+    moved into ``path`` whole (:func:`consistid.filesafety.commit_folder`: a new folder is the
+    temporary one renamed; other files of an existing one are left alone), on failure or
+    interruption the temporary folder is removed and ``path`` untouched."""
     out = _resolved(path)
     parent = out if out.is_dir() else out.parent
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.part-", dir=parent))
+    tmp = None
     try:
+        with signals_deferred():                # a signal here must not leak the folder
+            tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.part-", dir=parent))
         yield tmp
-        out.mkdir(exist_ok=True)
-        for item in sorted(tmp.iterdir()):
-            os.replace(item, out / item.name)
+        commit_folder(tmp, out)
     finally:
-        shutil.rmtree(tmp, ignore_errors=True)
+        if tmp is not None:
+            with signals_deferred():            # nor one during the clean-up
+                shutil.rmtree(tmp, ignore_errors=True)

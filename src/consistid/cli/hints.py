@@ -75,8 +75,14 @@ def toml_value(value: Any) -> str | None:
         items = [(k, toml_value(v)) for k, v in value.items()]
         if any(v is None for _, v in items):
             return None
-        return "{" + ", ".join(f"{k} = {v}" for k, v in items) + "}"
+        return "{" + ", ".join(f"{_toml_key(k)} = {v}" for k, v in items) + "}"
     return None
+
+
+def _toml_key(key: str) -> str:
+    """``key`` bare when TOML allows it (letters, digits, ``_``, ``-``), else quoted: a key
+    holding ``=``, a space or a newline must not change the table it is written into."""
+    return key if re.fullmatch(r"[A-Za-z0-9_-]+", key) else json.dumps(key, ensure_ascii=False)
 
 
 def toml_hints(message: str) -> str:

@@ -20,7 +20,6 @@ These are the dataset's own files. A robot's log (CSV with joint names, Parquet,
 from __future__ import annotations
 
 import hashlib
-import zipfile
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Sequence
@@ -30,6 +29,7 @@ import numpy as np
 from ..errors import DatasetError, JointCountError, JointNameError, MissingColumnsError
 from .chain import ChainResult, PreprocessOptions, run_chain
 from .filters import real_array
+from .npzfile import open_npz
 
 FIELDS = ("q", "dq", "ddq", "tau")
 
@@ -90,7 +90,7 @@ class Dataset:
     torque_filter: tuple[float, int] | None = None
 
     def __post_init__(self) -> None:
-        t = np.asarray(self.t, dtype=float)
+        t = real_array("dataset.t", self.t)
         if t.ndim != 1:
             raise DatasetError(f"dataset.t must be 1-D (N,), got shape {t.shape}")
         n = t.shape[0]
@@ -329,6 +329,9 @@ class Dataset:
     def load(cls, path: str | Path, joint_names: Sequence[str] | None = None) -> "Dataset":
         """Read a dataset written by :meth:`save` (or any file with the documented columns)."""
         path = Path(path)
+        if path.is_dir():
+            raise DatasetError(f"dataset file {str(path)!r} is a folder; name a .npz or .csv "
+                               "file in it")
         if not path.is_file():
             raise DatasetError(f"dataset file {str(path)!r} does not exist")
         if path.suffix == ".npz":
@@ -346,8 +349,13 @@ class Dataset:
                                      f"{list(joint_names)}")
             return cls(joint_names=joint_names if joint_names is not None else stored, **arrays)
         if path.suffix == ".csv":
-            with open(path) as fh:
-                header = fh.readline().strip().split(",")
+            try:                        # a UTF-8 byte-order mark (Excel) is not a name
+                with open(path, encoding="utf-8-sig") as fh:
+                    header = fh.readline().strip().split(",")
+            except UnicodeDecodeError as exc:
+                raise DatasetError(f"{path.name}: the header line is not UTF-8 text ({exc}); "
+                                   "a Dataset CSV's header is t, q1.., dq1.., ddq1.., tau1..; "
+                                   "for a robot's log use consistid.load_recording") from None
             if len(header) < 2:
                 raise MissingColumnsError(f"{path.name}: the header {header} is not a "
                                           "comma-separated Dataset CSV (t, q1.., dq1.., ddq1.., "
@@ -424,19 +432,6 @@ def array_names(names: np.ndarray) -> tuple[str, ...]:
     ``"b'joint1'"``."""
     return tuple(n.decode("utf-8", "replace") if isinstance(n, bytes) else str(n)
                  for n in np.atleast_1d(names))
-
-
-def open_npz(path: Path):
-    """``numpy.load`` of an ``.npz`` archive (no pickles), or :class:`DatasetError` naming the
-    file when it is not one (a text file, a single ``.npy`` array, a truncated zip)."""
-    try:
-        archive = np.load(path, allow_pickle=False)
-    except (ValueError, OSError, EOFError, zipfile.BadZipFile) as exc:
-        raise DatasetError(f"{path.name} is not a readable .npz archive ({exc})") from None
-    if not hasattr(archive, "files"):
-        raise DatasetError(f"{path.name} holds a single array, not an .npz archive of named "
-                           "arrays (t, q, dq, ddq, tau)")
-    return archive
 
 
 def _unwrap(data: object) -> object:

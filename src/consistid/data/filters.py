@@ -59,13 +59,20 @@ def real_array(name: str, x: object) -> np.ndarray:
     """``x`` as a float array; :class:`DatasetError` naming ``name`` for complex numbers (numpy
     would drop their imaginary parts with only a ``ComplexWarning``) and for booleans (no joint
     position or torque is true or false)."""
-    a = np.asarray(x)
+    try:
+        a = np.asarray(x)
+    except ValueError as exc:                   # ragged rows
+        raise DatasetError(f"{name} is not an array of numbers ({exc})") from None
     if a.dtype.kind == "c":
         raise DatasetError(f"{name} holds complex numbers (dtype {a.dtype}); joint signals are "
                            "real: pass their real part (np.real) if the imaginary part is 0")
     if a.dtype.kind == "b":
         raise DatasetError(f"{name} holds booleans, not numbers; pass the logged values")
-    return a.astype(float, copy=False)
+    try:
+        return a.astype(float, copy=False)
+    except (TypeError, ValueError) as exc:      # text, objects
+        raise DatasetError(f"{name} holds {a.dtype.name} values, not numbers ({exc}); pass "
+                           "the logged values as numbers") from None
 
 
 def transposed_hint(shape: tuple[int, ...], n: int) -> str:

@@ -445,10 +445,19 @@ def _resolve_nominal(model: RobotModel, nominal) -> tuple[np.ndarray, Callable |
                                  dq_sign=ds.dq_sign) @ theta_joint
 
         return pi0, extra
-    pi0 = np.asarray(nominal, dtype=float)
+    try:
+        pi0 = np.asarray(nominal, dtype=float)
+    except (TypeError, ValueError):
+        raise ModelError(f"nominal must be a RobotModel, an IdentificationResult or "
+                         f"{model.n_inertial} numbers, got {nominal!r:.60}") from None
     if pi0.shape != (model.n_inertial,):
         raise ModelError(f"nominal parameters have shape {pi0.shape}; {model.name} needs "
                          f"({model.n_inertial},) standard inertial parameters (10 per body)")
+    bad = np.flatnonzero(~np.isfinite(pi0))
+    if bad.size:
+        raise ModelError(f"nominal[{int(bad[0])}] ({model.parameter_names[bad[0]]}) is "
+                         f"{pi0[bad[0]]} ({bad.size} non-finite value(s)): the nominal "
+                         "parameters must be finite numbers")
     return pi0, None
 
 
@@ -926,6 +935,9 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     min_gain, tie = check_number("min_gain", min_gain, 0), check_number("tie", tie, 0)
     max_steps = check_number("max_steps", max_steps, 0, integer=True)
     effects = (effects,) if isinstance(effects, str) else effects
+    if effects is None or hasattr(effects, "__len__") and not len(effects):
+        raise OptionError(f"effects={effects!r} names no effect to test; give some of "
+                          f"{list(EFFECT_NAMES)} (the default is all of them)")
     require_model(model)
     dataset = as_dataset(dataset)
     dataset.check_joints(model.nv, model.joint_names)

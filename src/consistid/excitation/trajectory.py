@@ -83,6 +83,28 @@ def position_range(lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np
     return lo, hi
 
 
+
+#: The most bytes a sampled trajectory (t, q, q̇, q̈ in float64) may take: 2 GiB, about 4 h of
+#: a 7-joint arm at 1 kHz. More is refused before anything is allocated.
+MAX_SAMPLE_BYTES = 2 * 2**30
+
+
+def sample_count(rate: float, duration: float, nv: int) -> int:
+    """``round(duration · rate)`` samples, or :class:`ExcitationError` (before allocating)
+    when they would take more than :data:`MAX_SAMPLE_BYTES`."""
+    if not (np.isfinite(rate) and rate > 0):
+        raise ExcitationError(f"sampling rate = {rate} Hz; must be positive")
+    if not (np.isfinite(duration) and duration > 0):
+        raise ExcitationError(f"duration = {duration} s; must be positive")
+    n = duration * rate
+    size = n * (1 + 3 * nv) * 8
+    if size > MAX_SAMPLE_BYTES:
+        raise ExcitationError(f"{n:.3g} samples ({duration:g} s at {rate:g} Hz) of t, q, dq, "
+                              f"ddq take {size / 2**30:.3g} GiB, more than "
+                              f"{MAX_SAMPLE_BYTES / 2**30:g} GiB: lower the rate or the "
+                              "duration (a controller replays one period in a loop)")
+    return int(round(n))
+
 @dataclass(frozen=True, eq=False)
 class BoundaryConditions:
     """Joint states imposed at the start (``t = 0``) and the end (``t = T``) of a trajectory.
@@ -462,7 +484,7 @@ class Trajectory:
         if not rate > 0:
             raise ExcitationError(f"sampling rate = {rate} Hz; must be positive")
         duration = self.duration if duration is None else float(duration)
-        n = int(round(duration * rate))
+        n = sample_count(rate, duration, self.nv)
         if not self.parameterisation.periodic and abs(duration - self.duration) < 0.5 / rate:
             n += 1                                                  # include the end state
         t = t0 + np.arange(n) / rate
@@ -554,7 +576,7 @@ class FourierTrajectory:
         duration = self.period if duration is None else float(duration)
         if not (np.isfinite(duration) and duration > 0):
             raise ExcitationError(f"duration = {duration} s; must be positive")
-        t = t0 + np.arange(int(round(duration * rate))) / rate
+        t = t0 + np.arange(sample_count(rate, duration, len(self.q0))) / rate
         q, dq, ddq = self.evaluate(t)
         return Dataset(t=t, q=q, dq=dq, ddq=ddq)
 

@@ -41,7 +41,8 @@ import numpy as np
 import pinocchio as pin
 
 from ..data.dataset import Dataset
-from ..errors import DatasetError, IdentificationError, ModelError, OptionError, check_number
+from ..errors import (DatasetError, IdentificationError, ModelError, ModelMisfitWarning,
+                      OptionError, check_number)
 from ..identification.result import StandardParameterSet
 from ..identification.summary import table
 from ..report.html import Page
@@ -468,7 +469,14 @@ def estimate_breakaway(model: RobotModel | StandardParameterSet, data: Dataset |
         pos[j] = float(np.median(values[dirs > 0])) if np.any(dirs > 0) else np.nan
         neg[j] = float(np.median(values[dirs < 0])) if np.any(dirs < 0) else np.nan
         count[j] = values.size
-        if np.any(values <= 0):
+        if torque[j] <= 0:          # a friction that pushes along the motion: non-physical
+            message = (f"{names[j]}: break-away torque {torque[j]:.4g} N·m ≤ 0 (median of "
+                       f"{values.size} event(s)) is not physical: static friction opposes "
+                       "the motion; the model's gravity (or a torque offset) is off by about "
+                       "the break-away torque: identify the rigid body and offsets first")
+            warnings.warn(message, ModelMisfitWarning, stacklevel=2)
+            notes.append(message)
+        elif np.any(values <= 0):
             notes.append(f"{names[j]}: {int(np.sum(values <= 0))} event(s) with friction "
                          "against the motion ≤ 0: the model's gravity (or a torque offset) "
                          "is off by about the break-away torque")

@@ -38,6 +38,7 @@ import numpy as np
 
 from ..errors import ModelError, OptionError, check_number
 from ..robot.model import RobotModel
+from ..textsafety import check_writable_name
 
 #: Default ``max_torque``: this fraction of the URDF effort limit (10 N·m where none is set) …
 EFFORT_FRACTION = 0.5
@@ -119,6 +120,8 @@ class RampPlan:
         preceded by ``#`` lines that state the pose, the abort speed and the excursion limit that
         the robot's controller must enforce (a CSV cannot stop a ramp at the first motion)."""
         path = Path(path)
+        for name in self.joint_names:               # a newline would add a line above the header
+            check_writable_name(name, "RampPlan joint name")
         t, tau, joint, direction = self.sample(rate_hz)
         header = ["t", "ramped_joint", "direction", *(f"tau{j + 1}" for j in range(tau.shape[1]))]
         notes = [

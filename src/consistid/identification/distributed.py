@@ -37,7 +37,7 @@ from typing import Any, Callable, Iterable, Sequence
 import numpy as np
 
 from ..data.dataset import Dataset
-from ..errors import DatasetError, OptionError
+from ..errors import DatasetError, IdentificationError, OptionError
 from ..robot.model import RobotModel
 from .base import BaseParameters
 from .compression import CompressedProblem, compress
@@ -143,10 +143,39 @@ class DaskData(DataStream):
                 client = None
         if client is not None:
             self.scheduler = f"distributed.Client {client.scheduler.address}"
-            return client.compute(item).result()
+            try:
+                return client.compute(item).result()
+            except Exception as exc:
+                if type(exc).__name__ != "KilledWorker":
+                    raise
+                raise self._killed(exc) from exc
         configured = dask.config.get("scheduler", None)
         self.scheduler = f"dask {configured or 'threads'} scheduler (no distributed.Client)"
         return dask.compute(item, scheduler=configured or "threads")[0]
+
+    def _killed(self, exc: Exception) -> IdentificationError:
+        """A ``distributed.KilledWorker`` as an error naming the partition and its files (a
+        partition task's key is ``(name, index)``; the partition's items are read back from
+        the source bag, which holds the paths, not the data)."""
+        task = getattr(exc, "task", exc.args[0] if exc.args else None)
+        index = task[1] if isinstance(task, tuple) and len(task) > 1 \
+            and isinstance(task[1], int) else None
+        items = ""
+        if index is not None and index < self.bag.npartitions:
+            try:
+                held = self.bag.to_delayed()[index].compute(scheduler="sync")
+                items = ": " + ", ".join(repr(str(p)) if isinstance(p, (str, os.PathLike))
+                                         else type(p).__name__ for p in list(held)[:8])
+            except Exception:           # the partition itself cannot be rebuilt here
+                items = ""
+        where = f"partition {index}{items}" if index is not None else f"task {task!r}"
+        worker = getattr(getattr(exc, "last_worker", None), "address", "?")
+        tries = getattr(exc, "allowed_failures", "?")
+        return IdentificationError(
+            f"a Dask worker died while reducing {where} (KilledWorker: last on {worker}, "
+            f"{tries} allowed failures); a file that exhausts a worker's memory or crashes its "
+            "reader is the usual cause: read it alone (consistid.Dataset.load) or give the "
+            "workers more memory")
 
     def compress(self, model: RobotModel, spec: RegressorSpec,
                  base: BaseParameters | None = None) -> CompressedProblem:

@@ -66,10 +66,13 @@ from typing import TYPE_CHECKING, Any, Iterable, Mapping
 import numpy as np
 
 from ..errors import ModelError, ResultFileError
+from ..filesafety import interrupted_files, replacing
+from ..textsafety import spreadsheet_cell
 from ..robot.model import RobotModel, model_without_dynamics
 from .base import BaseParameters
 from .envelope import TrainingEnvelope
 from .regressor import RegressorSpec
+from .resultschema import check_document, check_dtype, read_document
 from .solver import SolverReport
 
 if TYPE_CHECKING:
@@ -122,8 +125,8 @@ def decode(value: Any) -> Any:
     if not isinstance(value, dict):
         return value
     if "__ndarray__" in value:
-        return np.array(decode(value["__ndarray__"]), dtype=np.dtype(value["dtype"])).reshape(
-            value["shape"])
+        return np.array(decode(value["__ndarray__"]),
+                        dtype=check_dtype(value["dtype"], "__ndarray__")).reshape(value["shape"])
     if "__float__" in value:
         return float(value["__float__"])
     if "__tuple__" in value:
@@ -224,10 +227,11 @@ def model_dict(model: RobotModel) -> dict[str, Any]:
     source = Path(model.source).resolve() if model.source is not None else None
     text = source.read_text(encoding="utf-8") if source is not None and source.is_file() \
         else None
-    return {"name": model.name,
-            "source": None if source is None else str(source),
-            "urdf_sha256": None if text is None else sha256(source),
-            "urdf": text,
+    record = {"source": None if source is None else str(source),
+              "urdf_sha256": None if text is None else sha256(source), "urdf": text}
+    if source is None and model.urdf_record is not None:     # a reloaded result's, as read
+        record = dict(model.urdf_record)
+    return {"name": model.name, **record,
             "locked_joints": list(model.locked_joints),
             "locked_configuration": {k: float(v) for k, v in model.locked_configuration.items()},
             "gravity": _floats(model.gravity),
@@ -251,15 +255,18 @@ def _rebuild(m: Mapping[str, Any], urdf: Path, source: Path | None) -> RobotMode
 
 
 def model_from_dict(m: Mapping[str, Any], where: str, model: RobotModel | None = None,
-                    urdf: str | Path | None = None) -> RobotModel:
+                    urdf: str | Path | None = None, follow_source: bool = False) -> RobotModel:
     """The robot of :func:`model_dict`. Order of preference: ``model`` as given (its joints and
-    bodies must match), ``urdf``, the saved source path when its SHA-256 still matches, else
-    the URDF text stored in the file (the model then has no ``source``: pass ``urdf=`` to
-    export it). The saved inertias, armature and gravity are applied."""
+    bodies must match), ``urdf``, the saved source path when ``follow_source`` and its SHA-256
+    still matches, else the URDF text stored in the file (the model then has no ``source``:
+    pass ``urdf=`` to export it). The saved inertias, armature and gravity are applied.
+
+    A result file is data: the path it names is opened only when the caller asks
+    (``follow_source=True``), never because the file says so."""
     if model is None:
         if urdf is not None:
             model = _rebuild(m, Path(urdf), Path(urdf))
-        elif m.get("source") and Path(m["source"]).is_file() \
+        elif follow_source and m.get("source") and Path(m["source"]).is_file() \
                 and sha256(m["source"]) == m.get("urdf_sha256"):
             model = _rebuild(m, Path(m["source"]), Path(m["source"]))
         elif m.get("urdf"):
@@ -268,8 +275,9 @@ def model_from_dict(m: Mapping[str, Any], where: str, model: RobotModel | None =
                 path.write_text(m["urdf"], encoding="utf-8")
                 model = _rebuild(m, path, None)
         else:
-            raise ResultFileError(f"{where}: the model's URDF is neither stored nor found at "
-                                  f"{m.get('source')!r}; pass model= or urdf= to load()")
+            raise ResultFileError(f"{where}: the model's URDF is not stored in the file; pass "
+                                  "model= or urdf= to load() (or follow_source=True to use "
+                                  f"{m.get('source')!r}, the path it names)")
     for key, have in (("joint_names", model.joint_names), ("body_names", model.body_names)):
         if list(have) != list(m[key]):
             raise ResultFileError(f"{where}: the model's {key} {list(have)} differ from the "
@@ -288,6 +296,8 @@ def model_from_dict(m: Mapping[str, Any], where: str, model: RobotModel | None =
         model = RobotModel(pm, name=model.name, source=model.source,
                            locked_joints=model.locked_joints,
                            locked_configuration=model.locked_configuration)
+    if model.source is None:
+        model.urdf_record = {key: m.get(key) for key in ("source", "urdf_sha256", "urdf")}
     return model
 
 
@@ -354,7 +364,8 @@ def write_result(res: "IdentificationResult", path: str | Path) -> Path:
     """Write ``res`` as JSON to ``path`` (module docstring); returns the path."""
     path = Path(path)
     text = json.dumps(result_dict(res), indent=1, allow_nan=False, ensure_ascii=False)
-    path.write_text(text + "\n", encoding="utf-8")
+    with replacing(path) as tmp:                # never a half-written result file
+        tmp.write_text(text + "\n", encoding="utf-8")
     return path
 
 
@@ -388,23 +399,29 @@ def _envelope(value: Any, where: str) -> TrainingEnvelope | None:
 
 
 def read_result_fields(path: str | Path, model: RobotModel | None = None,
-                       urdf: str | Path | None = None) -> dict[str, Any]:
+                       urdf: str | Path | None = None,
+                       follow_source: bool = False) -> dict[str, Any]:
     """The constructor arguments of the result saved at ``path`` (:func:`write_result`), with
-    its ``kind`` and the ``extra`` fields of that kind.
+    its ``kind`` and the ``extra`` fields of that kind. The whole document is checked
+    (:func:`~consistid.identification.resultschema.check_document`) before anything is built;
+    the URDF path it names is opened only with ``follow_source=True``.
 
     Raises
     ------
     ResultFileError : the file is missing, not JSON, not a consistid result of a known
-        version, or a field is missing or has the wrong shape (named).
+        version, part of a result set whose writing was interrupted, or a field is missing, of
+        the wrong type or shape, not finite, too large or too deep (named).
     """
     path = Path(path)
     where = str(path)
-    if not path.is_file():
-        raise ResultFileError(f"result file {where!r} does not exist")
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ResultFileError(f"{where} is not a JSON file: {exc}") from exc
+    doc = read_document(path, where)
+    interrupted = interrupted_files(path.parent)
+    if interrupted is not None and (path.name in interrupted or not interrupted):
+        raise ResultFileError(f"{where}: the writing of the result set in {str(path.parent)!r} "
+                              f"was interrupted ({', '.join(interrupted) or 'files'} being "
+                              "replaced): its files may come from two runs; run again with "
+                              "--force, or remove the file '.consistid-incomplete' if you know "
+                              "the set is whole")
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         raise ResultFileError(f"{where} is not a consistid identification result (format "
                               f"{doc.get('format') if isinstance(doc, dict) else None!r}, "
@@ -412,9 +429,10 @@ def read_result_fields(path: str | Path, model: RobotModel | None = None,
     if doc.get("version") != VERSION:
         raise ResultFileError(f"{where}: result file version {doc.get('version')!r}; this "
                               f"consistid reads version {VERSION}")
+    check_document(doc, where)
     names = tuple(_field(doc, "parameter_names", where))
     p = len(names)
-    robot = model_from_dict(_field(doc, "model", where), where, model, urdf)
+    robot = model_from_dict(_field(doc, "model", where), where, model, urdf, follow_source)
     spec = spec_from_dict(_field(doc, "spec", where))
     b = _field(doc, "base", where)
     base = base_from_dict(b, names)
@@ -432,13 +450,21 @@ def read_result_fields(path: str | Path, model: RobotModel | None = None,
         n_samples=int(_field(doc, "n_samples", where)),
         solver=SolverReport(s["name"], s["status"], float(s["solve_time"]),
                             float(s.get("compile_time", 0.0)), s.get("iterations")),
-        details=decode(doc.get("details", {})),
-        uninformed=tuple(doc.get("uninformed", ())),
+        details=_decoded(doc, "details", where), uninformed=tuple(doc.get("uninformed", ())),
         weakly_informed=tuple(doc.get("weakly_informed", ())),
         excluded_joints=tuple(doc.get("excluded_joints", ())),
         envelope=_envelope(doc.get("envelope"), where),
-        provenance=decode(doc.get("provenance", {})),
-        kind=str(doc.get("kind", "identification")), extra=decode(doc.get("extra", {})))
+        provenance=_decoded(doc, "provenance", where),
+        kind=str(doc.get("kind", "identification")), extra=_decoded(doc, "extra", where))
+
+
+def _decoded(doc: Mapping[str, Any], key: str, where: str) -> Any:
+    """:func:`decode` of the free-form field ``key``; a malformed tag named."""
+    try:
+        return decode(doc.get(key, {}))
+    except (TypeError, ValueError, KeyError, AttributeError, OverflowError) as exc:
+        raise ResultFileError(f"{where}: field {key!r} holds a malformed tagged value "
+                              f"({type(exc).__name__}: {exc})") from exc
 
 
 # ----------------------------------------------------------------------------- CSV
@@ -451,22 +477,25 @@ def write_csv(res: "IdentificationResult", path: str | Path) -> Path:
     then one per standard parameter (``kind = standard``: value and prior; ``std`` is empty,
     since only base parameters have a standard deviation from the data), then one per shape
     parameter of a nonlinear friction law (``kind = shape``: value ± std, its unit as
-    ``definition``). Numbers carry 17 significant digits."""
+    ``definition``). Numbers carry 17 significant digits; a text cell that a spreadsheet would
+    read as a formula is written with a leading ``'`` (:mod:`consistid.textsafety`)."""
     path = Path(path)
     prior_beta = res.base.project(res.prior)
 
     def num(x: float) -> str:
         return repr(float(x))
 
-    with open(path, "w", newline="", encoding="utf-8") as fh:
+    with replacing(path) as tmp, open(tmp, "w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh)
         w.writerow(CSV_COLUMNS)
         for i, (name, grouping) in enumerate(zip(res.base.names, res.base.groupings)):
-            w.writerow(["base", name, num(res.base_parameters[i]), num(res.base_std[i]),
-                        num(res.relative_std[i]), num(prior_beta[i]), grouping])
+            w.writerow(["base", spreadsheet_cell(name), num(res.base_parameters[i]),
+                        num(res.base_std[i]), num(res.relative_std[i]), num(prior_beta[i]),
+                        spreadsheet_cell(grouping)])
         for name, value, prior in zip(res.parameter_names, res.parameters, res.prior):
-            w.writerow(["standard", name, num(value), "", "", num(prior), ""])
+            w.writerow(["standard", spreadsheet_cell(name), num(value), "", "", num(prior), ""])
         for name, value, std, unit in res.shape_rows():
-            w.writerow(["shape", name, num(value), num(std),
-                        num(100 * std / abs(value)) if value else "", "", unit])
+            w.writerow(["shape", spreadsheet_cell(name), num(value), num(std),
+                        num(100 * std / abs(value)) if value else "", "",
+                        spreadsheet_cell(unit)])
     return path

@@ -350,15 +350,18 @@ class IdentificationResult(StandardParameterSet):
 
     @classmethod
     def load(cls, path: str | Path, model: RobotModel | None = None,
-             urdf: str | Path | None = None) -> "IdentificationResult":
+             urdf: str | Path | None = None, *,
+             follow_source: bool = False) -> "IdentificationResult":
         """Read a result written by :meth:`save`.
 
-        The robot is rebuilt from the saved URDF path when its SHA-256 still matches, else from
-        the URDF text stored in the file; give ``model`` (same joints and bodies) or ``urdf`` to
-        use your own. Raises :class:`~consistid.errors.ResultFileError` naming the file and the
-        field that is missing or wrong.
+        The robot is rebuilt from the URDF text stored in the file; give ``model`` (same joints
+        and bodies) or ``urdf`` to use your own, or ``follow_source=True`` to use the URDF at
+        the path the file names when its SHA-256 still matches (a result file is data: no
+        path it names is opened unless you ask). The whole file is checked first. Raises
+        :class:`~consistid.errors.ResultFileError` naming the file and the field that is
+        missing or wrong.
         """
-        fields = persistence.read_result_fields(path, model, urdf)
+        fields = persistence.read_result_fields(path, model, urdf, follow_source)
         kind, extra = fields.pop("kind"), fields.pop("extra")
         if kind not in RESULT_KINDS and kind in KIND_MODULES:
             importlib.import_module(KIND_MODULES[kind])   # defines (and registers) the class

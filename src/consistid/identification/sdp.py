@@ -222,6 +222,11 @@ class SDPOptions:
         if self.prior is not None and self.prior_weight is not None and \
                 self.prior_weight not in WEIGHT_RULES:
             check_number("prior_weight", self.prior_weight, 0)
+        if self.neighbourhood is not None \
+                and not isinstance(self.neighbourhood, priors.Neighbourhood):
+            raise OptionError(f"neighbourhood must be a consistid.identification.priors."
+                              f"Neighbourhood(...) (or None), got "
+                              f"{type(self.neighbourhood).__name__} {self.neighbourhood!r:.60}")
 
     @classmethod
     def from_keywords(cls, **keywords: Any) -> "SDPOptions":

@@ -33,6 +33,7 @@ from ..errors import (
     DataQualityWarning,
     DatasetError,
     IdentificationError,
+    ModelMisfitWarning,
     OptionError,
     PoorExcitationError,
     PoorExcitationWarning,
@@ -187,6 +188,27 @@ def _estimate_cov(kind: str, res: np.ndarray, n_free: int) -> np.ndarray:
         dof = max(block.size - n_free * block.size / total, 1.0)
         std += [np.sqrt(np.sum(block ** 2) / dof)] * (s.stop - s.start)
     return np.broadcast_to(np.diag(np.square(std)), (res.shape[0], len(std), len(std))).copy()
+
+
+#: An orientation error that no kinematic offset leaves after a calibration (rad, RMS): the
+#: offsets a calibration corrects are milliradians; 0.1 rad is 5.7°.
+ORIENTATION_MISFIT = 0.1
+
+
+def _warn_orientation_misfit(residuals: np.ndarray) -> None:
+    """Warn (:class:`ModelMisfitWarning`) when the calibrated orientation error (columns 3–5 of
+    the pose residuals, rad) stays beyond :data:`ORIENTATION_MISFIT` RMS: the fit did not
+    describe the data, and the usual cause is a unit (degrees) or a wrong measured frame."""
+    if not residuals.size:
+        return
+    rms = float(np.sqrt(np.mean(np.sum(residuals[:, 3:6] ** 2, axis=1))))
+    if rms > ORIENTATION_MISFIT:
+        warnings.warn(
+            f"after calibration the orientation error is still {rms:.3g} rad RMS "
+            f"({np.degrees(rms):.3g}°): no kinematic offset explains that; are q or the "
+            "measured orientations in degrees (give radians, unit quaternions), or is the "
+            "measured frame another one than frame=? The calibrated values are not to be "
+            "trusted", ModelMisfitWarning, stacklevel=3)
 
 
 def _check_length_unit(chart: KinematicParameters, q: np.ndarray, positions: np.ndarray,
@@ -493,6 +515,8 @@ def calibrate_kinematics(model: RobotModel, q: object, measurements: object,
     res_after, _ = all_q.raw(values)
     dist = mahalanobis(res_after, whitening(cov))
     base_final, _, anchor_final = all_q.split(values)
+    if meas.kind == "pose":
+        _warn_orientation_misfit(res_after[np.setdiff1d(np.arange(n), sorted(rejected))])
     corrected = chart.robot_model(values)
     solver = SolverReport(f"scipy least_squares (trf, loss={loss})",
                           f"converged ({sol.message})", time.perf_counter() - t_start,

@@ -161,6 +161,33 @@ def _repaired(p: np.ndarray) -> np.ndarray:
     return (vectors * np.maximum(values, floor)) @ vectors.T
 
 
+#: No joint sample of a manipulator reaches this magnitude in SI units (rad, rad/s, rad/s²,
+#: N·m; m for a prismatic joint): a larger one is a unit or logging error, and one such sample
+#: would move the estimate by its square (a torque of 1e100 gives parameters of ~1e199).
+IMPLAUSIBLE = 1e6
+
+
+def _numbers(what: str, name: str, value: Any) -> np.ndarray:
+    """``value`` as a float array, or :class:`DatasetError` naming ``name`` (text, objects)."""
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise DatasetError(f"{what}: {name} is not numbers ({exc}); the sample was refused "
+                           "and the estimate is unchanged") from None
+
+
+def _plausible(what: str, name: str, a: np.ndarray, start: int,
+               joints: Sequence[str]) -> None:
+    """Refuse (:class:`DatasetError`) a sample entry beyond :data:`IMPLAUSIBLE`."""
+    big = np.argwhere(np.abs(a) > IMPLAUSIBLE)
+    if big.size:
+        k, j = (int(i) for i in big[0])
+        raise DatasetError(f"{what}: sample {start + k}: {name}[{joints[j]!r}] is "
+                           f"{a[k, j]:.6g}, beyond any joint's range in SI units "
+                           f"(|value| ≤ {IMPLAUSIBLE:g}); a unit or logging error? The sample "
+                           "was refused and the estimate is unchanged")
+
+
 class RecursiveEstimator:
     r"""Recursive least squares on the base parameters (module docstring).
 
@@ -403,9 +430,12 @@ class RecursiveEstimator:
 
     def _check(self, q: Any, dq: Any, ddq: Any, tau: Any) -> tuple[np.ndarray, ...]:
         nv = self.model.nv
-        out = tuple(np.asarray(v, dtype=float) for v in (q, dq, ddq, tau))
+        out = tuple(_numbers("update", name, v) for name, v in
+                    zip(("q", "dq", "ddq", "tau"), (q, dq, ddq, tau)))
         if all(a.shape == (nv,) for a in out) and math.isfinite(
                 float(out[0].sum() + out[1].sum() + out[2].sum() + out[3].sum())):
+            for name, a in zip(("q", "dq", "ddq", "tau"), out):
+                _plausible("update", name, a[None], self.n_updates, self.model.joint_names)
             return out
         for name, a in zip(("q", "dq", "ddq", "tau"), out):        # say what is wrong
             if a.shape != (nv,):
@@ -608,7 +638,7 @@ class RecursiveEstimator:
         """
         arrays = []
         for name, value in (("q", q), ("dq", dq), ("ddq", ddq), ("tau", tau)):
-            a = np.asarray(value, dtype=float)
+            a = _numbers("update_batch", name, value)
             if a.ndim != 2 or a.shape[1] != self.model.nv:
                 raise JointCountError(f"update_batch: {name} has shape {a.shape}; expected "
                                       f"(N, {self.model.nv})")
@@ -622,6 +652,7 @@ class RecursiveEstimator:
                 k, j = (int(i) for i in bad[0])
                 raise DatasetError(f"update_batch: {name}[{k}, {self.model.joint_names[j]!r}] "
                                    f"is {a[k, j]}; no sample of the batch was taken")
+            _plausible("update_batch", name, a, self.n_updates, self.model.joint_names)
         times = None if t is None else np.asarray(t, dtype=float).reshape(-1)
         if times is not None and times.shape != (n,):
             raise DatasetError(f"update_batch: t has shape {times.shape}; expected ({n},)")

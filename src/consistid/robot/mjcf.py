@@ -171,8 +171,13 @@ def _exact_numbers(spec: Any, xml: str) -> str:
     ``fullinertia`` about the CoM, joint axes and ranges, actuator ranges, gravity. The file
     then reloads to the same model bit for bit instead of to ~1e-6."""
     root = ET.fromstring(xml)
+    # by name, not by an XPath ".//body[@name='…']", which a quote in a name would break
+    elements = {el.get("name"): el for el in root.iter("body")}
+    joints = {el.get("name"): el for el in root.iter("joint")}
+    section = root.find("actuator")
+    actuators = {} if section is None else {el.get("name"): el for el in section}
     for body in spec.bodies[1:]:                           # [0] is the world
-        el = root.find(f".//body[@name='{body.name}']")
+        el = elements[body.name]
         el.set("pos", _num(body.pos))
         el.set("quat", _num(body.quat))
         inertial = el.find("inertial")
@@ -182,7 +187,7 @@ def _exact_numbers(spec: Any, xml: str) -> str:
         inertial.set("mass", _num(body.mass))
         inertial.set("fullinertia", _num(body.fullinertia))
     for joint in spec.joints:
-        el = root.find(f".//joint[@name='{joint.name}']")
+        el = joints[joint.name]
         el.set("axis", _num(joint.axis))
         if joint.limited == 1:                            # mjLIMITED_TRUE
             el.set("range", _num(joint.range))
@@ -191,7 +196,7 @@ def _exact_numbers(spec: Any, xml: str) -> str:
             if np.any(value):
                 el.set(attr, _num(value[:1]))
     for act in spec.actuators:
-        el = root.find(f".//*[@name='{act.name}']")
+        el = actuators[act.name]
         if act.ctrllimited == 1:
             el.set("ctrlrange", _num(act.ctrlrange))
     option = root.find("option")

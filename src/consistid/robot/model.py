@@ -95,6 +95,13 @@ class JointLimits:
     effort: np.ndarray
 
 
+#: The most moving joints a model may have: far beyond any manipulator or humanoid (≈ 40), and
+#: below where Pinocchio's ``createData`` (run by every computation; it grows as ~nv^2.6: 0.35 s
+#: at 128 joints, 2 s at 256, 28 s at 500 on one core) makes each call a minutes-long wait.
+MAX_MOVING_JOINTS = 256
+
+
+
 class RobotModel:
     """A fixed-base robot for identification.
 
@@ -128,6 +135,14 @@ class RobotModel:
         locked_joints: Sequence[str] = (),
         locked_configuration: dict[str, float] | None = None,
     ) -> None:
+        if model.nv > MAX_MOVING_JOINTS:
+            raise ModelError(
+                f"robot {name!r} has {model.nv} moving joints, more than the "
+                f"{MAX_MOVING_JOINTS} consistid takes (consistid.robot.model.MAX_MOVING_JOINTS): "
+                "Pinocchio's workspace for such a model takes seconds to minutes to build (2 s "
+                "at 256 joints, 28 s at 500 on one core), at every call, and cannot be "
+                "interrupted; lock the joints that do not move (locked_joints=) or raise the "
+                "limit knowingly")
         if model.nv == 0:
             locked = f" (locked: {list(locked_joints)})" if locked_joints else ""
             raise ModelError(f"robot {name!r} has no moving joint{locked}: nothing to identify; "
@@ -150,6 +165,9 @@ class RobotModel:
         self.source = Path(source) if source is not None else None
         self.locked_joints = tuple(locked_joints)
         self.locked_configuration = dict(locked_configuration or {})
+        #: A reloaded result's record of its URDF (``source``, ``urdf_sha256``, ``urdf`` text),
+        #: written back by ``save`` as it was read; the path in it is never opened.
+        self.urdf_record: dict[str, str | None] | None = None
 
     # ----------------------------------------------------------------------------- construction
     @classmethod

@@ -19,9 +19,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
 
+import defusedxml.ElementTree as safe_et
 import numpy as np
+from defusedxml import DefusedXmlException
 
 from ..errors import ModelError
+from ..textsafety import check_writable_name
 
 
 @dataclass(frozen=True)
@@ -35,13 +38,27 @@ class JointDynamics:
 
 
 def parse_urdf(path: Path) -> ET.ElementTree:
-    """The URDF's XML tree; :class:`ModelError` for a missing file or malformed XML."""
+    """The URDF's XML tree; :class:`ModelError` for a missing file, malformed XML or XML that
+    declares entities (parsed with ``defusedxml``: an entity could expand to gigabytes, read a
+    local file, or slip a name past Pinocchio's parser, which leaves ``&n;`` unexpanded). A
+    default namespace (``<robot xmlns="…">``) is removed from the tags, as URDF readers ignore
+    it."""
+    if path.is_dir():
+        raise ModelError(f"URDF file {str(path)!r} is a folder, not a file")
     if not path.is_file():
         raise ModelError(f"URDF file {str(path)!r} does not exist")
     try:
-        return ET.parse(path)
+        tree = safe_et.parse(path)
     except ET.ParseError as exc:
         raise ModelError(f"{path.name} is not well-formed XML: {exc}") from exc
+    except DefusedXmlException as exc:
+        raise ModelError(f"{path.name} declares XML entities or external references ({exc}); "
+                         "consistid refuses them: expand them first (e.g. with xacro) and "
+                         "give the plain URDF") from exc
+    for element in tree.getroot().iter():
+        if isinstance(element.tag, str) and element.tag.startswith("{"):
+            element.tag = element.tag.split("}", 1)[1]
+    return tree
 
 
 def robot_joints(root: ET.Element) -> list[ET.Element]:
@@ -124,6 +141,9 @@ def check_tree(root: ET.Element, source: str) -> None:
                          "(an SDF or MJCF file? MJCF: pinocchio.buildModelFromMJCF)")
     links = [link.get("name", "") for link in robot_links(root)]
     joints = robot_joints(root)
+    for kind, elements in (("link", robot_links(root)), ("joint", joints)):
+        for element in elements:
+            check_writable_name(element.get("name", ""), f"{source}: <{kind} name>")
     for kind, elements in (("link", robot_links(root)), ("joint", joints)):
         unnamed = [k for k, e in enumerate(elements) if not e.get("name")]
         if unnamed:

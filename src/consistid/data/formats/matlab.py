@@ -36,6 +36,23 @@ def _strings(value: np.ndarray) -> list[str]:
     raise DatasetError(f"joint_names has dtype {a.dtype}: expected a cell array of strings")
 
 
+def _numeric(value: object, name: str, source: str) -> np.ndarray:
+    """Variable ``name`` as a float array; :class:`DatasetError` for complex values (their
+    imaginary part would be dropped), strings, cell arrays (ragged or not) and structs."""
+    a = np.asarray(value)
+    if a.dtype.kind == "c":
+        raise DatasetError(f"{source}: variable {name!r} holds complex numbers; consistid does "
+                           "not drop imaginary parts silently: save the real signal "
+                           "(real(x) in MATLAB) if that is what was logged")
+    if a.dtype.kind not in "fiub":
+        what = {"U": "text", "S": "text", "O": "a cell array or struct"}.get(a.dtype.kind,
+                                                                             str(a.dtype))
+        raise DatasetError(f"{source}: variable {name!r} holds {what}, not numbers; save it as "
+                           "a numeric matrix (cell2mat in MATLAB, when its cells are of one "
+                           "length)")
+    return a.astype(float)
+
+
 def _variables(path: Path) -> dict[str, np.ndarray]:
     try:
         raw = scipy.io.loadmat(path, squeeze_me=False, struct_as_record=False)
@@ -70,12 +87,12 @@ def read_mat(path: str | Path, *, joints: Sequence[str] | None = None,
         if time is None:
             raise MissingColumnsError(f"{source}: no time variable (t, time, timestamp …); "
                                       f"variables are {sorted(variables)}")
-        t = np.asarray(variables[time], dtype=float).ravel()
+        t = _numeric(variables[time], time, source).ravel()
         fields = {}
         for f, k in matrix.items():
             if k is None:
                 continue
-            a = np.asarray(variables[k], dtype=float)
+            a = _numeric(variables[k], k, source)
             a = a[:, None] if a.ndim == 1 else a
             if a.ndim != 2 or t.size not in a.shape:
                 raise DatasetError(f"{source}: variable {k!r} has shape {a.shape}; expected "
@@ -120,8 +137,9 @@ def read_mat(path: str | Path, *, joints: Sequence[str] | None = None,
             raise DatasetError(f"{source}: {time}[{bad[0]}] is {t[bad[0]]} ({bad.size} "
                                "non-finite stamp(s))")
         return Log(t, fields, names, source, tuple(notes), time_unit_of(time)[1])
+    # complex vectors are matched too, and refused by name if a column uses one
     vectors = {k: np.asarray(v).ravel() for k, v in variables.items()
-               if isinstance(v, np.ndarray) and v.dtype.kind in "fiu" and min(v.shape) == 1}
+               if isinstance(v, np.ndarray) and v.dtype.kind in "fiuc" and min(v.shape) == 1}
     if not vectors:
         raise MissingColumnsError(f"{source}: no time/q/tau arrays and no column vectors; "
                                   f"variables are {sorted(variables)}")
@@ -130,4 +148,5 @@ def read_mat(path: str | Path, *, joints: Sequence[str] | None = None,
         n = max(lengths, key=lambda m: sum(v.size == m for v in vectors.values()))
         vectors = {k: v for k, v in vectors.items() if v.size == n}
     cmap = map_columns(list(vectors), source, joints=joints, columns=columns)
-    return log_from_columns(vectors.__getitem__, cmap, source, vectors[cmap.time].size)
+    return log_from_columns(lambda k: _numeric(vectors[k], k, source), cmap, source,
+                            vectors[cmap.time].size)

@@ -16,7 +16,7 @@ starting up) are skipped and counted, and a bag with none is refused.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -39,6 +39,18 @@ def _reader(path: Path):
         return AnyReader([path], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
     except Exception as exc:                      # rosbags raises its own error classes
         raise DatasetError(f"{path.name} is not a readable ROS bag: {exc}") from None
+
+
+def _deserialize(reader: Any, raw: bytes, conn: Any, source: str, k: int) -> Any:
+    """Message ``k`` of ``conn``, or :class:`DatasetError` naming it when rosbags cannot decode
+    it (an unsupported CDR encapsulation, a truncated or foreign message)."""
+    try:
+        return reader.deserialize(raw, conn.msgtype)
+    except Exception as exc:        # rosbags raises its own SerdeError and plain ones
+        raise DatasetError(f"{source}, {conn.topic} message {k} ({conn.msgtype}) cannot be "
+                           f"decoded: {type(exc).__name__}: {exc}; the bag's serialization "
+                           "(e.g. its CDR encapsulation) is not one rosbags reads: re-record "
+                           "or convert it (ros2 bag convert)") from None
 
 
 def read_bag(path: str | Path, *, joints: Sequence[str] | None = None, topic: str | None = None,
@@ -99,8 +111,13 @@ def read_bag(path: str | Path, *, joints: Sequence[str] | None = None, topic: st
             n_msgs += 1
             if n_msgs % chunk == 0:
                 bar.step(n=chunk)
-            msg = reader.deserialize(raw, conn.msgtype)
+            msg = _deserialize(reader, raw, conn, source, n_msgs - 1)
             names = [str(n) for n in msg.name]
+            if len(set(names)) != len(names):
+                twice = sorted({n for n in names if names.count(n) > 1})
+                raise DatasetError(f"{source}, {topic} message {n_msgs - 1}: joint name(s) "
+                                   f"{twice} appear more than once in one message; which value "
+                                   "is the joint's is undefined: fix the driver's names")
             seen.update(names)
             if selected is None:
                 selected = names

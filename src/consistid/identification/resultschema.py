@@ -1,0 +1,245 @@
+"""The schema of a saved identification result, checked before anything is built from it.
+
+A result file is data written by a program, read back perhaps after a copy, an edit or an
+attack: every field is checked for its type, shape, size and finiteness (and the armature for
+its sign) before :mod:`consistid.identification.persistence` builds a robot, a base map or a
+covariance from it, so that a tampered file gives one :class:`~consistid.errors.ResultFileError`
+naming the file and the field, never a raw ``KeyError``/``TypeError``/``RecursionError``, a
+huge allocation or a hang.
+
+Limits (a saved result is far below each: a 500-link robot's is a few MB):
+:data:`MAX_BYTES` for the file, :data:`MAX_DEPTH` for the nesting of JSON values,
+:data:`MAX_TEXT` for one string (the stored URDF) and :data:`MAX_NAME` for a name.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from ..errors import ResultFileError
+
+__all__ = ["MAX_BYTES", "MAX_DEPTH", "MAX_TEXT", "MAX_NAME", "read_document",
+           "check_document", "check_dtype"]
+
+MAX_BYTES = 256 * 2**20
+MAX_DEPTH = 64
+MAX_TEXT = 64 * 2**20
+MAX_NAME = 1000
+#: numpy kinds an ``__ndarray__`` may have: bool, integers, floats (no strings, objects, voids).
+DTYPE_KINDS = "biuf"
+
+
+def read_document(path: Path, where: str) -> Any:
+    """The JSON document at ``path``, within the size and nesting limits."""
+    if path.is_dir():
+        raise ResultFileError(f"result file {where!r} is a folder; give the result.json inside")
+    if not path.is_file():
+        raise ResultFileError(f"result file {where!r} does not exist")
+    size = path.stat().st_size
+    if size > MAX_BYTES:
+        raise ResultFileError(f"{where} holds {size / 2**20:.0f} MB, more than a result file "
+                              f"can ({MAX_BYTES / 2**20:.0f} MB): not a consistid result")
+    try:
+        doc = json.loads(path.read_bytes().decode("utf-8"))
+    except UnicodeDecodeError as exc:
+        raise ResultFileError(f"{where} is not a JSON file (not UTF-8: {exc})") from exc
+    except RecursionError as exc:
+        raise ResultFileError(f"{where}: JSON nested deeper than {MAX_DEPTH} levels; not a "
+                              "consistid result") from exc
+    except ValueError as exc:                   # JSONDecodeError, an integer of 5000 digits
+        raise ResultFileError(f"{where} is not a JSON file: {exc}") from exc
+    _check_tree(doc, where)
+    return doc
+
+
+def _check_tree(doc: Any, where: str) -> None:
+    """Nesting depth and string lengths of every value (iteratively: no recursion limit)."""
+    stack = [(doc, 1, "")]
+    while stack:
+        value, depth, key = stack.pop()
+        if depth > MAX_DEPTH:
+            raise ResultFileError(f"{where}: field {key or 'top'!r} is nested deeper than "
+                                  f"{MAX_DEPTH} levels; not a consistid result")
+        if isinstance(value, str) and len(value) > MAX_TEXT:
+            raise ResultFileError(f"{where}: a string in field {key!r} holds {len(value)} "
+                                  f"characters, more than {MAX_TEXT}")
+        elif isinstance(value, dict):
+            for k, v in value.items():
+                if len(k) > MAX_NAME:
+                    raise ResultFileError(f"{where}: a key in field {key!r} holds {len(k)} "
+                                          f"characters, more than {MAX_NAME}")
+                stack.append((v, depth + 1, key or k))
+        elif isinstance(value, list):
+            stack.extend((v, depth + 1, key) for v in value)
+
+
+def check_dtype(dtype: Any, where: str) -> np.dtype:
+    """A numeric numpy dtype of at most 16 bytes an item, else :class:`ResultFileError` (a
+    string or void dtype of a billion characters would allocate gigabytes)."""
+    try:
+        out = np.dtype(dtype)
+    except (TypeError, ValueError) as exc:
+        raise ResultFileError(f"{where}: dtype {dtype!r:.60} is not a numpy dtype") from exc
+    if out.kind not in DTYPE_KINDS or out.itemsize > 16:
+        raise ResultFileError(f"{where}: dtype {dtype!r:.60} is not a numeric dtype; result "
+                              "files hold arrays of booleans, integers and floats")
+    return out
+
+
+# ----------------------------------------------------------------------------- fields
+def _get(doc: Mapping[str, Any], key: str, where: str, kind: type | tuple) -> Any:
+    if not isinstance(doc, dict):
+        raise ResultFileError(f"{where}: expected a table holding {key!r}, got "
+                              f"{type(doc).__name__}")
+    if key not in doc:
+        raise ResultFileError(f"{where}: field {key!r} is missing")
+    value = doc[key]
+    kinds = kind if isinstance(kind, tuple) else (kind,)
+    if not isinstance(value, kinds) or isinstance(value, bool) and bool not in kinds:
+        names = " or ".join(k.__name__ for k in kinds)
+        raise ResultFileError(f"{where}: field {key!r} must be {names}, got "
+                              f"{type(value).__name__}")
+    return value
+
+
+def _names(doc: Mapping[str, Any], key: str, where: str, n: int | None = None) -> list[str]:
+    value = _get(doc, key, where, list)
+    for k, name in enumerate(value):
+        if not isinstance(name, str) or not 0 < len(name) <= MAX_NAME \
+                or any(ord(c) < 32 or ord(c) == 127 for c in name):
+            raise ResultFileError(f"{where}: field {key!r}[{k}] is not a name (a string of 1 to "
+                                  f"{MAX_NAME} printable characters): {name!r:.80}")
+    if n is not None and len(value) != n:
+        raise ResultFileError(f"{where}: field {key!r} holds {len(value)} names, expected {n}")
+    return value
+
+
+def _number(value: Any) -> float | None:
+    """A JSON number or a tagged non-finite one (``{"__float__": "inf"}``), else ``None``."""
+    if isinstance(value, dict) and set(value) == {"__float__"} \
+            and value["__float__"] in ("inf", "-inf", "nan"):
+        return float(value["__float__"])
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        try:
+            return float(value)
+        except OverflowError:
+            return None
+    return None
+
+
+def _numbers(doc: Mapping[str, Any], key: str, where: str, shape: tuple[int, ...], *,
+             nan: bool = False, inf: bool = False, minimum: float | None = None) -> None:
+    """Field ``key`` is nested lists of ``shape`` numbers (tagged non-finite ones only where
+    allowed), each ``≥ minimum`` when given."""
+    value = _get(doc, key, where, list)
+    rows = [value]
+    for depth, size in enumerate(shape):
+        for row in rows:
+            if not isinstance(row, list) or len(row) != size:
+                got = len(row) if isinstance(row, list) else type(row).__name__
+                raise ResultFileError(f"{where}: field {key!r} has shape other than {shape}: "
+                                      f"level {depth + 1} holds {got}, expected {size}")
+        rows = [v for row in rows for v in row]
+    for k, v in enumerate(rows):
+        x = _number(v)
+        bad = (x is None or math.isnan(x) and not nan or math.isinf(x) and not inf
+               or minimum is not None and x < minimum)
+        if bad:
+            index = np.unravel_index(k, shape) if shape else ()
+            need = "a number" + ("" if minimum is None else f" ≥ {minimum:g}")
+            raise ResultFileError(f"{where}: field {key!r}{list(map(int, index))} is {v!r:.60}, "
+                                  f"expected {need}" + ("" if nan or inf else " (finite)"))
+
+
+def _indices(doc: Mapping[str, Any], key: str, where: str, p: int) -> list[int]:
+    value = _get(doc, key, where, list)
+    if any(not isinstance(i, int) or isinstance(i, bool) or not 0 <= i < p for i in value) \
+            or len(set(value)) != len(value):
+        raise ResultFileError(f"{where}: field {key!r} must list distinct parameter indices "
+                              f"0 … {p - 1}")
+    return value
+
+
+def check_document(doc: Mapping[str, Any], where: str) -> None:
+    """Every field :func:`~consistid.identification.persistence.read_result_fields` uses has
+    its type, shape, finiteness and sign (module docstring); else :class:`ResultFileError`
+    naming the field."""
+    names = _names(doc, "parameter_names", where)
+    p = len(names)
+    _get(doc, "method", where, str)
+    for key in ("parameters", "prior"):
+        _numbers(doc, key, where, (p,))
+    _check_model(_get(doc, "model", where, dict), f"{where} [model]")
+    model = doc["model"]
+    nv = len(model["joint_names"])
+    spec = _get(doc, "spec", where, dict)
+    if _get(spec, "nv", f"{where} [spec]", int) != nv:
+        raise ResultFileError(f"{where} [spec]: field 'nv' is {spec['nv']}, but the model has "
+                              f"{nv} joints")
+    for term, mask in _get(spec, "masks", f"{where} [spec]", dict).items():
+        if not isinstance(mask, list) or len(mask) != nv \
+                or not all(isinstance(v, bool) for v in mask):
+            raise ResultFileError(f"{where} [spec]: masks[{term!r}] must be {nv} booleans")
+    _check_base(_get(doc, "base", where, dict), f"{where} [base]", p)
+    for key in ("sigma", "train_rms"):
+        _numbers(doc, key, where, (nv,), minimum=0.0)
+    cond = _number(_get(doc, "condition_number", where, (int, float, dict)))
+    if cond is None or math.isnan(cond) or cond < 0:
+        raise ResultFileError(f"{where}: field 'condition_number' must be a number ≥ 0")
+    if _get(doc, "n_samples", where, int) < 0:
+        raise ResultFileError(f"{where}: field 'n_samples' must be ≥ 0")
+    solver = _get(doc, "solver", where, dict)
+    for key in ("name", "status"):
+        _get(solver, key, f"{where} [solver]", str)
+    for key in ("solve_time", "compile_time"):
+        if key in solver or key == "solve_time":
+            _numbers({key: [solver.get(key)]}, key, f"{where} [solver]", (1,), inf=True)
+    if solver.get("iterations") is not None:
+        _get(solver, "iterations", f"{where} [solver]", int)
+    if "uninformed" in doc:
+        _get(doc, "uninformed", where, list)
+        if not all(isinstance(v, str) for v in doc["uninformed"]):
+            raise ResultFileError(f"{where}: field 'uninformed' must list strings")
+    for key, kind in (("details", dict), ("provenance", dict), ("extra", dict), ("kind", str)):
+        if key in doc:
+            _get(doc, key, where, kind)
+
+
+def _check_model(m: Mapping[str, Any], where: str) -> None:
+    _get(m, "name", where, str)
+    joints = _names(m, "joint_names", where)
+    bodies = _names(m, "body_names", where)
+    for key in ("source", "urdf", "urdf_sha256"):
+        if m.get(key) is not None:
+            _get(m, key, where, str)
+    _names(m, "locked_joints", where)
+    for k, v in _get(m, "locked_configuration", where, dict).items():
+        x = _number(v)
+        if x is None or not math.isfinite(x):
+            raise ResultFileError(f"{where}: locked_configuration[{k!r}] must be a finite "
+                                  "number")
+    _numbers(m, "gravity", where, (3,))
+    _numbers(m, "inertias", where, (10 * len(bodies),))
+    _numbers(m, "armature", where, (len(joints),), minimum=0.0)
+
+
+def _check_base(b: Mapping[str, Any], where: str, p: int) -> None:
+    independent = _indices(b, "independent", where, p)
+    dependent = _indices(b, "dependent", where, p)
+    if set(independent) & set(dependent):
+        raise ResultFileError(f"{where}: a parameter is both independent and dependent")
+    ni, nd = len(independent), len(dependent)
+    _numbers(b, "K", where, (ni, nd))
+    diag_r = _get(b, "diag_r", where, list)     # R's diagonal: one per regressor column
+    _numbers(b, "diag_r", where, (min(len(diag_r), p),))
+    rtol = _number(_get(b, "rtol", where, (int, float)))
+    if rtol is None or not math.isfinite(rtol) or rtol < 0:
+        raise ResultFileError(f"{where}: field 'rtol' must be a finite number ≥ 0")
+    _numbers(b, "values", where, (ni,))
+    # unidentified directions may carry an infinite variance, never a NaN
+    _numbers(b, "covariance", where, (ni, ni), inf=True)
