@@ -12,7 +12,7 @@ import pytest
 
 import consistid as ci
 from consistid.cli import main
-from consistid.errors import DataQualityWarning, OptionError
+from consistid.errors import DataQualityWarning, OptionError, ResultFileError
 from consistid.identification.regressor import RegressorSpec, regressor
 
 FRICTION = ("coulomb", "viscous", "offset")
@@ -89,7 +89,13 @@ def test_exclusion_survives_save_and_load(panda, logs, tmp_path):
     np.testing.assert_array_equal(back.predict(held), res.predict(held))
     doc = json.loads((tmp_path / "r.json").read_text())
     del doc["excluded_joints"]
+    for key in ("sigma", "train_rms"):     # a file from before exclude_joints: finite per joint
+        doc[key] = [v if isinstance(v, float) else 1.0 for v in doc[key]]
     (tmp_path / "old.json").write_text(json.dumps(doc))
+    doc["sigma"][6] = {"__float__": "nan"}     # NaN σ without an excluded joint: tampered
+    (tmp_path / "bad.json").write_text(json.dumps(doc))
+    with pytest.raises(ResultFileError, match="sigma"):
+        ci.IdentificationResult.load(tmp_path / "bad.json", model=panda)
     assert ci.IdentificationResult.load(tmp_path / "old.json", model=panda).excluded_joints == ()
 
 

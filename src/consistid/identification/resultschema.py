@@ -186,8 +186,9 @@ def check_document(doc: Mapping[str, Any], where: str) -> None:
                 or not all(isinstance(v, bool) for v in mask):
             raise ResultFileError(f"{where} [spec]: masks[{term!r}] must be {nv} booleans")
     _check_base(_get(doc, "base", where, dict), f"{where} [base]", p)
+    # a joint whose torque rows were left out (exclude_joints=) has no σ and no RMS: NaN
     for key in ("sigma", "train_rms"):
-        _numbers(doc, key, where, (nv,), minimum=0.0)
+        _numbers(doc, key, where, (nv,), minimum=0.0, nan=bool(doc.get("excluded_joints")))
     cond = _number(_get(doc, "condition_number", where, (int, float, dict)))
     if cond is None or math.isnan(cond) or cond < 0:
         raise ResultFileError(f"{where}: field 'condition_number' must be a number ≥ 0")
@@ -201,10 +202,11 @@ def check_document(doc: Mapping[str, Any], where: str) -> None:
             _numbers({key: [solver.get(key)]}, key, f"{where} [solver]", (1,), inf=True)
     if solver.get("iterations") is not None:
         _get(solver, "iterations", f"{where} [solver]", int)
-    if "uninformed" in doc:
-        _get(doc, "uninformed", where, list)
-        if not all(isinstance(v, str) for v in doc["uninformed"]):
-            raise ResultFileError(f"{where}: field 'uninformed' must list strings")
+    for key in ("uninformed", "weakly_informed", "excluded_joints"):
+        if key in doc:
+            _get(doc, key, where, list)
+            if not all(isinstance(v, str) for v in doc[key]):
+                raise ResultFileError(f"{where}: field {key!r} must list strings")
     for key, kind in (("details", dict), ("provenance", dict), ("extra", dict), ("kind", str)):
         if key in doc:
             _get(doc, key, where, kind)
