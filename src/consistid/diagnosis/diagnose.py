@@ -251,6 +251,10 @@ class Diagnosis:
     remainder : the unexplained remainder per joint, its verdict and where it lies
         (:class:`~consistid.diagnosis.remainder.Remainder`).
     noise : how the noise floor was obtained (:class:`~consistid.diagnosis.noise.NoiseFloor`).
+    rms_left : (nv,) held-out RMS after every selected effect as the verdict judges it: dry
+        friction set-valued at rest (a held joint's torque within its cone is no error) and the
+        samples the model cannot predict left out (``rms_final`` is point-valued); the verdict
+        flags a joint above ``REMAINDER_RATIO`` × its floor here.
     """
 
     model_name: str
@@ -268,6 +272,7 @@ class Diagnosis:
     notes: tuple[str, ...] = ()
     remainder: Remainder | None = None
     noise: NoiseFloor | None = None
+    rms_left: np.ndarray | None = None
 
     @property
     def verdict(self) -> str:
@@ -285,6 +290,12 @@ class Diagnosis:
     def gap_to_noise(self) -> np.ndarray:
         """Held-out RMS after every selected effect divided by the noise floor, per joint."""
         return self.rms_final / self.noise_floor
+
+    @property
+    def left_to_noise(self) -> np.ndarray:
+        """:attr:`rms_left` over the noise floor, per joint (the held-out column the verdict
+        judges; :attr:`gap_to_noise` where it was not computed)."""
+        return self.gap_to_noise if self.rms_left is None else self.rms_left / self.noise_floor
 
     @property
     def at_noise_floor(self) -> bool:
@@ -477,8 +488,8 @@ def _rows_of(atom: Atom, nv: int) -> np.ndarray:
     return np.arange(nv) if atom.joint is None else np.array([atom.joint])
 
 
-def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: float, tie: float,
-            max_steps: int, progress: Callable[[str], None] | None
+def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: float,
+            min_excess: float, tie: float, max_steps: int, progress: Callable[[str], None] | None
             ) -> tuple[list[int], list[tuple[str, ...]], list[Step], list[float], list[float],
                        list[tuple[str, float]], list[int]]:
     """Greedy forward selection; returns chosen atom indices, their alternatives, the steps, the
@@ -538,9 +549,15 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
             f = (gain_rows / k) / (float(ho2[rows].sum()) / n_ho)
             p = float(scipy.stats.f.sf(f, k, n_ho)) if gain_rows > 0 else 1.0
             # relevance: the atom's joint, or (arm-wide atoms) the joint it helps most, must
-            # lose min_gain of its nominal held-out sum of squares
-            per_joint = (sse_ho[rows] - ho2[rows]) / np.maximum(nominal_ho[rows], 1e-300)
+            # lose min_gain of its nominal held-out sum of squares, or min_excess of what is
+            # left there above the noise floor (on a joint still above the flag's ratio)
+            reduced = sse_ho[rows] - ho2[rows]
+            per_joint = reduced / np.maximum(nominal_ho[rows], 1e-300)
             relevance = float(per_joint.max())
+            excess = sse_ho[rows] - prob.held.n
+            above = sse_ho[rows] > REMAINDER_RATIO ** 2 * prob.held.n
+            of_excess = float(np.max(np.where(above, reduced / np.maximum(excess, 1e-300),
+                                              0.0)))
             if gain <= 0:
                 return "does not reduce the held-out residual", dbic, p
             unphysical = REGISTRY[atom.effect].unphysical(atom, s[6], prob.resolution)
@@ -550,10 +567,11 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
                 return f"ΔBIC {dbic:.3g} ≥ 0", dbic, p
             if p >= alpha:
                 return f"held-out F-test p = {p:.2g} ≥ {alpha:g}", dbic, p
-            if relevance < min_gain:
+            if relevance < min_gain and of_excess < min_excess:
                 return (f"held-out gain {relevance:.2%} of the nominal residual "
                         f"{'' if len(rows) == 1 else 'on its best joint '}< min_gain "
-                        f"{min_gain:.0%}", dbic, p)
+                        f"{min_gain:.0%} and {of_excess:.0%} of what is left above the noise "
+                        f"floor < min_excess {min_excess:.0%}", dbic, p)
             return "accepted", dbic, p
 
         verdicts = {}
@@ -856,7 +874,7 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
              held_out: Dataset | Sequence[Dataset] | None = None,
              effects: Sequence[str] = EFFECT_NAMES, sigma: float | Sequence[float] | None = None,
              *, torque_resolution: float | Sequence[float] | None = None, alpha: float = 1e-3,
-             min_gain: float = 0.01, tie: float = 0.05,
+             min_gain: float = 0.01, min_excess: float = 0.1, tie: float = 0.05,
              max_steps: int = 20, split: float = 0.7, inertia_solver: str = "sdp",
              progress: bool | None | Callable[[str], None] = None) -> Diagnosis:
     """Diagnose the gap between a nominal (simulator) model and measured torques.
@@ -881,7 +899,12 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     alpha : level of the held-out F-test.
     min_gain : smallest held-out reduction, as a fraction of the nominal residual's sum of
         squares of the atom's joint (arm-wide atoms: of the joint it reduces most), for the atom
-        to be selected.
+        to be selected, unless it reaches ``min_excess``.
+    min_excess : or the smallest held-out reduction as a fraction of what is left above the
+        noise floor on the atom's joint (``SSE_ho,j − N_ho σ_j²``; the joint it reduces most for
+        an arm-wide atom), on a joint whose held-out RMS is still above the remainder's flag
+        (``REMAINDER_RATIO`` × the floor): the selection stops against the floor, not against
+        a nominal gap that may be hundreds of times the noise.
     tie : relative held-out gain within which collinear candidates count as indistinguishable.
     max_steps : most atoms selected.
     split : training fraction of each recording when ``held_out`` is ``None``.
@@ -903,6 +926,7 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     if alpha >= 1:
         raise OptionError(f"alpha is a test level in (0, 1), got {alpha!r}")
     min_gain, tie = check_number("min_gain", min_gain, 0), check_number("tie", tie, 0)
+    min_excess = check_number("min_excess", min_excess, 0)
     max_steps = check_number("max_steps", max_steps, 0, integer=True)
     effects = (effects,) if isinstance(effects, str) else effects
     require_model(model)
@@ -970,7 +994,7 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
                 callback(line)
 
         chosen, alts, steps, bics, pvals, rivals, nuisance = _select(
-            prob, names, alpha, min_gain, tie, max_steps, tell)
+            prob, names, alpha, min_gain, min_excess, tie, max_steps, tell)
 
     notes: list[str] = []
     chosen, alts, bics, pvals, rivals = _prune_nested(prob, chosen, alts, bics, pvals, rivals,
@@ -1080,12 +1104,15 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     unknown = _unpredictable(fit, tested)
     left, cone = _set_valued_friction(fit, tested, tested.residual - fit.correction(tested),
                                       unknown, floor)
+    # Held-out data are the judge: what the effects leave there, judged the same way.
+    rms_left = (_known_rms(left, unknown) if tested is held
+                else _known_rms(*_judged(fit, held, floor)))
     remainder = analyse_remainder(tested, left, floor, autocorrelation_time(tested.dataset, left),
                                   where.band_edges, reliable=noise.reliable,
                                   source="training" if tested is train else "held-out",
                                   cone=cone, unknown=unknown,
                                   tried=bool(library.effects) and max_steps > 0,
-                                  refused=_refused_by_min_gain(steps))
+                                  refused=_refused_by_min_gain(steps), held_out=rms_left)
     if not noise.reliable.all():
         unseen = ("the noise floor cannot be seen on "
                   + ", ".join(names[j] for j in np.flatnonzero(~noise.reliable))
@@ -1097,7 +1124,24 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
                       DataQualityWarning, stacklevel=2)
     return Diagnosis(model.name, tuple(names), tuple(findings), where, floor, noise_source,
                      rms_nominal, rms_final, library_floor, held_source, tuple(steps), fit,
-                     tuple(notes), remainder, noise)
+                     tuple(notes), remainder, noise, rms_left)
+
+
+def _judged(fit: GapModel, data: GapData, floor: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """What every selected effect leaves on ``data`` (N, nv), dry friction judged set-valued at
+    rest (:func:`_set_valued_friction`), and the samples the model cannot predict (N, nv)
+    (:func:`_unpredictable`)."""
+    unknown = _unpredictable(fit, data)
+    left, _ = _set_valued_friction(fit, data, data.residual - fit.correction(data), unknown,
+                                   floor)
+    return left, unknown
+
+
+def _known_rms(left: np.ndarray, unknown: np.ndarray) -> np.ndarray:
+    """(nv,) RMS of ``left`` (N, nv) over the samples not ``unknown``."""
+    known = ~unknown
+    return np.sqrt(np.sum(np.where(known, left, 0.0) ** 2, axis=0)
+                   / np.maximum(known.sum(axis=0), 1))
 
 
 def _refused_by_min_gain(steps: Sequence[Step]) -> str:
