@@ -251,6 +251,8 @@ class Diagnosis:
     remainder : the unexplained remainder per joint, its verdict and where it lies
         (:class:`~consistid.diagnosis.remainder.Remainder`).
     noise : how the noise floor was obtained (:class:`~consistid.diagnosis.noise.NoiseFloor`).
+    held_floor : (nv,) the noise floor on the held-out recordings: ``noise_floor`` scaled by
+        how much more white noise their recorded low-pass lets through (never less).
     rms_left : (nv,) held-out RMS after every selected effect as the verdict judges it: dry
         friction set-valued at rest (a held joint's torque within its cone is no error) and the
         samples the model cannot predict left out (``rms_final`` is point-valued); the verdict
@@ -273,6 +275,7 @@ class Diagnosis:
     remainder: Remainder | None = None
     noise: NoiseFloor | None = None
     rms_left: np.ndarray | None = None
+    held_floor: np.ndarray | None = None
 
     @property
     def verdict(self) -> str:
@@ -293,9 +296,12 @@ class Diagnosis:
 
     @property
     def left_to_noise(self) -> np.ndarray:
-        """:attr:`rms_left` over the noise floor, per joint (the held-out column the verdict
-        judges; :attr:`gap_to_noise` where it was not computed)."""
-        return self.gap_to_noise if self.rms_left is None else self.rms_left / self.noise_floor
+        """:attr:`rms_left` over the held-out noise floor, per joint (the held-out column the
+        verdict judges; :attr:`gap_to_noise` where it was not computed)."""
+        if self.rms_left is None:
+            return self.gap_to_noise
+        floor = self.noise_floor if self.held_floor is None else self.held_floor
+        return self.rms_left / floor
 
     @property
     def at_noise_floor(self) -> bool:
@@ -1104,15 +1110,19 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     unknown = _unpredictable(fit, tested)
     left, cone = _set_valued_friction(fit, tested, tested.residual - fit.correction(tested),
                                       unknown, floor)
-    # Held-out data are the judge: what the effects leave there, judged the same way.
+    # Held-out data are the judge: what the effects leave there, judged the same way, against
+    # the floor the held-out recordings' own low-pass leaves.
+    held_floor = floor if tested is held else floor * _noise_gain_ratio(train.dataset,
+                                                                         held.dataset)
     rms_left = (_known_rms(left, unknown) if tested is held
-                else _known_rms(*_judged(fit, held, floor)))
+                else _known_rms(*_judged(fit, held, held_floor)))
     remainder = analyse_remainder(tested, left, floor, autocorrelation_time(tested.dataset, left),
                                   where.band_edges, reliable=noise.reliable,
                                   source="training" if tested is train else "held-out",
                                   cone=cone, unknown=unknown,
                                   tried=bool(library.effects) and max_steps > 0,
-                                  refused=_refused_by_min_gain(steps), held_out=rms_left)
+                                  refused=_refused_by_min_gain(steps), held_out=rms_left,
+                                  held_floor=held_floor)
     if not noise.reliable.all():
         unseen = ("the noise floor cannot be seen on "
                   + ", ".join(names[j] for j in np.flatnonzero(~noise.reliable))
@@ -1124,7 +1134,31 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
                       DataQualityWarning, stacklevel=2)
     return Diagnosis(model.name, tuple(names), tuple(findings), where, floor, noise_source,
                      rms_nominal, rms_final, library_floor, held_source, tuple(steps), fit,
-                     tuple(notes), remainder, noise, rms_left)
+                     tuple(notes), remainder, noise, rms_left, held_floor)
+
+
+def _noise_gain_ratio(train: Dataset, held: Dataset) -> float:
+    r"""How much more noise the held-out recordings' recorded low-pass lets through than the
+    training ones', ``max(1, g_held / g_train)``: white noise of variance ``σ²`` through the
+    zero-phase filter of impulse response ``h`` (:func:`~consistid.data.filters.impulse_response`)
+    has variance ``σ² Σ h_k²``, so ``g = √(Σ h_k²)`` (1 for no filter, or a cut-off at or above
+    0.45 × the rate, which the chain leaves unfiltered). Never below 1: a noise coloured below
+    the cut-offs loses less to the lower one than white noise, and an understated floor would
+    flag what is noise. 1 when either dataset records no filter."""
+    from ..data.filters import impulse_response
+
+    def gain(ds: Dataset) -> float | None:
+        chain = ds.torque_filter
+        if chain is None or ds.n_samples < 2:
+            return None
+        rate = 1.0 / float(np.median(np.diff(ds.t)))
+        if chain[0] >= 0.45 * rate:
+            return 1.0
+        return float(np.sqrt(np.sum(impulse_response(float(chain[0]), rate,
+                                                     int(chain[1])) ** 2)))
+
+    a, b = gain(train), gain(held)
+    return 1.0 if a is None or b is None else max(1.0, b / a)
 
 
 def _judged(fit: GapModel, data: GapData, floor: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

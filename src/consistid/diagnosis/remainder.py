@@ -136,7 +136,10 @@ class JointRemainder:
         RMS, or not significant), or "": such a joint is undetermined, not explained.
     held_rms : RMS the selected effects leave on the held-out data, judged as ``rms`` is (dry
         friction set-valued at rest, unpredictable samples left out; N·m), ``nan`` when not
-        computed; above ``REMAINDER_RATIO`` × the floor (and relevant) it flags the joint.
+        computed; above ``REMAINDER_RATIO`` × ``held_floor`` (and relevant) it flags the
+        joint.
+    held_floor : the noise floor on the held-out recordings (N·m; their own low-pass may let
+        more noise through than the training recordings').
     pointers : the patterns that account for most of the remainder's mean square, largest
         first, as text.
     """
@@ -163,12 +166,13 @@ class JointRemainder:
     cone: float = 0.0
     tolerated: str = ""
     held_rms: float = float("nan")
+    held_floor: float = float("nan")
 
     @property
     def held_ratio(self) -> float:
-        """``held_rms / floor``: what the effects leave on the held-out data, judged as
+        """``held_rms / held_floor``: what the effects leave on the held-out data, judged as
         :attr:`rms` is (``nan`` when not computed)."""
-        return self.held_rms / self.floor
+        return self.held_rms / (self.floor if np.isnan(self.held_floor) else self.held_floor)
 
     def __str__(self) -> str:
         head = (f"{self.joint}: {self.rms:.3g} N·m left = {self.ratio:.2f} × the noise floor "
@@ -238,9 +242,10 @@ class Remainder:
         if self.refused:
             return (f"remainder on {', '.join(self.flagged)}: the selected effects leave more "
                     f"than the noise there; the selection stopped at {self.refused} (min_gain is "
-                    "a fraction of each joint's nominal residual: a smaller min_gain lets "
-                    "smaller effects in), or an effect outside the candidate list (or a wrong "
-                    "floor: pass sigma)")
+                    "a fraction of each joint's nominal residual, min_excess of what is left "
+                    "above its floor: a smaller min_gain or min_excess lets smaller effects "
+                    "in), or an effect outside the candidate list (or a wrong floor: pass "
+                    "sigma)")
         return (f"remainder on {', '.join(self.flagged)}: the selected effects leave more than "
                 "the noise there; an effect outside the candidate list (or a wrong floor: "
                 "pass sigma)")
@@ -521,7 +526,8 @@ def analyse_remainder(data: GapData, remainder: np.ndarray, floor: np.ndarray,
                       reliable: np.ndarray | None = None, source: str = "held-out",
                       cone: np.ndarray | None = None, unknown: np.ndarray | None = None,
                       tried: bool = True, refused: str = "",
-                      held_out: np.ndarray | None = None) -> Remainder:
+                      held_out: np.ndarray | None = None,
+                      held_floor: np.ndarray | None = None) -> Remainder:
     """The :class:`Remainder` of ``remainder`` (N, nv), the residual after every selected
     effect on ``data`` (``source``: which data), against ``floor`` (nv,); ``tau_corr`` (nv,)
     the residual's
@@ -535,7 +541,8 @@ def analyse_remainder(data: GapData, remainder: np.ndarray, floor: np.ndarray,
     ``REMAINDER_RATIO`` × its floor there is flagged too (held-out data are the judge: a fit
     that leaves the noise on the data it was fitted to but not on other motion explains
     nothing), and a joint above it on either data that is not flagged (the excess within the
-    signal chain's tolerance, or not significant) is undetermined, never explained."""
+    signal chain's tolerance, or not significant) is undetermined, never explained;
+    ``held_floor`` (nv,) the floor there (default ``floor``)."""
     names = data.model.joint_names
     ds = data.dataset
     tau = data.tau
@@ -554,12 +561,13 @@ def analyse_remainder(data: GapData, remainder: np.ndarray, floor: np.ndarray,
         flagged = bool(determined and rms > REMAINDER_RATIO * sig and p < alpha
                        and excess >= relevance * scale)
         held = float("nan") if held_out is None else float(held_out[j])
-        held_excess = float(np.sqrt(max(held ** 2 - sig ** 2, 0.0))) if held > sig else 0.0
-        held_flag = bool(determined and held > REMAINDER_RATIO * sig
+        sig_ho = sig if held_floor is None else float(held_floor[j])
+        held_excess = float(np.sqrt(max(held ** 2 - sig_ho ** 2, 0.0))) if held > sig_ho else 0.0
+        held_flag = bool(determined and held > REMAINDER_RATIO * sig_ho
                          and held_excess >= relevance * scale)
         tolerated = ""
-        if determined and not (flagged or held_flag) and max(rms, held if held > 0 else 0.0) \
-                > REMAINDER_RATIO * sig:
+        if determined and not (flagged or held_flag) and (
+                rms > REMAINDER_RATIO * sig or held > REMAINDER_RATIO * sig_ho):
             worst = max(excess, held_excess)
             tolerated = (f"the excess {worst:.3g} N·m is below {relevance:.1%} of the joint's "
                          f"torque RMS {scale:.3g} N·m, the signal chain's own error"
@@ -640,11 +648,12 @@ def analyse_remainder(data: GapData, remainder: np.ndarray, floor: np.ndarray,
             pointers = [f"{text} [{100 * min(share, 1):.0f} %]" for share, text in ranked[:3]
                         if share > 0.1]
             if held_flag and rms <= REMAINDER_RATIO * sig:
-                pointers = [f"held-out data: {held / sig:.2f} × the floor while the training "
+                pointers = [f"held-out data: {held / sig_ho:.2f} × the floor while the training "
                             f"data read {rms / sig:.2f} ×: the fitted effects do not carry over "
                             "to other motion"]
         out.append(JointRemainder(names[j], rms, sig, excess, rms / sig, p, flagged, regimes,
                                   spread, hysteresis, best, bands, band_edges, drift,
                                   tuple(pointers), determined, growth, shift, shift_share,
-                                  0.0 if cone is None else float(cone[j]), tolerated, held))
+                                  0.0 if cone is None else float(cone[j]), tolerated, held,
+                                  sig_ho))
     return Remainder(tuple(out), source, tried, refused)

@@ -34,8 +34,9 @@ if TYPE_CHECKING:
 #: What the held-out table's last column is (the column the verdict judges).
 JUDGED_NOTE = ("judged / noise: the held-out RMS as the verdict judges it (dry friction "
                "set-valued at rest: a held joint's torque within its friction cone is no error; "
-               f"samples the model cannot predict left out); above {REMAINDER_RATIO:g} the joint "
-               "is flagged or undetermined.")
+               "samples the model cannot predict left out), over the floor the held-out "
+               "recordings' own low-pass leaves (no less than the noise floor); above "
+               f"{REMAINDER_RATIO:g} the joint is flagged or undetermined.")
 
 
 def _pct(x: float) -> str:
