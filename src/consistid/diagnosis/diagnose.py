@@ -94,6 +94,12 @@ JOINT_SHRINK_FLOOR = 0.05
 #: A runner-up whose held-out gain is within this fraction of the chosen one's makes a finding
 #: of low confidence (both are shown).
 CLOSE_MARGIN = 0.2
+#: An effect raising a joint's held-out RMS above this factor (and above the remainder's flag)
+#: makes that joint worse: a per-joint atom is refused, an arm-wide effect reported, low.
+WORSE_RATIO = 1.1
+#: A parameter closer to zero than this many standard deviations is not determined by the data:
+#: a finding holding one is not of high confidence.
+DETERMINED_Z = 2.0
 #: Held-out corrections with at least this cosine explain the same residual (rivals).
 RIVAL_COSINE = 0.5
 #: Effects that are dry friction: set-valued at rest (judged against their cone there, see
@@ -132,6 +138,9 @@ class EffectFinding:
     margin : confidence against it: ``1 − gain_runner_up / gain`` of the held-out reductions
         (1: no rival; near 0: the runner-up explains nearly as much, both are shown; negative:
         the runner-up explains more but was refused, e.g. an unphysical fit).
+    worsened : joints whose held-out RMS this (arm-wide) effect raised above
+        :data:`WORSE_RATIO` × what it was and above the remainder's flag (a per-joint atom
+        that does so on its own joint is refused instead).
     """
 
     name: str
@@ -149,14 +158,26 @@ class EffectFinding:
     signature: str
     runner_up: str = ""
     margin: float = 1.0
+    worsened: tuple[str, ...] = ()
+
+    @property
+    def determined(self) -> bool:
+        """Every per-joint parameter at least :data:`DETERMINED_Z` standard deviations from
+        zero (arm-wide effects' parameters, such as inertia's base parameters, are not
+        judged one by one)."""
+        return self.scope != "joint" or all(
+            abs(p.value) >= DETERMINED_Z * p.std for p in self.parameters
+            if np.isfinite(p.std))
 
     @property
     def confidence(self) -> str:
-        """``"high"`` (margin ≥ 0.5 over the runner-up and p < 1e-6), ``"low"`` (margin < 0.2:
-        the runner-up explains nearly as much) or ``"medium"``."""
-        if self.margin < CLOSE_MARGIN:
+        """``"high"`` (margin ≥ 0.5 over the runner-up, p < 1e-6 and its parameters
+        determined), ``"low"`` (margin < 0.2: the runner-up explains nearly as much; or it
+        makes some joint worse on the held-out data, :attr:`worsened`) or ``"medium"``."""
+        if self.margin < CLOSE_MARGIN or self.worsened:
             return "low"
-        return "high" if self.margin >= 0.5 and self.p_value < 1e-6 else "medium"
+        return ("high" if self.margin >= 0.5 and self.p_value < 1e-6 and self.determined
+                else "medium")
 
     def __str__(self) -> str:
         alt = f" (indistinguishable from {', '.join(self.alternatives)})" if self.alternatives \
@@ -880,7 +901,7 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
              held_out: Dataset | Sequence[Dataset] | None = None,
              effects: Sequence[str] = EFFECT_NAMES, sigma: float | Sequence[float] | None = None,
              *, torque_resolution: float | Sequence[float] | None = None, alpha: float = 1e-3,
-             min_gain: float = 0.01, min_excess: float = 0.1, tie: float = 0.05,
+             min_gain: float = 0.01, min_excess: float = 0.25, tie: float = 0.05,
              max_steps: int = 20, split: float = 0.7, inertia_solver: str = "sdp",
              progress: bool | None | Callable[[str], None] = None) -> Diagnosis:
     """Diagnose the gap between a nominal (simulator) model and measured torques.
@@ -1034,11 +1055,25 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
                      f"{'end' if shift > 0 else 'start'}), kept in the fit, not an effect; "
                      f"load with timestamp=\"{'end' if shift > 0 else 'start'}\" to correct it "
                      "at the source")
+    held_floor = floor * _noise_gain_ratio(train.dataset, held.dataset)
     for name in order:
         members = [k for k, i in enumerate(chosen) if prob.atoms[i].effect == name]
-        trial = cumulative + [chosen[k] for k in members]
-        trial_fit, stds, fit_notes = _refit(prob, trial, train, model, pi0, extra_fn,
-                                            inertia_solver)
+        while True:
+            trial = cumulative + [chosen[k] for k in members]
+            trial_fit, stds, fit_notes = _refit(prob, trial, train, model, pi0, extra_fn,
+                                                inertia_solver)
+            after = np.sqrt(np.mean((held.residual - trial_fit.correction(held)) ** 2,
+                                    axis=0))
+            worse = _worsened(before, after, held_floor)
+            # A per-joint atom that makes its own joint worse on the held-out data is refused
+            # (the rest of its effect is refitted without it).
+            dropped = [k for k in members if prob.atoms[chosen[k]].joint is not None
+                       and worse[prob.atoms[chosen[k]].joint]]
+            if not dropped or len(dropped) == len(members):
+                break
+            notes.append(_worse_note([prob.atoms[chosen[k]] for k in dropped], before, after,
+                                     names) + ": refused")
+            members = [k for k in members if k not in dropped]
         labels = ", ".join(prob.atoms[chosen[k]].label(names) for k in members)
         verb = "was" if len(members) == 1 else "were"
         # The final fit (exact delay, consistent inertia) may break a sign rule the linear
@@ -1051,8 +1086,10 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
             notes.append(f"{labels} {verb} selected but rejected after the final fit: "
                          + "; ".join(broken))
             continue
-        after = np.sqrt(np.mean((held.residual - trial_fit.correction(held)) ** 2,
-                                axis=0))
+        if dropped:
+            notes.append(_worse_note([prob.atoms[chosen[k]] for k in dropped], before, after,
+                                     names) + ": left out")
+            continue
         shrink = 1.0 - after / np.where(before > 0, before, 1.0)
         total = 1.0 - np.linalg.norm(after / floor) / max(np.linalg.norm(before / floor), 1e-300)
         if total <= 0:
@@ -1071,6 +1108,9 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
         else:
             scope = "arm"
             joints = tuple(names[j] for j in np.flatnonzero(shrink >= JOINT_SHRINK_FLOOR))
+        if worse.any():
+            notes.append(_worse_note(atoms_here, before, after, names, worse)
+                         + ": kept for what it explains elsewhere, confidence low")
         rival = min((rivals[k] for k in members), key=lambda r: r[1])
         findings.append(EffectFinding(
             name=name, joints=joints, scope=scope, rms_before=before, rms_after=after,
@@ -1079,7 +1119,8 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
             n_parameters=int(sum(a.n_parameters for a in atoms_here)),
             delta_bic=float(sum(bics[k] for k in members)),
             p_value=float(max(pvals[k] for k in members)), signature=SIGNATURES[name],
-            runner_up=rival[0], margin=float(rival[1])))
+            runner_up=rival[0], margin=float(rival[1]),
+            worsened=tuple(names[j] for j in np.flatnonzero(worse))))
         before = after
     # Parameters from the final fit (all effects together).
     params_by_effect: dict[str, list[EffectParameter]] = {}
@@ -1112,8 +1153,8 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
                                       unknown, floor)
     # Held-out data are the judge: what the effects leave there, judged the same way, against
     # the floor the held-out recordings' own low-pass leaves.
-    held_floor = floor if tested is held else floor * _noise_gain_ratio(train.dataset,
-                                                                         held.dataset)
+    if tested is held:
+        held_floor = floor
     rms_left = (_known_rms(left, unknown) if tested is held
                 else _known_rms(*_judged(fit, held, held_floor)))
     remainder = analyse_remainder(tested, left, floor, autocorrelation_time(tested.dataset, left),
@@ -1135,6 +1176,24 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     return Diagnosis(model.name, tuple(names), tuple(findings), where, floor, noise_source,
                      rms_nominal, rms_final, library_floor, held_source, tuple(steps), fit,
                      tuple(notes), remainder, noise, rms_left, held_floor)
+
+
+def _worsened(before: np.ndarray, after: np.ndarray, floor: np.ndarray) -> np.ndarray:
+    """(nv,) joints whose held-out RMS an effect raised: above :data:`WORSE_RATIO` × what it
+    was and above the remainder's flag (``REMAINDER_RATIO`` × ``floor``)."""
+    return (after > WORSE_RATIO * before) & (after > REMAINDER_RATIO * floor)
+
+
+def _worse_note(atoms: Sequence[Atom], before: np.ndarray, after: np.ndarray,
+                names: list[str], worse: np.ndarray | None = None) -> str:
+    """``"<labels> make(s) <joint> worse on the held-out data (a → b N·m, …)"``, on the atoms'
+    own joints or, given, the joints ``worse``."""
+    joints = (np.flatnonzero(worse) if worse is not None
+              else sorted({a.joint for a in atoms if a.joint is not None}))
+    labels = ", ".join(a.label(names) for a in atoms)
+    how = ", ".join(f"{names[j]} {before[j]:.3g} → {after[j]:.3g} N·m" for j in joints)
+    return (f"{labels} make{'s' if len(atoms) == 1 else ''} the held-out prediction worse "
+            f"({how})")
 
 
 def _noise_gain_ratio(train: Dataset, held: Dataset) -> float:
