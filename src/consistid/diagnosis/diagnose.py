@@ -1055,7 +1055,7 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
                      f"{'end' if shift > 0 else 'start'}), kept in the fit, not an effect; "
                      f"load with timestamp=\"{'end' if shift > 0 else 'start'}\" to correct it "
                      "at the source")
-    held_floor = floor * _noise_gain_ratio(train.dataset, held.dataset)
+    held_floor = floor * noise_gain_ratio(train.dataset, held.dataset)
     for name in order:
         members = [k for k, i in enumerate(chosen) if prob.atoms[i].effect == name]
         while True:
@@ -1196,7 +1196,7 @@ def _worse_note(atoms: Sequence[Atom], before: np.ndarray, after: np.ndarray,
             f"({how})")
 
 
-def _noise_gain_ratio(train: Dataset, held: Dataset) -> float:
+def noise_gain_ratio(train: Dataset, held: Dataset) -> float:
     r"""How much more noise the held-out recordings' recorded low-pass lets through than the
     training ones', ``max(1, g_held / g_train)``: white noise of variance ``σ²`` through the
     zero-phase filter of impulse response ``h`` (:func:`~consistid.data.filters.impulse_response`)
