@@ -274,7 +274,7 @@ def run_scenario(model: ci.RobotModel, library: EffectLibrary, seed: int, n_effe
         hit = [e for e in diag.effects if e.name == t.name]
         joints_ok.append(bool(hit) and hit[0].joints == (model.joint_names[t.joint],))
     found_all = wanted <= set(found)
-    return dict(seed=seed, truth=truths, failed=None, found=found, top=top,
+    return dict(seed=seed, truth=truths, failed=None, found=found, top=top, diag=diag,
                 remainder=diag.remainder.flagged, found_all=found_all,
                 floor_ratio=float(np.median(diag.noise_floor / processed_noise(cutoff_ho))),
                 truth_left=float(np.max(rms_true / diag.noise_floor)),

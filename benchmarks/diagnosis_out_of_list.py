@@ -113,8 +113,9 @@ def run_case(model, kind: str, seed: int) -> dict:
     right = [names[j] for j in affected_joints(model, dist, rec_ho)]
     flagged = diag.remainder.flagged
     short = {n: f"j{k + 1}" for k, n in enumerate(names)}
-    return dict(dist=dist, failed=None, named=[f"{e.name}({','.join(short[j] for j in e.joints)})"
-                                               for e in diag.effects], short=short,
+    return dict(dist=dist, failed=None, diag=diag, right_joints=right,
+                named=[f"{e.name}({','.join(short[j] for j in e.joints)})"
+                       for e in diag.effects], short=short,
                 flagged=flagged, right=bool(set(flagged) & set(right)),
                 dishonest=bool(diag.effects) and not flagged, time=elapsed,
                 pointers=[p for j in diag.remainder.joints if j.joint in right

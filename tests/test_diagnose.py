@@ -145,23 +145,28 @@ def test_no_effect_on_the_mujoco_robot_names_nothing(panda):
 
 def test_remainder_names_the_candidate_min_gain_refused(panda):
     """Ideal data: Coulomb 10 N·m and viscous 0.4 N·m·s/rad on joint 2. The viscous term is many
-    times the noise but under 1 % of the joint's nominal held-out sum of squares: min_gain stops
-    the selection before it, and the verdict says so (it said only: an effect outside the
-    candidate list). Following it — a smaller min_gain — explains the data."""
+    times the noise but under 1 % of the joint's nominal held-out sum of squares: min_gain alone
+    stopped the selection before it. It explains most of what is left above the noise floor, so
+    by default (min_excess) it is selected and the data explained; with min_excess out of reach
+    the selection stops before it, and the verdict says so (it said only: an effect outside the
+    candidate list)."""
     runs = [excitation_run(panda, duration=d, rate=RATE, torque_noise=0.05, seed=s).dataset
             for s, d in ((4, 10.0), (5, 6.0))]
     train, held = (d.with_torque(d.tau + np.outer(10.0 * np.sign(d.dq[:, 1]) + 0.4 * d.dq[:, 1],
                                                   np.eye(7)[1])) for d in runs)
     kw = {"sigma": 0.05, "effects": ["coulomb", "viscous"]}
-    diag = diagnose(panda, train, held_out=held, **kw)
+    diag = diagnose(panda, train, held_out=held, min_excess=2.0, **kw)
     assert [e.name for e in diag.effects] == ["coulomb"]
     assert "panda_joint2" in diag.remainder.flagged
     said = diag.remainder.verdict
     assert "stopped at viscous (panda_joint2)" in said
-    assert "< min_gain 1%" in said and "a smaller min_gain" in said
-    smaller = diagnose(panda, train, held_out=held, min_gain=1e-4, **kw)
+    assert "< min_gain 1%" in said and "< min_excess 200%" in said
+    assert "a smaller min_gain or min_excess" in said
+    default = diagnose(panda, train, held_out=held, **kw)
+    assert [e.name for e in default.effects] == ["coulomb", "viscous"]
+    assert default.verdict.startswith("explained")
+    smaller = diagnose(panda, train, held_out=held, min_gain=1e-4, min_excess=2.0, **kw)
     assert [e.name for e in smaller.effects] == ["coulomb", "viscous"]
-    assert smaller.verdict.startswith("explained")
 
 
 def test_coulomb_parameters_and_friction_regimes(panda, tmp_path):

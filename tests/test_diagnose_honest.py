@@ -328,8 +328,12 @@ def test_a_logger_averaging_each_interval_is_not_a_delay(ur5):
     diag = diagnose(ur5, sets[0], held_out=sets[1])
     assert "delay" not in [e.name for e in diag.effects], diag.summary()
     # Nor does another effect stand in for the shift: it is kept in the fit as the logger's
-    # stamping (a lag of about half the 5 ms sample), said in a note; the log is clean.
-    assert diag.effects == () and diag.verdict == "explained", diag.summary()
+    # stamping (a lag of about half the 5 ms sample), said in a note; the log is clean. A joint
+    # left above 1.5 × its tiny floor by less than the signal chain's own error (averaging a
+    # 1 kHz torque and resampling) is undetermined, never "explained" and never a remainder.
+    assert diag.effects == () and not diag.remainder.flagged, diag.summary()
+    for jr in diag.remainder.joints:
+        assert max(jr.ratio, jr.held_ratio) <= 1.5 or "signal chain" in jr.tolerated, jr
     (note,) = [n for n in diag.notes if "stamping" in n]
     assert "lag" in note and 'timestamp="end"' in note
     assert 1.5e-3 < diag.fit.delays[0] < 2.75e-3

@@ -256,6 +256,34 @@ def test_panda_payload(checkout, capsys):
     np.testing.assert_allclose(np.array(com, dtype=float), TRUTH["payload"]["com"], atol=0.01)
 
 
+def check_verdict_agrees(text: str) -> None:
+    """A diagnosis report's verdict agrees with its own held-out table: every joint whose
+    judged held-out RMS over the floor (the table's last column) exceeds 1.5 is named by the
+    verdict (a remainder, or undetermined), and "explained" stands only with none above it."""
+    (verdict,) = re.findall(r"^Verdict: (.*)$", text, re.M)
+    header = re.search(r"^joint .*final / noise\s+judged / noise\s*$", text, re.M)
+    assert header, "the held-out table lacks the judged column"
+    rows = text[header.end():].split("\n\n")[0].strip().splitlines()[1:]   # below the rule
+    judged = {r.split()[0]: float(r.split()[-1]) for r in rows if not r.startswith("judged")}
+    assert judged, rows
+    above = {j for j, r in judged.items() if r > 1.5}
+    named = set(re.findall(r"[\w.-]+", verdict.split(":")[0]))
+    assert above <= named, (verdict, judged)
+    assert verdict.startswith("explained") == (not above), (verdict, judged)
+
+
+def test_check_verdict_agrees_catches_a_contradiction():
+    """The check fails on the contradiction the shipped example used to print: "explained"
+    above a held-out column reading 6.38 × the floor."""
+    table = ("Verdict: explained: what the selected effects leave is at the noise floor.\n\n"
+             "joint   nominal RMS  final RMS  library floor  noise floor  final / noise  "
+             "judged / noise\n------  ---  ---  ---  ---  ---  ---\n"
+             "j1  1.6  0.14  0.22  0.022  6.383  6.383\nj2  1.5  0.04  0.1  0.025  1.1  1.1\n")
+    with pytest.raises(AssertionError):
+        check_verdict_agrees(table)
+    check_verdict_agrees(table.replace("Verdict: explained:", "Verdict: remainder on j1:"))
+
+
 def test_panda_diagnose(checkout, capsys):
     run("diagnose", "examples/panda/diagnose.toml")
     out = checkout / "out" / "panda_diagnosis"
@@ -273,6 +301,7 @@ def test_panda_diagnose(checkout, capsys):
     # friction refitted beside it: its point-valued fit, biased by the held torques, left
     # 1.6 × the floor on panda_joint5's samples clear of standstill)
     assert "Verdict: explained" in text, re.findall(r"^Verdict: .*$", text, re.M)
+    check_verdict_agrees(text)
 
 
 def test_panda_excite(checkout):
@@ -308,3 +337,4 @@ def test_kuka_diagnose(checkout, kuka_dir):
     out = checkout / "out" / "diagnosis_kuka_lwr4"
     assert {"report.txt", "report.html"} <= {p.name for p in out.iterdir()}
     check_html(out / "report.html")
+    check_verdict_agrees((out / "report.txt").read_text())

@@ -463,7 +463,7 @@ def payload(args: argparse.Namespace) -> int:
 
 #: ``[diagnose]`` keys passed to :func:`consistid.diagnose` as they are …
 DIAGNOSE_OPTIONS = ("effects", "sigma", "torque_resolution", "alpha", "min_gain", "tie",
-                    "max_steps", "split", "inertia_solver")
+                    "max_steps", "split", "inertia_solver", "min_excess")
 #: … and all ``[diagnose]`` keys (``nominal_urdf`` and ``output`` are read by the command).
 DIAGNOSE_KEYS = DIAGNOSE_OPTIONS + ("nominal_urdf", "output")
 
@@ -480,7 +480,8 @@ def diagnose(args: argparse.Namespace) -> int:
     t = config.table("diagnose", DIAGNOSE_KEYS, required=False)
     for key, kind in (("nominal_urdf", "string"), ("output", "string"),
                       ("effects", "string or array of strings"), ("split", "number"),
-                      ("alpha", "number"), ("min_gain", "number"), ("tie", "number"),
+                      ("alpha", "number"), ("min_gain", "number"), ("min_excess", "number"),
+                      ("tie", "number"),
                       ("max_steps", "integer"), ("inertia_solver", "string")):
         if key in t:
             config.expect("diagnose", key, t[key], kind)

@@ -96,6 +96,12 @@ JOINT_SHRINK_FLOOR = 0.05
 #: A runner-up whose held-out gain is within this fraction of the chosen one's makes a finding
 #: of low confidence (both are shown).
 CLOSE_MARGIN = 0.2
+#: An effect raising a joint's held-out RMS above this factor (and above the remainder's flag)
+#: makes that joint worse: a per-joint atom is refused, an arm-wide effect reported, low.
+WORSE_RATIO = 1.1
+#: A parameter closer to zero than this many standard deviations is not determined by the data:
+#: a finding holding one is not of high confidence.
+DETERMINED_Z = 2.0
 #: Held-out corrections with at least this cosine explain the same residual (rivals).
 RIVAL_COSINE = 0.5
 #: Effects that are dry friction: set-valued at rest (judged against their cone there, see
@@ -134,6 +140,9 @@ class EffectFinding:
     margin : confidence against it: ``1 − gain_runner_up / gain`` of the held-out reductions
         (1: no rival; near 0: the runner-up explains nearly as much, both are shown; negative:
         the runner-up explains more but was refused, e.g. an unphysical fit).
+    worsened : joints whose held-out RMS this (arm-wide) effect raised above
+        :data:`WORSE_RATIO` × what it was and above the remainder's flag (a per-joint atom
+        that does so on its own joint is refused instead).
     """
 
     name: str
@@ -151,14 +160,26 @@ class EffectFinding:
     signature: str
     runner_up: str = ""
     margin: float = 1.0
+    worsened: tuple[str, ...] = ()
+
+    @property
+    def determined(self) -> bool:
+        """Every per-joint parameter at least :data:`DETERMINED_Z` standard deviations from
+        zero (arm-wide effects' parameters, such as inertia's base parameters, are not
+        judged one by one)."""
+        return self.scope != "joint" or all(
+            abs(p.value) >= DETERMINED_Z * p.std for p in self.parameters
+            if np.isfinite(p.std))
 
     @property
     def confidence(self) -> str:
-        """``"high"`` (margin ≥ 0.5 over the runner-up and p < 1e-6), ``"low"`` (margin < 0.2:
-        the runner-up explains nearly as much) or ``"medium"``."""
-        if self.margin < CLOSE_MARGIN:
+        """``"high"`` (margin ≥ 0.5 over the runner-up, p < 1e-6 and its parameters
+        determined), ``"low"`` (margin < 0.2: the runner-up explains nearly as much; or it
+        makes some joint worse on the held-out data, :attr:`worsened`) or ``"medium"``."""
+        if self.margin < CLOSE_MARGIN or self.worsened:
             return "low"
-        return "high" if self.margin >= 0.5 and self.p_value < 1e-6 else "medium"
+        return ("high" if self.margin >= 0.5 and self.p_value < 1e-6 and self.determined
+                else "medium")
 
     def __str__(self) -> str:
         alt = f" (indistinguishable from {', '.join(self.alternatives)})" if self.alternatives \
@@ -253,6 +274,12 @@ class Diagnosis:
     remainder : the unexplained remainder per joint, its verdict and where it lies
         (:class:`~consistid.diagnosis.remainder.Remainder`).
     noise : how the noise floor was obtained (:class:`~consistid.diagnosis.noise.NoiseFloor`).
+    held_floor : (nv,) the noise floor on the held-out recordings: ``noise_floor`` scaled by
+        how much more white noise their recorded low-pass lets through (never less).
+    rms_left : (nv,) held-out RMS after every selected effect as the verdict judges it: dry
+        friction set-valued at rest (a held joint's torque within its cone is no error) and the
+        samples the model cannot predict left out (``rms_final`` is point-valued); the verdict
+        flags a joint above ``REMAINDER_RATIO`` × its floor here.
     rollout : how far the gap shrinks in the user's simulator, when given
         (:meth:`with_rollout`: a :class:`~consistid.simulator.rollout.RolloutValidation`).
     """
@@ -272,6 +299,8 @@ class Diagnosis:
     notes: tuple[str, ...] = ()
     remainder: Remainder | None = None
     noise: NoiseFloor | None = None
+    rms_left: np.ndarray | None = None
+    held_floor: np.ndarray | None = None
     rollout: Any = None
 
     def with_rollout(self, validation: Any) -> "Diagnosis":
@@ -296,6 +325,15 @@ class Diagnosis:
     def gap_to_noise(self) -> np.ndarray:
         """Held-out RMS after every selected effect divided by the noise floor, per joint."""
         return self.rms_final / self.noise_floor
+
+    @property
+    def left_to_noise(self) -> np.ndarray:
+        """:attr:`rms_left` over the held-out noise floor, per joint (the held-out column the
+        verdict judges; :attr:`gap_to_noise` where it was not computed)."""
+        if self.rms_left is None:
+            return self.gap_to_noise
+        floor = self.noise_floor if self.held_floor is None else self.held_floor
+        return self.rms_left / floor
 
     @property
     def at_noise_floor(self) -> bool:
@@ -507,8 +545,8 @@ def _rows_of(atom: Atom, nv: int) -> np.ndarray:
     return np.arange(nv) if atom.joint is None else np.array([atom.joint])
 
 
-def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: float, tie: float,
-            max_steps: int, progress: Callable[[str], None] | None
+def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: float,
+            min_excess: float, tie: float, max_steps: int, progress: Callable[[str], None] | None
             ) -> tuple[list[int], list[tuple[str, ...]], list[Step], list[float], list[float],
                        list[tuple[str, float]], list[int]]:
     """Greedy forward selection; returns chosen atom indices, their alternatives, the steps, the
@@ -568,9 +606,15 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
             f = (gain_rows / k) / (float(ho2[rows].sum()) / n_ho)
             p = float(scipy.stats.f.sf(f, k, n_ho)) if gain_rows > 0 else 1.0
             # relevance: the atom's joint, or (arm-wide atoms) the joint it helps most, must
-            # lose min_gain of its nominal held-out sum of squares
-            per_joint = (sse_ho[rows] - ho2[rows]) / np.maximum(nominal_ho[rows], 1e-300)
+            # lose min_gain of its nominal held-out sum of squares, or min_excess of what is
+            # left there above the noise floor (on a joint still above the flag's ratio)
+            reduced = sse_ho[rows] - ho2[rows]
+            per_joint = reduced / np.maximum(nominal_ho[rows], 1e-300)
             relevance = float(per_joint.max())
+            excess = sse_ho[rows] - prob.held.n
+            above = sse_ho[rows] > REMAINDER_RATIO ** 2 * prob.held.n
+            of_excess = float(np.max(np.where(above, reduced / np.maximum(excess, 1e-300),
+                                              0.0)))
             if gain <= 0:
                 return "does not reduce the held-out residual", dbic, p
             unphysical = REGISTRY[atom.effect].unphysical(atom, s[6], prob.resolution)
@@ -580,10 +624,11 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
                 return f"ΔBIC {dbic:.3g} ≥ 0", dbic, p
             if p >= alpha:
                 return f"held-out F-test p = {p:.2g} ≥ {alpha:g}", dbic, p
-            if relevance < min_gain:
+            if relevance < min_gain and of_excess < min_excess:
                 return (f"held-out gain {relevance:.2%} of the nominal residual "
                         f"{'' if len(rows) == 1 else 'on its best joint '}< min_gain "
-                        f"{min_gain:.0%}", dbic, p)
+                        f"{min_gain:.0%} and {of_excess:.0%} of what is left above the noise "
+                        f"floor < min_excess {min_excess:.0%}", dbic, p)
             return "accepted", dbic, p
 
         verdicts = {}
@@ -886,7 +931,7 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
              held_out: Dataset | Sequence[Dataset] | None = None,
              effects: Sequence[str] = EFFECT_NAMES, sigma: float | Sequence[float] | None = None,
              *, torque_resolution: float | Sequence[float] | None = None, alpha: float = 1e-3,
-             min_gain: float = 0.01, tie: float = 0.05,
+             min_gain: float = 0.01, min_excess: float = 0.25, tie: float = 0.05,
              max_steps: int = 20, split: float = 0.7, inertia_solver: str = "sdp",
              progress: bool | None | Callable[[str], None] = None) -> Diagnosis:
     """Diagnose the gap between a nominal (simulator) model and measured torques.
@@ -911,7 +956,12 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     alpha : level of the held-out F-test.
     min_gain : smallest held-out reduction, as a fraction of the nominal residual's sum of
         squares of the atom's joint (arm-wide atoms: of the joint it reduces most), for the atom
-        to be selected.
+        to be selected, unless it reaches ``min_excess``.
+    min_excess : or the smallest held-out reduction as a fraction of what is left above the
+        noise floor on the atom's joint (``SSE_ho,j − N_ho σ_j²``; the joint it reduces most for
+        an arm-wide atom), on a joint whose held-out RMS is still above the remainder's flag
+        (``REMAINDER_RATIO`` × the floor): the selection stops against the floor, not against
+        a nominal gap that may be hundreds of times the noise.
     tie : relative held-out gain within which collinear candidates count as indistinguishable.
     max_steps : most atoms selected.
     split : training fraction of each recording when ``held_out`` is ``None``.
@@ -933,6 +983,7 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     if alpha >= 1:
         raise OptionError(f"alpha is a test level in (0, 1), got {alpha!r}")
     min_gain, tie = check_number("min_gain", min_gain, 0), check_number("tie", tie, 0)
+    min_excess = check_number("min_excess", min_excess, 0)
     max_steps = check_number("max_steps", max_steps, 0, integer=True)
     effects = (effects,) if isinstance(effects, str) else effects
     if effects is None or hasattr(effects, "__len__") and not len(effects):
@@ -1003,7 +1054,7 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
                 callback(line)
 
         chosen, alts, steps, bics, pvals, rivals, nuisance = _select(
-            prob, names, alpha, min_gain, tie, max_steps, tell)
+            prob, names, alpha, min_gain, min_excess, tie, max_steps, tell)
 
     notes: list[str] = []
     chosen, alts, bics, pvals, rivals = _prune_nested(prob, chosen, alts, bics, pvals, rivals,
@@ -1037,11 +1088,25 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
                      f"{'end' if shift > 0 else 'start'}), kept in the fit, not an effect; "
                      f"load with timestamp=\"{'end' if shift > 0 else 'start'}\" to correct it "
                      "at the source")
+    held_floor = floor * noise_gain_ratio(train.dataset, held.dataset)
     for name in order:
         members = [k for k, i in enumerate(chosen) if prob.atoms[i].effect == name]
-        trial = cumulative + [chosen[k] for k in members]
-        trial_fit, stds, fit_notes = _refit(prob, trial, train, model, pi0, extra_fn,
-                                            inertia_solver)
+        while True:
+            trial = cumulative + [chosen[k] for k in members]
+            trial_fit, stds, fit_notes = _refit(prob, trial, train, model, pi0, extra_fn,
+                                                inertia_solver)
+            after = np.sqrt(np.mean((held.residual - trial_fit.correction(held)) ** 2,
+                                    axis=0))
+            worse = _worsened(before, after, held_floor)
+            # A per-joint atom that makes its own joint worse on the held-out data is refused
+            # (the rest of its effect is refitted without it).
+            dropped = [k for k in members if prob.atoms[chosen[k]].joint is not None
+                       and worse[prob.atoms[chosen[k]].joint]]
+            if not dropped or len(dropped) == len(members):
+                break
+            notes.append(_worse_note([prob.atoms[chosen[k]] for k in dropped], before, after,
+                                     names) + ": refused")
+            members = [k for k in members if k not in dropped]
         labels = ", ".join(prob.atoms[chosen[k]].label(names) for k in members)
         verb = "was" if len(members) == 1 else "were"
         # The final fit (exact delay, consistent inertia) may break a sign rule the linear
@@ -1054,8 +1119,10 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
             notes.append(f"{labels} {verb} selected but rejected after the final fit: "
                          + "; ".join(broken))
             continue
-        after = np.sqrt(np.mean((held.residual - trial_fit.correction(held)) ** 2,
-                                axis=0))
+        if dropped:
+            notes.append(_worse_note([prob.atoms[chosen[k]] for k in dropped], before, after,
+                                     names) + ": left out")
+            continue
         shrink = 1.0 - after / np.where(before > 0, before, 1.0)
         total = 1.0 - np.linalg.norm(after / floor) / max(np.linalg.norm(before / floor), 1e-300)
         if total <= 0:
@@ -1074,6 +1141,9 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
         else:
             scope = "arm"
             joints = tuple(names[j] for j in np.flatnonzero(shrink >= JOINT_SHRINK_FLOOR))
+        if worse.any():
+            notes.append(_worse_note(atoms_here, before, after, names, worse)
+                         + ": kept for what it explains elsewhere, confidence low")
         rival = min((rivals[k] for k in members), key=lambda r: r[1])
         findings.append(EffectFinding(
             name=name, joints=joints, scope=scope, rms_before=before, rms_after=after,
@@ -1082,7 +1152,8 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
             n_parameters=int(sum(a.n_parameters for a in atoms_here)),
             delta_bic=float(sum(bics[k] for k in members)),
             p_value=float(max(pvals[k] for k in members)), signature=SIGNATURES[name],
-            runner_up=rival[0], margin=float(rival[1])))
+            runner_up=rival[0], margin=float(rival[1]),
+            worsened=tuple(names[j] for j in np.flatnonzero(worse))))
         before = after
     # Parameters from the final fit (all effects together).
     params_by_effect: dict[str, list[EffectParameter]] = {}
@@ -1113,12 +1184,19 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     unknown = _unpredictable(fit, tested)
     left, cone = _set_valued_friction(fit, tested, tested.residual - fit.correction(tested),
                                       unknown, floor)
+    # Held-out data are the judge: what the effects leave there, judged the same way, against
+    # the floor the held-out recordings' own low-pass leaves.
+    if tested is held:
+        held_floor = floor
+    rms_left = (_known_rms(left, unknown) if tested is held
+                else _known_rms(*_judged(fit, held, held_floor)))
     remainder = analyse_remainder(tested, left, floor, autocorrelation_time(tested.dataset, left),
                                   where.band_edges, reliable=noise.reliable,
                                   source="training" if tested is train else "held-out",
                                   cone=cone, unknown=unknown,
                                   tried=bool(library.effects) and max_steps > 0,
-                                  refused=_refused_by_min_gain(steps))
+                                  refused=_refused_by_min_gain(steps), held_out=rms_left,
+                                  held_floor=held_floor)
     if not noise.reliable.all():
         unseen = ("the noise floor cannot be seen on "
                   + ", ".join(names[j] for j in np.flatnonzero(~noise.reliable))
@@ -1130,7 +1208,66 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
                       DataQualityWarning, stacklevel=2)
     return Diagnosis(model.name, tuple(names), tuple(findings), where, floor, noise_source,
                      rms_nominal, rms_final, library_floor, held_source, tuple(steps), fit,
-                     tuple(notes), remainder, noise)
+                     tuple(notes), remainder, noise, rms_left, held_floor)
+
+
+def _worsened(before: np.ndarray, after: np.ndarray, floor: np.ndarray) -> np.ndarray:
+    """(nv,) joints whose held-out RMS an effect raised: above :data:`WORSE_RATIO` × what it
+    was and above the remainder's flag (``REMAINDER_RATIO`` × ``floor``)."""
+    return (after > WORSE_RATIO * before) & (after > REMAINDER_RATIO * floor)
+
+
+def _worse_note(atoms: Sequence[Atom], before: np.ndarray, after: np.ndarray,
+                names: list[str], worse: np.ndarray | None = None) -> str:
+    """``"<labels> make(s) <joint> worse on the held-out data (a → b N·m, …)"``, on the atoms'
+    own joints or, given, the joints ``worse``."""
+    joints = (np.flatnonzero(worse) if worse is not None
+              else sorted({a.joint for a in atoms if a.joint is not None}))
+    labels = ", ".join(a.label(names) for a in atoms)
+    how = ", ".join(f"{names[j]} {before[j]:.3g} → {after[j]:.3g} N·m" for j in joints)
+    return (f"{labels} make{'s' if len(atoms) == 1 else ''} the held-out prediction worse "
+            f"({how})")
+
+
+def noise_gain_ratio(train: Dataset, held: Dataset) -> float:
+    r"""How much more noise the held-out recordings' recorded low-pass lets through than the
+    training ones', ``max(1, g_held / g_train)``: white noise of variance ``σ²`` through the
+    zero-phase filter of impulse response ``h`` (:func:`~consistid.data.filters.impulse_response`)
+    has variance ``σ² Σ h_k²``, so ``g = √(Σ h_k²)`` (1 for no filter, or a cut-off at or above
+    0.45 × the rate, which the chain leaves unfiltered). Never below 1: a noise coloured below
+    the cut-offs loses less to the lower one than white noise, and an understated floor would
+    flag what is noise. 1 when either dataset records no filter."""
+    from ..data.filters import impulse_response
+
+    def gain(ds: Dataset) -> float | None:
+        chain = ds.torque_filter
+        if chain is None or ds.n_samples < 2:
+            return None
+        rate = 1.0 / float(np.median(np.diff(ds.t)))
+        if chain[0] >= 0.45 * rate:
+            return 1.0
+        return float(np.sqrt(np.sum(impulse_response(float(chain[0]), rate,
+                                                     int(chain[1])) ** 2)))
+
+    a, b = gain(train), gain(held)
+    return 1.0 if a is None or b is None else max(1.0, b / a)
+
+
+def _judged(fit: GapModel, data: GapData, floor: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """What every selected effect leaves on ``data`` (N, nv), dry friction judged set-valued at
+    rest (:func:`_set_valued_friction`), and the samples the model cannot predict (N, nv)
+    (:func:`_unpredictable`)."""
+    unknown = _unpredictable(fit, data)
+    left, _ = _set_valued_friction(fit, data, data.residual - fit.correction(data), unknown,
+                                   floor)
+    return left, unknown
+
+
+def _known_rms(left: np.ndarray, unknown: np.ndarray) -> np.ndarray:
+    """(nv,) RMS of ``left`` (N, nv) over the samples not ``unknown``."""
+    known = ~unknown
+    return np.sqrt(np.sum(np.where(known, left, 0.0) ** 2, axis=0)
+                   / np.maximum(known.sum(axis=0), 1))
 
 
 def _refused_by_min_gain(steps: Sequence[Step]) -> str:

@@ -131,8 +131,15 @@ class JointRemainder:
     cone : half-width (N·m) of the dry-friction cone its samples at rest were judged against
         (:func:`dry_friction_at_rest`, :func:`dry_friction_through_filter`; 0: no dry friction
         selected on this joint, or seen through a low-pass the diagnosis does not know).
-    tolerated : why a residual above ``REMAINDER_RATIO`` × the floor is not flagged (the excess
-        is below ``REMAINDER_RELEVANCE`` of the joint's torque RMS, or not significant), or "".
+    tolerated : why a residual above ``REMAINDER_RATIO`` × the floor (here or on the held-out
+        data) is not flagged (the excess is below ``REMAINDER_RELEVANCE`` of the joint's torque
+        RMS, or not significant), or "": such a joint is undetermined, not explained.
+    held_rms : RMS the selected effects leave on the held-out data, judged as ``rms`` is (dry
+        friction set-valued at rest, unpredictable samples left out; N·m), ``nan`` when not
+        computed; above ``REMAINDER_RATIO`` × ``held_floor`` (and relevant) it flags the
+        joint.
+    held_floor : the noise floor on the held-out recordings (N·m; their own low-pass may let
+        more noise through than the training recordings').
     pointers : the patterns that account for most of the remainder's mean square, largest
         first, as text.
     """
@@ -158,16 +165,26 @@ class JointRemainder:
     shift_share: float = 0.0
     cone: float = 0.0
     tolerated: str = ""
+    held_rms: float = float("nan")
+    held_floor: float = float("nan")
+
+    @property
+    def held_ratio(self) -> float:
+        """``held_rms / held_floor``: what the effects leave on the held-out data, judged as
+        :attr:`rms` is (``nan`` when not computed)."""
+        return self.held_rms / (self.floor if np.isnan(self.held_floor) else self.held_floor)
 
     def __str__(self) -> str:
         head = (f"{self.joint}: {self.rms:.3g} N·m left = {self.ratio:.2f} × the noise floor "
                 f"{self.floor:.3g}")
         if self.cone > 0:
             head += f" (at rest: judged against the dry-friction cone ±{self.cone:.3g} N·m)"
+        if np.isfinite(self.held_rms):
+            head += f"; held-out {self.held_rms:.3g} N·m = {self.held_ratio:.2f} ×"
         if not self.determined:
             return head + " — UNDETERMINED (the noise floor cannot be seen: pass sigma)"
         if not self.flagged and self.tolerated:
-            return head + f" — explained within tolerance ({self.tolerated})"
+            return head + f" — UNDETERMINED above the floor, within tolerance ({self.tolerated})"
         if not self.flagged:
             return head + " — explained"
         return (head + f" — REMAINDER {self.excess:.3g} N·m unexplained"
@@ -195,15 +212,27 @@ class Remainder:
 
     @property
     def undetermined(self) -> tuple[str, ...]:
-        """Joints whose noise floor could not be seen (no verdict there)."""
-        return tuple(j.joint for j in self.joints if not j.determined)
+        """Joints with no verdict: the noise floor could not be seen there, or what is left
+        lies above the flag's ratio but within tolerance (:attr:`JointRemainder.tolerated`)."""
+        return tuple(j.joint for j in self.joints
+                     if not j.determined or (j.tolerated and not j.flagged))
 
     @property
     def verdict(self) -> str:
         if not self.flagged and self.undetermined:
-            return (f"undetermined on {', '.join(self.undetermined)}: the noise floor cannot be "
-                    "seen there (torques filtered below the motion band and an excitation that "
-                    "does not repeat); pass sigma, or record two periods or more")
+            unseen = [j.joint for j in self.joints if not j.determined]
+            within = [j.joint for j in self.joints if j.determined and j.tolerated]
+            why = []
+            if unseen:
+                why.append(f"the noise floor cannot be seen on {', '.join(unseen)} (torques "
+                           "filtered below the motion band and an excitation that does not "
+                           "repeat); pass sigma, or record two periods or more")
+            if within:
+                why.append(f"{', '.join(within)} "
+                           f"{'is' if len(within) == 1 else 'are'} left above "
+                           f"{REMAINDER_RATIO:g} × the floor by less than the signal chain's "
+                           "own error or not significantly: neither explained nor a remainder")
+            return f"undetermined on {', '.join(self.undetermined)}: " + "; ".join(why)
         if not self.flagged:
             return "explained: what the selected effects leave is at the noise floor"
         if not self.tried:
@@ -213,9 +242,10 @@ class Remainder:
         if self.refused:
             return (f"remainder on {', '.join(self.flagged)}: the selected effects leave more "
                     f"than the noise there; the selection stopped at {self.refused} (min_gain is "
-                    "a fraction of each joint's nominal residual: a smaller min_gain lets "
-                    "smaller effects in), or an effect outside the candidate list (or a wrong "
-                    "floor: pass sigma)")
+                    "a fraction of each joint's nominal residual, min_excess of what is left "
+                    "above its floor: a smaller min_gain or min_excess lets smaller effects "
+                    "in), or an effect outside the candidate list (or a wrong floor: pass "
+                    "sigma)")
         return (f"remainder on {', '.join(self.flagged)}: the selected effects leave more than "
                 "the noise there; an effect outside the candidate list (or a wrong floor: "
                 "pass sigma)")
@@ -495,7 +525,9 @@ def analyse_remainder(data: GapData, remainder: np.ndarray, floor: np.ndarray,
                       relevance: float = REMAINDER_RELEVANCE,
                       reliable: np.ndarray | None = None, source: str = "held-out",
                       cone: np.ndarray | None = None, unknown: np.ndarray | None = None,
-                      tried: bool = True, refused: str = "") -> Remainder:
+                      tried: bool = True, refused: str = "",
+                      held_out: np.ndarray | None = None,
+                      held_floor: np.ndarray | None = None) -> Remainder:
     """The :class:`Remainder` of ``remainder`` (N, nv), the residual after every selected
     effect on ``data`` (``source``: which data), against ``floor`` (nv,); ``tau_corr`` (nv,)
     the residual's
@@ -503,7 +535,14 @@ def analyse_remainder(data: GapData, remainder: np.ndarray, floor: np.ndarray,
     dry-friction cone ``remainder`` was judged against at rest (:func:`dry_friction_at_rest`),
     reported per joint; ``unknown`` (N, nv) the samples whose prediction the model cannot form
     (a delayed channel's first ``d`` seconds of each recording hold torque from before it
-    began): left out of the verdict (zero in the pointers' spectra and bins)."""
+    began): left out of the verdict (zero in the pointers' spectra and bins); ``held_out``
+    (nv,) the RMS the selected effects leave on the held-out data, judged the same way (dry
+    friction set-valued at rest, unpredictable samples left out): a joint above
+    ``REMAINDER_RATIO`` × its floor there is flagged too (held-out data are the judge: a fit
+    that leaves the noise on the data it was fitted to but not on other motion explains
+    nothing), and a joint above it on either data that is not flagged (the excess within the
+    signal chain's tolerance, or not significant) is undetermined, never explained;
+    ``held_floor`` (nv,) the floor there (default ``floor``)."""
     names = data.model.joint_names
     ds = data.dataset
     tau = data.tau
@@ -521,11 +560,20 @@ def analyse_remainder(data: GapData, remainder: np.ndarray, floor: np.ndarray,
         determined = True if reliable is None else bool(reliable[j])
         flagged = bool(determined and rms > REMAINDER_RATIO * sig and p < alpha
                        and excess >= relevance * scale)
+        held = float("nan") if held_out is None else float(held_out[j])
+        sig_ho = sig if held_floor is None else float(held_floor[j])
+        held_excess = float(np.sqrt(max(held ** 2 - sig_ho ** 2, 0.0))) if held > sig_ho else 0.0
+        held_flag = bool(determined and held > REMAINDER_RATIO * sig_ho
+                         and held_excess >= relevance * scale)
         tolerated = ""
-        if determined and not flagged and rms > REMAINDER_RATIO * sig:
-            tolerated = (f"the excess {excess:.3g} N·m is below {relevance:.1%} of the joint's "
-                         f"torque RMS {scale:.3g} N·m" if excess < relevance * scale else
+        if determined and not (flagged or held_flag) and (
+                rms > REMAINDER_RATIO * sig or held > REMAINDER_RATIO * sig_ho):
+            worst = max(excess, held_excess)
+            tolerated = (f"the excess {worst:.3g} N·m is below {relevance:.1%} of the joint's "
+                         f"torque RMS {scale:.3g} N·m, the signal chain's own error"
+                         if worst < relevance * scale else
                          f"not significant, p = {p:.2g} ≥ {alpha:g}")
+        flagged = flagged or held_flag
         v = ds.dq[:, j]
         slow = standstill_mask(v)
         rev = _reversal_mask(data, j)
@@ -599,8 +647,13 @@ def analyse_remainder(data: GapData, remainder: np.ndarray, floor: np.ndarray,
                             key=lambda c: -c[0])
             pointers = [f"{text} [{100 * min(share, 1):.0f} %]" for share, text in ranked[:3]
                         if share > 0.1]
+            if held_flag and rms <= REMAINDER_RATIO * sig:
+                pointers = [f"held-out data: {held / sig_ho:.2f} × the floor while the training "
+                            f"data read {rms / sig:.2f} ×: the fitted effects do not carry over "
+                            "to other motion"]
         out.append(JointRemainder(names[j], rms, sig, excess, rms / sig, p, flagged, regimes,
                                   spread, hysteresis, best, bands, band_edges, drift,
                                   tuple(pointers), determined, growth, shift, shift_share,
-                                  0.0 if cone is None else float(cone[j]), tolerated))
+                                  0.0 if cone is None else float(cone[j]), tolerated, held,
+                                  sig_ho))
     return Remainder(tuple(out), source, tried, refused)

@@ -25,9 +25,18 @@ import numpy as np
 from ..identification.summary import table
 from ..report import plots
 from ..report.html import Page, esc
+from .remainder import REMAINDER_RATIO
 
 if TYPE_CHECKING:
     from .diagnose import Diagnosis
+
+
+#: What the held-out table's last column is (the column the verdict judges).
+JUDGED_NOTE = ("judged / noise: the held-out RMS as the verdict judges it (dry friction "
+               "set-valued at rest: a held joint's torque within its friction cone is no error; "
+               "samples the model cannot predict left out), over the floor the held-out "
+               "recordings' own low-pass leaves (no less than the noise floor); above "
+               f"{REMAINDER_RATIO:g} the joint is flagged or undetermined.")
 
 
 def _pct(x: float) -> str:
@@ -60,10 +69,11 @@ def diagnosis_text(diag: "Diagnosis") -> str:
                   "generalise.", ""]
     lines.append(_verdict(diag)[1])
     lines += ["", table(["joint", "nominal RMS", "final RMS", "library floor", "noise floor",
-                         "final / noise"],
-                        [(n, a, b, lf, s, r) for n, a, b, lf, s, r in
+                         "final / noise", "judged / noise"],
+                        [(n, a, b, lf, s, r, k) for n, a, b, lf, s, r, k in
                          zip(names, diag.rms_nominal, diag.rms_final, diag.library_floor,
-                             diag.noise_floor, diag.gap_to_noise)]), ""]
+                             diag.noise_floor, diag.gap_to_noise, diag.left_to_noise)]),
+              JUDGED_NOTE, ""]
     for k, e in enumerate(diag.effects, 1):
         lines.append(f"[{k}] {e.name} — {e.signature}")
         shown = [j for j in range(len(names)) if names[j] in e.joints] or \
@@ -205,10 +215,11 @@ def diagnosis_page(diag: "Diagnosis", figures: bool = True) -> Page:
                        "to generalise.")
     page.heading("Held-out RMS per joint", anchor="joints")
     page.table(["joint", "nominal RMS [N·m]", "final RMS [N·m]", "library floor [N·m]",
-                "noise floor [N·m]", "final / noise"],
-               [[n, a, b, lf, s, r] for n, a, b, lf, s, r in
+                "noise floor [N·m]", "final / noise", "judged / noise"],
+               [[n, a, b, lf, s, r, k] for n, a, b, lf, s, r, k in
                 zip(names, diag.rms_nominal, diag.rms_final, diag.library_floor,
-                    diag.noise_floor, diag.gap_to_noise)])
+                    diag.noise_floor, diag.gap_to_noise, diag.left_to_noise)])
+    page.paragraph(JUDGED_NOTE)
     if figures:
         figs = _figures(diag)
         page.figure("joint_bars", figs.pop("joint_bars"), FIGURE_CAPTIONS["joint_bars"])

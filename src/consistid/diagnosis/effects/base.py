@@ -35,6 +35,7 @@ import scipy.optimize
 
 from ...robot.inertia import INERTIAL_NAMES
 from ..gapdata import GapData, lowpass_segments
+from ..remainder import LOWPASS_ORDER
 
 if TYPE_CHECKING:
     from ..candidates import EffectLibrary
@@ -45,6 +46,9 @@ INERTIAL_UNITS = dict(zip(INERTIAL_NAMES, ("kg", "kg·m", "kg·m", "kg·m", *["k
 #: Low-pass cut-offs (Hz) tried for Coulomb steps and ripple seen through filtered torques;
 #: ``inf``: unfiltered.
 FILTER_CUTOFFS: tuple[float, ...] = (np.inf, 50.0, 30.0, 20.0, 12.0, 8.0, 5.0, 3.0, 2.0)
+#: A tuned cut-off within this factor of the dataset's recorded low-pass (either way) is that
+#: low-pass (:attr:`Atom.chain`): the tuning's refinement stops within a few per cent of it.
+CHAIN_MATCH = 1.15
 
 
 @dataclass(frozen=True)
@@ -62,6 +66,10 @@ class Atom:
     cutoff : for Coulomb and ripple, the low-pass cut-off (Hz) through which the torque sees
         them (``inf``: none).
     setting_name : how the setting is named in labels (``"v_s"``, ``"k"``).
+    chain : the tuned cut-off is the low-pass the training dataset records
+        (``Dataset.torque_filter``, within :data:`CHAIN_MATCH`): on every dataset that records
+        its own, the atom is seen through that one (a held-out recording the chain filtered at
+        another cut-off), else through ``cutoff``.
     """
 
     effect: str
@@ -71,6 +79,15 @@ class Atom:
     setting: float | None = None
     cutoff: float = np.inf
     setting_name: str = "v_s"
+    chain: bool = False
+
+    def seen_below(self, data: GapData) -> float:
+        """The cut-off (Hz) through which ``data``'s torques see this atom: the dataset's
+        recorded low-pass for a ``chain`` atom where it records one, else :attr:`cutoff`."""
+        recorded = data.dataset.torque_filter
+        if self.chain and recorded is not None and recorded[1] == LOWPASS_ORDER:
+            return float(recorded[0])
+        return self.cutoff
 
     @property
     def n_parameters(self) -> int:
@@ -171,8 +188,8 @@ class Effect:
         """For a ``row_only`` effect, the atom's columns on its joint's row, ``(N, k)`` or
         ``(N,)``. Default, for an effect seen through the torques' low-pass (one that defines
         :meth:`unfiltered`): that signal through the filter at the atom's cut-off."""
-        return lowpass_segments(data.dataset, self.unfiltered(library, atom, data), atom.cutoff,
-                                data.segments)
+        return lowpass_segments(data.dataset, self.unfiltered(library, atom, data),
+                                atom.seen_below(data), data.segments)
 
     def unfiltered(self, library: "EffectLibrary", atom: Atom, data: GapData) -> np.ndarray:
         """For an effect on one joint seen through the torques' low-pass ``L`` (Coulomb steps,
@@ -276,4 +293,15 @@ def tune_cutoffs(effect: Effect, library: "EffectLibrary", data: GapData, residu
             out.append((replace(atom, cutoff=float(np.exp(res.x))), float(-res.fun)))
         else:
             out.append((replace(atom, cutoff=grid[i]), float(row[i])))
-    return out
+    return [(_on_chain(a, data), score) for a, score in out]
+
+
+def _on_chain(atom: Atom, data: GapData) -> Atom:
+    """``atom`` seen through the dataset's recorded low-pass (``chain``) when its tuned cut-off
+    lies within :data:`CHAIN_MATCH` of it (same order): the tuning found the filter the dataset
+    says the signal chain applied, so another recording is seen through its own."""
+    recorded = data.dataset.torque_filter
+    if (recorded is None or recorded[1] != LOWPASS_ORDER or not np.isfinite(atom.cutoff)
+            or abs(np.log(atom.cutoff / recorded[0])) > np.log(CHAIN_MATCH)):
+        return atom
+    return replace(atom, cutoff=float(recorded[0]), chain=True)
