@@ -229,3 +229,7 @@ def test_a_diagnosis_carries_the_rollout(panda, truth, tmp_path):
     text = carried.summary()
     assert "How far the gap shrinks in your simulator" in text and v.summary() in text
     assert 'id="rollout"' in carried.report(tmp_path / "d.html").read_text()
+    back = ci.Diagnosis.load(carried.save(tmp_path / "d.json"))      # the rollout travels too
+    assert back.rollout is not None and back.summary() == text
+    for a, b in zip(back.rollout.replays, v.replays):
+        np.testing.assert_array_equal(a.q_error, b.q_error)

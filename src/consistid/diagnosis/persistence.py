@@ -22,12 +22,16 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import ResultFileError
+from ..filesafety import replacing
 from ..identification.persistence import decode, encode, model_dict, model_from_dict
 from ..robot.model import RobotModel
 from .candidates import EffectLibrary
 
 FORMAT = "consistid.diagnosis"
 VERSION = 1
+#: The modules whose dataclasses a diagnosis file may rebuild: the diagnosis' own, and the
+#: rollout validation it may carry (:meth:`~consistid.diagnosis.diagnose.Diagnosis.with_rollout`).
+REBUILT = ("consistid.diagnosis.", "consistid.simulator.rollout")
 _MODEL, _LIBRARY, _CLASS = "__robot__", "__effect_library__", "__dataclass__"
 
 
@@ -56,8 +60,9 @@ def to_plain(value: Any) -> Any:
 
 def _class(path: str, where: str) -> type:
     module, _, name = path.partition(":")
-    if not module.startswith("consistid.diagnosis"):
-        raise ResultFileError(f"{where}: class {path!r} is not a consistid.diagnosis class")
+    if not module.startswith(REBUILT):
+        raise ResultFileError(f"{where}: class {path!r} is not a consistid.diagnosis class (nor "
+                              "a rollout validation it carries)")
     cls = importlib.import_module(module)
     for part in name.split("."):
         cls = getattr(cls, part, None)
@@ -95,7 +100,9 @@ def write_diagnosis(diagnosis: Any, path: str | Path) -> Path:
     """Write ``diagnosis`` as JSON at ``path`` (module docstring); returns the path."""
     path = Path(path)
     doc = {"format": FORMAT, "version": VERSION, "diagnosis": encode(to_plain(diagnosis))}
-    path.write_text(json.dumps(doc, allow_nan=False), encoding="utf-8")
+    text = json.dumps(doc, allow_nan=False)
+    with replacing(path) as tmp:                # never a half-written diagnosis file
+        tmp.write_text(text, encoding="utf-8")
     return path
 
 
