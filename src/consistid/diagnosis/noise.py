@@ -315,6 +315,13 @@ def _ar1_shape(f: np.ndarray, phi: float, rate: float) -> np.ndarray:
     return (1.0 - phi) ** 2 / (1.0 + phi ** 2 - 2.0 * phi * np.cos(2.0 * np.pi * f / rate))
 
 
+def ar1_knee(phi: float, rate: float) -> float:
+    """The knee (Hz) of the AR(1) spectrum of the module notes, ``f_r ln(1/φ) / 2π``, computed as
+    ``−f_r ln φ / 2π`` (a fitted ``φ`` of ~1e-309, white noise, overflows ``1/φ``, never
+    ``ln φ``); ``inf`` for ``φ ≤ 0``."""
+    return float("inf") if phi <= 0 else -rate * float(np.log(phi)) / (2 * np.pi)
+
+
 def log_periodogram_bias(segments: int) -> float:
     r"""``E[log Ŝ(f)] − log S(f)`` of a Welch estimate averaging ``segments`` Hann-windowed
     segments with 50 % overlap: ``Ŝ/S ~ χ²_ν/ν`` with ``ν ≈ 1.89·K`` equivalent degrees of
@@ -383,7 +390,7 @@ def filtered_floor(spectra: Spectra, torque_filter: tuple[float, int] | None, ra
         cov = scale2 * np.linalg.pinv(fit.jac.T @ fit.jac)
         stderr = float(np.sqrt(max(grad @ cov @ grad, 0.0)))
         # the noise's knee below the band: its level there is an extrapolation, unseen
-        knee = np.inf if fit.x[1] <= 0 else rate * np.log(1.0 / fit.x[1]) / (2 * np.pi)
+        knee = ar1_knee(float(fit.x[1]), rate)
         shaped[j] = misfit <= MAX_MISFIT and knee >= f[0]
         reliable[j] = shaped[j] and stderr <= MAX_STDERR
         stderrs[j] = stderr
