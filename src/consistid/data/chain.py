@@ -400,7 +400,7 @@ def _outliers(t: np.ndarray, x: np.ndarray, stretches: list[slice], nv: int,
     x = x.copy()
     for s in stretches:
         if s.stop - s.start >= o.outlier_window:
-            x[s], mask = hampel(x[s], o.outlier_window, o.outliers)
+            x[s], mask = hampel(x[s], o.outlier_window, o.outliers, t[s])
             spikes += mask.sum(axis=0)
         stuck = stuck_samples(x[s, nv:], x[s, :nv])
         if stuck.any():

@@ -67,8 +67,12 @@ NOISE_MARGIN = 10.0
 #: Width of that neighbourhood as a fraction of the bins up to the Nyquist frequency (1/64:
 #: 7.8 Hz at 1 kHz), wide beside an excitation band of a few Hz, narrow beside coloured noise.
 NOISE_WINDOW = 1.0 / 64
-#: :func:`hampel`'s noise level is the running median of its local scale over this many windows.
+#: :func:`hampel`'s noise level is taken over this many windows around each sample.
 HAMPEL_SCALE_WINDOWS = 25
+#: The relative rounding step of float32 (``2⁻²³``): :func:`hampel`'s least scale.
+FLOAT32_EPS = 2.0 ** -23
+#: The third quartile of ``|z|`` for a standard Gaussian ``z`` (``Φ⁻¹(0.875)``).
+GAUSS_Q75 = 1.1503493803760079
 #: Odd-reflection padding of :func:`lowpass`, in periods of the cut-off.
 PAD_PERIODS = 6.0
 
@@ -364,23 +368,30 @@ def fourier_derivatives(x: np.ndarray, rate: float, period: float, harmonics: in
             np.fft.irfft(iw ** 2 * dspec, n=p, axis=0))
 
 
-def hampel(x: np.ndarray, window: int = 11, n_sigma: float = 6.0
-           ) -> tuple[np.ndarray, np.ndarray]:
+def hampel(x: np.ndarray, window: int = 11, n_sigma: float = 6.0,
+           t: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     r"""Replace outliers by the running median; returns ``(cleaned, outlier mask)``.
 
     Sample ``k`` of a channel is an outlier when ``|x_k − m_k| > n_σ · s_k`` (Hampel 1974), with
-    ``m_k`` the median of the ``window`` samples centred on ``k``, *and* ``x_k`` lies outside
+    ``m_k`` the median of the ``window`` samples centred on ``k`` less their trend (the median
+    of their successive slopes over the stamps ``t``, default the sample index, which neither a
+    spike nor a step moves: a torque that changes by several noise σ per sample hides no spike
+    in its slope), *and* ``x_k`` lies outside
     ``[min(l_k, r_k) − n_σ s_k, max(l_k, r_k) + n_σ s_k]``, ``l_k`` and ``r_k`` the medians of
     the half windows before and after it: a sample between the levels on its two sides is a
     step (a Coulomb torque reversing with the velocity, a payload set down), physics rather
     than a glitch, which departs from both. The scale ``s_k`` is the largest of
 
     * the local MAD ``1.4826 · median_j |x_j − m_k|`` over the window;
-    * its running median over :data:`HAMPEL_SCALE_WINDOWS` windows: eleven samples of noise that
-      is not Gaussian (a controller chattering between two levels, a current's PWM ripple) often
-      have a MAD of nearly nothing, and the noise's level changes slower than that;
+    * the third quartile of ``|x_j − m_j|`` over the block of :data:`HAMPEL_SCALE_WINDOWS`
+      windows that holds ``k``, over its value for Gaussian noise (1.1503 σ): eleven samples
+      of noise that is not Gaussian (a controller chattering between two levels, a current's
+      ripple) often have a MAD of nearly nothing, and their quartile sees it; it breaks down
+      only when a quarter of the block is glitches;
     * the smallest non-zero step between consecutive samples of the channel, so that on a flat
-      stretch of an encoder signal one count is not an outlier.
+      stretch of an encoder signal one count is not an outlier, and at least the float32
+      rounding step of its largest value (:data:`FLOAT32_EPS`): a noise-free signal (a
+      simulation) has no other scale, and loggers often store float32.
 
     A smooth signal is never flagged (at an extremum the ratio is about 1).
     """
@@ -392,18 +403,36 @@ def hampel(x: np.ndarray, window: int = 11, n_sigma: float = 6.0
     half = window // 2
     padded = np.pad(x, ((half, half), (0, 0)), mode="reflect")
     win = np.lib.stride_tricks.sliding_window_view(padded, window, axis=0)  # (N, nv, window)
+    # each window less its robust trend, the median of its successive slopes
+    k = np.arange(x.shape[0], dtype=float) if t is None else np.asarray(t, dtype=float)
+    tw = np.lib.stride_tricks.sliding_window_view(
+        np.pad(k, half, mode="reflect", reflect_type="odd"), window)[:, None, :]   # (N, 1, w)
+    slope = np.median(np.diff(win, axis=2) / np.diff(tw, axis=2), axis=2)
+    win = win - slope[:, :, None] * (tw - tw[:, :, half:half + 1])
     med = np.median(win, axis=2)
     scale = 1.4826 * np.median(np.abs(win - med[:, :, None]), axis=2)
-    long = min(HAMPEL_SCALE_WINDOWS * window, x.shape[0]) | 1
-    level = scipy.ndimage.median_filter(scale, size=(long, 1), mode="nearest")
+    level = _block_quartile(np.abs(x - med), HAMPEL_SCALE_WINDOWS * window) / GAUSS_Q75
     steps = np.abs(np.diff(x, axis=0))
     floor = np.array([np.min(s[s > 0]) if np.any(s > 0) else 0.0 for s in steps.T])
+    floor = np.maximum(floor, FLOAT32_EPS * np.max(np.abs(x), axis=0))
     thr = n_sigma * np.maximum(np.maximum(scale, level), floor)
     left = np.median(win[:, :, :half], axis=2)
     right = np.median(win[:, :, half + 1:], axis=2)
     outside = (x < np.minimum(left, right) - thr) | (x > np.maximum(left, right) + thr)
     mask = (np.abs(x - med) > thr) & outside
     return np.where(mask, med, x), mask
+
+
+def _block_quartile(r: np.ndarray, block: int) -> np.ndarray:
+    """Per sample, the third quartile of the columns of ``r`` (N, nv) over the consecutive block
+    of ``block`` samples that holds it (the last block takes the remainder too)."""
+    n = r.shape[0]
+    count = max(n // block, 1)
+    edges = np.linspace(0, n, count + 1).astype(int)
+    out = np.empty_like(r)
+    for a, b in zip(edges[:-1], edges[1:]):
+        out[a:b] = np.percentile(r[a:b], 75, axis=0)
+    return out
 
 
 def stuck_samples(tau: np.ndarray, q: np.ndarray, run: int = 3, max_repeats: float = 0.01
