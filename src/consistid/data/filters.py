@@ -498,12 +498,14 @@ def estimate_bandwidth(q: np.ndarray, rate: float, fraction: float = 0.9999) -> 
     power lies in every moving joint's detrended, Hann-windowed position (the largest over
     joints).
 
-    The motion's power is what the periodogram holds above its noise: per bin, the power in
-    excess of :data:`NOISE_MARGIN` × the running median over :data:`NOISE_WINDOW` of the bins
-    (the noise's local level, white or coloured, which the few lines of an excitation band do
-    not move). Noise whose power is a fraction ``ε`` of the motion's would otherwise set the
-    bandwidth wherever the fraction ``1 − ε`` lies: on a jittered log whose stamps are off by
-    ``δ``, the error ``q̇ δ`` is ~1 % of a slow motion, and set it at 100–600 Hz.
+    Where the raw spectrum's ``fraction`` falls on noise (its bin within :data:`NOISE_MARGIN`
+    of the noise's level), the motion's power is what the periodogram holds above its noise:
+    per bin, the power in excess of :data:`NOISE_MARGIN` × the running median over
+    :data:`NOISE_WINDOW` of the bins at and above it (the noise's local level, white or
+    coloured, which the few lines of an excitation band do not move). Noise whose power is a
+    fraction ``ε`` of the motion's would otherwise set the bandwidth wherever the fraction
+    ``1 − ε`` lies: on a jittered log whose stamps are off by ``δ``, the error ``q̇ δ`` is ~1 %
+    of a slow motion, and set it at 100–600 Hz. Elsewhere (a clean log) the raw spectrum's.
 
     Positions are used, not velocities: their noise is tiny compared with the motion. Joints
     :func:`held_still` are left out: their spectrum is rounding or encoder noise, flat up to the
@@ -523,21 +525,35 @@ def estimate_bandwidth(q: np.ndarray, rate: float, fraction: float = 0.9999) -> 
         raise DatasetError("the positions do not move: no excitation bandwidth")
     if resolved.any():
         moving = resolved
-        excess = np.maximum(power - NOISE_MARGIN * _noise_level(power), 0.0)
-        seen = moving & (excess.sum(axis=0) > 0)
-        if seen.any():          # else no line stands out of the noise: the raw spectrum
-            power, moving = excess, seen
+        level = NOISE_MARGIN * _noise_level(power)
+        raw = _fraction_bin(power, fraction)
+        # where the raw spectrum's bin is noise (no more than the margin over its level), the
+        # noise set it: the motion's power is the excess over the noise
+        noisy = power[raw, np.arange(power.shape[1])] <= level[raw, np.arange(power.shape[1])]
+        excess = np.maximum(power - level, 0.0)
+        use = noisy & (excess.sum(axis=0) > 0)           # else no line stands out: the raw
+        power = np.where(use, excess, power)
     power = power[:, moving]
-    cum = np.cumsum(power, axis=0) / power.sum(axis=0)
-    idx = np.argmax(cum >= fraction, axis=0)
+    idx = _fraction_bin(power, fraction)
     return float(max(freqs[idx].max(), freqs[1]))
 
 
+def _fraction_bin(power: np.ndarray, fraction: float) -> np.ndarray:
+    """Per column of a periodogram, the first bin below which ``fraction`` of its power lies
+    (0 for a column without power)."""
+    total = power.sum(axis=0)
+    cum = np.cumsum(power, axis=0) / np.where(total > 0, total, 1.0)
+    return np.argmax(cum >= fraction, axis=0)
+
+
 def _noise_level(power: np.ndarray) -> np.ndarray:
-    """The running median of each column of a periodogram over :data:`NOISE_WINDOW` of its bins
-    (at least 5; ends reflected)."""
-    width = max(int(NOISE_WINDOW * power.shape[0]) | 1, 5)
-    return scipy.ndimage.median_filter(power, size=(width, 1), mode="reflect")
+    """The running median of each column of a periodogram over the :data:`NOISE_WINDOW` of its
+    bins at and above each (at least 15; the top end reflected): looking up, a window at the
+    band's top harmonic holds the noise beyond it, not the lines below it, however few bins a
+    short log gives the band."""
+    width = max(int(NOISE_WINDOW * power.shape[0]) | 1, 15)
+    return scipy.ndimage.median_filter(power, size=(width, 1), mode="reflect",
+                                       origin=(-(width // 2), 0))
 
 
 def default_cutoff(bandwidth: float, rate: float) -> float:
