@@ -222,8 +222,8 @@ class Repetition:
 def _differences(dataset: Dataset, tau: np.ndarray, period: float, order: int
                  ) -> list[tuple[np.ndarray, float]]:
     """Per recording that holds ``order + 1`` periods with :data:`MIN_OVERLAP` to spare and
-    whose positions repeat: the differences of ``order`` (``d / √2`` or ``d / √6``: σ each) less
-    their mean, and the recording's step (s)."""
+    whose positions repeat: the differences of ``order`` (``d / √2`` or ``d / √6``: σ each) and
+    the recording's step (s)."""
     out = []
     for s in np.unique(dataset.segment):
         idx = np.flatnonzero(dataset.segment == s)
@@ -238,7 +238,7 @@ def _differences(dataset: Dataset, tau: np.ndarray, period: float, order: int
         x = tau[idx]
         d = (x[lag:] - x[:-lag]) / np.sqrt(2.0) if order == 1 else \
             (x[2 * lag:] - 2 * x[lag:-lag] + x[:-2 * lag]) / np.sqrt(6.0)
-        out.append((d - d.mean(axis=0), h))
+        out.append((d, h))
     return out
 
 
@@ -249,21 +249,24 @@ def repetition_estimate(dataset: Dataset, tau: np.ndarray, period: float,
 
     Per order (first differences ``(τ(t+P) − τ(t))/√2``; with three periods or more, second
     differences ``(τ(t+2P) − 2τ(t+P) + τ(t))/√6``, which cancel a linear drift), the difference
-    series of every recording that holds it is cut into stretches of :data:`REPEAT_STRETCH` s,
-    each stretch gives ``σ_i`` (its RMS), and the order's estimate is the lower quartile of the
-    ``σ_i`` over its value for noise alone, ``σ √(χ²_{ν,0.25}/ν)`` with ``ν = 2 B T`` degrees of
-    freedom per stretch (``B = ∫|H|⁴ df`` the noise bandwidth of ``torque_filter``, the chain's
-    low-pass, or the Nyquist frequency without one). A friction that stepped after a pause or
-    a payload released puts a torque that does not repeat into the differences that straddle
-    the change — one period of them for first differences, two for second: half the first
-    differences of a three-period log — and the quartile ignores it while it holds fewer than
-    three quarters of the stretches (a mean of squares swelled 10–26 × there). The estimate is
-    the second differences' where there are three periods, unless the first differences' is
-    lower by more than :data:`MAX_FLOOR_RATIO` (``order`` is then still 2). Its
-    standard error in ``log σ`` is ``1.4826 · MAD(log σ_i) · √(1.85 / M)`` (the lower
-    quartile's over ``M`` stretches, ``p(1−p)/φ(z_p)²``; conservative where the stretches
-    differ by more than noise). The lag in samples is each recording's own, ``round(period /
-    h)``: recordings resampled at other rates line up in time, not in index."""
+    series of every recording that holds it is cut into stretches of :data:`REPEAT_STRETCH` s;
+    each stretch gives ``σ_i``, its standard deviation about its own mean (a change offsets the
+    stretches it spoils, not the others). The order's estimate is the lower quartile of the
+    ``σ_i`` over its value for noise alone, ``σ √(χ²_{ν,0.25}/ν)``, with ``ν = 2 B T − 1``
+    degrees of freedom per stretch (``B = ∫|H|⁴ df`` the noise bandwidth of ``torque_filter``,
+    the chain's low-pass, or the Nyquist frequency without one). A friction that stepped after a
+    pause or a payload released puts a torque that does not repeat into the differences that
+    straddle the change (one period of them for first differences, two for second: half the
+    first differences of a three-period log), and the quartile ignores it while it holds fewer
+    than three quarters of the stretches (a mean of squares swelled 10–26 × there). The
+    estimate is the second differences' where there are three periods, unless the first
+    differences' is lower by more than :data:`MAX_FLOOR_RATIO` (``order`` is then still 2).
+
+    Its standard error in ``log σ`` is ``s · √(1.85 / M)`` (the lower quartile's over ``M``
+    stretches, ``p(1−p)/φ(z_p)²``), ``s`` the spread of ``log σ_i``: ``1.4826 · MAD``, at least
+    the noise's own ``1/√(2ν)`` (conservative where the stretches differ by more than noise).
+    The lag in samples is each recording's own, ``round(period / h)``: recordings resampled at
+    other rates line up in time, not in index."""
     nv = tau.shape[1]
     best = Repetition(np.full(nv, np.nan), 0, np.full(nv, np.inf), np.zeros(nv), 0)
     for order in (1, 2):
@@ -271,20 +274,21 @@ def repetition_estimate(dataset: Dataset, tau: np.ndarray, period: float,
         for d, h in _differences(dataset, tau, period, order):
             n = max(int(round(REPEAT_STRETCH / h)), 2)
             for a in range(0, d.shape[0] - n + 1, n):
-                stretches.append(np.sqrt(np.mean(d[a:a + n] ** 2, axis=0)))
+                stretches.append(np.std(d[a:a + n], axis=0))
                 steps.append(h)
             if not stretches and d.shape[0] >= 2:
-                stretches.append(np.sqrt(np.mean(d ** 2, axis=0)))
+                stretches.append(np.std(d, axis=0))
                 steps.append(h)
         if not stretches:
             continue
         sig = np.array(stretches)                                   # (M, nv)
-        quartile = np.percentile(sig, 25, axis=0) / _quartile_of_noise(
-            torque_filter, float(np.median(steps)))
+        factor, dof = _quartile_of_noise(torque_filter, float(np.median(steps)))
+        quartile = np.percentile(sig, 25, axis=0) / factor
         median = np.median(sig, axis=0)
         logs = np.log(np.maximum(sig, 1e-300))
         mad = np.median(np.abs(logs - np.log(np.maximum(median, 1e-300))), axis=0)
-        stderr = 1.4826 * mad * np.sqrt(1.85 / sig.shape[0])
+        spread = np.maximum(1.4826 * mad, 1.0 / np.sqrt(2.0 * dof))
+        stderr = spread * np.sqrt(1.85 / sig.shape[0])
         disturbed = np.mean(sig > MAX_FLOOR_RATIO * quartile, axis=0)
         if best.order == 0:
             best = Repetition(quartile, order, stderr, disturbed, sig.shape[0])
@@ -299,19 +303,20 @@ def repetition_estimate(dataset: Dataset, tau: np.ndarray, period: float,
     return best
 
 
-def _quartile_of_noise(torque_filter: tuple[float, int] | None, step: float) -> float:
+def _quartile_of_noise(torque_filter: tuple[float, int] | None, step: float
+                       ) -> tuple[float, float]:
     """The lower quartile of ``σ_i / σ`` for a stretch of :data:`REPEAT_STRETCH` s of noise
-    through ``torque_filter`` sampled every ``step`` s: ``√(χ²_{ν,0.25} / ν)``, ``ν = 2 B T``
-    (``B`` the filter's noise bandwidth, at most the Nyquist frequency)."""
+    through ``torque_filter`` sampled every ``step`` s, ``√(χ²_{ν,0.25} / ν)``, and
+    ``ν = 2 B T − 1`` (``B`` the filter's noise bandwidth, at most the Nyquist frequency)."""
     rate = 1.0 / step
     bandwidth = 0.5 * rate
     if torque_filter is not None and torque_filter[0] < 0.45 * rate:
         grid = np.linspace(0.0, 0.5 * rate, 4097)
         bandwidth *= float(np.mean(lowpass_power(grid, torque_filter[0], rate,
                                                  torque_filter[1])))
-    dof = max(2.0 * bandwidth * REPEAT_STRETCH, 1.0)
+    dof = max(2.0 * bandwidth * REPEAT_STRETCH - 1.0, 1.0)       # less the stretch's mean
     chi2_quartile = 2.0 * scipy.special.gammaincinv(0.5 * dof, 0.25)    # χ²_ν's 25 % point
-    return float(np.sqrt(chi2_quartile / dof))
+    return float(np.sqrt(chi2_quartile / dof)), dof
 
 
 def repetition_floor(dataset: Dataset, tau: np.ndarray, period: float
