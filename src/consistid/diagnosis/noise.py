@@ -83,6 +83,9 @@ MIN_OVERLAP = 2.0
 #: few), long beside the noise's correlation under the chain's low-pass (≥ 10 degrees of
 #: freedom at 5 Hz).
 REPEAT_STRETCH = 1.0
+#: Least degrees of freedom of a stretch (``2 B T``, ``B`` the noise bandwidth): a low-pass
+#: below ~10 Hz lengthens the stretches beyond :data:`REPEAT_STRETCH`.
+STRETCH_DOF = 20.0
 #: Least power response ``|H|⁴`` of a known torque filter at which its spectrum is divided by
 #: it (50 dB down): further down, leakage of the motion band and round-off outweigh the noise.
 MIN_RESPONSE = 1e-5
@@ -207,9 +210,9 @@ class Repetition:
     sigma : (nv,) N·m, ``nan`` where no recording holds two periods.
     order : the order of the differences used (1 or 2; 0: none).
     stderr : (nv,) standard error of ``log σ`` (from the spread of the stretches).
-    disturbed : (nv,) fraction of the stretches whose σ exceeds the median by more than
-        :data:`MAX_FLOOR_RATIO`: where the torque did not repeat (left out by the median).
-    stretches : how many stretches of :data:`REPEAT_STRETCH` s the median is over.
+    disturbed : (nv,) fraction of the stretches whose σ exceeds the lower quartile's estimate
+        by more than :data:`MAX_FLOOR_RATIO`: where the torque did not repeat (left out).
+    stretches : how many stretches of :data:`REPEAT_STRETCH` s there are.
     """
 
     sigma: np.ndarray
@@ -249,12 +252,15 @@ def repetition_estimate(dataset: Dataset, tau: np.ndarray, period: float,
 
     Per order (first differences ``(τ(t+P) − τ(t))/√2``; with three periods or more, second
     differences ``(τ(t+2P) − 2τ(t+P) + τ(t))/√6``, which cancel a linear drift), the difference
-    series of every recording that holds it is cut into stretches of :data:`REPEAT_STRETCH` s;
+    series of every recording that holds it is cut into stretches of :data:`REPEAT_STRETCH` s
+    (longer below :data:`STRETCH_DOF` degrees of freedom);
     each stretch gives ``σ_i``, its standard deviation about its own mean (a change offsets the
     stretches it spoils, not the others). The order's estimate is the lower quartile of the
     ``σ_i`` over its value for noise alone, ``σ √(χ²_{ν,0.25}/ν)``, with ``ν = 2 B T − 1``
     degrees of freedom per stretch (``B = ∫|H|⁴ df`` the noise bandwidth of ``torque_filter``,
-    the chain's low-pass, or the Nyquist frequency without one). A friction that stepped after a
+    the chain's low-pass, or the Nyquist frequency without one), refined as the pooled
+    ``√(mean σ_i²)`` of the stretches within :data:`MAX_FLOOR_RATIO` of it (on clean data all of
+    them: the efficient estimate). A friction that stepped after a
     pause or a payload released puts a torque that does not repeat into the differences that
     straddle the change (one period of them for first differences, two for second: half the
     first differences of a three-period log), and the quartile ignores it while it holds fewer
@@ -262,9 +268,9 @@ def repetition_estimate(dataset: Dataset, tau: np.ndarray, period: float,
     estimate is the second differences' where there are three periods, unless the first
     differences' is lower by more than :data:`MAX_FLOOR_RATIO` (``order`` is then still 2).
 
-    Its standard error in ``log σ`` is ``s · √(1.85 / M)`` (the lower quartile's over ``M``
-    stretches, ``p(1−p)/φ(z_p)²``), ``s`` the spread of ``log σ_i``: ``1.4826 · MAD``, at least
-    the noise's own ``1/√(2ν)`` (conservative where the stretches differ by more than noise).
+    Its standard error in ``log σ`` is ``s / √K`` over the ``K`` stretches pooled, ``s`` the
+    spread of ``log σ_i``: ``1.4826 · MAD``, at least the noise's own ``1/√(2ν)``
+    (conservative where the stretches differ by more than noise).
     The lag in samples is each recording's own, ``round(period / h)``: recordings resampled at
     other rates line up in time, not in index."""
     nv = tau.shape[1]
@@ -272,7 +278,7 @@ def repetition_estimate(dataset: Dataset, tau: np.ndarray, period: float,
     for order in (1, 2):
         stretches, steps = [], []
         for d, h in _differences(dataset, tau, period, order):
-            n = max(int(round(REPEAT_STRETCH / h)), 2)
+            n = max(int(round(_stretch(torque_filter, h) / h)), 2)
             for a in range(0, d.shape[0] - n + 1, n):
                 stretches.append(np.std(d[a:a + n], axis=0))
                 steps.append(h)
@@ -282,14 +288,19 @@ def repetition_estimate(dataset: Dataset, tau: np.ndarray, period: float,
         if not stretches:
             continue
         sig = np.array(stretches)                                   # (M, nv)
-        factor, dof = _quartile_of_noise(torque_filter, float(np.median(steps)))
+        h = float(np.median(steps))
+        factor, dof = _quartile_of_noise(torque_filter, h, _stretch(torque_filter, h))
         quartile = np.percentile(sig, 25, axis=0) / factor
         median = np.median(sig, axis=0)
         logs = np.log(np.maximum(sig, 1e-300))
         mad = np.median(np.abs(logs - np.log(np.maximum(median, 1e-300))), axis=0)
         spread = np.maximum(1.4826 * mad, 1.0 / np.sqrt(2.0 * dof))
-        stderr = spread * np.sqrt(1.85 / sig.shape[0])
-        disturbed = np.mean(sig > MAX_FLOOR_RATIO * quartile, axis=0)
+        agree = sig <= MAX_FLOOR_RATIO * quartile
+        disturbed = 1.0 - np.mean(agree, axis=0)
+        # the stretches that agree with the quartile, pooled (the efficient estimate on them)
+        quartile = np.sqrt(np.sum(sig ** 2 * agree, axis=0) / np.maximum(agree.sum(axis=0), 1)
+                           * (dof + 1.0) / dof)            # each stretch less its own mean
+        stderr = spread / np.sqrt(np.maximum(agree.sum(axis=0), 1))
         if best.order == 0:
             best = Repetition(quartile, order, stderr, disturbed, sig.shape[0])
         else:
@@ -303,18 +314,29 @@ def repetition_estimate(dataset: Dataset, tau: np.ndarray, period: float,
     return best
 
 
-def _quartile_of_noise(torque_filter: tuple[float, int] | None, step: float
-                       ) -> tuple[float, float]:
-    """The lower quartile of ``σ_i / σ`` for a stretch of :data:`REPEAT_STRETCH` s of noise
-    through ``torque_filter`` sampled every ``step`` s, ``√(χ²_{ν,0.25} / ν)``, and
-    ``ν = 2 B T − 1`` (``B`` the filter's noise bandwidth, at most the Nyquist frequency)."""
+def _bandwidth(torque_filter: tuple[float, int] | None, step: float) -> float:
+    """The noise bandwidth ``B = ∫₀^{f_N} |H|⁴ df`` (Hz) of ``torque_filter`` at the rate
+    ``1 / step``; the Nyquist frequency without one (or one not at that rate)."""
     rate = 1.0 / step
-    bandwidth = 0.5 * rate
-    if torque_filter is not None and torque_filter[0] < 0.45 * rate:
-        grid = np.linspace(0.0, 0.5 * rate, 4097)
-        bandwidth *= float(np.mean(lowpass_power(grid, torque_filter[0], rate,
-                                                 torque_filter[1])))
-    dof = max(2.0 * bandwidth * REPEAT_STRETCH - 1.0, 1.0)       # less the stretch's mean
+    if torque_filter is None or not torque_filter[0] < 0.45 * rate:
+        return 0.5 * rate
+    grid = np.linspace(0.0, 0.5 * rate, 4097)
+    return 0.5 * rate * float(np.mean(lowpass_power(grid, torque_filter[0], rate,
+                                                    torque_filter[1])))
+
+
+def _stretch(torque_filter: tuple[float, int] | None, step: float) -> float:
+    """The stretch length (s): :data:`REPEAT_STRETCH`, longer where the noise's bandwidth
+    gives it fewer than :data:`STRETCH_DOF` degrees of freedom (``2 B T``)."""
+    return max(REPEAT_STRETCH, STRETCH_DOF / (2.0 * _bandwidth(torque_filter, step)))
+
+
+def _quartile_of_noise(torque_filter: tuple[float, int] | None, step: float, seconds: float
+                       ) -> tuple[float, float]:
+    """The lower quartile of ``σ_i / σ`` for a stretch of ``seconds`` of noise through
+    ``torque_filter`` sampled every ``step`` s, ``√(χ²_{ν,0.25} / ν)``, and ``ν = 2 B T − 1``
+    (:func:`_bandwidth`; one less for the stretch's own mean)."""
+    dof = max(2.0 * _bandwidth(torque_filter, step) * seconds - 1.0, 1.0)
     chi2_quartile = 2.0 * scipy.special.gammaincinv(0.5 * dof, 0.25)    # χ²_ν's 25 % point
     return float(np.sqrt(chi2_quartile / dof)), dof
 
@@ -643,8 +665,8 @@ def estimate_noise_floor(dataset: Dataset, tau: np.ndarray, residual: np.ndarray
                  "one, for white noise)")
     disturbed = use_rep & (repetition.disturbed > 0)
     if disturbed.any():
-        text += ("; the lower quartile over " f"{repetition.stretches} stretches of "
-                 f"{REPEAT_STRETCH:g} s left out those where the torque did not repeat (joint "
+        text += (f"; of {repetition.stretches} stretches of {REPEAT_STRETCH:g} s, those where "
+                 "the torque did not repeat were left out (joint "
                  + ", ".join(f"{j + 1}: {repetition.disturbed[j]:.0%}"
                              for j in np.flatnonzero(disturbed)) + ")")
     if not reliable.all():
