@@ -49,8 +49,10 @@ def slow_joint_log(robot: str, seed: int, noise: str):
     return stamps, q, 5 / period
 
 
-@pytest.mark.parametrize("robot, seed, noise", [("panda", 0, "white"), ("ur5", 1, "ar1"),
-                                                ("xarm7", 2, "white"), ("kinova", 3, "ar1")])
+@pytest.mark.parametrize("robot, seed, noise", [
+    ("panda", 0, "white"), ("ur5", 1, "ar1"),
+    pytest.param("xarm7", 2, "white", marks=pytest.mark.slow),
+    pytest.param("kinova", 3, "ar1", marks=pytest.mark.slow)])
 def test_jittered_noisy_logs_get_the_motion_band_not_the_noise(robot, seed, noise):
     """The chain's bandwidth is the excitation's (1–1.2 × its top harmonic), so the cut-off is
     10 × that, where the old 99.99 %-of-all-power rule read the slow joint's noise as motion

@@ -498,10 +498,12 @@ def estimate_bandwidth(q: np.ndarray, rate: float, fraction: float = 0.9999) -> 
     power lies in every moving joint's detrended, Hann-windowed position (the largest over
     joints).
 
-    Where the raw spectrum's ``fraction`` falls on noise (its bin within :data:`NOISE_MARGIN`
-    of the noise's level), the motion's power is what the periodogram holds above its noise:
-    per bin, the power in excess of :data:`NOISE_MARGIN` × the running median over
-    :data:`NOISE_WINDOW` of the bins at and above it (the noise's local level, white or
+    Where the raw spectrum's ``fraction`` falls on noise (its bin, averaged with the two on
+    each side, within :data:`NOISE_MARGIN` of the noise's level, or at more than twice the
+    frequency the excess below gives), the motion's power is what
+    the periodogram holds above its noise: per bin, the power in excess of
+    :data:`NOISE_MARGIN` × the running median over :data:`NOISE_WINDOW` of the bins at and
+    above it (the noise's local level, white or
     coloured, which the few lines of an excitation band do not move). Noise whose power is a
     fraction ``ε`` of the motion's would otherwise set the bandwidth wherever the fraction
     ``1 − ε`` lies: on a jittered log whose stamps are off by ``δ``, the error ``q̇ δ`` is ~1 %
@@ -529,8 +531,13 @@ def estimate_bandwidth(q: np.ndarray, rate: float, fraction: float = 0.9999) -> 
         raw = _fraction_bin(power, fraction)
         # where the raw spectrum's bin is noise (no more than the margin over its level), the
         # noise set it: the motion's power is the excess over the noise
-        noisy = power[raw, np.arange(power.shape[1])] <= level[raw, np.arange(power.shape[1])]
+        smooth = scipy.ndimage.uniform_filter1d(power, 5, axis=0, mode="reflect")
+        cols = np.arange(power.shape[1])
         excess = np.maximum(power - level, 0.0)
+        # or where the excess puts it at less than half: the raw point is then set by power
+        # that is not the motion's (leakage moves it by a few bins only)
+        noisy = (smooth[raw, cols] <= level[raw, cols]) | (
+            2 * _fraction_bin(excess, fraction) < raw)
         use = noisy & (excess.sum(axis=0) > 0)           # else no line stands out: the raw
         power = np.where(use, excess, power)
     power = power[:, moving]
