@@ -15,10 +15,15 @@ chain, in order (each step appears in the record when it did something):
    unwrapped, with a warning;
 2. **outliers**: a Hampel filter (window 11, 6 robust σ) on ``q`` and ``τ`` replaces spikes by
    the running median, on the raw samples, per *stretch* (the parts between outages: steps
-   longer than both ``gap`` median steps and :data:`OUTAGE` s);
+   longer than both ``gap`` median steps and :data:`OUTAGE` s); a sample between the levels
+   before and after it is a step (Coulomb friction reversing), kept
+   (:func:`~consistid.data.filters.hampel`); torque samples a logger repeated while the joint
+   moved are bridged (:func:`~consistid.data.filters.stuck_samples`);
 3. **cut-off**: given, or ``min(10 × bandwidth, 0.4 × rate)`` with the bandwidth given or
    estimated from the positions of the longest stretch (on the uniform grid, linearly
-   interpolated);
+   interpolated), from the part of their spectrum that stands above its noise
+   (:func:`~consistid.data.filters.estimate_bandwidth`: the error of jittered stamps, sensor
+   noise and encoder counts are not motion);
 4. **gaps**: a step longer than the gap limit splits the log into *segments*, which the filters
    never cross. By default the limit is the larger of ``5`` median steps and half a period of
    the cut-off (:data:`GAP_CUTOFF_PERIODS`): a shorter step is bridged by the cubic spline,
@@ -66,6 +71,7 @@ from .filters import (
     default_cutoff,
     estimate_bandwidth,
     fourier_derivatives,
+    bridge,
     hampel,
     held_still,
     low_speed_mask,
@@ -73,6 +79,7 @@ from .filters import (
     period_average,
     savgol_derivatives,
     savgol_window,
+    stuck_samples,
     transposed_hint,
 )
 from .resample import check_rate, nominal_rate, resample, supported_rate, uniform_grid
@@ -388,21 +395,33 @@ def _warn_quasi_static(t: np.ndarray, dq: np.ndarray, step: float,
 
 def _outliers(t: np.ndarray, x: np.ndarray, stretches: list[slice], nv: int,
               o: PreprocessOptions, steps: list[Step]) -> np.ndarray:
-    total = np.zeros(x.shape[1], dtype=int)
+    spikes = np.zeros(x.shape[1], dtype=int)
+    stale = np.zeros(nv, dtype=int)
     x = x.copy()
     for s in stretches:
         if s.stop - s.start >= o.outlier_window:
-            x[s], mask = hampel(x[s], o.outlier_window, o.outliers)
-            total += mask.sum(axis=0)
-    if total.any():
+            x[s], mask = hampel(x[s], o.outlier_window, o.outliers, t[s])
+            spikes += mask.sum(axis=0)
+        stuck = stuck_samples(x[s, nv:], x[s, :nv])
+        if stuck.any():
+            x[s, nv:] = bridge(x[s, nv:], stuck)
+            stale += stuck.sum(axis=0)
+    if spikes.any():
         where = ", ".join(f"{'q' if c < nv else 'tau'}[{c % nv}]: {n}"
-                          for c, n in enumerate(total) if n)
-        steps.append(Step("outliers", f"Hampel ({o.outlier_window} samples, {o.outliers:g} σ) "
-                                      f"replaced {int(total.sum())} sample(s) by the running "
-                                      f"median ({where})"))
+                          for c, n in enumerate(spikes) if n)
+        steps.append(Step("outliers", f"Hampel ({o.outlier_window} samples, {o.outliers:g} σ; "
+                                      "steps between two levels kept) replaced "
+                                      f"{int(spikes.sum())} sample(s) by the running median "
+                                      f"({where})"))
     else:
         steps.append(Step("outliers", f"Hampel ({o.outlier_window} samples, {o.outliers:g} σ): "
                                       "none found"))
+    if stale.any():
+        where = ", ".join(f"tau[{j}]: {n}" for j, n in enumerate(stale) if n)
+        steps.append(Step("stuck samples", f"{int(stale.sum())} torque sample(s) repeated the "
+                                           "one before them (runs of 3 or more while the joint "
+                                           "moved) replaced by linear interpolation "
+                                           f"({where})"))
     return x
 
 
@@ -418,7 +437,7 @@ def _cutoff(t: np.ndarray, q: np.ndarray, stretches: list[slice], rate: float,
             grid = uniform_grid(ts[0], ts[-1], rate)
             qs = resample(ts, qs, grid, "linear")
         bandwidth = estimate_bandwidth(qs, rate)
-        origin = "estimated from the position spectrum (99.99 % of the power)"
+        origin = "estimated from the position spectrum (99.99 % of the power above its noise)"
         still = np.flatnonzero(held_still(qs))
         if 0 < still.size < qs.shape[1]:
             origin += (f"; q[:, {still.tolist()}] held still (constant or flickering between "

@@ -21,17 +21,24 @@ doi:10.1109/70.631234).
 :func:`fourier_derivatives`
     for periodic excitations: average the whole periods, keep the harmonics below the cut-off,
     differentiate by multiplying harmonic ``k`` by ``(i k ω_f)`` (Swevers et al. 1997).
-:func:`hampel`
+:func:`hampel`, :func:`stuck_samples`, :func:`bridge`
     outlier rejection against a running median (Hampel 1974, JASA 69(346),
-    doi:10.1080/01621459.1974.10482962).
+    doi:10.1080/01621459.1974.10482962) that leaves steps alone; runs of a value repeated by a
+    logger while the joint moved; their replacement by interpolation.
 :func:`low_speed_mask`
     drop samples where some joint moves slower than a threshold: around velocity reversals the
     Coulomb term switches sign and is badly described (De Luca's lecture notes, the seeds), which
     matters when friction is not modelled.
 :func:`estimate_bandwidth`, :func:`default_cutoff`
-    the excitation bandwidth from the position spectrum and the cut-off ``f_c = 10 ×
-    bandwidth`` (Gautier's rule of thumb; with the few-Hz excitations of the seeds it gives their
-    30 Hz at 1 kHz), at most 0.4 × the sampling rate.
+    the excitation bandwidth from the part of the position spectrum that stands above its
+    noise (so that sensor noise, encoder counts and the error of stamps that jitter are not read
+    as motion), and the cut-off ``f_c = 10 × bandwidth`` (Gautier's rule of thumb; with the
+    few-Hz excitations of the seeds it gives their 30 Hz at 1 kHz), at most 0.4 × the sampling
+    rate. A torque is a nonlinear function of the motion, whose harmonics reach past the
+    position's band, and the same filter on ``τ`` must not cut what ``Y(q̂) π`` holds: at
+    3.5 × the bandwidth it cuts 0.26 % of ``cos q`` for a 5-harmonic excitation, and the
+    base parameters of a simulated Panda come out 17–40 × less accurate than at 10 ×
+    (``benchmarks/cutoff.py``).
 
 The chain that strings them together is :mod:`consistid.data.chain`.
 """
@@ -43,14 +50,29 @@ import functools
 from typing import Sequence
 
 import numpy as np
+import scipy.ndimage
 import scipy.signal
 
 from ..errors import DatasetError, OptionError
 
-#: Cut-off = this × the excitation bandwidth (Gautier's rule of thumb).
+#: Cut-off = this × the excitation bandwidth (Gautier's rule of thumb; module docstring).
 CUTOFF_FACTOR = 10.0
 #: The cut-off never exceeds this fraction of the sampling rate (0.8 × Nyquist).
 MAX_CUTOFF_FRACTION = 0.4
+#: A periodogram bin of :func:`estimate_bandwidth` counts as motion by its power above this
+#: many times the running median of its neighbourhood (the noise's local level): a noise bin
+#: (χ²₂, median ``ln 2`` × its mean) passes with probability ``exp(−10 ln 2) ≈ 1e-3``, and
+#: what passes keeps ~0.1 % of the noise's power.
+NOISE_MARGIN = 10.0
+#: Width of that neighbourhood as a fraction of the bins up to the Nyquist frequency (1/64:
+#: 7.8 Hz at 1 kHz), wide beside an excitation band of a few Hz, narrow beside coloured noise.
+NOISE_WINDOW = 1.0 / 64
+#: :func:`hampel`'s noise level is taken over this many windows around each sample.
+HAMPEL_SCALE_WINDOWS = 25
+#: The relative rounding step of float32 (``2⁻²³``): :func:`hampel`'s least scale.
+FLOAT32_EPS = 2.0 ** -23
+#: The third quartile of ``|z|`` for a standard Gaussian ``z`` (``Φ⁻¹(0.875)``).
+GAUSS_Q75 = 1.1503493803760079
 #: Odd-reflection padding of :func:`lowpass`, in periods of the cut-off.
 PAD_PERIODS = 6.0
 
@@ -353,16 +375,32 @@ def fourier_derivatives(x: np.ndarray, rate: float, period: float, harmonics: in
             np.fft.irfft(iw ** 2 * dspec, n=p, axis=0))
 
 
-def hampel(x: np.ndarray, window: int = 11, n_sigma: float = 6.0
-           ) -> tuple[np.ndarray, np.ndarray]:
+def hampel(x: np.ndarray, window: int = 11, n_sigma: float = 6.0,
+           t: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     r"""Replace outliers by the running median; returns ``(cleaned, outlier mask)``.
 
-    Sample ``k`` of a channel is an outlier when ``|x_k − m_k| > n_σ · s_k``, with ``m_k`` the
-    median of the ``window`` samples centred on ``k`` and ``s_k = max(1.4826 · median_j |x_j −
-    m_k|, s_min)`` over the same samples (the local MAD); ``s_min`` is the smallest non-zero
-    step between consecutive samples of the channel, so that on a flat stretch of an encoder
-    signal one count is not an outlier. A smooth signal is never flagged (at an extremum the
-    ratio is about 1).
+    Sample ``k`` of a channel is an outlier when ``|x_k − m_k| > n_σ · s_k`` (Hampel 1974), with
+    ``m_k`` the median of the ``window`` samples centred on ``k`` less their trend (the median
+    of their successive slopes over the stamps ``t``, default the sample index, which neither a
+    spike nor a step moves: a torque that changes by several noise σ per sample hides no spike
+    in its slope), *and* ``x_k`` lies outside
+    ``[min(l_k, r_k) − n_σ s_k, max(l_k, r_k) + n_σ s_k]``, ``l_k`` and ``r_k`` the medians of
+    the half windows before and after it: a sample between the levels on its two sides is a
+    step (a Coulomb torque reversing with the velocity, a payload set down), physics rather
+    than a glitch, which departs from both. The scale ``s_k`` is the largest of
+
+    * the local MAD ``1.4826 · median_j |x_j − m_k|`` over the window;
+    * the third quartile of ``|x_j − m_j|`` over the block of :data:`HAMPEL_SCALE_WINDOWS`
+      windows that holds ``k``, over its value for Gaussian noise (1.1503 σ): eleven samples
+      of noise that is not Gaussian (a controller chattering between two levels, a current's
+      ripple) often have a MAD of nearly nothing, and their quartile sees it; it breaks down
+      only when a quarter of the block is glitches;
+    * the smallest non-zero step between consecutive samples of the channel, so that on a flat
+      stretch of an encoder signal one count is not an outlier, and at least the float32
+      rounding step of its largest value (:data:`FLOAT32_EPS`): a noise-free signal (a
+      simulation) has no other scale, and loggers often store float32.
+
+    A smooth signal is never flagged (at an extremum the ratio is about 1).
     """
     x = as_2d("x", x)
     if window < 3 or window % 2 == 0:
@@ -372,12 +410,70 @@ def hampel(x: np.ndarray, window: int = 11, n_sigma: float = 6.0
     half = window // 2
     padded = np.pad(x, ((half, half), (0, 0)), mode="reflect")
     win = np.lib.stride_tricks.sliding_window_view(padded, window, axis=0)  # (N, nv, window)
+    # each window less its robust trend, the median of its successive slopes
+    k = np.arange(x.shape[0], dtype=float) if t is None else np.asarray(t, dtype=float)
+    tw = np.lib.stride_tricks.sliding_window_view(
+        np.pad(k, half, mode="reflect", reflect_type="odd"), window)[:, None, :]   # (N, 1, w)
+    slope = np.median(np.diff(win, axis=2) / np.diff(tw, axis=2), axis=2)
+    win = win - slope[:, :, None] * (tw - tw[:, :, half:half + 1])
     med = np.median(win, axis=2)
     scale = 1.4826 * np.median(np.abs(win - med[:, :, None]), axis=2)
+    level = _block_quartile(np.abs(x - med), HAMPEL_SCALE_WINDOWS * window) / GAUSS_Q75
     steps = np.abs(np.diff(x, axis=0))
     floor = np.array([np.min(s[s > 0]) if np.any(s > 0) else 0.0 for s in steps.T])
-    mask = np.abs(x - med) > n_sigma * np.maximum(scale, floor)
+    floor = np.maximum(floor, FLOAT32_EPS * np.max(np.abs(x), axis=0))
+    thr = n_sigma * np.maximum(np.maximum(scale, level), floor)
+    left = np.median(win[:, :, :half], axis=2)
+    right = np.median(win[:, :, half + 1:], axis=2)
+    outside = (x < np.minimum(left, right) - thr) | (x > np.maximum(left, right) + thr)
+    mask = (np.abs(x - med) > thr) & outside
     return np.where(mask, med, x), mask
+
+
+def _block_quartile(r: np.ndarray, block: int) -> np.ndarray:
+    """Per sample, the third quartile of the columns of ``r`` (N, nv) over the consecutive block
+    of ``block`` samples that holds it (the last block takes the remainder too)."""
+    n = r.shape[0]
+    count = max(n // block, 1)
+    edges = np.linspace(0, n, count + 1).astype(int)
+    out = np.empty_like(r)
+    for a, b in zip(edges[:-1], edges[1:]):
+        out[a:b] = np.percentile(r[a:b], 75, axis=0)
+    return out
+
+
+def stuck_samples(tau: np.ndarray, q: np.ndarray, run: int = 3, max_repeats: float = 0.01
+                  ) -> np.ndarray:
+    """``True`` for the torque samples (N, nv) that repeat the value before them in a run of at
+    least ``run`` equal samples while the same joint's position changed over the run, on
+    channels where consecutive equal samples are otherwise rare (at most ``max_repeats`` of the
+    steps): a logger that re-sent the last value of a channel that never holds still while the
+    joint moved on. The first sample of each run is genuine and not marked. A joint at rest
+    (its position constant over the run: a simulated torque without noise holds still too) and
+    channels that repeat often (a quantised current) are left alone."""
+    tau, q = as_2d("tau", tau), as_2d("q", q)
+    mask = np.zeros(tau.shape, dtype=bool)
+    if tau.shape[0] < 2:
+        return mask
+    same = np.diff(tau, axis=0) == 0                     # (N−1, nv): x[k+1] == x[k]
+    for j in np.flatnonzero(same.mean(axis=0) <= max_repeats):
+        padded = np.concatenate([[False], same[:, j], [False]])
+        edges = np.flatnonzero(np.diff(padded.astype(int)))
+        for a, b in zip(edges[::2], edges[1::2]):        # same[a:b] all True: x[a..b] equal
+            if b - a + 1 >= run and q[b, j] != q[a, j]:
+                mask[a + 1:b + 1, j] = True
+    return mask
+
+
+def bridge(x: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """``x`` with the samples ``mask`` marks replaced by linear interpolation (in sample index)
+    between the unmarked samples around them, per channel (held at the ends)."""
+    x = as_2d("x", x).copy()
+    k = np.arange(x.shape[0])
+    for j in np.flatnonzero(mask.any(axis=0) & ~mask.all(axis=0)):
+        bad = mask[:, j]
+        x[bad, j] = np.interp(k[bad], k[~bad], x[~bad, j])
+    return x
 
 
 def low_speed_mask(dq: np.ndarray, threshold: float | Sequence[float]) -> np.ndarray:
@@ -405,13 +501,26 @@ def held_still(q: np.ndarray) -> np.ndarray:
 
 
 def estimate_bandwidth(q: np.ndarray, rate: float, fraction: float = 0.9999) -> float:
-    """The excitation bandwidth (Hz): the frequency below which ``fraction`` of the power of
-    every moving joint's detrended, Hann-windowed position lies (the largest over joints).
+    """The excitation bandwidth (Hz): the frequency below which ``fraction`` of the motion's
+    power lies in every moving joint's detrended, Hann-windowed position (the largest over
+    joints).
+
+    Where the raw spectrum's ``fraction`` falls on noise (its bin, averaged with the two on
+    each side, within :data:`NOISE_MARGIN` of the noise's level, or at more than twice the
+    frequency the excess below gives), the motion's power is what
+    the periodogram holds above its noise: per bin, the power in excess of
+    :data:`NOISE_MARGIN` × the running median over :data:`NOISE_WINDOW` of the bins at and
+    above it (the noise's local level, white or
+    coloured, which the few lines of an excitation band do not move). Noise whose power is a
+    fraction ``ε`` of the motion's would otherwise set the bandwidth wherever the fraction
+    ``1 − ε`` lies: on a jittered log whose stamps are off by ``δ``, the error ``q̇ δ`` is ~1 %
+    of a slow motion, and set it at 100–600 Hz. Elsewhere (a clean log) the raw spectrum's.
 
     Positions are used, not velocities: their noise is tiny compared with the motion. Joints
     :func:`held_still` are left out: their spectrum is rounding or encoder noise, flat up to the
     Nyquist frequency, and would set every joint's cut-off there (when no joint moves by that
-    rule — independent states, not a trajectory — every joint that varies counts).
+    rule — independent states, not a trajectory — every joint that varies counts, and then
+    without the noise's subtraction, which would leave nothing).
     """
     q = as_2d("q", q)
     if q.shape[0] < 16:
@@ -419,20 +528,50 @@ def estimate_bandwidth(q: np.ndarray, rate: float, fraction: float = 0.9999) -> 
     x = scipy.signal.detrend(q, axis=0) * np.hanning(q.shape[0])[:, None]
     power = np.abs(np.fft.rfft(x, axis=0)) ** 2
     freqs = np.fft.rfftfreq(q.shape[0], 1.0 / rate)
-    total = power.sum(axis=0)
-    moving = total > 0
+    moving = power.sum(axis=0) > 0
     resolved = moving & ~held_still(q)
-    if resolved.any():
-        moving = resolved
     if not moving.any():
         raise DatasetError("the positions do not move: no excitation bandwidth")
-    cum = np.cumsum(power[:, moving], axis=0) / total[moving]
-    idx = np.argmax(cum >= fraction, axis=0)
+    if resolved.any():
+        moving = resolved
+        level = NOISE_MARGIN * _noise_level(power)
+        raw = _fraction_bin(power, fraction)
+        # where the raw spectrum's bin is noise (no more than the margin over its level), the
+        # noise set it: the motion's power is the excess over the noise
+        smooth = scipy.ndimage.uniform_filter1d(power, 5, axis=0, mode="reflect")
+        cols = np.arange(power.shape[1])
+        excess = np.maximum(power - level, 0.0)
+        # or where the excess puts it at less than half: the raw point is then set by power
+        # that is not the motion's (leakage moves it by a few bins only)
+        noisy = (smooth[raw, cols] <= level[raw, cols]) | (
+            2 * _fraction_bin(excess, fraction) < raw)
+        use = noisy & (excess.sum(axis=0) > 0)           # else no line stands out: the raw
+        power = np.where(use, excess, power)
+    power = power[:, moving]
+    idx = _fraction_bin(power, fraction)
     return float(max(freqs[idx].max(), freqs[1]))
 
 
+def _fraction_bin(power: np.ndarray, fraction: float) -> np.ndarray:
+    """Per column of a periodogram, the first bin below which ``fraction`` of its power lies
+    (0 for a column without power)."""
+    total = power.sum(axis=0)
+    cum = np.cumsum(power, axis=0) / np.where(total > 0, total, 1.0)
+    return np.argmax(cum >= fraction, axis=0)
+
+
+def _noise_level(power: np.ndarray) -> np.ndarray:
+    """The running median of each column of a periodogram over the :data:`NOISE_WINDOW` of its
+    bins at and above each (at least 15; the top end reflected): looking up, a window at the
+    band's top harmonic holds the noise beyond it, not the lines below it, however few bins a
+    short log gives the band."""
+    width = max(int(NOISE_WINDOW * power.shape[0]) | 1, 15)
+    return scipy.ndimage.median_filter(power, size=(width, 1), mode="reflect",
+                                       origin=(-(width // 2), 0))
+
+
 def default_cutoff(bandwidth: float, rate: float) -> float:
-    """``min(10 × bandwidth, 0.4 × rate)`` (Hz)."""
+    """``min(10 × bandwidth, 0.4 × rate)`` (Hz) (:data:`CUTOFF_FACTOR`)."""
     if not bandwidth > 0:
         raise OptionError(f"bandwidth = {bandwidth} Hz must be positive")
     return float(min(CUTOFF_FACTOR * bandwidth, MAX_CUTOFF_FRACTION * rate))

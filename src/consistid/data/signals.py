@@ -35,6 +35,7 @@ from .filters import (
     savgol_cutoff,
     savgol_derivatives,
     savgol_window,
+    stuck_samples,
 )
 from .resample import resample, supported_rate, to_uniform, uniform_grid
 from .timestamps import duplicate_groups, group_mean, interval_centres, long_steps
@@ -45,7 +46,8 @@ __all__ = [
     "default_cutoff", "duplicate_groups", "estimate_bandwidth", "fourier_derivatives",
     "group_mean", "hampel", "interval_centres", "long_steps", "low_speed_mask", "lowpass",
     "period_average", "preprocess", "resample", "samples_per_period", "savgol_cutoff",
-    "savgol_derivatives", "savgol_window", "supported_rate", "to_uniform", "uniform_grid",
+    "savgol_derivatives", "savgol_window", "stuck_samples", "supported_rate", "to_uniform",
+    "uniform_grid",
 ]
 
 

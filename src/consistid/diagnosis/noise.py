@@ -78,6 +78,14 @@ FINE_SEGMENT = 4.0
 #: Shortest period (s) searched, and the least overlap (s) a repetition estimate needs.
 MIN_PERIOD = 0.5
 MIN_OVERLAP = 2.0
+#: Length (s) of the stretches of the difference series whose RMS the repetition floor takes
+#: the lower quartile of (:func:`repetition_estimate`): short beside a period (a change spoils
+#: few), long beside the noise's correlation under the chain's low-pass (≥ 10 degrees of
+#: freedom at 5 Hz).
+REPEAT_STRETCH = 1.0
+#: Least degrees of freedom of a stretch (``2 B T``, ``B`` the noise bandwidth): a low-pass
+#: below ~10 Hz lengthens the stretches beyond :data:`REPEAT_STRETCH`.
+STRETCH_DOF = 20.0
 #: Least power response ``|H|⁴`` of a known torque filter at which its spectrum is divided by
 #: it (50 dB down): further down, leakage of the motion band and round-off outweigh the noise.
 MIN_RESPONSE = 1e-5
@@ -114,6 +122,11 @@ class NoiseFloor:
     reliable : (nv,) False where the estimate cannot see the noise (filtered below the motion
         band).
     description : one line for reports.
+    stderr : (nv,) standard error of ``log σ`` where the estimate has one (repetition: the
+        stretches' spread; spectrum through a known filter: the fit's), else ``nan``.
+    raw : (nv,) N·m, the noise of the torques before the chain's low-pass (white noise through
+        the recorded filter, :func:`raw_noise`): ``sigma`` where the torques were not filtered
+        or the filter is not recorded.
     """
 
     sigma: np.ndarray
@@ -122,6 +135,8 @@ class NoiseFloor:
     cutoff: np.ndarray
     reliable: np.ndarray
     description: str
+    stderr: np.ndarray | None = None
+    raw: np.ndarray | None = None
 
 
 def _lag_mismatch(x: np.ndarray, max_lag: int) -> np.ndarray:
@@ -186,44 +201,153 @@ def _repeats(q: np.ndarray, lag: int) -> bool:
                 <= REPEAT_TOLERANCE * scale)
 
 
-def repetition_floor(dataset: Dataset, tau: np.ndarray, period: float
-                     ) -> tuple[np.ndarray, int]:
-    """The noise from the repetition of the excitation every ``period`` seconds, pooled over the
-    recordings that hold it with :data:`MIN_OVERLAP` to spare and whose positions repeat after
-    it (to :data:`REPEAT_TOLERANCE`, as in :func:`find_period`). The lag in samples is each
-    recording's own, ``round(period / h)`` with its step ``h``: recordings resampled at other
-    rates (two jittered logs of one trajectory, a held-out log) line up in time, not in index.
+@dataclass(frozen=True)
+class Repetition:
+    """The repetition estimate per joint (:func:`repetition_estimate`).
 
-    With three periods or more in a recording, second differences
-    ``τ(t + 2P) − 2 τ(t + P) + τ(t)`` (variance ``6 σ²``) cancel a torque that drifts linearly
-    over the log (friction warming in); with two, first differences
-    ``τ(t + P) − τ(t)`` (variance ``2 σ²``), which such a drift inflates. Returns
-    ``(σ (nv,), order of the differences used)``; σ ``nan`` where no recording holds two
-    periods."""
-    nv = tau.shape[1]
-    sums = {1: [np.zeros(nv), 0], 2: [np.zeros(nv), 0]}
+    Attributes
+    ----------
+    sigma : (nv,) N·m, ``nan`` where no recording holds two periods.
+    order : the order of the differences used (1 or 2; 0: none).
+    stderr : (nv,) standard error of ``log σ`` (from the spread of the stretches).
+    disturbed : (nv,) fraction of the stretches whose σ exceeds the lower quartile's estimate
+        by more than :data:`MAX_FLOOR_RATIO`: where the torque did not repeat (left out).
+    stretches : how many stretches of :data:`REPEAT_STRETCH` s there are.
+    """
+
+    sigma: np.ndarray
+    order: int
+    stderr: np.ndarray
+    disturbed: np.ndarray
+    stretches: int
+
+
+def _differences(dataset: Dataset, tau: np.ndarray, period: float, order: int
+                 ) -> list[tuple[np.ndarray, float]]:
+    """Per recording that holds ``order + 1`` periods with :data:`MIN_OVERLAP` to spare and
+    whose positions repeat: the differences of ``order`` (``d / √2`` or ``d / √6``: σ each) and
+    the recording's step (s)."""
+    out = []
     for s in np.unique(dataset.segment):
         idx = np.flatnonzero(dataset.segment == s)
         if idx.size < 2:
             continue                        # one sample: no step, nothing repeats
         h = float(np.median(np.diff(dataset.t[idx])))
         lag = int(round(period / h))
-        if lag < 1 or idx.size <= lag or not _repeats(dataset.q[idx], lag):
+        span = order * lag
+        if lag < 1 or idx.size <= span or (idx.size - span) * h < MIN_OVERLAP \
+                or not _repeats(dataset.q[idx], lag):
             continue
-        for order, weight in ((1, 2.0), (2, 6.0)):
-            span = order * lag
-            if idx.size <= span or (idx.size - span) * h < MIN_OVERLAP:
-                continue
-            x = tau[idx]
-            d = x[span:] - x[:-span] if order == 1 else \
-                x[2 * lag:] - 2 * x[lag:-lag] + x[:-2 * lag]
-            sums[order][0] += np.sum((d - d.mean(axis=0)) ** 2, axis=0) / weight
-            sums[order][1] += d.shape[0] - 1
-    for order in (2, 1):
-        acc, count = sums[order]
-        if count > 0:
-            return np.sqrt(acc / count), order
-    return np.full(nv, np.nan), 0
+        x = tau[idx]
+        d = (x[lag:] - x[:-lag]) / np.sqrt(2.0) if order == 1 else \
+            (x[2 * lag:] - 2 * x[lag:-lag] + x[:-2 * lag]) / np.sqrt(6.0)
+        out.append((d, h))
+    return out
+
+
+def repetition_estimate(dataset: Dataset, tau: np.ndarray, period: float,
+                        torque_filter: tuple[float, int] | None = None) -> Repetition:
+    r"""The noise from the repetition of the excitation every ``period`` seconds (module notes),
+    robust to what does not repeat.
+
+    Per order (first differences ``(τ(t+P) − τ(t))/√2``; with three periods or more, second
+    differences ``(τ(t+2P) − 2τ(t+P) + τ(t))/√6``, which cancel a linear drift), the difference
+    series of every recording that holds it is cut into stretches of :data:`REPEAT_STRETCH` s
+    (longer below :data:`STRETCH_DOF` degrees of freedom);
+    each stretch gives ``σ_i``, its standard deviation about its own mean (a change offsets the
+    stretches it spoils, not the others). The order's estimate is the lower quartile of the
+    ``σ_i`` over its value for noise alone, ``σ √(χ²_{ν,0.25}/ν)``, with ``ν = 2 B T − 1``
+    degrees of freedom per stretch (``B = ∫|H|⁴ df`` the noise bandwidth of ``torque_filter``,
+    the chain's low-pass, or the Nyquist frequency without one), refined as the pooled
+    ``√(mean σ_i²)`` of the stretches within :data:`MAX_FLOOR_RATIO` of it (on clean data all of
+    them: the efficient estimate). A friction that stepped after a
+    pause or a payload released puts a torque that does not repeat into the differences that
+    straddle the change (one period of them for first differences, two for second: half the
+    first differences of a three-period log), and the quartile ignores it while it holds fewer
+    than three quarters of the stretches (a mean of squares swelled 10–26 × there). The
+    estimate is the second differences' where there are three periods, unless the first
+    differences' is lower by more than :data:`MAX_FLOOR_RATIO` (``order`` is then still 2).
+
+    Its standard error in ``log σ`` is ``s / √K`` over the ``K`` stretches pooled, ``s`` the
+    spread of ``log σ_i``: ``1.4826 · MAD``, at least the noise's own ``1/√(2ν)``
+    (conservative where the stretches differ by more than noise).
+    The lag in samples is each recording's own, ``round(period / h)``: recordings resampled at
+    other rates line up in time, not in index."""
+    nv = tau.shape[1]
+    best = Repetition(np.full(nv, np.nan), 0, np.full(nv, np.inf), np.zeros(nv), 0)
+    for order in (1, 2):
+        stretches, steps = [], []
+        for d, h in _differences(dataset, tau, period, order):
+            n = max(int(round(_stretch(torque_filter, h) / h)), 2)
+            for a in range(0, d.shape[0] - n + 1, n):
+                stretches.append(np.std(d[a:a + n], axis=0))
+                steps.append(h)
+            if not stretches and d.shape[0] >= 2:
+                stretches.append(np.std(d, axis=0))
+                steps.append(h)
+        if not stretches:
+            continue
+        sig = np.array(stretches)                                   # (M, nv)
+        h = float(np.median(steps))
+        factor, dof = _quartile_of_noise(torque_filter, h, _stretch(torque_filter, h))
+        quartile = np.percentile(sig, 25, axis=0) / factor
+        median = np.median(sig, axis=0)
+        logs = np.log(np.maximum(sig, 1e-300))
+        mad = np.median(np.abs(logs - np.log(np.maximum(median, 1e-300))), axis=0)
+        spread = np.maximum(1.4826 * mad, 1.0 / np.sqrt(2.0 * dof))
+        agree = sig <= MAX_FLOOR_RATIO * quartile
+        disturbed = 1.0 - np.mean(agree, axis=0)
+        # the stretches that agree with the quartile, pooled (the efficient estimate on them)
+        quartile = np.sqrt(np.sum(sig ** 2 * agree, axis=0) / np.maximum(agree.sum(axis=0), 1)
+                           * (dof + 1.0) / dof)            # each stretch less its own mean
+        stderr = spread / np.sqrt(np.maximum(agree.sum(axis=0), 1))
+        if best.order == 0:
+            best = Repetition(quartile, order, stderr, disturbed, sig.shape[0])
+        else:
+            # second differences unless the first are lower beyond what two estimates of one
+            # noise differ by (a change that spoils all the second differences)
+            keep = best.sigma * MAX_FLOOR_RATIO < quartile
+            best = Repetition(np.where(keep, best.sigma, quartile), order,
+                              np.where(keep, best.stderr, stderr),
+                              np.where(keep, best.disturbed, disturbed),
+                              max(sig.shape[0], best.stretches))
+    return best
+
+
+def _bandwidth(torque_filter: tuple[float, int] | None, step: float) -> float:
+    """The noise bandwidth ``B = ∫₀^{f_N} |H|⁴ df`` (Hz) of ``torque_filter`` at the rate
+    ``1 / step``; the Nyquist frequency without one (or one not at that rate)."""
+    rate = 1.0 / step
+    if torque_filter is None or not torque_filter[0] < 0.45 * rate:
+        return 0.5 * rate
+    grid = np.linspace(0.0, 0.5 * rate, 4097)
+    return 0.5 * rate * float(np.mean(lowpass_power(grid, torque_filter[0], rate,
+                                                    torque_filter[1])))
+
+
+def _stretch(torque_filter: tuple[float, int] | None, step: float) -> float:
+    """The stretch length (s): :data:`REPEAT_STRETCH`, longer where the noise's bandwidth
+    gives it fewer than :data:`STRETCH_DOF` degrees of freedom (``2 B T``)."""
+    return max(REPEAT_STRETCH, STRETCH_DOF / (2.0 * _bandwidth(torque_filter, step)))
+
+
+def _quartile_of_noise(torque_filter: tuple[float, int] | None, step: float, seconds: float
+                       ) -> tuple[float, float]:
+    """The lower quartile of ``σ_i / σ`` for a stretch of ``seconds`` of noise through
+    ``torque_filter`` sampled every ``step`` s, ``√(χ²_{ν,0.25} / ν)``, and ``ν = 2 B T − 1``
+    (:func:`_bandwidth`; one less for the stretch's own mean)."""
+    dof = max(2.0 * _bandwidth(torque_filter, step) * seconds - 1.0, 1.0)
+    chi2_quartile = 2.0 * scipy.special.gammaincinv(0.5 * dof, 0.25)    # χ²_ν's 25 % point
+    return float(np.sqrt(chi2_quartile / dof)), dof
+
+
+def repetition_floor(dataset: Dataset, tau: np.ndarray, period: float
+                     ) -> tuple[np.ndarray, int]:
+    """``(σ (nv,), order of the differences)`` of :func:`repetition_estimate` (through the
+    dataset's recorded torque filter); σ ``nan`` where no recording holds two periods (order
+    0)."""
+    rep = repetition_estimate(dataset, tau, period, dataset.torque_filter)
+    return rep.sigma, rep.order
 
 
 def fine_spectra(dataset: Dataset, residual: np.ndarray, tau_nom: np.ndarray,
@@ -315,6 +439,13 @@ def _ar1_shape(f: np.ndarray, phi: float, rate: float) -> np.ndarray:
     return (1.0 - phi) ** 2 / (1.0 + phi ** 2 - 2.0 * phi * np.cos(2.0 * np.pi * f / rate))
 
 
+def ar1_knee(phi: float, rate: float) -> float:
+    """The knee (Hz) of the AR(1) spectrum of the module notes, ``f_r ln(1/φ) / 2π``, computed as
+    ``−f_r ln φ / 2π`` (a fitted ``φ`` of ~1e-309, white noise, overflows ``1/φ``, never
+    ``ln φ``); ``inf`` for ``φ ≤ 0``."""
+    return float("inf") if phi <= 0 else -rate * float(np.log(phi)) / (2 * np.pi)
+
+
 def log_periodogram_bias(segments: int) -> float:
     r"""``E[log Ŝ(f)] − log S(f)`` of a Welch estimate averaging ``segments`` Hann-windowed
     segments with 50 % overlap: ``Ŝ/S ~ χ²_ν/ν`` with ``ν ≈ 1.89·K`` equivalent degrees of
@@ -383,7 +514,7 @@ def filtered_floor(spectra: Spectra, torque_filter: tuple[float, int] | None, ra
         cov = scale2 * np.linalg.pinv(fit.jac.T @ fit.jac)
         stderr = float(np.sqrt(max(grad @ cov @ grad, 0.0)))
         # the noise's knee below the band: its level there is an extrapolation, unseen
-        knee = np.inf if fit.x[1] <= 0 else rate * np.log(1.0 / fit.x[1]) / (2 * np.pi)
+        knee = ar1_knee(float(fit.x[1]), rate)
         shaped[j] = misfit <= MAX_MISFIT and knee >= f[0]
         reliable[j] = shaped[j] and stderr <= MAX_STDERR
         stderrs[j] = stderr
@@ -401,6 +532,7 @@ class SpectralFloor:
     reliable: np.ndarray
     known: np.ndarray
     text: str
+    stderr: np.ndarray | None = None
 
 
 def spectral_estimate(dataset: Dataset, residual: np.ndarray, tau_nom: np.ndarray
@@ -453,7 +585,8 @@ def spectral_estimate(dataset: Dataset, residual: np.ndarray, tau_nom: np.ndarra
         joints = ", ".join(str(j + 1) for j in np.flatnonzero(known))
         text = (ar1 if known.all() else
                 f"{text}; {ar1.replace('from the residual spectrum ', '')} (joints {joints})")
-    return SpectralFloor(np.maximum(sigma, 1e-12), cut, reliable, known, text)
+    stderr = np.where(known, k_err, np.nan)
+    return SpectralFloor(np.maximum(sigma, 1e-12), cut, reliable, known, text, stderr)
 
 
 def estimate_noise_floor(dataset: Dataset, tau: np.ndarray, residual: np.ndarray,
@@ -484,7 +617,11 @@ def estimate_noise_floor(dataset: Dataset, tau: np.ndarray, residual: np.ndarray
     spectral = spectral_estimate(*(spectrum_on or (dataset, residual, tau_nom)))
     spec_sigma, cut, reliable = spectral.sigma, spectral.cutoff, spectral.reliable
     period, _ = find_period(dataset)
-    rep, order = repetition_floor(dataset, tau, period) if period else (np.full(nv, np.nan), 0)
+    source = (repeating or spectrum_on or (dataset,))[0]
+    target = (spectrum_on or (dataset,))[0]
+    repetition = (repetition_estimate(dataset, tau, period, source.torque_filter) if period else
+                  Repetition(np.full(nv, np.nan), 0, np.full(nv, np.inf), np.zeros(nv), 0))
+    rep, order = repetition.sigma, repetition.order
     repeats = np.isfinite(rep)
     # a torque that does not repeat, yet is no noise the spectrum sees (module notes)
     seen = (spectral if repeating is None or not repeats.any()
@@ -516,8 +653,57 @@ def estimate_noise_floor(dataset: Dataset, tau: np.ndarray, residual: np.ndarray
                  + ": a component that is neither locked to the excitation nor noise (a "
                  "disturbance at its own frequency, a change during the log); the floor there "
                  "is the spectrum's of the repeating recordings")
+    # the repeating recordings' floor through the spectrum's recordings' low-pass (the held-out
+    # ones when the filters differ: their RMS is what the floor is compared with)
+    if use_rep.any() and source.torque_filter is not None and target.torque_filter is not None \
+            and source.torque_filter != target.torque_filter:
+        scale = float(raw_noise(np.ones(1), source.torque_filter, _rate(source))[0]
+                      / raw_noise(np.ones(1), target.torque_filter, _rate(target))[0])
+        out = np.where(use_rep, out * scale, out)
+        text += (f"; through the {target.torque_filter[0]:.3g} Hz low-pass of the recordings "
+                 f"it is compared with (× {scale:.3g} of the {source.torque_filter[0]:.3g} Hz "
+                 "one, for white noise)")
+    disturbed = use_rep & (repetition.disturbed > 0)
+    if disturbed.any():
+        text += (f"; of {repetition.stretches} stretches of {REPEAT_STRETCH:g} s, those where "
+                 "the torque did not repeat were left out (joint "
+                 + ", ".join(f"{j + 1}: {repetition.disturbed[j]:.0%}"
+                             for j in np.flatnonzero(disturbed)) + ")")
     if not reliable.all():
         text += ("; UNRELIABLE on joints filtered below the motion band (pass sigma): "
                  + ", ".join(str(j + 1) for j in np.flatnonzero(~reliable)))
-    return NoiseFloor(out, method, period, cut, reliable, text)
+    def errors(floor: SpectralFloor) -> np.ndarray:
+        return np.full(nv, np.nan) if floor.stderr is None else floor.stderr
+
+    stderr = np.where(use_rep, repetition.stderr,
+                      np.where(not_noise, errors(seen), errors(spectral)))
+    raw = raw_noise(out, target.torque_filter, _rate(target))
+    if target.torque_filter is not None and np.all(np.isfinite(raw)):
+        text += (f"; the raw torques' noise before the chain's {target.torque_filter[0]:.3g} Hz "
+                 "low-pass (white through it): "
+                 + ", ".join(f"{r:.3g}" for r in raw) + " N·m, filtered: "
+                 + ", ".join(f"{x:.3g}" for x in out) + " N·m")
+    return NoiseFloor(out, method, period, cut, reliable, text, stderr, raw)
+
+
+def _rate(dataset: Dataset) -> float:
+    """The sampling rate (Hz) of the dataset's first recording, ``nan`` with fewer than two
+    samples."""
+    idx = np.flatnonzero(dataset.segment == dataset.segment[0])
+    return 1.0 / float(np.median(np.diff(dataset.t[idx]))) if idx.size > 1 else float("nan")
+
+
+def raw_noise(sigma: np.ndarray, torque_filter: tuple[float, int] | None, rate: float
+              ) -> np.ndarray:
+    r"""The standard deviation of white noise that the zero-phase low-pass ``torque_filter``
+    (``(cut-off Hz, order)``, run at ``rate``) turns into ``sigma``:
+    :math:`σ_{raw} = σ / \sqrt{\frac{1}{f_N}\int_0^{f_N} |H(f)|^4\, df}` (the filter passes
+    that fraction of a flat spectrum's power). ``sigma`` itself without a filter, or when the
+    filter is not one at ``rate`` (decimated, selected)."""
+    sigma = np.asarray(sigma, dtype=float)
+    if torque_filter is None or not np.isfinite(rate) or not torque_filter[0] < 0.45 * rate:
+        return sigma.copy()
+    grid = np.linspace(0.0, 0.5 * rate, 8193)
+    passed = float(np.mean(lowpass_power(grid, torque_filter[0], rate, torque_filter[1])))
+    return sigma / np.sqrt(passed)
 
