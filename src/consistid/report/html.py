@@ -7,7 +7,11 @@ sheet is inline. Layout rules that keep everything on the page, whatever its wid
 * ``img {max-width: 100%; height: auto}``: a figure shrinks with the page, never overflows;
 * tables take at most the page's width, cells wrap long contents (``overflow-wrap: anywhere``:
   a long base-parameter grouping breaks instead of widening its column), numbers are
-  right-aligned in a monospace font;
+  right-aligned in a monospace font; a header breaks between words only, never inside one
+  (``word-break: keep-all; overflow-wrap: normal; hyphens: none``), and each table sits in a
+  ``div.cid-table`` that scrolls sideways when its headers need more than the page;
+* the first box (:func:`findings_html`) says the worst finding first, then each further finding
+  once (:func:`unique`);
 * text (notes, verdicts) is HTML, never a ``<pre>`` block of fixed-width text.
 
 The page is valid HTML5 that :mod:`html.parser` reads without error (tested), and the
@@ -37,7 +41,8 @@ border-bottom:1px solid #ddd;padding-bottom:.2em}h3{font-size:1.05em;margin:1.2e
 .cid-report table{border-collapse:collapse;max-width:100%;margin:.5em 0 1em;font-size:.86em}
 .cid-report th,.cid-report td{border:1px solid #d4d4d4;padding:3px 7px;text-align:left;
 vertical-align:top;overflow-wrap:anywhere}
-.cid-report th{background:#f2f2f2}
+.cid-report th{background:#f2f2f2;word-break:keep-all;overflow-wrap:normal;hyphens:none}
+.cid-report .cid-table{max-width:100%;overflow-x:auto}
 .cid-report td.num{text-align:right;font-family:ui-monospace,Menlo,Consolas,monospace;
 white-space:nowrap}
 .cid-report td.key{white-space:nowrap;overflow-wrap:normal}
@@ -45,7 +50,10 @@ white-space:nowrap}
 .cid-report caption{caption-side:top;text-align:left;font-size:.9em;color:#444;padding:2px 0}
 .cid-report .verdict{padding:8px 12px;border-left:4px solid #888;background:#f7f7f7}
 .cid-report .verdict.ok{border-color:#2e8b57}.cid-report .verdict.warn{border-color:#d08000}
-.cid-report .verdict.bad{border-color:#c0392b}
+.cid-report .verdict.bad{border-color:#c0392b;background:#fdf1f0}
+.cid-report .verdict.warn{background:#fdf7ec}
+.cid-report .verdict .headline{font-weight:600;margin:.2em 0 .4em}
+.cid-report .verdict ul{margin:.2em 0;padding-left:1.3em}
 .cid-report code{font-size:.92em;background:#f4f4f4;padding:0 3px}
 .cid-report pre{white-space:pre-wrap;overflow-wrap:anywhere;font-size:.85em;background:#f6f6f6;
 padding:6px}
@@ -92,7 +100,7 @@ def table_html(header: Sequence[str], rows: Iterable[Sequence[Any]], *, caption:
     ``floatfmt``; a cell may be ``(value, spec)`` to format one number its own way). Text
     cells of the ``keys`` columns (names: the first by default) do not wrap; other text wraps
     anywhere, so the table never grows wider than the page for a long text."""
-    out = ["<table>"]
+    out = ['<div class="cid-table"><table>']
     if caption:
         out.append(f"<caption>{esc(caption)}</caption>")
     if any(header):
@@ -110,8 +118,39 @@ def table_html(header: Sequence[str], rows: Iterable[Sequence[Any]], *, caption:
             css = ' class="num"' if numeric else ' class="key"' if c in keys else ""
             cells.append(f"<td{css}>{esc(fmt(cell, spec))}</td>")
         out.append(f"<tr{cls}>" + "".join(cells) + "</tr>")
-    out.append("</tbody></table>")
+    out.append("</tbody></table></div>")
     return "".join(out)
+
+
+def unique(texts: Iterable[str]) -> list[str]:
+    """``texts`` without repeats (first occurrence kept, surrounding blanks ignored)."""
+    seen: set[str] = set()
+    out = []
+    for text in texts:
+        key = " ".join(str(text).split())
+        if key and key not in seen:
+            seen.add(key)
+            out.append(str(text))
+    return out
+
+
+#: Order of the findings' levels, least to most severe.
+LEVELS = ("ok", "warn", "bad")
+
+
+def findings_html(findings: Sequence[tuple[str, str]], anchor: str = "findings") -> str:
+    """The first box of a report: ``findings`` are ``(level, text)`` pairs (level in
+    :data:`LEVELS`). The box takes the worst level; its headline is the first of the worst
+    findings, the others follow as a list, most severe first, each text once."""
+    if not findings:
+        return ""
+    rank = {level: k for k, level in enumerate(LEVELS)}
+    ordered = sorted(findings, key=lambda f: -rank[f[0]])      # stable: keeps the given order
+    texts = unique(text for _, text in ordered)
+    level = ordered[0][0]
+    rest = "".join(f"<li>{esc(t)}</li>" for t in texts[1:])
+    return (f'<div class="verdict {level}" id="{esc(anchor)}"><p class="headline">'
+            f"{esc(texts[0])}</p>" + (f"<ul>{rest}</ul>" if rest else "") + "</div>")
 
 
 class Page:
