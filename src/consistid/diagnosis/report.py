@@ -24,7 +24,7 @@ import numpy as np
 
 from ..identification.summary import table
 from ..report import plots
-from ..report.html import Page, esc
+from ..report.html import Page, findings_html
 
 if TYPE_CHECKING:
     from .diagnose import Diagnosis
@@ -189,7 +189,15 @@ def diagnosis_page(diag: "Diagnosis", figures: bool = True) -> Page:
     page = Page(f"Sim-to-real diagnosis: {diag.model_name}",
                 "nominal model vs measured torques")
     level, text = _verdict(diag)
-    page.raw(f'<div class="verdict {level}"><p>{esc(text)}</p></div>')
+    findings = [(level, text)]
+    ratio = np.asarray(diag.gap_to_noise, dtype=float)
+    if ratio.size and np.isfinite(ratio).any() and level != "ok":
+        j = int(np.nanargmax(ratio))
+        findings.append((level, f"Largest gap left: {names[j]}, held-out RMS "
+                                f"{diag.rms_final[j]:.3g} N·m = {ratio[j]:.3g} × its noise "
+                                "floor."))
+    findings += [("ok", note) for note in diag.notes]   # notes: near the top, once
+    page.raw(findings_html(findings))
     page.key_values([("held-out data", diag.held_out_source),
                      ("noise floor", diag.noise_source)])
     page.heading("Effects found", anchor="effects")
@@ -251,9 +259,6 @@ def diagnosis_page(diag: "Diagnosis", figures: bool = True) -> Page:
         last = diag.steps[-1]
         if not last.accepted:
             page.paragraph(f"Selection stopped: {last.reason} (next candidate {last.chosen}).")
-    if diag.notes:
-        page.heading("Notes", anchor="notes")
-        page.bullets(diag.notes)
     return page
 
 
