@@ -334,8 +334,8 @@ def identification_page(res: "IdentificationResult", data: Dataset | None = None
             res.base.names[:n], res.base_parameters[:n], res.base_std[:n],
             res.base.project(res.prior)[:n]),
             "base parameters: estimate ± 2σ (dot and bar) against the prior (cross), each row "
-            "divided by the larger of |estimate| and |prior|; red: the bar is wider than the "
-            "axis (σ = inf where the data do not inform the parameter)")
+            "divided by the largest of |estimate|, |prior| and 2σ (a bar reaching ±1 around 0: "
+            "the data barely determine it); red: σ = inf, the data do not inform it")
     if len(rows) < res.base.n_base:
         page.paragraph(f"… {res.base.n_base - len(rows)} more (report(max_rows=None) shows all)")
     if res.base.unidentifiable:

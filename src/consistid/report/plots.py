@@ -8,7 +8,7 @@ r"""Plots that several reports draw, as matplotlib ``Figure`` objects (no pyplot
     identification assumed: drift, bursts at reversals and a growing error show there.
 ``parameter_errorbars``
     each estimate with its ±2σ bar against the prior (CAD) value, every parameter on its own
-    scale (divided by the larger of its |estimate| and |prior|).
+    scale (divided by the largest of its |estimate|, |prior| and 2σ).
 ``residual_histograms``
     the residual's distribution per joint, with the normal density of the noise σ the
     identification assumed: a residual wider than it, skewed or with two modes (Coulomb friction
@@ -122,16 +122,18 @@ BARS_LIMIT = 2.5
 def parameter_errorbars(names: Sequence[str], estimate: np.ndarray, std: np.ndarray,
                         prior: np.ndarray, title: str = "") -> Any:
     """Each estimate (dot) with its ±2σ bar and the prior's value (cross), one row per
-    parameter. Every row has its own scale ``s_i = max(|estimate_i|, |prior_i|)`` (values
-    divided by it, so 1 is the row's magnitude): a prior outside the bar is a parameter the data
-    moved away from the prior; a bar wider than the axis (σ = inf: not informed) is cut and
-    drawn red."""
+    parameter. Every row has its own scale ``s_i = max(|estimate_i|, |prior_i|, 2σ_i)``
+    (values divided by it, so every finite bar fits in [−2, 2]): a prior outside the bar is a
+    parameter the data moved away from the prior; a bar as wide as ±1 around 0 is one the data
+    barely determine; σ = inf (not informed) is drawn red across the axis."""
     estimate, std, prior = (np.asarray(a, dtype=float) for a in (estimate, std, prior))
     n = len(names)
     ncols = int(np.ceil(n / BARS_PER_COLUMN)) if n else 1
     per = int(np.ceil(n / ncols)) if n else 1
     fig = _figure(WIDTH, 0.17 * per + 1.2)
+    finite = np.isfinite(std)
     scale = np.maximum(np.abs(estimate), np.abs(prior))
+    scale = np.where(finite, np.maximum(scale, 2 * np.where(finite, std, 0.0)), scale)
     scale = np.where(scale > 0, scale, 1.0)
     lim = BARS_LIMIT
     for c in range(ncols):
@@ -153,13 +155,13 @@ def parameter_errorbars(names: Sequence[str], estimate: np.ndarray, std: np.ndar
         ax.set_yticks(y, [str(names[i]) for i in idx], fontsize=6)
         ax.set_ylim(y[-1] - 0.8 if len(y) else -1, 0.8)
         ax.tick_params(axis="x", labelsize=7)
-        ax.set_xlabel("value / max(|estimate|, |prior|)", fontsize=8)
+        ax.set_xlabel("value / max(|estimate|, |prior|, 2σ)", fontsize=8)
         ax.grid(True, axis="x", lw=0.3)
     handles = [
         fig.axes[0].errorbar([], [], xerr=[], fmt="o", ms=3, color="tab:blue")[0],
         fig.axes[0].errorbar([], [], xerr=[], fmt="o", ms=3, color="tab:red")[0],
         fig.axes[0].plot([], [], "x", color="k")[0]]
-    fig.legend(handles, ["estimate ± 2σ", "± 2σ wider than the axis (cut)", "prior"],
+    fig.legend(handles, ["estimate ± 2σ", "σ = inf (not informed) or cut", "prior"],
                loc="outside lower center", ncol=3, fontsize=8, frameon=False)
     if title:
         fig.suptitle(title, fontsize=10)
