@@ -34,7 +34,7 @@ import numpy as np
 from .base import COND_WARN
 from ..data.dataset import Dataset
 from ..report import plots
-from ..report.html import Page, esc, findings_html, unique
+from ..report.html import LEVELS, Page, esc, findings_html, unique
 
 if TYPE_CHECKING:
     from .result import IdentificationResult
@@ -57,51 +57,60 @@ def _rate(data: Dataset) -> float:
     return float(1.0 / np.median(dt)) if dt.size else 1.0
 
 
-def verdict(res: "IdentificationResult") -> tuple[str, list[str]]:
-    """``("ok" | "warn" | "bad", lines)``: what a reader must know before using the numbers."""
-    lines, level = [], "ok"
+def verdict_findings(res: "IdentificationResult") -> list[tuple[str, str]]:
+    """``(level, text)`` per fact a reader must know before using the numbers: the solver's
+    status, consistency, uninformed and weakly informed directions, left-out torque rows, the
+    condition number, a non-default gravity (levels as in :data:`~consistid.report.html.LEVELS`).
+    """
+    out = []
     status = res.solver.status
     if status not in CLEAN_STATUSES:
-        level = "bad" if "inaccurate" not in status else "warn"
-        lines.append(f"The solver ended with status {status!r} ({res.solver.name}): do not use "
-                     "these numbers without checking them.")
+        out.append(("bad" if "inaccurate" not in status else "warn",
+                    f"The solver ended with status {status!r} ({res.solver.name}): do not use "
+                    "these numbers without checking them."))
     else:
-        lines.append(f"The solver ended with status {status!r} ({res.solver.name}).")
+        out.append(("ok", f"The solver ended with status {status!r} ({res.solver.name})."))
     cons = res.consistency
     if cons.ok:
-        lines.append(f"Every body is physically consistent (pseudo-inertia ≻ 0, "
-                     f"{len(cons.bodies)} bodies).")
+        out.append(("ok", f"Every body is physically consistent (pseudo-inertia ≻ 0, "
+                          f"{len(cons.bodies)} bodies)."))
     else:
-        level = "bad" if level == "bad" else "warn"
         bad = [b.body for b in cons.bodies if not b.ok]
-        lines.append(f"{len(bad)} of {len(cons.bodies)} bodies are not physically consistent "
-                     f"({', '.join(bad)}): a simulator cannot use them as they are.")
+        out.append(("warn", f"{len(bad)} of {len(cons.bodies)} bodies are not physically "
+                            f"consistent ({', '.join(bad)}): a simulator cannot use them as "
+                            "they are."))
     uninformed = tuple(getattr(res, "uninformed", ()))
     if uninformed:
-        level = "bad" if level == "bad" else "warn"
-        lines.append(f"{len(uninformed)} base-parameter direction(s) are not informed by the "
-                     f"data (σ = inf): {'; '.join(uninformed[:4])}"
-                     + (" …" if len(uninformed) > 4 else "")
-                     + ". Their values come from the prior or the constraints alone.")
+        out.append(("warn", f"{len(uninformed)} base-parameter direction(s) are not informed "
+                            f"by the data (σ = inf): {'; '.join(uninformed[:4])}"
+                            + (" …" if len(uninformed) > 4 else "")
+                            + ". Their values come from the prior or the constraints alone."))
     weak = tuple(getattr(res, "weakly_informed", ()))
     if weak:
-        level = "bad" if level == "bad" else "warn"
-        lines.append(f"{len(weak)} direction(s) are only weakly informed by the data: "
-                     f"{'; '.join(weak[:3])}" + (" …" if len(weak) > 3 else "")
-                     + ". Predictions beyond the training envelope extrapolate along them.")
+        out.append(("warn", f"{len(weak)} direction(s) are only weakly informed by the data: "
+                            f"{'; '.join(weak[:3])}" + (" …" if len(weak) > 3 else "")
+                            + ". Predictions beyond the training envelope extrapolate along "
+                              "them."))
     excluded = tuple(getattr(res, "excluded_joints", ()))
     if excluded:
-        level = "bad" if level == "bad" else "warn"
-        lines.append(f"Torque rows left out: {res.details.get('excluded_joints', excluded)}.")
+        out.append(("warn", "Torque rows left out: "
+                            f"{res.details.get('excluded_joints', excluded)}."))
     if res.condition_number > COND_WARN:
-        level = "bad" if level == "bad" else "warn"
-        lines.append(f"cond(W_b) = {res.condition_number:.4g} > {COND_WARN:.0e}: some base "
-                     "parameters are poorly excited (see their relative σ).")
+        out.append(("warn", f"cond(W_b) = {res.condition_number:.4g} > {COND_WARN:.0e}: some "
+                            "base parameters are poorly excited (see their relative σ)."))
     if not res.model.has_default_gravity:
         g = ", ".join(f"{v:+.4f}" for v in res.model.gravity)
-        lines.append(f"Gravity in the base frame is ({g}) m/s²: these parameters hold with it "
-                     "(a URDF does not carry gravity).")
-    return level, lines
+        out.append(("ok", f"Gravity in the base frame is ({g}) m/s²: these parameters hold "
+                          "with it (a URDF does not carry gravity)."))
+    return out
+
+
+def verdict(res: "IdentificationResult") -> tuple[str, list[str]]:
+    """``("ok" | "warn" | "bad", lines)``: the worst level of :func:`verdict_findings` and
+    their texts."""
+    found = verdict_findings(res)
+    level = max((lv for lv, _ in found), key=LEVELS.index, default="ok")
+    return level, [text for _, text in found]
 
 
 def fit_findings(res: "IdentificationResult", sets: Sequence[tuple[str, Dataset]]
@@ -281,9 +290,9 @@ def identification_page(res: "IdentificationResult", data: Dataset | None = None
     raised = unique(f"{w.category.__name__}: {w.message}" for w in caught)
     for text in raised:                      # each once, for the caller too
         warnings.warn(text.split(": ", 1)[1], _category(caught, text), stacklevel=3)
-    level, lines = verdict(res)
-    findings += [("warn", text) for text in raised]
-    findings += [(level if k == 0 else "ok", x) for k, x in enumerate(lines)]
+    facts = verdict_findings(res)
+    # the solver failing outranks everything; then the fit, the warnings, the other facts
+    findings = facts[:1] + findings + [("warn", text) for text in raised] + facts[1:]
     page.raw(findings_html(findings))
     page.key_values([
         ("solver", str(res.solver)),
