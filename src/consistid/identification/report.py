@@ -45,7 +45,8 @@ CLEAN_STATUSES = ("optimal",)
 #: (10 %: the model leaves about 1 % of the joint's torque energy unexplained, more than a
 #: rigid-body model with friction leaves on a well-excited arm). Stated in the report.
 POOR_FIT = 0.10
-#: Above this relative error the finding is "bad" (red) rather than "warn".
+#: Above this relative error, with a residual above the noise, the finding is "bad" (red)
+#: rather than "warn".
 BAD_FIT = 0.30
 #: A residual spread within these factors of σ "matches" the noise curve.
 SPREAD_BAND = (0.7, 1.5)
@@ -115,10 +116,11 @@ def verdict(res: "IdentificationResult") -> tuple[str, list[str]]:
 
 def fit_findings(res: "IdentificationResult", sets: Sequence[tuple[str, Dataset]]
                  ) -> list[tuple[str, str]]:
-    """``(level, text)`` per poorly predicted joint (relative error above :data:`POOR_FIT`) on
-    the last of ``sets`` (the held-out data when given), worst first; each says whether the
-    residual is at the noise level (the joint's torque is small against its noise) or above it
-    (the model misses something)."""
+    """The poorly predicted joints (relative error above :data:`POOR_FIT`) on the last of
+    ``sets`` (the held-out data when given): ``(level, text)`` for the worst one, saying whether
+    its residual is at the noise level (its torque is small against its noise: "warn") or above
+    it (the model misses something: "bad" beyond :data:`BAD_FIT`), then one line naming the
+    others."""
     if not sets:
         return []
     label, data = sets[-1]
@@ -129,11 +131,12 @@ def fit_findings(res: "IdentificationResult", sets: Sequence[tuple[str, Dataset]
         return []
     j = poor[0]
     name, ratio = res.model.joint_names[j], rms[j] / res.sigma[j]
+    at_noise = ratio <= SPREAD_BAND[1]     # the model cannot do better there: a warning only
     why = ("its residual is about the noise σ: its torque is small against the noise"
-           if ratio <= SPREAD_BAND[1] else
+           if at_noise else
            f"its residual is {ratio:.3g} × the noise σ: the model misses something there "
            "(see the residual over time and the spectrum)")
-    out = [("bad" if rel[j] > BAD_FIT else "warn",
+    out = [("bad" if rel[j] > BAD_FIT and not at_noise else "warn",
             f"Poorly predicted joint {name}: {100 * rel[j]:.1f} % relative error on the "
             f"{label} data (RMS {rms[j]:.3g} N·m; threshold {100 * POOR_FIT:.0f} %); {why}.")]
     if len(poor) > 1:
