@@ -72,6 +72,25 @@ def clean(tmp_path_factory):
             *_report(model, train, held, tmp_path_factory.mktemp("clean") / "clean.html"))
 
 
+@pytest.fixture(scope="module")
+def one_way(tmp_path_factory):
+    """A UR5 whose wrist_3 moves one way only: its Coulomb and offset are one column (the SDP's
+    prior splits them: an uninformed and a weakly informed direction)."""
+    model = ci.RobotModel.example("ur5")
+    train = _data(model, 1000, 5)
+    t = train.t
+    q, dq, ddq = train.q.copy(), train.dq.copy(), train.ddq.copy()
+    q[:, 5], dq[:, 5], ddq[:, 5] = 0.3 * t - 0.1 * np.cos(t), 0.3 + 0.1 * np.sin(t), 0.1 * np.cos(t)
+    tau = model.rnea(q, dq, ddq) + 0.6 * np.sign(dq) + 0.2 * dq
+    train = ci.Dataset(t=t, q=q, dq=dq, ddq=ddq, tau=tau + 0.05 * np.random.default_rng(6)
+                       .normal(size=tau.shape))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = ci.identify(model, train)
+    path = res.report(tmp_path_factory.mktemp("oneway") / "one_way.html")
+    return model, train, None, res, path.read_text(encoding="utf-8"), []
+
+
 class Page(HTMLParser):
     """The first box (class ``verdict``: headline and items), text blocks, image alts, tables."""
 
@@ -188,6 +207,22 @@ def test_each_warning_once_and_in_the_first_box(poor):
         assert any(message in item for item in page.box["items"]), message
     repeated = [b for b in set(page.blocks) if b and page.blocks.count(b) > 1]
     assert repeated == []
+
+
+@pytest.mark.parametrize("case", ["poor", "clean", "one_way"])
+def test_weak_and_uninformed_directions_are_in_the_first_box(case, request):
+    """Whatever the case, each direction the data barely or do not inform is named in the first
+    box (the first three / four), and the box is not green then."""
+    res, text = request.getfixturevalue(case)[3:5]
+    if case == "one_way":                    # the case is what it claims to be
+        assert any("wrist_3_joint" in w for w in res.weakly_informed) and res.uninformed
+    page = _parse(text)
+    box = " ".join(page.box["items"])
+    for names, shown in ((res.weakly_informed, 3), (res.uninformed, 4)):
+        for name in names[:shown]:
+            assert name in box, (name, box[:300])
+    if res.weakly_informed or res.uninformed:
+        assert page.box["class"].split()[-1] != "ok"
 
 
 def test_the_plots_exist(poor, clean):
