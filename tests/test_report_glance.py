@@ -257,7 +257,7 @@ PROBE = """<script>
 window.addEventListener('load', () => {
   const W = document.documentElement.clientWidth;
   const broken = [];
-  for (const th of document.querySelectorAll('th')) {
+  for (const th of document.querySelectorAll('th, td:first-child')) {
     const walker = document.createTreeWalker(th, NodeFilter.SHOW_TEXT);
     for (let node = walker.nextNode(); node; node = walker.nextNode()) {
       const re = /\\S+/g;
@@ -284,7 +284,8 @@ window.addEventListener('load', () => {
                                              "(apt-get install chromium)")
 @pytest.mark.parametrize("width", [720, 1280])
 def test_screenshots(poor, width, tmp_path):
-    """At 720 and 1280 px: no header word split over two lines, the first box in the first
+    """At 720 and 1280 px: no word of a header or of a first (name) column split over two
+    lines, the first box in the first
     screen, nothing wider than the page; a screenshot is written for a reader to look at."""
     source = tmp_path / "page.html"
     source.write_text(poor[4].replace("</body>", PROBE + "</body>"), encoding="utf-8")

@@ -198,8 +198,8 @@ class Page:
                                      row_classes=row_classes, keys=keys))
 
     def key_values(self, pairs: Iterable[tuple[str, Any]], caption: str = "") -> None:
-        """A two-column table of named figures."""
-        self.table(["", ""], [(k, v) for k, v in pairs], caption=caption, keys=())
+        """A two-column table of named figures (the names never break inside a word)."""
+        self.table(["", ""], [(k, v) for k, v in pairs], caption=caption, keys=(0,))
 
     def figure(self, name: str, fig: Any, caption: str = "", dpi: int = 100) -> None:
         """Embed a matplotlib figure as PNG (kept in :attr:`figures` under ``name`` so that a
