@@ -260,7 +260,7 @@ window.addEventListener('load', () => {
   for (const th of document.querySelectorAll('th, td:first-child')) {
     const walker = document.createTreeWalker(th, NodeFilter.SHOW_TEXT);
     for (let node = walker.nextNode(); node; node = walker.nextNode()) {
-      const re = /\\S+/g;
+      const re = /[^\\s-]+/g;           // a break after a hyphen is a break between parts
       let m;
       while ((m = re.exec(node.data)) !== null) {
         const range = document.createRange();

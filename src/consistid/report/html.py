@@ -5,11 +5,13 @@ external resource: figures are PNG files embedded as ``data:image/png;base64`` U
 sheet is inline. Layout rules that keep everything on the page, whatever its width:
 
 * ``img {max-width: 100%; height: auto}``: a figure shrinks with the page, never overflows;
-* tables take at most the page's width, cells wrap long contents (``overflow-wrap: anywhere``:
-  a long base-parameter grouping breaks instead of widening its column), numbers are
-  right-aligned in a monospace font; a header breaks between words only, never inside one
-  (``word-break: keep-all; overflow-wrap: normal; hyphens: none``), and each table sits in a
-  ``div.cid-table`` that scrolls sideways when its headers need more than the page;
+* cells wrap long contents between words (a long base-parameter grouping wraps instead of
+  widening its column) and break a word only when it alone is wider than the page
+  (``overflow-wrap: break-word``, which, unlike ``anywhere``, never narrows a column below its
+  longest word: no "coulo|mb"), numbers are right-aligned in a monospace font; a header
+  breaks between words only, never inside one (``word-break: keep-all; overflow-wrap:
+  normal; hyphens: none``), and each table sits in a ``div.cid-table`` that scrolls sideways
+  when its columns need more than the page;
 * the first box (:func:`findings_html`) says the worst finding first, then each further finding
   once (:func:`unique`);
 * text (notes, verdicts) is HTML, never a ``<pre>`` block of fixed-width text.
@@ -40,7 +42,7 @@ border-bottom:1px solid #ddd;padding-bottom:.2em}h3{font-size:1.05em;margin:1.2e
 .cid-report figcaption{font-size:.88em;color:#555}
 .cid-report table{border-collapse:collapse;max-width:100%;margin:.5em 0 1em;font-size:.86em}
 .cid-report th,.cid-report td{border:1px solid #d4d4d4;padding:3px 7px;text-align:left;
-vertical-align:top;overflow-wrap:anywhere}
+vertical-align:top;overflow-wrap:break-word}
 .cid-report th{background:#f2f2f2;word-break:keep-all;overflow-wrap:normal;hyphens:none}
 .cid-report .cid-table{max-width:100%;overflow-x:auto}
 .cid-report td.num{text-align:right;font-family:ui-monospace,Menlo,Consolas,monospace;
@@ -99,7 +101,8 @@ def table_html(header: Sequence[str], rows: Iterable[Sequence[Any]], *, caption:
     """A ``<table>``: a header row, then ``rows`` (numbers right-aligned, formatted with
     ``floatfmt``; a cell may be ``(value, spec)`` to format one number its own way). Text
     cells of the ``keys`` columns (names: the first by default) do not wrap; other text wraps
-    anywhere, so the table never grows wider than the page for a long text."""
+    between words. The table sits in a ``div.cid-table`` that scrolls sideways when its
+    columns' longest words need more than the page."""
     out = ['<div class="cid-table"><table>']
     if caption:
         out.append(f"<caption>{esc(caption)}</caption>")
