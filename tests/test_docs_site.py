@@ -133,6 +133,9 @@ def test_api_page_lists_the_public_names_first(site):
     positions = [page.find(f"ci.{name}<") for name in consistid._EXPORTS]
     assert min(positions) > 0, [n for n, p in zip(consistid._EXPORTS, positions) if p < 0]
     assert positions == sorted(positions)
+    sub = (site / "api" / "identification" / "index.html").read_text(encoding="utf-8")
+    first_module = sub.find('id="consistid.identification.base"')
+    assert 0 < sub.find("ci.identify<") < first_module         # its public names before its modules
 
 
 PROBE = """<script>
