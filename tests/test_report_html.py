@@ -4,6 +4,7 @@ page — checked by parsing, and in a headless Chromium where one is installed."
 from __future__ import annotations
 
 import base64
+import html
 import json
 import re
 import shutil
@@ -176,6 +177,9 @@ def test_diagnosis_report_is_real_html(diagnosis_report):
         assert f">{effect.name}</td>" in text
     if getattr(diag, "remainder", None) is not None:
         assert "Unexplained remainder" in text
+    first_box = text[text.index('<div class="verdict'):text.index("</div>")]
+    for note in diag.notes:                  # each note once, in the first box
+        assert text.count(html.escape(note, quote=True)) == 1 and html.escape(note) in first_box
 
 
 def test_cells_are_escaped():

@@ -372,7 +372,8 @@ def identification_page(res: "IdentificationResult", data: Dataset | None = None
         page.raw("</details>")
 
     shown = " ".join(text for _, text in findings)
-    notes = [n for n in _notes(res) if n.split(": ", 1)[-1] not in shown]
+    notes = [n for n in _notes(res)      # a long value the first box already gives: once
+             if not (len(n.split(": ", 1)[-1]) >= 12 and n.split(": ", 1)[-1] in shown)]
     if notes:
         page.heading("Notes", anchor="notes")
         page.bullets(notes)
