@@ -21,9 +21,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 import consistid as ci
 from consistid.identification.report import BAD_FIT, POOR_FIT, SPREAD_BAND
+from consistid.report.html import LEVELS, findings_html
 
 CHROMIUM = "/usr/bin/chromium" if Path("/usr/bin/chromium").is_file() else None
 
@@ -306,3 +309,16 @@ def test_screenshots(poor, width, tmp_path):
     assert probe["broken"] == [], probe
     assert probe["boxTop"] < 400 and probe["wide"] == 0 and probe["scroll"] <= probe["W"], probe
     assert shot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@given(st.lists(st.tuples(st.sampled_from(LEVELS), st.sampled_from(
+    ["a", "b", "c d", "c  d", "x < y", "ω"])), min_size=1, max_size=12))
+def test_findings_box_worst_first_each_once(findings):
+    """The box takes the worst level, its headline is the first text of that level, and every
+    text (blanks folded) appears once."""
+    page = _parse(findings_html(findings))
+    worst = max((level for level, _ in findings), key=LEVELS.index)
+    assert page.box["class"].split() == ["verdict", worst]
+    assert page.box["items"][0] == next(" ".join(t.split()) for lv, t in findings if lv == worst)
+    texts = {" ".join(t.split()) for _, t in findings}
+    assert sorted(page.box["items"]) == sorted(texts)
