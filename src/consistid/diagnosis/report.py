@@ -190,12 +190,12 @@ def diagnosis_page(diag: "Diagnosis", figures: bool = True) -> Page:
                 "nominal model vs measured torques")
     level, text = _verdict(diag)
     findings = [(level, text)]
-    ratio = np.asarray(diag.gap_to_noise, dtype=float)
+    # the ratio the verdict judges where the diagnosis has one, else final RMS / noise floor
+    ratio = np.asarray(getattr(diag, "left_to_noise", diag.gap_to_noise), dtype=float)
     if ratio.size and np.isfinite(ratio).any() and level != "ok":
         j = int(np.nanargmax(ratio))
-        findings.append((level, f"Largest gap left: {names[j]}, held-out RMS "
-                                f"{diag.rms_final[j]:.3g} N·m = {ratio[j]:.3g} × its noise "
-                                "floor."))
+        findings.append((level, f"Largest gap left: {names[j]}, {ratio[j]:.3g} × its noise "
+                                f"floor (held-out RMS {diag.rms_final[j]:.3g} N·m)."))
     findings += [("ok", note) for note in diag.notes]   # notes: near the top, once
     page.raw(findings_html(findings))
     page.key_values([("held-out data", diag.held_out_source),
