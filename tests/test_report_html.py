@@ -4,6 +4,7 @@ page — checked by parsing, and in a headless Chromium where one is installed."
 from __future__ import annotations
 
 import base64
+import html
 import json
 import re
 import shutil
@@ -131,7 +132,8 @@ def demo_report(tmp_path_factory):
 # ------------------------------------------------------------------ parsing
 def test_identification_report_is_real_html(ur5_reports):
     res, _, _, path = ur5_reports
-    page = check_html(path.read_text(), n_images=6)   # torque, histogram, spectrum × 2 sets
+    # torque, residual over time, histogram, spectrum × 2 sets, and the parameters' error bars
+    page = check_html(path.read_text(), n_images=9)
     assert page.pres == 0 or "configuration" in path.read_text()
     text = path.read_text()
     # the base-parameter table has one row per base parameter (+ header)
@@ -150,10 +152,11 @@ def test_report_folder_and_text(ur5_reports, tmp_path):
     folder = res.report(tmp_path / "rep", data=train)
     names = {p.name for p in folder.iterdir()}
     assert {"report.html", "report.txt", "torque_train.png", "histogram_train.png",
-            "spectrum_train.png"} <= names
+            "spectrum_train.png", "residual_train.png", "parameters.png"} <= names
     assert res.report(tmp_path / "r.txt").read_text().startswith("consistid identification")
     assert res.report() == res.summary()
-    check_html(res.report(tmp_path / "plain.html").read_text(), n_images=0)
+    # without data: only the parameters against the prior
+    check_html(res.report(tmp_path / "plain.html").read_text(), n_images=1)
 
 
 def test_repr_html_is_a_fragment(ur5_reports):
@@ -174,6 +177,9 @@ def test_diagnosis_report_is_real_html(diagnosis_report):
         assert f">{effect.name}</td>" in text
     if getattr(diag, "remainder", None) is not None:
         assert "Unexplained remainder" in text
+    first_box = text[text.index('<div class="verdict'):text.index("</div>")]
+    for note in diag.notes:                  # each note once, in the first box
+        assert text.count(html.escape(note, quote=True)) == 1 and html.escape(note) in first_box
 
 
 def test_cells_are_escaped():
@@ -185,7 +191,7 @@ def test_cells_are_escaped():
 
 
 def test_demo_writes_a_report(demo_report):
-    check_html(demo_report.read_text(), n_images=6)
+    check_html(demo_report.read_text(), n_images=9)
     assert (demo_report.parent / "result.json").is_file()
 
 
@@ -194,13 +200,13 @@ PROBE = """<script>
 window.addEventListener('load', () => {
   const W = document.documentElement.clientWidth;
   const bad = [];
-  for (const el of document.querySelectorAll('img, table')) {
+  for (const el of document.querySelectorAll('img, .cid-table')) {
     const r = el.getBoundingClientRect();
     if (r.right > W + 0.5 || r.left < -0.5) bad.push(el.tagName + ' ' + Math.round(r.width));
   }
   const broken = [...document.images].filter(i => !i.complete || i.naturalWidth === 0).length;
   document.body.setAttribute('data-probe', JSON.stringify({W: W, bad: bad, broken: broken,
-    n: document.querySelectorAll('img, table').length,
+    n: document.querySelectorAll('img, .cid-table').length,
     scroll: document.documentElement.scrollWidth}));
 });
 </script>"""
@@ -228,7 +234,8 @@ def _probe(path: Path, width: int, tmp_path: Path, screenshot: bool = False) -> 
 def test_nothing_wider_than_the_page_in_chromium(ur5_reports, diagnosis_report, demo_report,
                                                  width, tmp_path):
     """Screenshots of the identification, diagnosis and demo reports: every image and table
-    lies inside the page's width, every image decodes, the page does not scroll sideways."""
+    (its sideways-scrolling box) lies inside the page's width, every image decodes, the page
+    does not scroll sideways."""
     for path in (ur5_reports[3], diagnosis_report[1], demo_report):
         probe = _probe(path, width, tmp_path, screenshot=path == demo_report)
         assert probe["n"] > 5, path

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..identification.summary import table
 from ..report import plots
-from ..report.html import Page, esc
+from ..report.html import Page, findings_html
 from .remainder import REMAINDER_RATIO
 
 if TYPE_CHECKING:
@@ -201,7 +201,15 @@ def diagnosis_page(diag: "Diagnosis", figures: bool = True) -> Page:
     page = Page(f"Sim-to-real diagnosis: {diag.model_name}",
                 "nominal model vs measured torques")
     level, text = _verdict(diag)
-    page.raw(f'<div class="verdict {level}"><p>{esc(text)}</p></div>')
+    findings = [(level, text)]
+    # the ratio the verdict judges where the diagnosis has one, else final RMS / noise floor
+    ratio = np.asarray(getattr(diag, "left_to_noise", diag.gap_to_noise), dtype=float)
+    if ratio.size and np.isfinite(ratio).any() and level != "ok":
+        j = int(np.nanargmax(ratio))
+        findings.append((level, f"Largest gap left: {names[j]}, {ratio[j]:.3g} × its noise "
+                                f"floor (held-out RMS {diag.rms_final[j]:.3g} N·m)."))
+    findings += [("ok", note) for note in diag.notes]   # notes: near the top, once
+    page.raw(findings_html(findings))
     page.key_values([("held-out data", diag.held_out_source),
                      ("noise floor", diag.noise_source)])
     page.heading("Effects found", anchor="effects")
@@ -267,9 +275,6 @@ def diagnosis_page(diag: "Diagnosis", figures: bool = True) -> Page:
     if diag.rollout is not None:
         page.heading("How far the gap shrinks in your simulator", anchor="rollout")
         page.raw(diag.rollout.page().fragment())
-    if diag.notes:
-        page.heading("Notes", anchor="notes")
-        page.bullets(diag.notes)
     return page
 
 

@@ -5,9 +5,15 @@ external resource: figures are PNG files embedded as ``data:image/png;base64`` U
 sheet is inline. Layout rules that keep everything on the page, whatever its width:
 
 * ``img {max-width: 100%; height: auto}``: a figure shrinks with the page, never overflows;
-* tables take at most the page's width, cells wrap long contents (``overflow-wrap: anywhere``:
-  a long base-parameter grouping breaks instead of widening its column), numbers are
-  right-aligned in a monospace font;
+* cells wrap long contents between words (a long base-parameter grouping wraps instead of
+  widening its column) and break a word only when it alone is wider than the page
+  (``overflow-wrap: break-word``, which, unlike ``anywhere``, never narrows a column below its
+  longest word: no "coulo|mb"), numbers are right-aligned in a monospace font; a header
+  breaks between words only, never inside one (``word-break: keep-all; overflow-wrap:
+  normal; hyphens: none``), and each table sits in a ``div.cid-table`` that scrolls sideways
+  when its columns need more than the page;
+* the first box (:func:`findings_html`) says the worst finding first, then each further finding
+  once (:func:`unique`);
 * text (notes, verdicts) is HTML, never a ``<pre>`` block of fixed-width text.
 
 The page is valid HTML5 that :mod:`html.parser` reads without error (tested), and the
@@ -36,8 +42,9 @@ border-bottom:1px solid #ddd;padding-bottom:.2em}h3{font-size:1.05em;margin:1.2e
 .cid-report figcaption{font-size:.88em;color:#555}
 .cid-report table{border-collapse:collapse;max-width:100%;margin:.5em 0 1em;font-size:.86em}
 .cid-report th,.cid-report td{border:1px solid #d4d4d4;padding:3px 7px;text-align:left;
-vertical-align:top;overflow-wrap:anywhere}
-.cid-report th{background:#f2f2f2}
+vertical-align:top;overflow-wrap:break-word}
+.cid-report th{background:#f2f2f2;word-break:keep-all;overflow-wrap:normal;hyphens:none}
+.cid-report .cid-table{max-width:100%;overflow-x:auto}
 .cid-report td.num{text-align:right;font-family:ui-monospace,Menlo,Consolas,monospace;
 white-space:nowrap}
 .cid-report td.key{white-space:nowrap;overflow-wrap:normal}
@@ -45,7 +52,10 @@ white-space:nowrap}
 .cid-report caption{caption-side:top;text-align:left;font-size:.9em;color:#444;padding:2px 0}
 .cid-report .verdict{padding:8px 12px;border-left:4px solid #888;background:#f7f7f7}
 .cid-report .verdict.ok{border-color:#2e8b57}.cid-report .verdict.warn{border-color:#d08000}
-.cid-report .verdict.bad{border-color:#c0392b}
+.cid-report .verdict.bad{border-color:#c0392b;background:#fdf1f0}
+.cid-report .verdict.warn{background:#fdf7ec}
+.cid-report .verdict .headline{font-weight:600;margin:.2em 0 .4em}
+.cid-report .verdict ul{margin:.2em 0;padding-left:1.3em}
 .cid-report code{font-size:.92em;background:#f4f4f4;padding:0 3px}
 .cid-report pre{white-space:pre-wrap;overflow-wrap:anywhere;font-size:.85em;background:#f6f6f6;
 padding:6px}
@@ -91,8 +101,9 @@ def table_html(header: Sequence[str], rows: Iterable[Sequence[Any]], *, caption:
     """A ``<table>``: a header row, then ``rows`` (numbers right-aligned, formatted with
     ``floatfmt``; a cell may be ``(value, spec)`` to format one number its own way). Text
     cells of the ``keys`` columns (names: the first by default) do not wrap; other text wraps
-    anywhere, so the table never grows wider than the page for a long text."""
-    out = ["<table>"]
+    between words. The table sits in a ``div.cid-table`` that scrolls sideways when its
+    columns' longest words need more than the page."""
+    out = ['<div class="cid-table"><table>']
     if caption:
         out.append(f"<caption>{esc(caption)}</caption>")
     if any(header):
@@ -110,8 +121,39 @@ def table_html(header: Sequence[str], rows: Iterable[Sequence[Any]], *, caption:
             css = ' class="num"' if numeric else ' class="key"' if c in keys else ""
             cells.append(f"<td{css}>{esc(fmt(cell, spec))}</td>")
         out.append(f"<tr{cls}>" + "".join(cells) + "</tr>")
-    out.append("</tbody></table>")
+    out.append("</tbody></table></div>")
     return "".join(out)
+
+
+def unique(texts: Iterable[str]) -> list[str]:
+    """``texts`` without repeats (first occurrence kept, surrounding blanks ignored)."""
+    seen: set[str] = set()
+    out = []
+    for text in texts:
+        key = " ".join(str(text).split())
+        if key and key not in seen:
+            seen.add(key)
+            out.append(str(text))
+    return out
+
+
+#: Order of the findings' levels, least to most severe.
+LEVELS = ("ok", "warn", "bad")
+
+
+def findings_html(findings: Sequence[tuple[str, str]], anchor: str = "findings") -> str:
+    """The first box of a report: ``findings`` are ``(level, text)`` pairs (level in
+    :data:`LEVELS`). The box takes the worst level; its headline is the first of the worst
+    findings, the others follow as a list, most severe first, each text once."""
+    if not findings:
+        return ""
+    rank = {level: k for k, level in enumerate(LEVELS)}
+    ordered = sorted(findings, key=lambda f: -rank[f[0]])      # stable: keeps the given order
+    texts = unique(text for _, text in ordered)
+    level = ordered[0][0]
+    rest = "".join(f"<li>{esc(t)}</li>" for t in texts[1:])
+    return (f'<div class="verdict {level}" id="{esc(anchor)}"><p class="headline">'
+            f"{esc(texts[0])}</p>" + (f"<ul>{rest}</ul>" if rest else "") + "</div>")
 
 
 class Page:
@@ -159,8 +201,8 @@ class Page:
                                      row_classes=row_classes, keys=keys))
 
     def key_values(self, pairs: Iterable[tuple[str, Any]], caption: str = "") -> None:
-        """A two-column table of named figures."""
-        self.table(["", ""], [(k, v) for k, v in pairs], caption=caption, keys=())
+        """A two-column table of named figures (the names never break inside a word)."""
+        self.table(["", ""], [(k, v) for k, v in pairs], caption=caption, keys=(0,))
 
     def figure(self, name: str, fig: Any, caption: str = "", dpi: int = 100) -> None:
         """Embed a matplotlib figure as PNG (kept in :attr:`figures` under ``name`` so that a

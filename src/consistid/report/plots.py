@@ -1,7 +1,14 @@
 r"""Plots that several reports draw, as matplotlib ``Figure`` objects (no pyplot, no global state).
 
 ``torque_fit``
-    measured and predicted torque against time, one panel per joint.
+    measured (thin black line) and predicted (dashed orange) torque against time, one panel
+    per joint: the prediction never hides the measurement.
+``residual_over_time``
+    the residual τ − τ̂ against time per joint, with the bands ±σ and ±2σ of the noise σ the
+    identification assumed: drift, bursts at reversals and a growing error show there.
+``parameter_errorbars``
+    each estimate with its ±2σ bar against the prior (CAD) value, every parameter on its own
+    scale (divided by the largest of its |estimate|, |prior| and 2σ).
 ``residual_histograms``
     the residual's distribution per joint, with the normal density of the noise σ the
     identification assumed: a residual wider than it, skewed or with two modes (Coulomb friction
@@ -51,16 +58,17 @@ def _thin(n: int) -> np.ndarray:
 
 def torque_fit(t: np.ndarray, measured: np.ndarray, predicted: np.ndarray,
                joint_names: Sequence[str], title: str = "") -> Any:
-    """Measured (grey) and predicted (blue) torque against time, one panel per joint; the
-    panel title gives the residual RMS."""
+    """Measured (thin black, drawn on top) and predicted (dashed orange, thicker, below)
+    torque against time, one panel per joint; the panel title gives the residual RMS."""
     n = len(joint_names)
     rows, cols = _grid(n)
     fig = _figure(WIDTH, 2.1 * rows + 0.5)
     keep = _thin(len(t))
     for j, name in enumerate(joint_names):
         ax = fig.add_subplot(rows, cols, j + 1)
-        ax.plot(t[keep], measured[keep, j], color="0.55", lw=0.8, label="measured")
-        ax.plot(t[keep], predicted[keep, j], color="tab:blue", lw=0.8, label="predicted")
+        ax.plot(t[keep], predicted[keep, j], color="tab:orange", lw=1.6, ls=(0, (4, 2)),
+                label="predicted", zorder=2)
+        ax.plot(t[keep], measured[keep, j], color="k", lw=0.5, label="measured", zorder=3)
         rms = float(np.sqrt(np.mean((measured[:, j] - predicted[:, j]) ** 2)))
         ax.set_title(f"{name}  (RMS {rms:.3g} N·m)", fontsize=8)
         ax.tick_params(labelsize=7)
@@ -70,6 +78,91 @@ def torque_fit(t: np.ndarray, measured: np.ndarray, predicted: np.ndarray,
             ax.set_xlabel("t [s]", fontsize=8)
     handles, labels = fig.axes[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="outside lower center", ncol=2, fontsize=8, frameon=False)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    return fig
+
+
+def residual_over_time(t: np.ndarray, residual: np.ndarray, joint_names: Sequence[str],
+                       sigma: np.ndarray | None = None, title: str = "") -> Any:
+    """The residual τ − τ̂ against time, one panel per joint; with ``sigma``, the ±σ band
+    shaded and ±2σ dotted (white noise stays inside ±2σ about 95 % of the time)."""
+    n = len(joint_names)
+    rows, cols = _grid(n)
+    fig = _figure(WIDTH, 1.9 * rows + 0.5)
+    keep = _thin(len(t))
+    for j, name in enumerate(joint_names):
+        ax = fig.add_subplot(rows, cols, j + 1)
+        ax.plot(t[keep], residual[keep, j], color="tab:red", lw=0.5, label="τ − τ̂")
+        if sigma is not None and sigma[j] > 0:
+            ax.axhspan(-sigma[j], sigma[j], color="0.85", zorder=0, label="±σ")
+            for s in (-2 * sigma[j], 2 * sigma[j]):
+                ax.axhline(s, color="k", lw=0.6, ls=":")
+            ax.plot([], [], color="k", lw=0.6, ls=":", label="±2σ")
+        ax.axhline(0, color="k", lw=0.4)
+        ax.set_title(name, fontsize=8)
+        ax.tick_params(labelsize=7)
+        if j % cols == 0:
+            ax.set_ylabel("τ − τ̂ [N·m]", fontsize=8)
+        if j >= n - cols:
+            ax.set_xlabel("t [s]", fontsize=8)
+    handles, labels = fig.axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncol=3, fontsize=8, frameon=False)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    return fig
+
+
+#: Parameters per column of :func:`parameter_errorbars` before it starts a second column.
+BARS_PER_COLUMN = 40
+#: Half-width of :func:`parameter_errorbars`' axis (a bar reaching past it is cut, marked ▸).
+BARS_LIMIT = 2.5
+
+
+def parameter_errorbars(names: Sequence[str], estimate: np.ndarray, std: np.ndarray,
+                        prior: np.ndarray, title: str = "") -> Any:
+    """Each estimate (dot) with its ±2σ bar and the prior's value (cross), one row per
+    parameter. Every row has its own scale ``s_i = max(|estimate_i|, |prior_i|, 2σ_i)``
+    (values divided by it, so every finite bar fits in [−2, 2]): a prior outside the bar is a
+    parameter the data moved away from the prior; a bar as wide as ±1 around 0 is one the data
+    barely determine; σ = inf (not informed) is drawn red across the axis."""
+    estimate, std, prior = (np.asarray(a, dtype=float) for a in (estimate, std, prior))
+    n = len(names)
+    ncols = int(np.ceil(n / BARS_PER_COLUMN)) if n else 1
+    per = int(np.ceil(n / ncols)) if n else 1
+    fig = _figure(WIDTH, 0.17 * per + 1.2)
+    finite = np.isfinite(std)
+    scale = np.maximum(np.abs(estimate), np.abs(prior))
+    scale = np.where(finite, np.maximum(scale, 2 * np.where(finite, std, 0.0)), scale)
+    scale = np.where(scale > 0, scale, 1.0)
+    lim = BARS_LIMIT
+    for c in range(ncols):
+        ax = fig.add_subplot(1, ncols, c + 1)
+        idx = np.arange(c * per, min(n, (c + 1) * per))
+        y = -np.arange(len(idx), dtype=float)
+        x, p = estimate[idx] / scale[idx], prior[idx] / scale[idx]
+        err = 2 * std[idx] / scale[idx]
+        cut = ~np.isfinite(err) | (np.abs(x) + err > lim)
+        err = np.where(np.isfinite(err), err, 2 * lim)
+        lo, hi = np.minimum(err, x + lim), np.minimum(err, lim - x)
+        for mask, colour in ((~cut, "tab:blue"), (cut, "tab:red")):
+            if mask.any():
+                ax.errorbar(x[mask], y[mask], xerr=[lo[mask], hi[mask]], fmt="o", ms=3,
+                            color=colour, ecolor=colour, elinewidth=1, capsize=2)
+        ax.plot(p, y, "x", color="k", ms=5, mew=1)
+        ax.axvline(0, color="0.6", lw=0.5)
+        ax.set_xlim(-lim, lim)
+        ax.set_yticks(y, [str(names[i]) for i in idx], fontsize=6)
+        ax.set_ylim(y[-1] - 0.8 if len(y) else -1, 0.8)
+        ax.tick_params(axis="x", labelsize=7)
+        ax.set_xlabel("value / max(|estimate|, |prior|, 2σ)", fontsize=8)
+        ax.grid(True, axis="x", lw=0.3)
+    handles = [
+        fig.axes[0].errorbar([], [], xerr=[], fmt="o", ms=3, color="tab:blue")[0],
+        fig.axes[0].errorbar([], [], xerr=[], fmt="o", ms=3, color="tab:red")[0],
+        fig.axes[0].plot([], [], "x", color="k")[0]]
+    fig.legend(handles, ["estimate ± 2σ", "σ = inf (not informed) or cut", "prior"],
+               loc="outside lower center", ncol=3, fontsize=8, frameon=False)
     if title:
         fig.suptitle(title, fontsize=10)
     return fig
