@@ -206,6 +206,9 @@ def write_urdf(model: RobotModel, path: str | Path, parameters: np.ndarray | Non
     check_not_source(model, path, "to_urdf")
     if model.source is None or not Path(model.source).is_file():
         raise ModelError(f"{model.name!r} has no source URDF to write parameters into")
+    if model.source_format == "mjcf":
+        raise ModelError(f"{model.name!r} was read from the MJCF {Path(model.source).name}, not a "
+                         "URDF: write into it with to_mjcf(path, source=model.source)")
     source = Path(model.source)
     params, terms = export_parameters(model, parameters, parameter_names)
     tree = parse_urdf(source)

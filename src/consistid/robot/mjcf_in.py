@@ -27,10 +27,12 @@ user's XML is first read with ``defusedxml`` (no DTD, no entity expansion).
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Iterable, Sequence
+from typing import Any, Iterable
 
+import defusedxml.ElementTree as SafeET
 import numpy as np
 import pinocchio as pin
+from defusedxml import DefusedXmlException
 
 from ..errors import ModelError
 
@@ -41,9 +43,6 @@ HINGE, SLIDE, BALL, FREE = 3, 2, 1, 0
 def check_safe_xml(path: Path) -> str:
     """The file's text after ``defusedxml`` found it well-formed with no DTD or entity
     declaration (:class:`ModelError` otherwise, naming the file)."""
-    import defusedxml.ElementTree as SafeET   # heavy-ish: loaded with the first MJCF
-    from defusedxml import DefusedXmlException
-
     if not path.is_file():
         raise ModelError(f"MJCF file {str(path)!r} does not exist")
     text = path.read_text(encoding="utf-8")

@@ -29,6 +29,7 @@ import pinocchio as pin
 from ..errors import DatasetError, JointCountError, ModelError, ModelWarning, OptionError
 from .export import write_urdf
 from .inertia import INERTIAL_NAMES, check_body, inertias_from_vector
+from .mjcf_in import read_mjcf
 from .urdf import JointDynamics, check_urdf, joint_dynamics, strip_dynamics
 
 #: Gravity (m/s², base frame) of a level base: what a URDF implies.
@@ -289,8 +290,6 @@ class RobotModel:
         (:class:`ModelError`, by name) a free joint (floating base), a ball joint, a body with
         several joints, an unnamed joint, and XML with a DTD or entities.
         """
-        from .mjcf_in import read_mjcf
-
         path = Path(path)
         g = None if gravity is None else _check_gravity(gravity)
         model, locked, config = read_mjcf(path, locked_joints, locked_configuration)
