@@ -65,6 +65,7 @@ from typing import TYPE_CHECKING, Any, Iterable, Mapping
 import numpy as np
 
 from ..errors import ModelError, ResultFileError
+from ..robot.mjcf_in import is_mjcf
 from ..robot.model import RobotModel, model_without_dynamics
 from .base import BaseParameters
 from .envelope import TrainingEnvelope
@@ -217,6 +218,11 @@ def _rebuild(m: Mapping[str, Any], urdf: Path, source: Path | None) -> RobotMode
     options = dict(locked_joints=m["locked_joints"],
                    locked_configuration=m["locked_configuration"], gravity=m["gravity"],
                    name=m["name"])
+    if is_mjcf(urdf):                       # a model read by RobotModel.from_mjcf
+        built = RobotModel.from_mjcf(urdf, **options)
+        return RobotModel(built.pin_model, name=built.name, source=source,
+                          locked_joints=built.locked_joints,
+                          locked_configuration=built.locked_configuration)
     try:
         built = RobotModel.from_urdf(urdf, **options)
     except ModelError:                      # e.g. negative <dynamics>, which Pinocchio refuses

@@ -26,6 +26,7 @@ user's XML is first read with ``defusedxml`` (no DTD, no entity expansion).
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any, Iterable
 
@@ -57,6 +58,14 @@ def check_safe_xml(path: Path) -> str:
         raise ModelError(f"{path.name}: the root element is <{root.tag}>, not <mujoco>: not an "
                          "MJCF (a URDF? RobotModel.from_urdf)")
     return text
+
+
+def is_mjcf(path: str | Path) -> bool:
+    """The file's first element is ``<mujoco>`` (comments and the XML declaration skipped)."""
+    text = re.sub(r"<!--.*?-->|<\?.*?\?>", "", Path(path).read_text(encoding="utf-8"),
+                  flags=re.S)
+    found = re.search(r"<([A-Za-z_][\w.-]*)", text)
+    return bool(found and found.group(1) == "mujoco")
 
 
 def compile_mjcf(path: Path) -> Any:

@@ -29,7 +29,7 @@ import pinocchio as pin
 from ..errors import DatasetError, JointCountError, ModelError, ModelWarning, OptionError
 from .export import write_urdf
 from .inertia import INERTIAL_NAMES, check_body, inertias_from_vector
-from .mjcf_in import read_mjcf
+from .mjcf_in import is_mjcf, read_mjcf
 from .urdf import JointDynamics, check_urdf, joint_dynamics, strip_dynamics
 
 #: Gravity (m/s², base frame) of a level base: what a URDF implies.
@@ -306,10 +306,7 @@ class RobotModel:
         URDF, ``None`` without a source file."""
         if self.source is None or not self.source.is_file():
             return None
-        text = re.sub(r"<!--.*?-->|<\?.*?\?>", "", self.source.read_text(encoding="utf-8"),
-                      flags=re.S)
-        found = re.search(r"<([A-Za-z_][\w.-]*)", text)
-        return "mjcf" if found and found.group(1) == "mujoco" else "urdf"
+        return "mjcf" if is_mjcf(self.source) else "urdf"
 
     @classmethod
     def example(cls, name: str) -> "RobotModel":
