@@ -414,3 +414,42 @@ def test_identify_on_mujoco_data_and_write_back(tmp_path):
     back = type(res).load(saved)
     assert back.model.source_format == "mjcf" and back.model.locked_joints == ("j4",)
     assert np.array_equal(back.parameters, res.parameters)
+
+
+_names = st.sampled_from(["a", "pos", "mass", "b_c", "quat", "x1"])
+_values = st.text(st.characters(codec="ascii", categories=["L", "N"],
+                                include_characters=" .-=\"'"), max_size=12)
+
+
+@settings(max_examples=60, deadline=None)
+@given(attrs=st.dictionaries(_names, _values, max_size=5),
+       quotes=st.lists(st.sampled_from(['"', "'"]), min_size=5, max_size=5),
+       seps=st.lists(st.sampled_from([" ", "\n   ", "\t", "  "]), min_size=6, max_size=6),
+       closing=st.sampled_from(["/>", " />", "></x>", ">\n</x>"]), name=_names,
+       value=_values)
+def test_attribute_edits_touch_only_their_span(attrs, quotes, seps, closing, name, value):
+    """Setting (or removing) one attribute of a start tag written in any quoting and spacing
+    changes that attribute only (as a parser sees it) and leaves the other bytes in place."""
+    import xml.etree.ElementTree as ET
+
+    from consistid.robot.xml_spans import apply, elements, remove_attribute, set_attribute
+
+    attrs = {k: v.replace("'", "") if '"' in v else v for k, v in attrs.items()}
+    value = value.replace('"', "").replace("'", "")    # written in double quotes
+    quotes = ["'" if '"' in v else '"' if "'" in v else q
+              for v, q in zip(attrs.values(), quotes)]
+    parts = [f"{sep}{k}={q}{v}{q}" for (k, v), q, sep in zip(attrs.items(), quotes, seps)]
+    text = f"<r><!-- c --><x{''.join(parts)}{seps[-1] if closing[0] == ' ' else ''}" \
+           f"{closing.lstrip()}<y a='1'/></r>"
+    data = text.encode()
+    x = elements(data)[1]
+    edited = apply(data, [set_attribute(data, x, name, value)])
+    assert ET.fromstring(edited).find("x").attrib == {**attrs, name: value}
+    assert edited.startswith(data[:x.start]) and edited.endswith(data[x.tag_end:])
+    gone = remove_attribute(data, x, name)
+    if name in attrs:
+        removed = apply(data, [gone])
+        assert ET.fromstring(removed).find("x").attrib == {k: v for k, v in attrs.items()
+                                                           if k != name}
+    else:
+        assert gone is None

@@ -67,10 +67,10 @@ def _num(values: Any) -> str:
 
 
 def _in_bodies(els: list[Element], tag: str) -> list[Element]:
-    """``tag`` elements whose parent is a ``<body>`` or ``<worldbody>`` (not defaults,
-    equality or tendon elements of the same tag)."""
+    """``tag`` elements whose parent is a ``<body>``, ``<frame>`` or ``<worldbody>`` (not
+    defaults, equality or tendon elements of the same tag)."""
     return [e for e in els if e.tag == tag and e.parent >= 0
-            and els[e.parent].tag in ("body", "worldbody")]
+            and els[e.parent].tag in ("body", "frame", "worldbody")]
 
 
 def _check_source(model: "RobotModel", source: Path, out: Path, els: list[Element]) -> None:
@@ -294,7 +294,11 @@ def _write_checked(data: bytes, out: Path, model: "RobotModel", params: np.ndarr
     try:
         with os.fdopen(fd, "wb") as handle:
             handle.write(data)
-        back, _, _ = read_mjcf(tmp, model.locked_joints, model.locked_configuration)
+        try:
+            back, _, _ = read_mjcf(tmp, model.locked_joints, model.locked_configuration)
+        except ModelError as exc:
+            raise ModelError(f"{out.name} not written: the edited file does not compile "
+                             f"({exc})") from exc
         _compare(back, model, params, terms)
     except BaseException:
         tmp.unlink(missing_ok=True)

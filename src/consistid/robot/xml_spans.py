@@ -69,8 +69,21 @@ def elements(data: bytes) -> list[Element]:
     return found
 
 
-def _attr_pattern(name: str) -> re.Pattern[bytes]:
-    return re.compile(rb"(\s)" + re.escape(name.encode()) + rb"""\s*=\s*(["'])(.*?)\2""", re.S)
+_NAME = re.compile(rb"<[^\s/>]+")
+_ATTR = re.compile(rb"""(\s+)([^\s=/>]+)\s*=\s*(["'])(.*?)\3""", re.S)
+
+
+def _find_attribute(data: bytes, el: Element, name: str) -> re.Match[bytes] | None:
+    """The match of attribute ``name`` in ``el``'s start tag (groups: leading whitespace, name,
+    quote, value), scanning the attributes in order (a value is never searched)."""
+    at = _NAME.match(data, el.start).end()
+    while True:
+        found = _ATTR.match(data, at, el.tag_end)
+        if found is None:
+            return None
+        if found.group(2) == name.encode():
+            return found
+        at = found.end()
 
 
 def set_attribute(data: bytes, el: Element, name: str, value: str
@@ -78,10 +91,9 @@ def set_attribute(data: bytes, el: Element, name: str, value: str
     """The edit ``(start, end, replacement)`` that sets attribute ``name`` of ``el``'s start tag
     to ``value``: the old value's bytes replaced (quote kept), or `` name="value"`` added before
     the tag's ``>``/``/>``."""
-    tag = data[el.start:el.tag_end]
-    found = _attr_pattern(name).search(tag)
+    found = _find_attribute(data, el, name)
     if found is not None:
-        return el.start + found.start(3), el.start + found.end(3), value.encode()
+        return found.start(4), found.end(4), value.encode()
     at = el.tag_end - (2 if el.self_closing else 1)
     while data[at - 1:at].isspace():       # before the spaces that precede '/>' or '>'
         at -= 1
@@ -90,10 +102,10 @@ def set_attribute(data: bytes, el: Element, name: str, value: str
 
 def remove_attribute(data: bytes, el: Element, name: str) -> tuple[int, int, bytes] | None:
     """The edit that deletes attribute ``name`` (with the whitespace before it), or None."""
-    found = _attr_pattern(name).search(data[el.start:el.tag_end])
+    found = _find_attribute(data, el, name)
     if found is None:
         return None
-    return el.start + found.start(1), el.start + found.end(0), b""
+    return found.start(1), found.end(0), b""
 
 
 def insert_first_child(data: bytes, el: Element, text: str) -> tuple[int, int, bytes]:
