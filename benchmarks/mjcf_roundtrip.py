@@ -4,7 +4,8 @@ values into the file (``consistid.robot.mjcf_edit.write_mjcf_into``) read back b
 
 Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/mjcf_roundtrip.py [--chains 50] [--seed 0]``.
 Each chain has 2–6 bodies with random placements, orientations, inertials (``iquat``),
-joint anchors, oblique hinge/slide axes, armature, a tilted gravity and, on half of them, a body
+joint anchors and reference positions (``ref``), oblique hinge/slide axes, armature, a tilted
+gravity and, on half of them, a body
 whose inertia MuJoCo derives from a box geom. Prints the largest relative torque error over
 20 random states per chain, and the largest relative error of the written file's inverse
 dynamics against ``pinocchio.rnea`` with the written parameters (armature included).
@@ -35,7 +36,7 @@ def chain(rng: np.random.Generator, n: int, geom_body: int | None) -> str:
         kind = "slide" if r[15] > 0.6 else "hinge"
         body = (f'<body name="b{k}" pos="{r[0]:.3f} {r[1]:.3f} {r[2]:.3f}" '
                 f'quat="{r[3]:.3f} {r[4]:.3f} {r[5]:.3f} {r[6]:.3f}">'
-                f'<joint name="j{k}" type="{kind}" pos="{r[7]:.3f} {r[8]:.3f} 0" '
+                f'<joint name="j{k}" type="{kind}" pos="{r[7]:.3f} {r[8]:.3f} 0" ref="{r[0]:.2f}" '
                 f'axis="{r[9]:.3f} {r[10]:.3f} 1" armature="{abs(r[11]) / 10:.4f}"/>')
         if k == geom_body:
             body += f'<geom type="box" size="0.05 0.03 {0.02 + abs(r[12]) / 10:.3f}"/>'

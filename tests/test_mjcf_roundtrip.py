@@ -71,7 +71,7 @@ ARM = """<mujoco model="arm">
         <joint name="j1" axis="0 0 1" range="-2.9 2.9"/>
         <geom type="mesh" mesh="link"/>
         <body name="link2" pos="0 0.02 0.12" euler="0.3 0 0">
-          <joint name='j2' pos="0 0 0.01" axis="0 1 0"   range="-1.8 1.8" damping="1.1"/>
+          <joint name='j2' pos="0 0 0.01" axis="0 1 0"   range="-1.8 1.8" damping="1.1" ref="0.3"/>
           <inertial pos="0 0.01 0.1" mass="1.4"
             fullinertia="0.011 0.012 0.004 0.001 -0.0005 0.0008"/>
           <geom type="mesh" mesh="link"/>
@@ -192,7 +192,7 @@ _unit = st.floats(-1, 1, allow_nan=False)
        quat=st.tuples(_unit, _unit, _unit, _unit), slide=st.booleans())
 def test_random_chains_match_mujoco(tmp_path_factory, seed, axis, quat, slide):
     """Random 3-body chains: oblique axes, rotated bodies and inertials, anchors off the body
-    origin, hinge or slide: rnea = mj_inverse."""
+    origin, a reference position (``ref``), hinge or slide: rnea = mj_inverse."""
     if np.linalg.norm(axis) < 0.1 or np.linalg.norm(quat) < 0.1:
         return
     rng = np.random.default_rng(seed)
@@ -203,7 +203,7 @@ def test_random_chains_match_mujoco(tmp_path_factory, seed, axis, quat, slide):
         text.append(
             f'<body name="b{k}" pos="{r[0]:.3f} {r[1]:.3f} {r[2]:.3f}" '
             f'quat="{" ".join(f"{v:.4f}" for v in quat)}">'
-            f'<joint name="j{k}" type="{kind}" pos="{r[3]:.3f} {r[4]:.3f} 0" '
+            f'<joint name="j{k}" type="{kind}" pos="{r[3]:.3f} {r[4]:.3f} 0" ref="{r[0]:.2f}" '
             f'axis="{" ".join(f"{v:.4f}" for v in axis)}" armature="{abs(r[5]):.3f}"/>'
             f'<inertial pos="{r[6]:.3f} {r[7]:.3f} {r[8]:.3f}" '
             f'quat="{r[9]:.3f} {r[10]:.3f} {r[11]:.3f} 0.5" mass="{1 + abs(r[9]):.3f}" '

@@ -7,9 +7,11 @@ the Pinocchio model is then built from the compiled numbers. ``pinocchio.buildMo
 re-implements that compiler and cannot derive an inertia from a mesh, so it is not used.
 
 For each MuJoCo body ``b`` with one hinge or slide joint, a Pinocchio joint is placed at the
-joint's anchor with the body's orientation: the joint frame is ``B_b · (I, p_j)`` with
-``B_b = (body_quat, body_pos)`` relative to the parent's body frame and ``p_j = jnt_pos``; the
-axis is ``jnt_axis`` (body frame). The body's compiled inertial (mass ``m``, CoM ``ipos``,
+joint's anchor: the joint frame is ``B_b · (I, p_j) · exp(−r S)`` with
+``B_b = (body_quat, body_pos)`` relative to the parent's body frame, ``p_j = jnt_pos`` and ``r``
+the joint's ``ref`` (MuJoCo's body frames are at ``q = ref``: turned back by it, Pinocchio's
+``q`` is MuJoCo's ``qpos``); the axis ``S`` is ``jnt_axis`` (body frame), and the body frame
+is ``(I, −p_j)`` in the joint frame. The body's compiled inertial (mass ``m``, CoM ``ipos``,
 principal moments ``d`` with axes ``R = iquat``) enters as ``I_c = R diag(d) Rᵀ`` about the CoM
 at ``ipos − p_j`` in the joint frame. A body without a joint is welded to its parent
 (``pinocchio.Model.appendBodyToJoint``); a body welded to the world is part of the fixed base.
@@ -121,6 +123,16 @@ def _joint_model(kind: int, axis: np.ndarray) -> Any:
     return aligned[unit[0]]() if unit else pin.JointModelPrismaticUnaligned(axis)
 
 
+def _ref_shift(mj: Any, j: int) -> pin.SE3:
+    """``exp(−ref·S)``: MuJoCo places a body at the joint's ``ref`` (``qpos0``), so the body
+    frame moves by ``q − ref``: ``exp(−ref·S)·exp(q·S) = exp((q − ref)·S)`` (one axis)."""
+    axis = np.asarray(mj.jnt_axis[j], dtype=float)
+    ref = float(mj.qpos0[mj.jnt_qposadr[j]]) * axis / np.linalg.norm(axis)
+    motion = (pin.Motion(np.zeros(3), ref) if mj.jnt_type[j] == HINGE
+              else pin.Motion(ref, np.zeros(3)))
+    return pin.exp6(motion).inverse()
+
+
 def effort_limits(mj: Any) -> np.ndarray:
     """Per MuJoCo joint: ``actfrcrange`` when limited, else the largest force the actuators on
     it can apply (``forcerange``, or ``|gear · gain| · max|ctrlrange|`` of a fixed-gain motor);
@@ -190,7 +202,7 @@ def pinocchio_from_mujoco(mj: Any, source: str) -> tuple[pin.Model, dict[str, st
         if mj.body_jntnum[b] == 1:
             j = int(mj.body_jntadr[b])
             anchor = pin.SE3(np.eye(3), np.array(mj.jnt_pos[j], dtype=float))
-            placement = frame * anchor
+            placement = frame * anchor * _ref_shift(mj, j)
             jname = _name(mj, mujoco.mjtObj.mjOBJ_JOINT, j)
             lower, upper = ((float(mj.jnt_range[j, 0]), float(mj.jnt_range[j, 1]))
                             if mj.jnt_limited[j] else (-np.inf, np.inf))
