@@ -357,6 +357,15 @@ def test_writer_refusals(tmp_path):
         (other / "extra.xml").write_text("<mujoco/>")
         with pytest.raises(ModelError, match=match):
             write_mjcf_into(model, other / "o.xml", src, params, names)
+    bounded = _arm(tmp_path / "bounded", ARM.replace('<compiler angle="radian"',
+                                                     '<compiler boundinertia="0.006" '
+                                                     'angle="radian"'))
+    model_b = ci.RobotModel.from_mjcf(bounded, locked_joints=["j4"])
+    small = np.concatenate([model_b.prior_parameters, params[model.n_inertial:]])
+    small[10:20] *= 0.4                         # consistent, but below the compiler's bound
+    with pytest.raises(ModelError, match="link2.*boundinertia"):
+        write_mjcf_into(model_b, tmp_path / "bounded" / "o.xml", bounded, small, names)
+    assert sorted(p.name for p in (tmp_path / "bounded").iterdir()) == ["arm.xml", "assets"]
     (tmp_path / "elsewhere").mkdir()
     with pytest.raises(ModelError, match="relative path"):
         write_mjcf_into(model, tmp_path / "elsewhere" / "o.xml", path,

@@ -258,9 +258,9 @@ def write_mjcf_into(model: "RobotModel", path: str | Path, source: str | Path,
         edits += more
         inserted += [frame_name(mj, b)] if new else []
     more, inherited, untouched = _joint_edits(data, els, mj, terms)
-    _warn(inserted, inherited, untouched, terms)
     tmp = _write_checked(apply(data, edits + more), out, model, params, terms)
     os.replace(tmp, out)
+    _warn(inserted, inherited, untouched, terms)         # what was written, once it was
     return out
 
 
