@@ -81,6 +81,7 @@ ARM = """<mujoco model="arm">
             <site name="tool" pos="0 0 0.1"/>
             <body name="flange" pos="0 0 0.12">
               <inertial pos="0 0 0.01" mass="0.3" diaginertia="0.0004 0.0004 0.0002"/>
+              <body pos="0.01 0 0.02"><geom type="sphere" size="0.01" mass="0.05"/></body>
             </body>
             <body name="finger" pos="0.02 0 0.05">
               <joint name="j4" type="slide" axis="0 0 1" range="0 0.04"/>

@@ -47,7 +47,7 @@ import pinocchio as pin
 from ..errors import ExportWarning, InconsistentParametersError, ModelError
 from .inertia import InertialParameters, body_slice
 from .joint_terms import export_parameters
-from .mjcf_in import body_inertia, check_safe_xml, compile_mjcf, read_mjcf
+from .mjcf_in import body_inertia, body_label, check_safe_xml, compile_mjcf, read_mjcf
 from .xml_spans import (Element, apply, elements, insert_first_child, remove_attribute,
                         set_attribute)
 
@@ -140,6 +140,7 @@ def _written_inertias(model: "RobotModel", params: np.ndarray, mj: Any, reduced:
     import mujoco
 
     out = {}
+    ids = {body_label(mj, b): b for b in range(1, mj.nbody)}    # unnamed ones too
     for i, name in enumerate(model.body_names):
         total = InertialParameters(params[body_slice(i)])
         verdict = total.consistent(name=name)
@@ -153,28 +154,21 @@ def _written_inertias(model: "RobotModel", params: np.ndarray, mj: Any, reduced:
         for frame in reduced.frames:
             if frame.type != pin.FrameType.BODY or frame.parentJoint != jid:
                 continue
-            b = mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_BODY, frame.name)
+            b = ids.get(frame.name, 0)
             if b == own:
                 own_frame = frame.placement
             elif b > 0:
                 kept.append(frame.name)
                 rest = rest - InertialParameters.from_pinocchio(
                     frame.placement.act(body_inertia(mj, b)))
-        verdict = rest.consistent(name=frame_name(mj, own))
+        verdict = rest.consistent(name=body_label(mj, own))
         if not verdict.ok:
             raise InconsistentParametersError(
                 f"body {name!r}: after subtracting the file's inertials of the bodies merged "
-                f"into it {kept}, MuJoCo body {frame_name(mj, own)!r} would be inconsistent "
+                f"into it {kept}, MuJoCo body {body_label(mj, own)!r} would be inconsistent "
                 f"({verdict.reason}); unlock them or identify with them moving")
         out[own] = own_frame.actInv(rest.to_pinocchio())
     return out
-
-
-def frame_name(mj: Any, body: int) -> str:
-    """A MuJoCo body's name (``body<id>`` when unnamed)."""
-    import mujoco
-
-    return mujoco.mj_id2name(mj, mujoco.mjtObj.mjOBJ_BODY, body) or f"body{body}"
 
 
 def _class_of(els: list[Element], el: Element) -> str:
@@ -256,7 +250,7 @@ def write_mjcf_into(model: "RobotModel", path: str | Path, source: str | Path,
     for b, value in _written_inertias(model, params, mj, reduced).items():
         more, new = _body_edits(data, bodies[b], els, value)
         edits += more
-        inserted += [frame_name(mj, b)] if new else []
+        inserted += [body_label(mj, b)] if new else []
     more, inherited, untouched = _joint_edits(data, els, mj, terms)
     tmp = _write_checked(apply(data, edits + more), out, model, params, terms)
     os.replace(tmp, out)
