@@ -274,7 +274,11 @@ class RobotModel:
     ) -> "RobotModel":
         """Read an MJCF (MuJoCo XML, e.g. a MuJoCo Menagerie arm) as a nominal model, compiled
         by MuJoCo (defaults classes, includes, meshes, inertias from geoms); see
-        :mod:`consistid.robot.mjcf_in`.
+        :mod:`consistid.robot.mjcf_in`. The joints' ``armature`` is the model's
+        (``pinocchio.rnea`` includes it, as ``mj_inverse`` does); ``damping`` and
+        ``frictionloss`` are kept as the Pinocchio model's ``damping`` and ``friction``
+        (priors, not part of ``rnea``). Identified values go back into the file with
+        ``result.to_mjcf(path, source=model.source)``.
 
         Parameters
         ----------
@@ -284,11 +288,11 @@ class RobotModel:
         name : label for reports; default the file stem.
         gravity : gravity in the base frame; default the file's ``<option gravity>``.
 
-        The joints' ``armature`` is the model's (``pinocchio.rnea`` includes it, as
-        ``mj_inverse`` does); ``damping`` and ``frictionloss`` are kept as the Pinocchio
-        model's ``damping`` and ``friction`` (priors, not part of ``rnea``). Refuses
-        (:class:`ModelError`, by name) a free joint (floating base), a ball joint, a body with
-        several joints, an unnamed joint, and XML with a DTD or entities.
+        Raises
+        ------
+        ModelError : a free joint (floating base), a ball joint, a body with several joints,
+            an unnamed joint, XML with a DTD or entities, or what MuJoCo cannot compile
+            (named).
         """
         path = Path(path)
         g = None if gravity is None else _check_gravity(gravity)
