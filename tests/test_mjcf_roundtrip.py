@@ -463,3 +463,27 @@ def test_attribute_edits_touch_only_their_span(attrs, quotes, seps, closing, nam
                                                            if k != name}
     else:
         assert gone is None
+
+
+def test_scene_including_the_arm(tmp_path):
+    """Menagerie's layout: scene.xml includes the arm's file. The model reads from the scene;
+    the writer refuses the scene by name and writes into the included file (matched by names),
+    here with the finger locked away from qpos0."""
+    arm = _arm(tmp_path)
+    scene = tmp_path / "scene.xml"
+    scene.write_text('<mujoco model="scene">\n  <include file="arm.xml"/>\n  <worldbody>'
+                     '<geom type="plane" size="1 1 0.1"/></worldbody>\n</mujoco>\n')
+    lock = {"locked_joints": ["j4"], "locked_configuration": {"j4": 0.02}}
+    model = ci.RobotModel.from_mjcf(scene, **lock)
+    q, dq, ddq = _states(10, 3, 6)
+    held = _mj_inverse(arm, np.c_[q, np.full(10, 0.02)], np.c_[dq, np.zeros(10)],
+                       np.c_[ddq, np.zeros(10)])[:, :3]
+    assert np.max(np.abs(model.rnea(q, dq, ddq) - held)) < 1e-9 * np.abs(held).max()
+    params, names = _identified(model, 9)
+    with pytest.raises(ModelError, match=r"includes \['arm.xml'\]"):
+        write_mjcf_into(model, tmp_path / "o.xml", scene, params, names)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ExportWarning)
+        out = write_mjcf_into(model, tmp_path / "arm_identified.xml", arm, params, names)
+    back = ci.RobotModel.from_mjcf(out, **lock)
+    assert np.allclose(back.prior_parameters, params[:model.n_inertial], rtol=1e-12, atol=1e-15)
