@@ -169,8 +169,9 @@ def check_not_source(model: "RobotModel", path: str | Path, what: str) -> Path:
     source = None if model.source is None else Path(model.source)
     if source is not None and source.exists() and out.exists() \
             and out.resolve().samefile(source.resolve()):
-        raise ModelError(f"{what}({str(path)!r}) would write over the URDF {model.name!r} was "
-                         "read from (its source); write to another path")
+        raise ModelError(f"{what}({str(path)!r}) would write over the "
+                         f"{(model.source_format or 'urdf').upper()} {model.name!r} was read "
+                         "from (its source); write to another path")
     return out
 
 
