@@ -487,3 +487,20 @@ def test_scene_including_the_arm(tmp_path):
         out = write_mjcf_into(model, tmp_path / "arm_identified.xml", arm, params, names)
     back = ci.RobotModel.from_mjcf(out, **lock)
     assert np.allclose(back.prior_parameters, params[:model.n_inertial], rtol=1e-12, atol=1e-15)
+
+
+def test_cli_model_table_reads_an_mjcf(tmp_path):
+    """``[model] mjcf = "…"`` in a run configuration loads the file with from_mjcf; a URDF key
+    beside it is refused by name."""
+    from consistid.cli.config import config_model, load_config
+    from consistid.errors import ConfigError
+
+    _arm(tmp_path)
+    conf = tmp_path / "run.toml"
+    conf.write_text('[model]\nmjcf = "arm.xml"\nlocked_joints = ["j4"]\nname = "mine"\n')
+    model = config_model(load_config(conf))
+    assert model.name == "mine" and model.joint_names == ["j1", "j2", "j3"]
+    assert model.source_format == "mjcf"
+    conf.write_text('[model]\nmjcf = "arm.xml"\nurdf = "arm.urdf"\n')
+    with pytest.raises(ConfigError, match="takes no urdf"):
+        config_model(load_config(conf))
