@@ -65,9 +65,9 @@ from typing import TYPE_CHECKING, Any, Iterable, Mapping
 import numpy as np
 
 from ..errors import ModelError, ResultFileError
-from ..robot.mjcf_in import is_mjcf
 from ..robot.model import RobotModel, model_without_dynamics
 from .base import BaseParameters
+from ..robot.mjcf_in import is_mjcf
 from .envelope import TrainingEnvelope
 from .regressor import RegressorSpec
 from .solver import SolverReport
