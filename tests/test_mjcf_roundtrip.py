@@ -421,7 +421,7 @@ def test_identify_on_mujoco_data_and_write_back(tmp_path):
     assert np.all(err < 3 * sigma), (err, before)
     assert np.all(err < before / 5), (err, before)
     saved = res.save(tmp_path / "result.json")             # the MJCF model reloads from it
-    back = type(res).load(saved)
+    back = type(res).load(saved, urdf=nominal)
     assert back.model.source_format == "mjcf" and back.model.locked_joints == ("j4",)
     assert np.array_equal(back.parameters, res.parameters)
 

@@ -219,7 +219,14 @@ def _rebuild(m: Mapping[str, Any], urdf: Path, source: Path | None) -> RobotMode
                    locked_configuration=m["locked_configuration"], gravity=m["gravity"],
                    name=m["name"])
     if is_mjcf(urdf):                       # a model read by RobotModel.from_mjcf
-        built = RobotModel.from_mjcf(urdf, **options)
+        try:
+            built = RobotModel.from_mjcf(urdf, **options)
+        except ModelError as exc:
+            if source is not None:
+                raise
+            raise ModelError(f"the model was read from the MJCF {m.get('source')}, whose text is "
+                             f"stored without the files it refers to (meshes): {exc}; load with "
+                             "urdf='path/to/robot.xml' (the MJCF) or model=") from exc
         return RobotModel(built.pin_model, name=built.name, source=source,
                           locked_joints=built.locked_joints,
                           locked_configuration=built.locked_configuration)
