@@ -367,6 +367,9 @@ def test_writer_refusals(tmp_path):
     with pytest.raises(ModelError, match="link2.*boundinertia"):
         write_mjcf_into(model_b, tmp_path / "bounded" / "o.xml", bounded, small, names)
     assert sorted(p.name for p in (tmp_path / "bounded").iterdir()) == ["arm.xml", "assets"]
+    for where, match in ((tmp_path / "none" / "o.xml", "no folder"), (tmp_path, "a folder")):
+        with pytest.raises(ModelError, match=match):
+            write_mjcf_into(model, where, path, params, names)
     (tmp_path / "elsewhere").mkdir()
     with pytest.raises(ModelError, match="relative path"):
         write_mjcf_into(model, tmp_path / "elsewhere" / "o.xml", path,

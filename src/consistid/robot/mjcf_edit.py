@@ -76,6 +76,9 @@ def _in_bodies(els: list[Element], tag: str) -> list[Element]:
 def _check_source(model: "RobotModel", source: Path, out: Path, els: list[Element]) -> None:
     """Refuse an output over the source, an ``<include>``, ``inertiafromgeom="true"``, and
     relative asset files when the output goes to another folder."""
+    if out.is_dir() or not out.parent.is_dir():
+        raise ModelError(f"to_mjcf({str(out)!r}): " + ("a folder, not a file name" if out.is_dir()
+                                                      else f"no folder {str(out.parent)!r}"))
     for src in {source, *([model.source] if model.source is not None else [])}:
         if Path(src).resolve() == out.resolve():
             raise ModelError(f"to_mjcf({str(out)!r}) would write over the MJCF {src} (a source); "

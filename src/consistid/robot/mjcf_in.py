@@ -139,7 +139,7 @@ def effort_limits(mj: Any) -> np.ndarray:
     ``inf`` when nothing bounds it."""
     out = np.full(mj.njnt, np.inf)
     for a in range(mj.nu):
-        if mj.actuator_trntype[a] != 0:                     # mjTRN_JOINT only
+        if mj.actuator_trntype[a] not in (0, 1):            # mjTRN_JOINT, mjTRN_JOINTINPARENT
             continue
         j = int(mj.actuator_trnid[a, 0])
         gear = abs(float(mj.actuator_gear[a, 0]))
