@@ -4,8 +4,9 @@ A copy of the source MJCF is made with, per moving body, its ``<inertial>`` set 
 identified mass, centre of mass and inertia, and per identified joint term its ``<joint>``
 attribute (``damping = f_v``, ``frictionloss = f_c``, ``armature = I_a``). Elements are found
 by a real parser (:mod:`consistid.robot.xml_spans`), and only their attribute values are
-edited in the file's text (as :mod:`consistid.robot.export` keeps a URDF's content): meshes,
-actuators, contacts, sensors, comments and attribute order stay byte for byte.
+edited in the file's text (the URDF writer, :mod:`consistid.robot.export`, re-serialises its
+tree instead): meshes, actuators, contacts, sensors, comments, quoting and attribute order stay
+byte for byte.
 
 What is written on a MuJoCo body ``b`` carrying the joint of a consistid body: the identified
 10-vector ``π`` is about the Pinocchio joint frame (:mod:`consistid.robot.mjcf_in`); the
