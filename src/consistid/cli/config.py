@@ -79,7 +79,8 @@ else:  # pragma: no cover - exercised on Python 3.10 only
 #: The top-level tables a configuration may have (besides the ``root`` key), one per command.
 TABLES = ("model", "data", "identify", "diagnose", "recover", "payload", "excite", "drives",
           "rollout")
-MODEL_KEYS = ("urdf", "example", "strip_dynamics", "locked_joints", "gravity", "tilt", "name")
+MODEL_KEYS = ("urdf", "example", "strip_dynamics", "locked_joints", "gravity", "tilt", "name",
+              "mjcf")
 DATA_KEYS = ("dir", "keys", "joint_names", "trim_start", "trim_end", "duplicates", "train",
              "held_out", "joints", "columns", "topic", "stamp", "delimiter", "time_unit",
              "timestamp", "derivatives", "signals", "angle_unit", "velocities")
@@ -271,7 +272,7 @@ def config_model(config: RunConfig, allow_tilt: bool = False) -> RobotModel:
     t = config.table("model", MODEL_KEYS)
     for key, kind in (("urdf", "string"), ("example", "string"), ("name", "string"),
                       ("strip_dynamics", "boolean"), ("locked_joints", "array of strings"),
-                      ("tilt", "string")):
+                      ("tilt", "string"), ("mjcf", "string")):
         if key in t:
             config.expect("model", key, t[key], kind)
     tilt = t.pop("tilt", None)
@@ -294,8 +295,16 @@ def config_model(config: RunConfig, allow_tilt: bool = False) -> RobotModel:
             raise ConfigError(f"{config.path.name}: [model] example = {t['example']!r} takes no "
                               f"other key; got {sorted(set(t) - {'example'})}")
         return RobotModel.example(t["example"])
+    if "mjcf" in t:  # a MuJoCo model (RobotModel.from_mjcf)
+        clash = sorted({"urdf", "strip_dynamics"} & set(t))
+        if clash:
+            raise ConfigError(f"{config.path.name}: [model] mjcf = {_toml(t['mjcf'])} takes no "
+                              f"{' or '.join(clash)} key (a URDF's); give one robot file")
+        options = {k: t[k] for k in ("locked_joints", "gravity", "name") if k in t}
+        return RobotModel.from_mjcf(config.resolve(t["mjcf"]), **options)
     if "urdf" not in t:
-        raise ConfigError(f"{config.path.name}: [model] needs urdf = \"path/to/robot.urdf\"")
+        raise ConfigError(f"{config.path.name}: [model] needs urdf = \"path/to/robot.urdf\" "
+                          "(or mjcf = \"path/to/robot.xml\")")
     urdf = config.resolve(t["urdf"])
     kwargs: dict[str, Any] = {"locked_joints": t.get("locked_joints", ())}
     for key in ("gravity", "name"):

@@ -70,6 +70,7 @@ from ..filesafety import interrupted_files, replacing
 from ..textsafety import spreadsheet_cell
 from ..robot.model import RobotModel, model_without_dynamics
 from .base import BaseParameters
+from ..robot.mjcf_in import is_mjcf
 from .envelope import TrainingEnvelope
 from .regressor import RegressorSpec
 from .resultschema import check_document, check_dtype, read_document
@@ -245,6 +246,18 @@ def _rebuild(m: Mapping[str, Any], urdf: Path, source: Path | None) -> RobotMode
     options = dict(locked_joints=m["locked_joints"],
                    locked_configuration=m["locked_configuration"], gravity=m["gravity"],
                    name=m["name"])
+    if is_mjcf(urdf):                       # a model read by RobotModel.from_mjcf
+        try:
+            built = RobotModel.from_mjcf(urdf, **options)
+        except ModelError as exc:
+            if source is not None:
+                raise
+            raise ModelError(f"the model was read from the MJCF {m.get('source')}, whose text is "
+                             f"stored without the files it refers to (meshes): {exc}; load with "
+                             "urdf='path/to/robot.xml' (the MJCF) or model=") from exc
+        return RobotModel(built.pin_model, name=built.name, source=source,
+                          locked_joints=built.locked_joints,
+                          locked_configuration=built.locked_configuration)
     try:
         built = RobotModel.from_urdf(urdf, **options)
     except ModelError:                      # e.g. negative <dynamics>, which Pinocchio refuses

@@ -22,6 +22,7 @@ from ..errors import ExtrapolationWarning, ResultFileError, check_number, check_
 from ..report.result import normal_intervals
 from ..robot.export import write_urdf
 from ..robot.mjcf import write_mjcf
+from ..robot.mjcf_edit import write_mjcf_into
 from ..robot.model import RobotModel
 from ..robot.inertia import ConsistencyReport, is_physically_consistent
 from ..robot.joint_terms import STANDSTILL_SPEED, joint_terms_of
@@ -76,10 +77,17 @@ class StandardParameterSet:
         """Jupyter: each body's consistency and margin, the per-joint terms, the summary."""
         return standard_set_page(self, f"{type(self).__name__}: {self.model.name}").fragment()
 
-    def to_mjcf(self, path: str | Path) -> Path:
+    def to_mjcf(self, path: str | Path, source: str | Path | None = None) -> Path:
         """Write an MJCF of the model with these inertias, Coulomb friction (``frictionloss``),
-        viscous friction (``damping``) and armature, built through MuJoCo's ``MjSpec``
-        (:func:`consistid.robot.mjcf.write_mjcf`); refuses an inconsistent body."""
+        viscous friction (``damping``) and armature; refuses an inconsistent body.
+
+        ``source=None``: a new file built through MuJoCo's ``MjSpec``, without geometry
+        (:func:`consistid.robot.mjcf.write_mjcf`). ``source=`` the user's MJCF (e.g.
+        ``self.model.source`` of a model read by ``RobotModel.from_mjcf``): a copy of it with
+        these values written in and every other byte unchanged (meshes, actuators, sensors;
+        :func:`consistid.robot.mjcf_edit.write_mjcf_into`)."""
+        if source is not None:
+            return write_mjcf_into(self.model, path, source, *self.exported_terms())
         return write_mjcf(self.model, path, *self.exported_terms())
 
 

@@ -169,8 +169,9 @@ def check_not_source(model: "RobotModel", path: str | Path, what: str) -> Path:
     source = None if model.source is None else Path(model.source)
     if source is not None and source.exists() and out.exists() \
             and out.resolve().samefile(source.resolve()):
-        raise ModelError(f"{what}({str(path)!r}) would write over the URDF {model.name!r} was "
-                         "read from (its source); write to another path")
+        raise ModelError(f"{what}({str(path)!r}) would write over the "
+                         f"{(model.source_format or 'urdf').upper()} {model.name!r} was read "
+                         "from (its source); write to another path")
     return out
 
 
@@ -206,6 +207,9 @@ def write_urdf(model: RobotModel, path: str | Path, parameters: np.ndarray | Non
     check_not_source(model, path, "to_urdf")
     if model.source is None or not Path(model.source).is_file():
         raise ModelError(f"{model.name!r} has no source URDF to write parameters into")
+    if model.source_format == "mjcf":
+        raise ModelError(f"{model.name!r} was read from the MJCF {Path(model.source).name}, not a "
+                         "URDF: write into it with to_mjcf(path, source=model.source)")
     source = Path(model.source)
     params, terms = export_parameters(model, parameters, parameter_names)
     tree = parse_urdf(source)

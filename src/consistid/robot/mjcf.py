@@ -8,8 +8,9 @@ Editing"), compiled by MuJoCo (which checks every inertia), and written with ``M
 * the body's inertial from the standard 10-vector: ``mass = m``, ``ipos = c = h/m`` and the full
   inertia **about the CoM** ``I_c = I_O − m [c]ₓᵀ[c]ₓ`` in the body frame (``fullinertia``);
 * per joint: viscous friction ``fv`` → ``damping``, Coulomb friction ``fc`` → ``frictionloss``
-  (MuJoCo's dry friction, a soft constraint), armature ``Ia`` → ``armature`` (added to the
-  model's own rotor inertia, which ``pinocchio.rnea`` includes); torque offsets and
+  (MuJoCo's dry friction, a soft constraint), armature ``Ia`` → ``armature`` (the joint's whole
+  rotor inertia: the regressor has no other; without ``Ia`` the model's own ``armature``, which
+  ``pinocchio.rnea`` includes); torque offsets and
   once-per-revolution terms have no MJCF element and raise an :class:`ExportWarning`;
 * position limits as joint ``range``, effort limits as the range of a ``motor`` actuator per
   joint (gear 1, so ``ctrl`` is the joint torque);
@@ -132,7 +133,7 @@ def mjcf_spec(model: "RobotModel", parameters: np.ndarray | None = None,
                   else mujoco.mjtJoint.mjJNT_SLIDE),
             axis=axes[i], damping=values.get("fv", 0.0),
             frictionloss=values.get("fc", 0.0),
-            armature=float(pm.armature[i]) + values.get("Ia", 0.0))
+            armature=values.get("Ia", float(pm.armature[i])))
         if np.isfinite(limits.lower[i]) and np.isfinite(limits.upper[i]):
             joint.limited = mujoco.mjtLimited.mjLIMITED_TRUE
             joint.range = np.array([limits.lower[i], limits.upper[i]])

@@ -29,6 +29,7 @@ import pinocchio as pin
 from ..errors import DatasetError, JointCountError, ModelError, ModelWarning, OptionError
 from .export import write_urdf
 from .inertia import INERTIAL_NAMES, check_body, inertias_from_vector
+from .mjcf_in import is_mjcf, read_mjcf
 from .urdf import JointDynamics, check_urdf, joint_dynamics, strip_dynamics
 
 #: Gravity (m/s², base frame) of a level base: what a URDF implies.
@@ -279,6 +280,55 @@ class RobotModel:
                     locked_configuration=config)
         _warn_unphysical(robot, path.name)
         return robot
+
+    @classmethod
+    def from_mjcf(
+        cls,
+        path: str | Path,
+        locked_joints: Iterable[str] = (),
+        locked_configuration: dict[str, float] | None = None,
+        name: str | None = None,
+        gravity: Sequence[float] | None = None,
+    ) -> "RobotModel":
+        """Read an MJCF (MuJoCo XML, e.g. a MuJoCo Menagerie arm) as a nominal model, compiled
+        by MuJoCo (defaults classes, includes, meshes, inertias from geoms); see
+        :mod:`consistid.robot.mjcf_in`. The joints' ``armature`` is the model's
+        (``pinocchio.rnea`` includes it, as ``mj_inverse`` does); ``damping`` and
+        ``frictionloss`` are kept as the Pinocchio model's ``damping`` and ``friction``
+        (priors, not part of ``rnea``). Identified values go back into the file with
+        ``result.to_mjcf(path, source=model.source)``.
+
+        Parameters
+        ----------
+        path : the MJCF file (its meshes are read by MuJoCo's compiler).
+        locked_joints : joints merged into their parent body (e.g. a gripper's fingers).
+        locked_configuration : position at which to lock each joint, default its ``qpos0``.
+        name : label for reports; default the file stem.
+        gravity : gravity in the base frame; default the file's ``<option gravity>``.
+
+        Raises
+        ------
+        ModelError : a free joint (floating base), a ball joint, a body with several joints,
+            an unnamed joint, XML with a DTD or entities, or what MuJoCo cannot compile
+            (named).
+        """
+        path = Path(path)
+        g = None if gravity is None else _check_gravity(gravity)
+        model, locked, config = read_mjcf(path, locked_joints, locked_configuration)
+        if g is not None:
+            model.gravity.linear = g
+        robot = cls(model, name=name or path.stem, source=path, locked_joints=locked,
+                    locked_configuration=config)
+        _warn_unphysical(robot, path.name)
+        return robot
+
+    @property
+    def source_format(self) -> str | None:
+        """``"mjcf"`` for a model read by :meth:`from_mjcf`, ``"urdf"`` for one read from a
+        URDF, ``None`` without a source file."""
+        if self.source is None or not self.source.is_file():
+            return None
+        return "mjcf" if is_mjcf(self.source) else "urdf"
 
     @classmethod
     def example(cls, name: str) -> "RobotModel":

@@ -412,6 +412,10 @@ def collision_points(model: RobotModel, package_dirs: Sequence[str | Path] | Non
     """
     if model.source is None:
         raise ModelError(f"{model.name}: no source URDF to read collision geometry from")
+    if model.source_format == "mjcf":
+        raise ModelError(f"{model.name}: collision ellipsoids are read from a URDF's <collision> "
+                         f"elements; {Path(model.source).name} is an MJCF (pass ellipsoids= "
+                         "explicitly, or use constraints='pseudo-inertia')")
     urdf = model.source
     dirs = list(package_dirs or ())
     pm = model.pin_model
