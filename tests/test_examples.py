@@ -307,7 +307,7 @@ def test_panda_diagnose(checkout, capsys):
 def test_panda_excite(checkout):
     run("excite", "examples/panda/excite.toml")
     path = checkout / "out" / "panda_excitation.csv"
-    header = check_csv_header(path, ["t", "q1"])
+    header = check_csv_header(path, ["t", "q_panda_joint1"])    # columns named by joint
     table = np.loadtxt(path, delimiter=",", skiprows=1)
     assert table.shape == (5000, len(header)) and np.isfinite(table).all()
 
