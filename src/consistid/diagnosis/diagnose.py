@@ -1179,6 +1179,8 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
                                                 tested.residual - fit.correction(tested),
                                                 unknown, floor)
     findings = _with_parameters(findings, fit, final_stds, refitted, names, tested is train)
+    if refitted:
+        notes.append(_identify_friction_note(fit, refitted, names))
     # Held-out data are the judge: what the effects leave there, judged the same way, against
     # the floor the held-out recordings' own low-pass leaves.
     if tested is held:
@@ -1231,6 +1233,18 @@ def _with_parameters(findings: list[EffectFinding], fit: GapModel, stds: list[np
             params = effect.parameters(fit.library, atom, th, sd, joint, fit)
         by_effect.setdefault(atom.effect, []).extend(params)
     return [replace(f, parameters=tuple(by_effect.get(f.name, ()))) for f in findings]
+
+
+def _identify_friction_note(fit: GapModel, refitted: dict[int, tuple[float, float]],
+                            names: list[str]) -> str:
+    """One line on why ``identify``'s friction differs from the set-valued refit reported."""
+    joints = ", ".join(dict.fromkeys(names[fit.atoms[i].joint] for i in sorted(refitted)))
+    return (f"friction on {joints} is the set-valued refit the verdict uses (a held joint's "
+            "torque within its friction cone is no error): identify's point-valued fit of "
+            "f_c sign(q̇) and f_v q̇ differs from it, as the point-valued fit here does, because "
+            "it fits sign(q̇) on samples at rest and through the torque filter (f_c too high, "
+            "f_v too low); identify says so in details['standstill'] and its model-error "
+            "warning")
 
 
 def _worsened(before: np.ndarray, after: np.ndarray, floor: np.ndarray) -> np.ndarray:
