@@ -1242,9 +1242,9 @@ def _identify_friction_note(fit: GapModel, refitted: dict[int, tuple[float, floa
     return (f"friction on {joints} is the set-valued refit the verdict uses (a held joint's "
             "torque within its friction cone is no error): identify's point-valued fit of "
             "f_c sign(q̇) and f_v q̇ differs from it, as the point-valued fit here does, because "
-            "it fits sign(q̇) on samples at rest and through the torque filter (f_c too high, "
-            "f_v too low); identify says so in details['standstill'] and its model-error "
-            "warning")
+            "it fits sign(q̇) on samples at rest and through the torque filter, which biases "
+            "f_c and f_v in opposite directions; identify says so in details['standstill'] and "
+            "its model-error warning")
 
 
 def _worsened(before: np.ndarray, after: np.ndarray, floor: np.ndarray) -> np.ndarray:
