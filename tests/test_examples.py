@@ -302,6 +302,15 @@ def test_panda_diagnose(checkout, capsys):
     # 1.6 × the floor on panda_joint5's samples clear of standstill)
     assert "Verdict: explained" in text, re.findall(r"^Verdict: .*$", text, re.M)
     check_verdict_agrees(text)
+    # the friction the table reports is the set-valued refit the verdict uses, and its σ
+    # covers the simulator's truth (the point-valued fit: joint 5 at 8σ and 6σ from it)
+    for wording, key in (("Coulomb friction", "coulomb"), ("viscous friction", "viscous")):
+        rows = re.findall(rf"panda_joint(\d) {wording} ([\d.]+) ± ([\d.e-]+) N·m[^\n]*"
+                          r"set-valued refit", text)
+        assert len(rows) >= 5, (wording, rows)
+        for j, value, std in rows:
+            assert abs(float(value) - TRUTH[key][int(j) - 1]) <= 3 * float(std), (j, wording)
+    assert "details['standstill']" in text      # why identify's point-valued fit differs
 
 
 def test_panda_excite(checkout):

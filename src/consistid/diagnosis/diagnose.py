@@ -84,7 +84,7 @@ from .remainder import (
     Remainder,
     analyse_remainder,
     dry_friction_at_rest,
-    dry_friction_through_filter,
+    set_valued_refit,
     standstill_mask,
 )
 
@@ -1155,13 +1155,6 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
             runner_up=rival[0], margin=float(rival[1]),
             worsened=tuple(names[j] for j in np.flatnonzero(worse))))
         before = after
-    # Parameters from the final fit (all effects together).
-    params_by_effect: dict[str, list[EffectParameter]] = {}
-    for atom, th, sd in zip(fit.atoms, fit.theta, final_stds):
-        joint = names[atom.joint] if atom.joint is not None else None
-        lst = params_by_effect.setdefault(atom.effect, [])
-        lst += REGISTRY[atom.effect].parameters(library, atom, th, sd, joint, fit)
-    findings = [replace(f, parameters=tuple(params_by_effect.get(f.name, ()))) for f in findings]
     notes += _asymmetric_friction(fit, names)
     notes += _contained(prob, cumulative, names)
     if inertia_solver == "ls" and "inertia" in order:
@@ -1182,8 +1175,12 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     # another cut-off holds another noise level — else the held-out data.
     tested = train if any(m == "repetition" for m in noise.method) else held
     unknown = _unpredictable(fit, tested)
-    left, cone = _set_valued_friction(fit, tested, tested.residual - fit.correction(tested),
-                                      unknown, floor)
+    left, cone, refitted = _set_valued_friction(fit, tested,
+                                                tested.residual - fit.correction(tested),
+                                                unknown, floor)
+    findings = _with_parameters(findings, fit, final_stds, refitted, names, tested is train)
+    if refitted:
+        notes.append(_identify_friction_note(fit, refitted, names))
     # Held-out data are the judge: what the effects leave there, judged the same way, against
     # the floor the held-out recordings' own low-pass leaves.
     if tested is held:
@@ -1209,6 +1206,45 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     return Diagnosis(model.name, tuple(names), tuple(findings), where, floor, noise_source,
                      rms_nominal, rms_final, library_floor, held_source, tuple(steps), fit,
                      tuple(notes), remainder, noise, rms_left, held_floor)
+
+
+def _with_parameters(findings: list[EffectFinding], fit: GapModel, stds: list[np.ndarray],
+                     refitted: dict[int, tuple[float, float]], names: list[str], training: bool
+                     ) -> list[EffectFinding]:
+    """``findings`` with their parameters from the final fit (all effects together); a friction
+    atom the verdict judged through the set-valued refit (``refitted``: atom index → value, std)
+    reports that refit's value and σ, the point-valued fit's beside it in its note: the verdict
+    and the table then tell one story."""
+    by_effect: dict[str, list[EffectParameter]] = {}
+    for i, (atom, th, sd) in enumerate(zip(fit.atoms, fit.theta, stds)):
+        joint = names[atom.joint] if atom.joint is not None else None
+        effect = REGISTRY[atom.effect]
+        if i in refitted:
+            point = effect.parameters(fit.library, atom, th, sd, joint, fit)[0]
+            value, std = refitted[i]
+            param = effect.parameters(fit.library, atom, np.array([value]), np.array([std]),
+                                      joint, fit)[0]
+            note = (f"set-valued refit on the {'training' if training else 'held-out'} data "
+                    f"(held torques within the friction cone at rest, seen through the signal "
+                    f"chain's low-pass), as the verdict judges; point-valued fit "
+                    f"{point.value:.4g} ± {point.std:.2g}")
+            params = [replace(param, note="; ".join(x for x in (param.note, note) if x))]
+        else:
+            params = effect.parameters(fit.library, atom, th, sd, joint, fit)
+        by_effect.setdefault(atom.effect, []).extend(params)
+    return [replace(f, parameters=tuple(by_effect.get(f.name, ()))) for f in findings]
+
+
+def _identify_friction_note(fit: GapModel, refitted: dict[int, tuple[float, float]],
+                            names: list[str]) -> str:
+    """One line on why ``identify``'s friction differs from the set-valued refit reported."""
+    joints = ", ".join(dict.fromkeys(names[fit.atoms[i].joint] for i in sorted(refitted)))
+    return (f"friction on {joints} is the set-valued refit the verdict uses (a held joint's "
+            "torque within its friction cone is no error): identify's point-valued fit of "
+            "f_c sign(q̇) and f_v q̇ differs from it, as the point-valued fit here does, because "
+            "it fits sign(q̇) on samples at rest and through the torque filter, which biases "
+            "f_c and f_v in opposite directions; identify says so in details['standstill'] and "
+            "its model-error warning")
 
 
 def _worsened(before: np.ndarray, after: np.ndarray, floor: np.ndarray) -> np.ndarray:
@@ -1258,7 +1294,7 @@ def _judged(fit: GapModel, data: GapData, floor: np.ndarray) -> tuple[np.ndarray
     rest (:func:`_set_valued_friction`), and the samples the model cannot predict (N, nv)
     (:func:`_unpredictable`)."""
     unknown = _unpredictable(fit, data)
-    left, _ = _set_valued_friction(fit, data, data.residual - fit.correction(data), unknown,
+    left, _, _ = _set_valued_friction(fit, data, data.residual - fit.correction(data), unknown,
                                    floor)
     return left, unknown
 
@@ -1309,10 +1345,14 @@ def _unpredictable(fit: GapModel, data: GapData) -> np.ndarray:
 
 
 def _set_valued_friction(fit: GapModel, data: GapData, residual: np.ndarray,
-                         unknown: np.ndarray, floor: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                         unknown: np.ndarray, floor: np.ndarray
+                         ) -> tuple[np.ndarray, np.ndarray, dict[int, tuple[float, float]]]:
     """``residual`` (N, nv), what every selected effect leaves on ``data``, with the selected
-    dry friction (its Coulomb and Stribeck atoms) taken as set-valued at rest, and the cone
-    half-width each joint was judged against (nv,; 0: none). Atoms seen without a filter:
+    dry friction (its Coulomb and Stribeck atoms) taken as set-valued at rest, the cone
+    half-width each joint was judged against (nv,; 0: none), and, by index into ``fit.atoms``,
+    the ``(value, std)`` of each friction atom the set-valued fit refitted (where it was made
+    through a filter: :func:`~consistid.diagnosis.remainder.set_valued_refit`). Atoms seen
+    without a filter:
     :func:`~consistid.diagnosis.remainder.dry_friction_at_rest`, against the fitted static
     friction ``f_c + Δf``; seen through a low-pass, where the dataset says which one the signal
     chain applied to the torques (``torque_filter``):
@@ -1330,17 +1370,22 @@ def _set_valued_friction(fit: GapModel, data: GapData, residual: np.ndarray,
     filtered = np.zeros(data.nv, dtype=bool)
     laws: dict[int, list[np.ndarray]] = {}
     slopes: dict[int, list[np.ndarray]] = {}
-    for atom, th in zip(fit.atoms, fit.theta):
+    owners: dict[int, tuple[list[int], list[int]]] = {}    # atoms of the laws, of the slopes
+    refitted: dict[int, tuple[float, float]] = {}
+    for i, (atom, th) in enumerate(zip(fit.atoms, fit.theta)):
         if atom.effect in DRY_FRICTION and atom.joint is not None:
             dry += fit.library.columns(atom, data) @ th
             cone[atom.joint] += max(float(th[0]), 0.0)
             filtered[atom.joint] |= bool(np.isfinite(atom.cutoff))
-            law = REGISTRY[atom.effect].unfiltered(fit.library, atom, data)
-            laws.setdefault(atom.joint, []).extend(np.reshape(law, (data.n, -1)).T)
+            law = np.reshape(REGISTRY[atom.effect].unfiltered(fit.library, atom, data),
+                             (data.n, -1)).T
+            laws.setdefault(atom.joint, []).extend(law)
+            owners.setdefault(atom.joint, ([], []))[0].extend([i] * len(law))
         elif atom.effect in VISCOUS_FRICTION and atom.joint is not None:
             columns = fit.library.columns(atom, data)
             damped += columns @ th
             slopes.setdefault(atom.joint, []).extend(columns[:, atom.joint].T)
+            owners.setdefault(atom.joint, ([], []))[1].append(i)
     left = dry_friction_at_rest(data, residual, dry, np.where(filtered, 0.0, cone))
     chain = data.dataset.torque_filter       # (cut-off Hz, order) of the chain's low-pass
     known = ~unknown
@@ -1351,21 +1396,26 @@ def _set_valued_friction(fit: GapModel, data: GapData, residual: np.ndarray,
                 or rms <= REMAINDER_RATIO * floor[j]):
             cone[j] = 0.0
             continue
-        judged = dry_friction_through_filter(data, int(j), residual[:, j],
-                                             dry[:, j] + damped[:, j], laws[int(j)],
-                                             float(cone[j]), float(chain[0]), known[:, j],
-                                             viscous=slopes.get(int(j), []))
+        judged = set_valued_refit(data, int(j), residual[:, j], dry[:, j] + damped[:, j],
+                                  laws[int(j)], float(cone[j]), float(chain[0]), known[:, j],
+                                  viscous=slopes.get(int(j), []))
         # Held torques reach, through the filter, only the samples within its settling time of
         # a sample at rest: what the set-valued fit still leaves on the samples beyond (moving
         # well clear of standstill), if flagged on its own, is a remainder no set-valued
         # friction explains — the joint is judged point-valued
         far = known[:, j] & ~_near_rest(data, j, float(chain[0]), rate)
-        if judged is None or (far.sum() >= FAR_SAMPLES and np.sqrt(np.mean(judged[0][far] ** 2))
+        if judged is None or (far.sum() >= FAR_SAMPLES
+                              and np.sqrt(np.mean(judged.remainder[far] ** 2))
                               > REMAINDER_RATIO * floor[j]):
             cone[j] = 0.0
         else:
-            left[:, j], cone[j] = judged
-    return left, cone
+            left[:, j], cone[j] = judged.remainder, judged.cone
+            dry_atoms, viscous_atoms = owners[int(j)]
+            for i, v, sd in zip(dry_atoms + viscous_atoms,
+                                np.concatenate([judged.dry, judged.viscous]),
+                                np.concatenate([judged.dry_std, judged.viscous_std])):
+                refitted[i] = (float(v), float(sd))
+    return left, cone, refitted
 
 
 def _near_rest(data: GapData, joint: int, cutoff: float, rate: float) -> np.ndarray:

@@ -190,6 +190,16 @@ class GapData:
         return float(np.median(np.diff(self.dataset.t)))
 
     @cached_property
+    def sign_unresolved(self) -> np.ndarray:
+        """(N, nv) bool: samples whose ``sign(q̇_j)`` the sampling does not resolve,
+        ``|q̇_j| < h · median|q̈_j|`` (``h`` the :attr:`step`). A zero crossing at the joint's
+        typical acceleration spends about one sample in that band, and a joint held by
+        stiction stays in it: there the dry friction is set-valued (any torque within its
+        cone), and a point-valued law of ``sign(q̇)`` fits the sign of numerical noise."""
+        d = self.dataset
+        return np.abs(d.dq) < self.step * np.median(np.abs(d.ddq), axis=0)
+
+    @cached_property
     def tau(self) -> np.ndarray:
         return self.dataset.require_torque()
 

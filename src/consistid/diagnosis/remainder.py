@@ -65,9 +65,11 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.optimize
 import scipy.sparse
+import scipy.sparse.linalg
 import scipy.stats
 
 from ..data.filters import impulse_response
+from ..identification.statistics import autocorrelation_time
 from .gapdata import GapData, Segment, lowpass_segments
 
 #: The remaining RMS must exceed the noise floor by this factor to flag a remainder.
@@ -431,11 +433,24 @@ def _box_least_squares(a: scipy.sparse.csr_matrix, y: np.ndarray, lower: np.ndar
     return res.x
 
 
-def dry_friction_through_filter(data: GapData, joint: int, remainder: np.ndarray,
-                                dry: np.ndarray, laws: Sequence[np.ndarray], cone: float,
-                                cutoff: float, known: np.ndarray,
-                                viscous: Sequence[np.ndarray] = ()
-                                ) -> tuple[np.ndarray, float] | None:
+@dataclass(frozen=True)
+class SetValuedFit:
+    """What :func:`set_valued_refit` finds on one joint: the ``remainder`` (N,), the ``cone``
+    half-width it was judged against (N·m), the dry amplitudes (one per law, N·m) and viscous
+    slopes (N·m·s/rad) fitted again beside the held torques, and their standard deviations."""
+
+    remainder: np.ndarray
+    cone: float
+    dry: np.ndarray
+    viscous: np.ndarray
+    dry_std: np.ndarray
+    viscous_std: np.ndarray
+
+
+def set_valued_refit(data: GapData, joint: int, remainder: np.ndarray,
+                     dry: np.ndarray, laws: Sequence[np.ndarray], cone: float,
+                     cutoff: float, known: np.ndarray,
+                     viscous: Sequence[np.ndarray] = ()) -> SetValuedFit | None:
     r"""The remainder on joint ``joint`` (N,) with its dry friction taken as set-valued where the
     torques went through the signal chain's zero-phase low-pass ``L`` at ``cutoff`` Hz, and the
     cone half-width it was judged against; ``None`` (not judged so) where a segment holding
@@ -516,7 +531,49 @@ def dry_friction_through_filter(data: GapData, joint: int, remainder: np.ndarray
     if refitted < cone:
         cone = refitted
         x = solve(cone, x)
-    return e0 - columns @ x, cone
+    left = e0 - columns @ x
+    std = _amplitude_std(data, fitted, left, known, x, k, cone)
+    return SetValuedFit(left, cone, x[:n_dry] / scale[:n_dry], x[n_dry:k] / scale[n_dry:],
+                        std[:n_dry] / scale[:n_dry], std[n_dry:] / scale[n_dry:])
+
+
+def _amplitude_std(data: GapData, a: scipy.sparse.csr_matrix, left: np.ndarray,
+                   known: np.ndarray, x: np.ndarray, k: int, cone: float) -> np.ndarray:
+    r"""(k,) standard deviations of the first ``k`` (scaled) unknowns of the box-constrained
+    fit ``x`` of :func:`set_valued_refit` (``a`` its columns on the known samples): the
+    least-squares covariance with the held torques strictly inside the cone free and those on
+    its edge fixed (the active set), the amplitudes' block of ``s² (AᵀA)⁻¹`` as the Schur
+    complement ``s² [A_kᵀA_k − A_kᵀH H⁺ A_k]⁻¹`` (``H`` the free held columns), ``s²``
+    the residual variance over the known samples, times the residual's autocorrelation time
+    (coloured rows, :func:`~consistid.identification.statistics.autocorrelation_time`)."""
+    held = x[k:]
+    free = np.flatnonzero((held > -cone * (1 - 1e-9)) & (held < cone * (1 - 1e-9))) + k
+    amp = a[:, :k].toarray()
+    gram = amp.T @ amp
+    if free.size:
+        # the amplitudes' columns projected off the free held torques' span (LSQR: those
+        # columns overlap through the filter and may be rank deficient)
+        h = a[:, free].tocsr()
+        projected = np.column_stack([h @ scipy.sparse.linalg.lsqr(h, amp[:, m], atol=1e-10,
+                                                                 btol=1e-10)[0]
+                                     for m in range(k)])
+        gram = gram - amp.T @ projected
+    dof = max(int(known.sum()) - k - free.size, 1)
+    s2 = float(np.sum(left[known] ** 2)) / dof
+    tau = float(autocorrelation_time(data.dataset, np.where(known, left, 0.0)[:, None])[0])
+    cov = np.linalg.pinv(gram) * s2 * max(tau, 1.0)
+    return np.sqrt(np.clip(np.diag(cov), 0.0, None))
+
+
+def dry_friction_through_filter(data: GapData, joint: int, remainder: np.ndarray,
+                                dry: np.ndarray, laws: Sequence[np.ndarray], cone: float,
+                                cutoff: float, known: np.ndarray,
+                                viscous: Sequence[np.ndarray] = ()
+                                ) -> tuple[np.ndarray, float] | None:
+    """The remainder and cone of :func:`set_valued_refit` (which see), without the refitted
+    amplitudes."""
+    fit = set_valued_refit(data, joint, remainder, dry, laws, cone, cutoff, known, viscous)
+    return None if fit is None else (fit.remainder, fit.cone)
 
 
 def analyse_remainder(data: GapData, remainder: np.ndarray, floor: np.ndarray,
