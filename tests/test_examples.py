@@ -307,7 +307,7 @@ def test_panda_diagnose(checkout, capsys):
     for wording, key in (("Coulomb friction", "coulomb"), ("viscous friction", "viscous")):
         rows = re.findall(rf"panda_joint(\d) {wording} ([\d.]+) ± ([\d.e-]+) N·m[^\n]*"
                           r"set-valued refit", text)
-        assert len(rows) >= 5, (wording, rows)
+        assert rows, (wording, text)   # the joints whose point-valued remainder was flagged
         for j, value, std in rows:
             assert abs(float(value) - TRUTH[key][int(j) - 1]) <= 3 * float(std), (j, wording)
     assert "details['standstill']" in text      # why identify's point-valued fit differs
