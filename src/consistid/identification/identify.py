@@ -458,10 +458,9 @@ def with_covariance(result: IdentificationResult, problem: CompressedProblem,
     shown = ", ".join(f"{result.model.joint_names[j]} {t:.3g}" for j, t in zip(kept, tau))
     details = {**result.details, "autocorrelation_time": tau}
     if covariance == "hac":
-        if kept.size < result.model.nv:
-            raise OptionError("covariance='hac' sums the scores of every joint's rows; with "
-                              "exclude_joints= use covariance='coloured'")
-        sums = score_sums_of(result, weights, dataset)
+        every = np.zeros(result.model.nv)       # excluded joints' rows: no score
+        every[kept] = weights
+        sums = score_sums_of(result, every, dataset)
         meat, batch = sums.meat()
         cov = hac_covariance(result.base_covariance, meat)
         details["covariance"] = (
