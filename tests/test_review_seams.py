@@ -54,3 +54,35 @@ def test_hac_covariance_with_a_dead_channel(panda, dead_log):
     assert np.all(np.isfinite(ratio))
     assert 0.7 < np.median(ratio) < 1.5
     assert np.all(ratio > 0.3)
+
+
+def ur_rtde_log(path):
+    """A UR RTDE recorder CSV: joint angles, commanded joint torques (N·m) and motor currents."""
+    t = np.arange(600) * 0.002
+    q = 0.5 * np.sin(2 * np.outer(t, np.arange(1, 7)))
+    current = np.cos(np.outer(t, np.arange(1, 7)))
+    cols = (["timestamp"] + [f"actual_q_{i}" for i in range(6)]
+            + [f"actual_current_{i}" for i in range(6)]
+            + [f"target_moment_{i}" for i in range(6)])
+    np.savetxt(path, np.column_stack([t, q, current, 10 * current]), header=" ".join(cols),
+               comments="")
+    return path
+
+
+def test_drives_refused_on_a_log_whose_torques_are_torques(tmp_path):
+    """drives= reads the log's tau as motor currents (A); a recognised logger's torque columns
+    (UR RTDE: target_moment, N·m) or a header naming N·m are torques: refused, naming columns=,
+    never multiplied by the drive gains (it returned 10× the commanded torque, silently)."""
+    from consistid.data.recordings import load_recording
+    from consistid.drives.transmission import Transmission
+    from consistid.errors import OptionError
+    drives = Transmission(ratios=[100.0] * 6, torque_constants=[0.1] * 6)
+    path = ur_rtde_log(tmp_path / "ur.csv")
+    with pytest.raises(OptionError, match="columns="):
+        load_recording(path, drives=drives)
+    named = tmp_path / "named.csv"
+    t = np.arange(600) * 0.002
+    np.savetxt(named, np.column_stack([t, np.sin(t), np.cos(t)]), delimiter=",",
+               header="t,q1,tau1 [Nm]", comments="")
+    with pytest.raises(OptionError, match="N·m"):
+        load_recording(named, drives=Transmission(ratios=[50.0], torque_constants=[0.2]))
