@@ -86,3 +86,41 @@ def test_drives_refused_on_a_log_whose_torques_are_torques(tmp_path):
                header="t,q1,tau1 [Nm]", comments="")
     with pytest.raises(OptionError, match="N·m"):
         load_recording(named, drives=Transmission(ratios=[50.0], torque_constants=[0.2]))
+
+
+@pytest.fixture(scope="module")
+def excluded_file(panda, dead_log, tmp_path_factory):
+    """The saved OLS result of the dead-channel log (joint 3 excluded), as a JSON document."""
+    import json
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = ci.identify(panda, dead_log, method="ols", friction=FRICTION)
+    path = res.save(tmp_path_factory.mktemp("excluded") / "result.json")
+    return json.loads(path.read_text())
+
+
+def load_tampered(doc, change, tmp_path):
+    import json
+    doc = json.loads(json.dumps(doc))
+    change(doc)
+    path = tmp_path / "result.json"
+    path.write_text(json.dumps(doc))
+    return ci.IdentificationResult.load(path)
+
+
+NAN = {"__float__": "nan"}
+
+
+@pytest.mark.parametrize("change, match", [
+    (lambda d: d["sigma"].__setitem__(0, NAN), "sigma"),
+    (lambda d: d["train_rms"].__setitem__(6, NAN), "train_rms"),
+    (lambda d: d.__setitem__("excluded_joints", ["no_such_joint"]), "excluded_joints"),
+])
+def test_nan_sigma_only_at_the_joints_a_file_excludes(excluded_file, tmp_path, change, match):
+    """A result file may hold NaN σ/RMS at the joints it names excluded only, and names only
+    the model's joints excluded (a NaN at a kept joint loaded once any joint was excluded)."""
+    from consistid.errors import ResultFileError
+    back = load_tampered(excluded_file, lambda d: None, tmp_path)   # the file as written
+    assert back.excluded_joints == ("panda_joint3",) and np.isnan(back.sigma[2])
+    with pytest.raises(ResultFileError, match=match):
+        load_tampered(excluded_file, change, tmp_path)

@@ -187,8 +187,14 @@ def check_document(doc: Mapping[str, Any], where: str) -> None:
             raise ResultFileError(f"{where} [spec]: masks[{term!r}] must be {nv} booleans")
     _check_base(_get(doc, "base", where, dict), f"{where} [base]", p)
     # a joint whose torque rows were left out (exclude_joints=) has no σ and no RMS: NaN
+    excluded = _excluded(doc, where, model["joint_names"])
     for key in ("sigma", "train_rms"):
-        _numbers(doc, key, where, (nv,), minimum=0.0, nan=bool(doc.get("excluded_joints")))
+        _numbers(doc, key, where, (nv,), minimum=0.0, nan=bool(excluded))
+        for j, v in enumerate(doc[key]):
+            if math.isnan(_number(v)) and model["joint_names"][j] not in excluded:
+                raise ResultFileError(f"{where}: field {key!r}[{j}] is NaN, but joint "
+                                      f"{model['joint_names'][j]!r} is not excluded (only an "
+                                      "excluded joint has no σ and no RMS)")
     cond = _number(_get(doc, "condition_number", where, (int, float, dict)))
     if cond is None or math.isnan(cond) or cond < 0:
         raise ResultFileError(f"{where}: field 'condition_number' must be a number ≥ 0")
@@ -210,6 +216,18 @@ def check_document(doc: Mapping[str, Any], where: str) -> None:
     for key, kind in (("details", dict), ("provenance", dict), ("extra", dict), ("kind", str)):
         if key in doc:
             _get(doc, key, where, kind)
+
+
+def _excluded(doc: Mapping[str, Any], where: str, joints: list[str]) -> set[str]:
+    """The joints field ``excluded_joints`` names (optional), each a joint of the model."""
+    if "excluded_joints" not in doc:
+        return set()
+    names = _get(doc, "excluded_joints", where, list)
+    for name in names:
+        if not isinstance(name, str) or name not in joints:
+            raise ResultFileError(f"{where}: field 'excluded_joints' names {name!r:.80}, not "
+                                  f"a joint of the model ({len(joints)} joints)")
+    return set(names)
 
 
 def _check_model(m: Mapping[str, Any], where: str) -> None:
