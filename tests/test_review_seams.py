@@ -124,3 +124,27 @@ def test_nan_sigma_only_at_the_joints_a_file_excludes(excluded_file, tmp_path, c
     assert back.excluded_joints == ("panda_joint3",) and np.isnan(back.sigma[2])
     with pytest.raises(ResultFileError, match=match):
         load_tampered(excluded_file, change, tmp_path)
+
+
+def _set(key, value):
+    return lambda d: d["envelope"].__setitem__(key, value)
+
+
+@pytest.mark.parametrize("change", [
+    lambda d: d["envelope"].__setitem__("q_min", d["envelope"]["q_min"][:3]),
+    lambda d: d["envelope"]["q_max"].__setitem__(0, NAN),
+    _set("joint_names", ["a", "b", "c", "d", "e", "f", "g"]),
+    lambda d: d["envelope"]["positive"].__setitem__(1, -5),
+    _set("n_samples", "many"),
+])
+def test_a_tampered_training_envelope_is_named_at_load(excluded_file, panda, tmp_path,
+                                                       change):
+    """The training envelope of a result file is checked like every other field: a short,
+    non-finite or foreign envelope loaded, then predict raised numpy's ValueError or stopped
+    warning on data beyond it."""
+    from consistid.errors import ResultFileError
+    back = load_tampered(excluded_file, lambda d: None, tmp_path)
+    assert back.envelope is not None
+    assert tuple(back.envelope.joint_names) == tuple(panda.joint_names)
+    with pytest.raises(ResultFileError, match="envelope"):
+        load_tampered(excluded_file, change, tmp_path)

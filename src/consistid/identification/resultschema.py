@@ -213,6 +213,9 @@ def check_document(doc: Mapping[str, Any], where: str) -> None:
             _get(doc, key, where, list)
             if not all(isinstance(v, str) for v in doc[key]):
                 raise ResultFileError(f"{where}: field {key!r} must list strings")
+    if doc.get("envelope") is not None:
+        _check_envelope(_get(doc, "envelope", where, dict), f"{where} [envelope]",
+                        model["joint_names"])
     for key, kind in (("details", dict), ("provenance", dict), ("extra", dict), ("kind", str)):
         if key in doc:
             _get(doc, key, where, kind)
@@ -228,6 +231,19 @@ def _excluded(doc: Mapping[str, Any], where: str, joints: list[str]) -> set[str]
             raise ResultFileError(f"{where}: field 'excluded_joints' names {name!r:.80}, not "
                                   f"a joint of the model ({len(joints)} joints)")
     return set(names)
+
+
+def _check_envelope(e: Mapping[str, Any], where: str, joints: list[str]) -> None:
+    """The training envelope (:class:`~consistid.identification.envelope.TrainingEnvelope`):
+    the model's joints, finite ranges and speeds, counts ≥ 0."""
+    if _names(e, "joint_names", where) != list(joints):
+        raise ResultFileError(f"{where}: field 'joint_names' is not the model's joints")
+    if _get(e, "n_samples", where, int) < 0:
+        raise ResultFileError(f"{where}: field 'n_samples' must be ≥ 0")
+    for key in ("q_min", "q_max"):
+        _numbers(e, key, where, (len(joints),))
+    for key in ("dq_max", "ddq_max", "positive", "negative"):
+        _numbers(e, key, where, (len(joints),), minimum=0.0)
 
 
 def _check_model(m: Mapping[str, Any], where: str) -> None:
