@@ -148,3 +148,48 @@ def test_a_tampered_training_envelope_is_named_at_load(excluded_file, panda, tmp
     assert tuple(back.envelope.joint_names) == tuple(panda.joint_names)
     with pytest.raises(ResultFileError, match="envelope"):
         load_tampered(excluded_file, change, tmp_path)
+
+
+@pytest.fixture(scope="module")
+def diagnosis_doc(panda, tmp_path_factory):
+    """A saved diagnosis (MuJoCo Panda, Coulomb friction on joint 3, 4 s at 100 Hz) as JSON."""
+    import json
+
+    from consistid.simulate import record
+    from consistid.simulate.effects import Effects
+    effects = Effects(torque_noise=0.05).with_effect("coulomb", 1.5, joints=[2])
+    rec = record(panda, ci.FourierTrajectory.random(panda, 4, 4.0, 5), effects, duration=4.0,
+                 rate=100.0, seed=5)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        diag = ci.diagnose(panda, ci.Dataset.from_recording(rec.t, rec.q, rec.tau),
+                           effects=["coulomb"], progress=False)
+    return json.loads(diag.save(tmp_path_factory.mktemp("d") / "d.json").read_text())
+
+
+@pytest.mark.parametrize("change", [
+    lambda d: d["diagnosis"].__setitem__("foo", 1),
+    lambda d: d["diagnosis"].pop("rms_final"),
+    lambda d: d["diagnosis"].__setitem__("rms_final", "x"),
+    lambda d: d["diagnosis"].__setitem__("noise_floor", [1.0, 2.0]),
+    lambda d: d.__setitem__("diagnosis", [1]),
+    None,                                                   # JSON nested 100 000 deep
+])
+def test_a_tampered_diagnosis_file_is_named(diagnosis_doc, tmp_path, change):
+    """Diagnosis.load names a tampered file (ResultFileError) where it raised TypeError or
+    RecursionError, or returned a list, or a diagnosis whose summary() then failed."""
+    import json
+
+    from consistid.errors import ResultFileError
+    path = tmp_path / "d.json"
+    path.write_text(json.dumps(diagnosis_doc))
+    ci.Diagnosis.load(path).summary()                      # the file as written
+    doc = json.loads(json.dumps(diagnosis_doc))
+    if change is None:
+        path.write_text('{"format": "consistid.diagnosis", "version": 1, "diagnosis": '
+                        + "[" * 100_000 + "]" * 100_000 + "}")
+    else:
+        change(doc)
+        path.write_text(json.dumps(doc))
+    with pytest.raises(ResultFileError):
+        ci.Diagnosis.load(path)
