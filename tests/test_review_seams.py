@@ -193,3 +193,23 @@ def test_a_tampered_diagnosis_file_is_named(diagnosis_doc, tmp_path, change):
         path.write_text(json.dumps(doc))
     with pytest.raises(ResultFileError):
         ci.Diagnosis.load(path)
+
+
+def test_the_fit_table_leaves_excluded_joints_out_of_its_totals(panda, dead_log):
+    """The report's per-joint fit table on data with the dead channel: the excluded joint's
+    cells say so (no rows fitted there; its relative error divided by a zero torque), and the
+    "all joints" row is that of the kept joints, from numpy on the prediction."""
+    from consistid.identification.report import _fit_rows
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DataQualityWarning)
+        res = ci.identify(panda, dead_log, method="ols", friction=FRICTION)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)          # no division by zero torque
+        header, rows = _fit_rows(res, [("held-out", dead_log)])
+    assert rows[2][3:] == ["excluded", "excluded"]
+    kept = [0, 1, 3, 4, 5, 6]
+    e = (dead_log.tau - res.predict(dead_log))[:, kept]
+    assert rows[-1][0] == "kept joints"
+    np.testing.assert_allclose(rows[-1][3], np.sqrt(np.mean(e ** 2)), rtol=1e-9)
+    total = np.linalg.norm(e) / np.linalg.norm(dead_log.tau[:, kept])
+    assert rows[-1][4] == f"{100 * total:.2f} %"
