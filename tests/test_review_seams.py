@@ -213,3 +213,21 @@ def test_the_fit_table_leaves_excluded_joints_out_of_its_totals(panda, dead_log)
     np.testing.assert_allclose(rows[-1][3], np.sqrt(np.mean(e ** 2)), rtol=1e-9)
     total = np.linalg.norm(e) / np.linalg.norm(dead_log.tau[:, kept])
     assert rows[-1][4] == f"{100 * total:.2f} %"
+
+
+def test_the_inertia_prior_of_a_result_with_an_excluded_joint(panda, dead_log):
+    """calibrate_simulator(refine_inertia=True)'s inertia prior from a result whose joint 3 was
+    excluded (σ NaN there): the kept joints' whitened rows only (R ᵀR = YₖᵀYₖ/σ², numpy), not
+    a NaN factor that poisons the refinement."""
+    from consistid.simulator.calibrate import InertiaPrior
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DataQualityWarning)
+        res = ci.identify(panda, dead_log, method="ols", friction=FRICTION)
+    data = dead_log.select(np.arange(300))
+    prior = InertiaPrior.of(res, data)
+    assert np.all(np.isfinite(prior.r))
+    spec = RegressorSpec.make(panda, None, False)
+    kept = [0, 1, 3, 4, 5, 6]
+    y = regressor(panda, data.q, data.dq, data.ddq, spec).reshape(300, 7, -1)[:, kept]
+    y = (y / res.sigma[kept][None, :, None]).reshape(-1, y.shape[-1])
+    np.testing.assert_allclose(prior.r.T @ prior.r, y.T @ y, rtol=1e-8, atol=1e-8)
