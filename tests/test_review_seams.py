@@ -231,3 +231,16 @@ def test_the_inertia_prior_of_a_result_with_an_excluded_joint(panda, dead_log):
     y = regressor(panda, data.q, data.dq, data.ddq, spec).reshape(300, 7, -1)[:, kept]
     y = (y / res.sigma[kept][None, :, None]).reshape(-1, y.shape[-1])
     np.testing.assert_allclose(prior.r.T @ prior.r, y.T @ y, rtol=1e-8, atol=1e-8)
+
+
+def test_a_nonlinear_friction_result_says_weak_directions_were_not_assessed(panda):
+    """friction='tanh' goes through the nonlinear search, which does not compute the weakly
+    informed directions: the result says so (details['weakly_informed']), as a stream's does,
+    instead of an empty weakly_informed that reads as 'none'."""
+    d = ci.FourierTrajectory.random(panda, harmonics=3, period=5.0, seed=1).sample(100.0, 5.0)
+    tau = panda.rnea(d.q, d.dq, d.ddq) + 0.5 * np.sign(d.dq)
+    tau += 0.05 * np.random.default_rng(1).standard_normal(tau.shape)
+    res = ci.identify(panda, ci.Dataset(t=d.t, q=d.q, dq=d.dq, ddq=d.ddq, tau=tau),
+                      method="ols", friction="tanh")
+    assert res.weakly_informed == ()
+    assert res.details["weakly_informed"].startswith("not assessed")
