@@ -244,3 +244,23 @@ def test_a_nonlinear_friction_result_says_weak_directions_were_not_assessed(pand
                       method="ols", friction="tanh")
     assert res.weakly_informed == ()
     assert res.details["weakly_informed"].startswith("not assessed")
+
+
+def test_a_split_log_whose_headers_name_degrees_refuses_angle_unit_deg(tmp_path):
+    """A log split over files whose position header names its unit (``a_position [deg]``,
+    converted by the reader) with angle_unit='deg' is refused, as a single file is, instead of
+    converted twice (positions 57× too small, silently)."""
+    from consistid.data.recordings import load_recording
+    from consistid.errors import OptionError
+    t = np.arange(500) * 0.002
+    deg = 30.0 * np.sin(t)
+    pos, eff = tmp_path / "pos.csv", tmp_path / "eff.csv"
+    np.savetxt(pos, np.column_stack([t, deg]), delimiter=",", header="time,a_position [deg]",
+               comments="")
+    np.savetxt(eff, np.column_stack([t, np.cos(t)]), delimiter=",", header="time,a_effort",
+               comments="")
+    rec = load_recording([pos, eff])                          # the header's unit is read
+    np.testing.assert_allclose(rec.dataset.q[:, 0], np.deg2rad(deg)[np.isin(t, rec.dataset.t)],
+                               rtol=1e-6, atol=1e-6)
+    with pytest.raises(OptionError, match="unit"):
+        load_recording([pos, eff], angle_unit="deg")
