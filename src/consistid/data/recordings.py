@@ -591,6 +591,14 @@ def from_log(log: Log, *, model: RobotModel | None = None, trim_start: float = 0
         raise OptionError(f"{log.source}: angle_unit='deg' converts columns without a unit, and "
                           f"the header names the unit of {named}; leave angle_unit out (the "
                           "header's units are read), or remove the units from the header")
+    if signal_options.get("drives") is not None and (log.preset or "tau" in log.unit_fields):
+        where = (f"{log.preset}'s torque columns" if log.preset
+                 else "the torque columns' header")
+        raise OptionError(f"{log.source}: drives= reads tau as motor currents (A), but "
+                          f"{where} hold joint torques (N·m); name every column with "
+                          "columns= (e.g. columns={'t': 'timestamp', 'q': 'actual_q_{i0}', "
+                          "'tau': 'actual_current_{i0}'} and joints=[...]), or leave drives= "
+                          "out")
     fields = dict(log.fields)
     notes = list(log.notes)
     have = [f for f in ("dq", "ddq") if f in fields]

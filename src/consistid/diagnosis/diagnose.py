@@ -373,7 +373,7 @@ class Diagnosis:
     @classmethod
     def load(cls, path: str | Path) -> "Diagnosis":
         """A diagnosis written by :meth:`save`."""
-        return read_diagnosis(path)
+        return read_diagnosis(path, cls)
 
     def report(self, path: str | None = None):
         """Write the report: ``*.html`` (plots embedded), ``*.txt``, or a directory (both, plus

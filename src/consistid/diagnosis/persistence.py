@@ -21,9 +21,12 @@ import json
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from ..errors import ResultFileError
 from ..filesafety import replacing
 from ..identification.persistence import decode, encode, model_dict, model_from_dict
+from ..identification.resultschema import read_document
 from ..robot.model import RobotModel
 from .candidates import EffectLibrary
 
@@ -106,19 +109,47 @@ def write_diagnosis(diagnosis: Any, path: str | Path) -> Path:
     return path
 
 
-def read_diagnosis(path: str | Path) -> Any:
-    """The diagnosis written by :func:`write_diagnosis`; :class:`ResultFileError` for a file
-    that is not one."""
+def read_diagnosis(path: str | Path, cls: type | None = None) -> Any:
+    """The diagnosis written by :func:`write_diagnosis` (an instance of ``cls`` when given);
+    :class:`ResultFileError` for a file that is not one: not JSON, beyond the size and nesting
+    limits of a result file (:func:`~consistid.identification.resultschema.read_document`), or
+    a field missing, unknown or of another type or shape (named)."""
     path = Path(path)
     where = path.name
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise ResultFileError(f"{where}: not a readable diagnosis file ({exc})") from None
+    doc = read_document(path, where)
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         raise ResultFileError(f"{where}: not a consistid diagnosis file (format "
                               f"{doc.get('format') if isinstance(doc, dict) else None!r})")
     if doc.get("version") != VERSION:
         raise ResultFileError(f"{where}: diagnosis file version {doc.get('version')!r}; this "
                               f"consistid reads version {VERSION}")
-    return from_plain(decode(doc["diagnosis"]), where, {})
+    try:
+        out = from_plain(decode(doc["diagnosis"]), where, {})
+    except (TypeError, ValueError, KeyError, AttributeError) as exc:
+        raise ResultFileError(f"{where}: a field of the diagnosis is missing, unknown or "
+                              f"malformed ({type(exc).__name__}: {exc})") from exc
+    if cls is not None:
+        _check_diagnosis(out, cls, where)
+    return out
+
+
+#: The per-joint arrays of a diagnosis (``None`` allowed for the optional ones).
+JOINT_ARRAYS = ("noise_floor", "rms_nominal", "rms_final", "library_floor", "rms_left",
+                "held_floor")
+
+
+def _check_diagnosis(out: Any, cls: type, where: str) -> None:
+    """``out`` is a ``cls`` whose per-joint arrays (:data:`JOINT_ARRAYS`) hold one number per
+    joint."""
+    if not isinstance(out, cls):
+        raise ResultFileError(f"{where}: field 'diagnosis' holds a {type(out).__name__}, not "
+                              f"a {cls.__name__}")
+    nv = len(out.joint_names) if isinstance(out.joint_names, (tuple, list)) else -1
+    for name in JOINT_ARRAYS:
+        value = getattr(out, name)
+        if value is None and name in ("rms_left", "held_floor"):
+            continue
+        a = np.asarray(value)
+        if a.dtype.kind not in "biuf" or a.shape != (nv,):
+            raise ResultFileError(f"{where}: field {name!r} must hold one number per joint "
+                                  f"({nv}), got {a.dtype} of shape {a.shape}")

@@ -323,9 +323,12 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
                               "list of them), not a stream")
         if method == "sdp" and prior == "auto":         # resolved once, not per search step
             prior = default_prior(model)
-        return dataclasses.replace(identify_nonlinear(
-            model, dataset, method, friction, armature, constraints, prior, covariance,
-            **options), envelope=TrainingEnvelope.of(dataset, model.joint_names))
+        result = identify_nonlinear(model, dataset, method, friction, armature, constraints,
+                                    prior, covariance, **options)
+        return flag_degrees(dataclasses.replace(
+            result, envelope=TrainingEnvelope.of(dataset, model.joint_names),
+            details={**result.details, "weakly_informed": "not assessed (nonlinear friction "
+                     "laws: the search's covariance only; res.base_std)"}), dataset)
     spec = without_joints(RegressorSpec.make(model, friction, armature), excluded)
     kept = np.setdiff1d(np.arange(model.nv), excluded)
     base = base_parameters_of(model, spec) if not excluded else rows_base(model, spec, kept)
@@ -458,10 +461,9 @@ def with_covariance(result: IdentificationResult, problem: CompressedProblem,
     shown = ", ".join(f"{result.model.joint_names[j]} {t:.3g}" for j, t in zip(kept, tau))
     details = {**result.details, "autocorrelation_time": tau}
     if covariance == "hac":
-        if kept.size < result.model.nv:
-            raise OptionError("covariance='hac' sums the scores of every joint's rows; with "
-                              "exclude_joints= use covariance='coloured'")
-        sums = score_sums_of(result, weights, dataset)
+        every = np.zeros(result.model.nv)       # excluded joints' rows: no score
+        every[kept] = weights
+        sums = score_sums_of(result, every, dataset)
         meat, batch = sums.meat()
         cov = hac_covariance(result.base_covariance, meat)
         details["covariance"] = (

@@ -175,22 +175,29 @@ def spread_rows(res: "IdentificationResult", residual: np.ndarray, label: str
 
 def _fit_rows(res: "IdentificationResult", sets: Sequence[tuple[str, Dataset]]
               ) -> tuple[list[str], list[list[Any]]]:
+    """Per-joint RMS and relative error ``‖τ − τ̂‖ / ‖τ‖`` on each data set, then their totals
+    over the joints whose rows were fitted (an excluded joint's cells say so: no rows fitted,
+    its channel perhaps dead)."""
     header = ["joint", "noise σ [N·m]", "RMS at the fit [N·m]"]
+    kept = np.array([n not in res.excluded_joints for n in res.model.joint_names])
     columns = []
     for label, data in sets:
-        rel, total = res.relative_error(data)
-        columns.append((res.rms(data), rel, total))
+        r, tau = res.residual(data), data.require_torque()
+        norm = np.linalg.norm(tau, axis=0)
+        rel = np.linalg.norm(r, axis=0) / np.where(kept, norm, 1.0)
+        total = float(np.linalg.norm(r[:, kept]) / np.linalg.norm(tau[:, kept]))
+        columns.append((np.sqrt(np.mean(r ** 2, axis=0)), rel, total))
         header += [f"{label} RMS [N·m]", f"{label} rel. error"]
     rows = []
     for j, name in enumerate(res.model.joint_names):
         row: list[Any] = [name, res.sigma[j], res.train_rms[j]]
         for rms, rel, _ in columns:
-            row += [rms[j], f"{100 * rel[j]:.2f} %"]
+            row += [rms[j], f"{100 * rel[j]:.2f} %"] if kept[j] else ["excluded", "excluded"]
         rows.append(row)
     if columns:
-        row = ["all joints", "", ""]
+        row = ["all joints" if kept.all() else "kept joints", "", ""]
         for rms, _, total in columns:
-            row += [float(np.sqrt(np.mean(rms ** 2))), f"{100 * total:.2f} %"]
+            row += [float(np.sqrt(np.mean(rms[kept] ** 2))), f"{100 * total:.2f} %"]
         rows.append(row)
     return header, rows
 

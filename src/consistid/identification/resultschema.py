@@ -187,8 +187,14 @@ def check_document(doc: Mapping[str, Any], where: str) -> None:
             raise ResultFileError(f"{where} [spec]: masks[{term!r}] must be {nv} booleans")
     _check_base(_get(doc, "base", where, dict), f"{where} [base]", p)
     # a joint whose torque rows were left out (exclude_joints=) has no σ and no RMS: NaN
+    excluded = _excluded(doc, where, model["joint_names"])
     for key in ("sigma", "train_rms"):
-        _numbers(doc, key, where, (nv,), minimum=0.0, nan=bool(doc.get("excluded_joints")))
+        _numbers(doc, key, where, (nv,), minimum=0.0, nan=bool(excluded))
+        for j, v in enumerate(doc[key]):
+            if math.isnan(_number(v)) and model["joint_names"][j] not in excluded:
+                raise ResultFileError(f"{where}: field {key!r}[{j}] is NaN, but joint "
+                                      f"{model['joint_names'][j]!r} is not excluded (only an "
+                                      "excluded joint has no σ and no RMS)")
     cond = _number(_get(doc, "condition_number", where, (int, float, dict)))
     if cond is None or math.isnan(cond) or cond < 0:
         raise ResultFileError(f"{where}: field 'condition_number' must be a number ≥ 0")
@@ -207,9 +213,37 @@ def check_document(doc: Mapping[str, Any], where: str) -> None:
             _get(doc, key, where, list)
             if not all(isinstance(v, str) for v in doc[key]):
                 raise ResultFileError(f"{where}: field {key!r} must list strings")
+    if doc.get("envelope") is not None:
+        _check_envelope(_get(doc, "envelope", where, dict), f"{where} [envelope]",
+                        model["joint_names"])
     for key, kind in (("details", dict), ("provenance", dict), ("extra", dict), ("kind", str)):
         if key in doc:
             _get(doc, key, where, kind)
+
+
+def _excluded(doc: Mapping[str, Any], where: str, joints: list[str]) -> set[str]:
+    """The joints field ``excluded_joints`` names (optional), each a joint of the model."""
+    if "excluded_joints" not in doc:
+        return set()
+    names = _get(doc, "excluded_joints", where, list)
+    for name in names:
+        if not isinstance(name, str) or name not in joints:
+            raise ResultFileError(f"{where}: field 'excluded_joints' names {name!r:.80}, not "
+                                  f"a joint of the model ({len(joints)} joints)")
+    return set(names)
+
+
+def _check_envelope(e: Mapping[str, Any], where: str, joints: list[str]) -> None:
+    """The training envelope (:class:`~consistid.identification.envelope.TrainingEnvelope`):
+    the model's joints, finite ranges and speeds, counts ≥ 0."""
+    if _names(e, "joint_names", where) != list(joints):
+        raise ResultFileError(f"{where}: field 'joint_names' is not the model's joints")
+    if _get(e, "n_samples", where, int) < 0:
+        raise ResultFileError(f"{where}: field 'n_samples' must be ≥ 0")
+    for key in ("q_min", "q_max"):
+        _numbers(e, key, where, (len(joints),))
+    for key in ("dq_max", "ddq_max", "positive", "negative"):
+        _numbers(e, key, where, (len(joints),), minimum=0.0)
 
 
 def _check_model(m: Mapping[str, Any], where: str) -> None:

@@ -273,8 +273,10 @@ class InertiaPrior:
         model = result.model
         spec = RegressorSpec.make(model, friction=None, armature=False)
         y = regressor(model, data.q, data.dq, data.ddq, spec)
-        sigma = np.maximum(np.asarray(result.sigma, dtype=float), 1e-9)
-        y = y / np.tile(sigma, data.q.shape[0])[:, None]
+        sigma = np.asarray(result.sigma, dtype=float)
+        # an excluded joint (exclude_joints=, a dead channel: σ NaN) had no rows in the fit
+        weight = np.where(np.isfinite(sigma), 1.0 / np.maximum(sigma, 1e-9), 0.0)
+        y = y * np.tile(weight, data.q.shape[0])[:, None]
         return cls(np.linalg.qr(y, mode="r"), np.asarray(result.inertial_parameters, float))
 
     def rows(self, inertial: np.ndarray) -> np.ndarray:

@@ -86,6 +86,8 @@ class Log:
     origin : seconds already subtracted from ``t`` (ROS stamps are read as integer nanoseconds
         and made relative before they become floats, which keeps their resolution).
     unit_fields : the fields whose column headers named their unit (converted to SI already).
+    preset : the logger recognised by its columns (:mod:`consistid.data.formats.presets`),
+        whose ``tau`` is a joint torque (N·m), or ``None``.
     """
 
     t: np.ndarray
@@ -97,6 +99,7 @@ class Log:
     rows: np.ndarray | None = field(default=None)
     origin: float = 0.0
     unit_fields: tuple[str, ...] = ()
+    preset: str | None = None
 
 
 def _clean(name: str) -> str:
@@ -547,4 +550,4 @@ def log_from_columns(get, cmap: ColumnMap, source: str, n_rows: int,
     named = tuple(f for f, cols in cmap.fields.items()
                   if any(column_unit(c) is not None for c in cols))
     return Log(t, fields, cmap.joint_names, source, notes, cmap.time_unit, rows,
-               unit_fields=named)
+               unit_fields=named, preset=cmap.preset)

@@ -65,5 +65,5 @@ def read_frame(frame: Any, *, joints: Sequence[str] | None = None,
         return Log(log.t, log.fields, log.joint_names, log.source,
                    log.notes + (f"{cmap.time!r} holds {values[cmap.time].dtype} stamps: "
                                 "converted to seconds",), "s", log.rows,
-                   unit_fields=log.unit_fields)
+                   unit_fields=log.unit_fields, preset=log.preset)
     return log

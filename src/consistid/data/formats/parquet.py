@@ -52,5 +52,5 @@ def read_parquet(path: str | Path, *, joints: Sequence[str] | None = None,
                 else f"durations ({kind}): converted to seconds")
         return Log(log.t, log.fields, log.joint_names, log.source,
                    log.notes + (f"{cmap.time!r} holds {what}",), "s", log.rows,
-                   unit_fields=log.unit_fields)
+                   unit_fields=log.unit_fields, preset=log.preset)
     return log

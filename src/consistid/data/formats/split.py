@@ -21,7 +21,7 @@ import numpy as np
 
 from ...errors import DatasetError, MissingColumnsError
 from ..resample import resample
-from .columns import Log, parse_candidates, time_unit_of, unit_factor
+from .columns import Log, column_unit, parse_candidates, time_unit_of, unit_factor
 from .csv import read_table
 
 
@@ -32,8 +32,10 @@ def _clean(name: str) -> str:
 
 
 def _columns(path: Path, joints: Sequence[str] | None, delimiter: str | None
-             ) -> tuple[np.ndarray, str | None, dict[str, dict[str, np.ndarray]], list[str]]:
-    """One file: its stamps, their unit, ``field → joint → column`` and the notes."""
+             ) -> tuple[np.ndarray, str | None, dict[str, dict[str, np.ndarray]], list[str],
+                        set[str]]:
+    """One file: its stamps, their unit, ``field → joint → column``, the notes and the fields
+    whose header named their unit."""
     names, table, note = read_table(path, delimiter)
     clean = [_clean(n) for n in names]
     times = [k for k, n in enumerate(clean) if time_unit_of(n)[0]]
@@ -42,7 +44,7 @@ def _columns(path: Path, joints: Sequence[str] | None, delimiter: str | None
                                   f"the columns are {names}")
     wanted = {j.lower(): j for j in joints} if joints is not None else None
     fields: dict[str, dict[str, np.ndarray]] = {}
-    ignored, converted = [], []
+    ignored, converted, named = [], [], set()
     for k, name in enumerate(clean):
         if k == times[0]:
             continue
@@ -56,10 +58,12 @@ def _columns(path: Path, joints: Sequence[str] | None, delimiter: str | None
         factor, said = unit_factor(f, name, path.name)
         converted += [said] if said else []
         fields.setdefault(f, {})[joint] = table[:, k] * factor
+        if column_unit(name) is not None:
+            named.add(f)
     read = ", ".join(f"{f} of {len(cols)} joints" for f, cols in fields.items())
     notes = [f"read {path.name} ({note}): t←{names[times[0]]!r}, {read or 'nothing'}"
              + (f"; ignored columns {ignored}" if ignored else ""), *converted]
-    return table[:, times[0]], time_unit_of(clean[times[0]])[1], fields, notes
+    return table[:, times[0]], time_unit_of(clean[times[0]])[1], fields, notes, named
 
 
 def read_split(paths: Sequence[str | Path], *, joints: Sequence[str] | None = None,
@@ -73,7 +77,7 @@ def read_split(paths: Sequence[str | Path], *, joints: Sequence[str] | None = No
                            "read one file with load_recording(path)")
     files = [(p, *_columns(p, joints, delimiter)) for p in paths]
     owner: dict[str, Path] = {}
-    for path, _, _, fields, _ in files:
+    for path, _, _, fields, _, _ in files:
         for f in fields:
             if f in owner:
                 raise MissingColumnsError(f"{f} columns in both {owner[f].name} and {path.name}; "
@@ -87,14 +91,14 @@ def read_split(paths: Sequence[str | Path], *, joints: Sequence[str] | None = No
     t, unit = ref[1], ref[2]
     names = list(joints) if joints is not None else list(ref[3]["q"])
     keep = np.ones(t.size, bool)
-    for path, ts, u, _, _ in files:
+    for path, ts, u, _, _, _ in files:
         if u != unit:
             raise DatasetError(f"{path.name} stamps in {u or 's'}, {ref[0].name} in {unit or 's'}")
         if not (ts.size == t.size and np.array_equal(ts, t)):
             keep &= (t >= ts[0]) & (t <= ts[-1])
     out, notes = {}, [n for f in files for n in f[4]]
     for f, path in owner.items():
-        _, ts, _, fields, _ = next(x for x in files if x[0] == path)
+        _, ts, _, fields, _, _ = next(x for x in files if x[0] == path)
         missing = [j for j in names if j not in fields[f]]
         if missing:
             raise MissingColumnsError(f"{path.name}: no {f} column for joint(s) {missing}; it "
@@ -109,5 +113,6 @@ def read_split(paths: Sequence[str | Path], *, joints: Sequence[str] | None = No
     if not keep.all():
         notes.append(f"{int((~keep).sum())} sample(s) of {ref[0].name} outside another file's "
                      "span dropped")
+    named = tuple(sorted({f for x in files for f in x[5] if owner.get(f) == x[0]}))
     return Log(t[keep], out, tuple(names), " + ".join(p.name for p in paths), tuple(notes),
-               unit)
+               unit, unit_fields=named)
