@@ -260,7 +260,8 @@ class Diagnosis:
         ``rms_before``/``rms_after`` of each are cumulative in this order.
     where : where the nominal model's residual lies
         (:class:`~consistid.diagnosis.gap.GapBreakdown`).
-    noise_floor : (nv,) torque noise standard deviation per joint (N·m).
+    noise_floor : (nv,) torque noise standard deviation per joint (N·m), through the low-pass of
+        the recordings it was read on (:attr:`held_floor`: on the held-out ones).
     noise_source : ``"given"`` or how it was estimated.
     rms_nominal, rms_final : (nv,) held-out RMS of the nominal model and of the nominal model
         plus every selected effect.
@@ -274,8 +275,9 @@ class Diagnosis:
     remainder : the unexplained remainder per joint, its verdict and where it lies
         (:class:`~consistid.diagnosis.remainder.Remainder`).
     noise : how the noise floor was obtained (:class:`~consistid.diagnosis.noise.NoiseFloor`).
-    held_floor : (nv,) the noise floor on the held-out recordings: ``noise_floor`` scaled by
-        how much more white noise their recorded low-pass lets through (never less).
+    held_floor : (nv,) the noise floor on the held-out recordings: ``noise_floor`` scaled once
+        by how much more white noise their recorded low-pass lets through (never less), where
+        it was read on other recordings (``noise.on_repeating``).
     rms_left : (nv,) held-out RMS after every selected effect as the verdict judges it: dry
         friction set-valued at rest (a held joint's torque within its cone is no error) and the
         samples the model cannot predict left out (``rms_final`` is point-valued); the verdict
@@ -323,8 +325,10 @@ class Diagnosis:
 
     @property
     def gap_to_noise(self) -> np.ndarray:
-        """Held-out RMS after every selected effect divided by the noise floor, per joint."""
-        return self.rms_final / self.noise_floor
+        """Held-out RMS after every selected effect divided by the held-out noise floor, per
+        joint."""
+        return self.rms_final / (self.noise_floor if self.held_floor is None
+                                 else self.held_floor)
 
     @property
     def left_to_noise(self) -> np.ndarray:
@@ -1088,7 +1092,7 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
                      f"{'end' if shift > 0 else 'start'}), kept in the fit, not an effect; "
                      f"load with timestamp=\"{'end' if shift > 0 else 'start'}\" to correct it "
                      "at the source")
-    held_floor = floor * noise_gain_ratio(train.dataset, held.dataset)
+    held_floor = _held_floor(floor, noise, train, held, on is held)
     for name in order:
         members = [k for k, i in enumerate(chosen) if prob.atoms[i].effect == name]
         while True:
@@ -1124,7 +1128,8 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
                                      names) + ": left out")
             continue
         shrink = 1.0 - after / np.where(before > 0, before, 1.0)
-        total = 1.0 - np.linalg.norm(after / floor) / max(np.linalg.norm(before / floor), 1e-300)
+        total = 1.0 - (np.linalg.norm(after / held_floor)
+                       / max(np.linalg.norm(before / held_floor), 1e-300))
         if total <= 0:
             # Selected with the least-squares inertia, it no longer generalises once the final
             # fit (exact delay, consistent inertia) is made: say so and leave it out.
@@ -1176,21 +1181,24 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
         again = spectral_estimate(on.dataset, on.residual - fit.correction(on), on.tau_nom).sigma
         floor = np.where(spectral, np.minimum(floor, again), floor)
         noise_source += " (spectral level re-estimated without the selected effects' tails)"
+        held_floor = _held_floor(floor, noise, train, held, on is held)
     where = gap_breakdown(everything, floor, spectra=spectra)
-    # The remainder is judged on the recordings whose noise the floor measures: the repeating
-    # (training) ones for a repetition floor — a held-out recording the chain filtered at
-    # another cut-off holds another noise level — else the held-out data.
-    tested = train if any(m == "repetition" for m in noise.method) else held
+    # The remainder is judged on the repeating (training) recordings where every joint's floor
+    # was read on them (a repetition floor) and their residual holds nothing else that
+    # repeats, else on the held-out ones; each against the floor in its own recordings' terms.
+    tested = (train if any(m == "repetition" for m in noise.method)
+              and (on is not held or noise.on_repeating is None or noise.on_repeating.all())
+              and not _filtered_in_band(train.dataset, spectra.signal_band) else held)
+    judged_floor = floor if tested is train else held_floor
     unknown = _unpredictable(fit, tested)
     left, cone = _set_valued_friction(fit, tested, tested.residual - fit.correction(tested),
-                                      unknown, floor)
+                                      unknown, judged_floor)
     # Held-out data are the judge: what the effects leave there, judged the same way, against
     # the floor the held-out recordings' own low-pass leaves.
-    if tested is held:
-        held_floor = floor
     rms_left = (_known_rms(left, unknown) if tested is held
                 else _known_rms(*_judged(fit, held, held_floor)))
-    remainder = analyse_remainder(tested, left, floor, autocorrelation_time(tested.dataset, left),
+    remainder = analyse_remainder(tested, left, judged_floor,
+                                  autocorrelation_time(tested.dataset, left),
                                   where.band_edges, reliable=noise.reliable,
                                   source="training" if tested is train else "held-out",
                                   cone=cone, unknown=unknown,
@@ -1227,6 +1235,28 @@ def _worse_note(atoms: Sequence[Atom], before: np.ndarray, after: np.ndarray,
     how = ", ".join(f"{names[j]} {before[j]:.3g} → {after[j]:.3g} N·m" for j in joints)
     return (f"{labels} make{'s' if len(atoms) == 1 else ''} the held-out prediction worse "
             f"({how})")
+
+
+def _held_floor(floor: np.ndarray, noise: NoiseFloor, train: GapData, held: GapData,
+                spectrum_on_held: bool) -> np.ndarray:
+    """(nv,) ``floor`` in the held-out recordings' terms, each joint scaled once: as it is where
+    it was read on them (a spectrum estimated on the held-out recordings,
+    ``spectrum_on_held``), else × :func:`noise_gain_ratio` (a floor read on the training
+    recordings, or on all of them through one low-pass, or given)."""
+    read_on_held = (np.zeros(floor.size, dtype=bool)
+                    if not spectrum_on_held or noise.on_repeating is None
+                    else ~noise.on_repeating)
+    return np.where(read_on_held, floor, floor * noise_gain_ratio(train.dataset, held.dataset))
+
+
+def _filtered_in_band(dataset: Dataset, band: float) -> bool:
+    """Whether the chain low-passed ``dataset``'s torques and positions below ``band`` (Hz, the
+    nominal torque's 99.9 % band): the filter then takes part of the motion, and the nominal
+    torque of the filtered positions differs from the filtered torque by a term that repeats
+    with the excitation (inverse dynamics is not linear in ``q``), which no repetition floor
+    sees."""
+    chain = dataset.torque_filter
+    return chain is not None and float(chain[0]) < band
 
 
 def noise_gain_ratio(train: Dataset, held: Dataset) -> float:
