@@ -1183,24 +1183,18 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
         noise_source += " (spectral level re-estimated without the selected effects' tails)"
         held_floor = _held_floor(floor, noise, train, held, on is held)
     where = gap_breakdown(everything, floor, spectra=spectra)
-    # The remainder is judged on the repeating (training) recordings where every joint's floor
-    # was read on them (a repetition floor) and their residual holds nothing else that
-    # repeats, else on the held-out ones; each against the floor in its own recordings' terms.
-    tested = (train if any(m == "repetition" for m in noise.method)
-              and (on is not held or noise.on_repeating is None or noise.on_repeating.all())
-              and not _filtered_in_band(train.dataset, spectra.signal_band) else held)
-    judged_floor = floor if tested is train else held_floor
-    unknown = _unpredictable(fit, tested)
-    left, cone = _set_valued_friction(fit, tested, tested.residual - fit.correction(tested),
-                                      unknown, judged_floor)
-    # Held-out data are the judge: what the effects leave there, judged the same way, against
-    # the floor the held-out recordings' own low-pass leaves.
-    rms_left = (_known_rms(left, unknown) if tested is held
-                else _known_rms(*_judged(fit, held, held_floor)))
-    remainder = analyse_remainder(tested, left, judged_floor,
-                                  autocorrelation_time(tested.dataset, left),
-                                  where.band_edges, reliable=noise.reliable,
-                                  source="training" if tested is train else "held-out",
+    # Held-out data are the judge: what the effects leave there, judged with dry friction
+    # set-valued at rest, against the floor in the held-out recordings' terms. (The training
+    # residual also holds what repeats with the excitation yet is no effect, such as the
+    # chain's own error where its low-pass cuts into the motion, which a repetition floor,
+    # noise only, never sees.)
+    unknown = _unpredictable(fit, held)
+    left, cone = _set_valued_friction(fit, held, held.residual - fit.correction(held),
+                                      unknown, held_floor)
+    rms_left = _known_rms(left, unknown)
+    remainder = analyse_remainder(held, left, held_floor,
+                                  autocorrelation_time(held.dataset, left),
+                                  where.band_edges, reliable=noise.reliable, source="held-out",
                                   cone=cone, unknown=unknown,
                                   tried=bool(library.effects) and max_steps > 0,
                                   refused=_refused_by_min_gain(steps), held_out=rms_left,
@@ -1249,16 +1243,6 @@ def _held_floor(floor: np.ndarray, noise: NoiseFloor, train: GapData, held: GapD
     return np.where(read_on_held, floor, floor * noise_gain_ratio(train.dataset, held.dataset))
 
 
-def _filtered_in_band(dataset: Dataset, band: float) -> bool:
-    """Whether the chain low-passed ``dataset``'s torques and positions below ``band`` (Hz, the
-    nominal torque's 99.9 % band): the filter then takes part of the motion, and the nominal
-    torque of the filtered positions differs from the filtered torque by a term that repeats
-    with the excitation (inverse dynamics is not linear in ``q``), which no repetition floor
-    sees."""
-    chain = dataset.torque_filter
-    return chain is not None and float(chain[0]) < band
-
-
 def noise_gain_ratio(train: Dataset, held: Dataset) -> float:
     r"""How much more noise the held-out recordings' recorded low-pass lets through than the
     training ones', ``max(1, g_held / g_train)``: white noise of variance ``σ²`` through the
@@ -1281,16 +1265,6 @@ def noise_gain_ratio(train: Dataset, held: Dataset) -> float:
 
     a, b = gain(train), gain(held)
     return 1.0 if a is None or b is None else max(1.0, b / a)
-
-
-def _judged(fit: GapModel, data: GapData, floor: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """What every selected effect leaves on ``data`` (N, nv), dry friction judged set-valued at
-    rest (:func:`_set_valued_friction`), and the samples the model cannot predict (N, nv)
-    (:func:`_unpredictable`)."""
-    unknown = _unpredictable(fit, data)
-    left, _ = _set_valued_friction(fit, data, data.residual - fit.correction(data), unknown,
-                                   floor)
-    return left, unknown
 
 
 def _known_rms(left: np.ndarray, unknown: np.ndarray) -> np.ndarray:
