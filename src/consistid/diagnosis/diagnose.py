@@ -260,7 +260,8 @@ class Diagnosis:
         ``rms_before``/``rms_after`` of each are cumulative in this order.
     where : where the nominal model's residual lies
         (:class:`~consistid.diagnosis.gap.GapBreakdown`).
-    noise_floor : (nv,) torque noise standard deviation per joint (N·m).
+    noise_floor : (nv,) torque noise standard deviation per joint (N·m), through the low-pass of
+        the recordings it was read on (:attr:`held_floor`: on the held-out ones).
     noise_source : ``"given"`` or how it was estimated.
     rms_nominal, rms_final : (nv,) held-out RMS of the nominal model and of the nominal model
         plus every selected effect.
@@ -274,8 +275,9 @@ class Diagnosis:
     remainder : the unexplained remainder per joint, its verdict and where it lies
         (:class:`~consistid.diagnosis.remainder.Remainder`).
     noise : how the noise floor was obtained (:class:`~consistid.diagnosis.noise.NoiseFloor`).
-    held_floor : (nv,) the noise floor on the held-out recordings: ``noise_floor`` scaled by
-        how much more white noise their recorded low-pass lets through (never less).
+    held_floor : (nv,) the noise floor on the held-out recordings: ``noise_floor`` scaled once
+        by how much more white noise their recorded low-pass lets through (never less), where
+        it was read on other recordings (``noise.on_repeating``).
     rms_left : (nv,) held-out RMS after every selected effect as the verdict judges it: dry
         friction set-valued at rest (a held joint's torque within its cone is no error) and the
         samples the model cannot predict left out (``rms_final`` is point-valued); the verdict
@@ -323,8 +325,10 @@ class Diagnosis:
 
     @property
     def gap_to_noise(self) -> np.ndarray:
-        """Held-out RMS after every selected effect divided by the noise floor, per joint."""
-        return self.rms_final / self.noise_floor
+        """Held-out RMS after every selected effect divided by the held-out noise floor, per
+        joint."""
+        return self.rms_final / (self.noise_floor if self.held_floor is None
+                                 else self.held_floor)
 
     @property
     def left_to_noise(self) -> np.ndarray:
@@ -1088,7 +1092,7 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
                      f"{'end' if shift > 0 else 'start'}), kept in the fit, not an effect; "
                      f"load with timestamp=\"{'end' if shift > 0 else 'start'}\" to correct it "
                      "at the source")
-    held_floor = floor * noise_gain_ratio(train.dataset, held.dataset)
+    held_floor = _held_floor(floor, noise, train, held, on is held)
     for name in order:
         members = [k for k, i in enumerate(chosen) if prob.atoms[i].effect == name]
         while True:
@@ -1124,7 +1128,8 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
                                      names) + ": left out")
             continue
         shrink = 1.0 - after / np.where(before > 0, before, 1.0)
-        total = 1.0 - np.linalg.norm(after / floor) / max(np.linalg.norm(before / floor), 1e-300)
+        total = 1.0 - (np.linalg.norm(after / held_floor)
+                       / max(np.linalg.norm(before / held_floor), 1e-300))
         if total <= 0:
             # Selected with the least-squares inertia, it no longer generalises once the final
             # fit (exact delay, consistent inertia) is made: say so and leave it out.
@@ -1169,27 +1174,23 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
         again = spectral_estimate(on.dataset, on.residual - fit.correction(on), on.tau_nom).sigma
         floor = np.where(spectral, np.minimum(floor, again), floor)
         noise_source += " (spectral level re-estimated without the selected effects' tails)"
+        held_floor = _held_floor(floor, noise, train, held, on is held)
     where = gap_breakdown(everything, floor, spectra=spectra)
-    # The remainder is judged on the recordings whose noise the floor measures: the repeating
-    # (training) ones for a repetition floor — a held-out recording the chain filtered at
-    # another cut-off holds another noise level — else the held-out data.
-    tested = train if any(m == "repetition" for m in noise.method) else held
-    unknown = _unpredictable(fit, tested)
-    left, cone, refitted = _set_valued_friction(fit, tested,
-                                                tested.residual - fit.correction(tested),
-                                                unknown, floor)
-    findings = _with_parameters(findings, fit, final_stds, refitted, names, tested is train)
+    # Held-out data are the judge: what the effects leave there, judged with dry friction
+    # set-valued at rest, against the floor in the held-out recordings' terms. (The training
+    # residual also holds what repeats with the excitation yet is no effect, such as the
+    # chain's own error where its low-pass cuts into the motion, which a repetition floor,
+    # noise only, never sees.)
+    unknown = _unpredictable(fit, held)
+    left, cone, refitted = _set_valued_friction(fit, held, held.residual - fit.correction(held),
+                                                unknown, held_floor)
+    findings = _with_parameters(findings, fit, final_stds, refitted, names, False)
     if refitted:
         notes.append(_identify_friction_note(fit, refitted, names))
-    # Held-out data are the judge: what the effects leave there, judged the same way, against
-    # the floor the held-out recordings' own low-pass leaves.
-    if tested is held:
-        held_floor = floor
-    rms_left = (_known_rms(left, unknown) if tested is held
-                else _known_rms(*_judged(fit, held, held_floor)))
-    remainder = analyse_remainder(tested, left, floor, autocorrelation_time(tested.dataset, left),
-                                  where.band_edges, reliable=noise.reliable,
-                                  source="training" if tested is train else "held-out",
+    rms_left = _known_rms(left, unknown)
+    remainder = analyse_remainder(held, left, held_floor,
+                                  autocorrelation_time(held.dataset, left),
+                                  where.band_edges, reliable=noise.reliable, source="held-out",
                                   cone=cone, unknown=unknown,
                                   tried=bool(library.effects) and max_steps > 0,
                                   refused=_refused_by_min_gain(steps), held_out=rms_left,
@@ -1265,6 +1266,18 @@ def _worse_note(atoms: Sequence[Atom], before: np.ndarray, after: np.ndarray,
             f"({how})")
 
 
+def _held_floor(floor: np.ndarray, noise: NoiseFloor, train: GapData, held: GapData,
+                spectrum_on_held: bool) -> np.ndarray:
+    """(nv,) ``floor`` in the held-out recordings' terms, each joint scaled once: as it is where
+    it was read on them (a spectrum estimated on the held-out recordings,
+    ``spectrum_on_held``), else × :func:`noise_gain_ratio` (a floor read on the training
+    recordings, or on all of them through one low-pass, or given)."""
+    read_on_held = (np.zeros(floor.size, dtype=bool)
+                    if not spectrum_on_held or noise.on_repeating is None
+                    else ~noise.on_repeating)
+    return np.where(read_on_held, floor, floor * noise_gain_ratio(train.dataset, held.dataset))
+
+
 def noise_gain_ratio(train: Dataset, held: Dataset) -> float:
     r"""How much more noise the held-out recordings' recorded low-pass lets through than the
     training ones', ``max(1, g_held / g_train)``: white noise of variance ``σ²`` through the
@@ -1287,16 +1300,6 @@ def noise_gain_ratio(train: Dataset, held: Dataset) -> float:
 
     a, b = gain(train), gain(held)
     return 1.0 if a is None or b is None else max(1.0, b / a)
-
-
-def _judged(fit: GapModel, data: GapData, floor: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """What every selected effect leaves on ``data`` (N, nv), dry friction judged set-valued at
-    rest (:func:`_set_valued_friction`), and the samples the model cannot predict (N, nv)
-    (:func:`_unpredictable`)."""
-    unknown = _unpredictable(fit, data)
-    left, _, _ = _set_valued_friction(fit, data, data.residual - fit.correction(data), unknown,
-                                   floor)
-    return left, unknown
 
 
 def _known_rms(left: np.ndarray, unknown: np.ndarray) -> np.ndarray:

@@ -127,6 +127,9 @@ class NoiseFloor:
     raw : (nv,) N·m, the noise of the torques before the chain's low-pass (white noise through
         the recorded filter, :func:`raw_noise`): ``sigma`` where the torques were not filtered
         or the filter is not recorded.
+    on_repeating : (nv,) True where ``sigma`` was read on the repeating recordings
+        (:func:`estimate_noise_floor`'s ``repeating=``) and is the noise through their
+        low-pass, False where on the spectrum's (``spectrum_on=``); ``None``: all one set.
     """
 
     sigma: np.ndarray
@@ -137,6 +140,7 @@ class NoiseFloor:
     description: str
     stderr: np.ndarray | None = None
     raw: np.ndarray | None = None
+    on_repeating: np.ndarray | None = None
 
 
 def _lag_mismatch(x: np.ndarray, max_lag: int) -> np.ndarray:
@@ -601,7 +605,10 @@ def estimate_noise_floor(dataset: Dataset, tau: np.ndarray, residual: np.ndarray
     ``spectrum_on``: ``(dataset, residual, tau_nom)`` of other samples to estimate the spectrum
     on (e.g. the recordings whose torque filter is recorded); default the ones above;
     ``repeating``: the same for the recordings that repeat the excitation, whose spectral level
-    a repetition floor is checked against (:data:`MAX_FLOOR_RATIO`); default ``spectrum_on``."""
+    a repetition floor is checked against (:data:`MAX_FLOOR_RATIO`); default ``spectrum_on``.
+    Each joint's σ is the noise of the recordings it was read on, through their recorded
+    low-pass (:attr:`NoiseFloor.on_repeating` says which), never carried through another: a
+    caller comparing it with recordings filtered otherwise scales it, once."""
     nv = tau.shape[1]
     if sigma is not None or torque_resolution is not None:
         s = np.zeros(nv)
@@ -653,16 +660,15 @@ def estimate_noise_floor(dataset: Dataset, tau: np.ndarray, residual: np.ndarray
                  + ": a component that is neither locked to the excitation nor noise (a "
                  "disturbance at its own frequency, a change during the log); the floor there "
                  "is the spectrum's of the repeating recordings")
-    # the repeating recordings' floor through the spectrum's recordings' low-pass (the held-out
-    # ones when the filters differ: their RMS is what the floor is compared with)
-    if use_rep.any() and source.torque_filter is not None and target.torque_filter is not None \
-            and source.torque_filter != target.torque_filter:
-        scale = float(raw_noise(np.ones(1), source.torque_filter, _rate(source))[0]
-                      / raw_noise(np.ones(1), target.torque_filter, _rate(target))[0])
-        out = np.where(use_rep, out * scale, out)
-        text += (f"; through the {target.torque_filter[0]:.3g} Hz low-pass of the recordings "
-                 f"it is compared with (× {scale:.3g} of the {source.torque_filter[0]:.3g} Hz "
-                 "one, for white noise)")
+    # each joint's floor stays in the terms of the recordings it was read on (their low-pass):
+    # the repeating ones' where repetition (or their spectrum) set it, else the spectrum's; a
+    # caller comparing it with recordings filtered otherwise scales it once
+    on_repeating = use_rep | not_noise
+    if on_repeating.any() and source.torque_filter != target.torque_filter:
+        text += ("; the repetition floor is the noise of the repeating recordings' "
+                 + (f"{source.torque_filter[0]:.3g} Hz low-pass" if source.torque_filter
+                    else "unfiltered torques")
+                 + " (the spectrum's recordings are filtered otherwise)")
     disturbed = use_rep & (repetition.disturbed > 0)
     if disturbed.any():
         text += (f"; of {repetition.stretches} stretches of {REPEAT_STRETCH:g} s, those where "
@@ -677,13 +683,16 @@ def estimate_noise_floor(dataset: Dataset, tau: np.ndarray, residual: np.ndarray
 
     stderr = np.where(use_rep, repetition.stderr,
                       np.where(not_noise, errors(seen), errors(spectral)))
-    raw = raw_noise(out, target.torque_filter, _rate(target))
-    if target.torque_filter is not None and np.all(np.isfinite(raw)):
-        text += (f"; the raw torques' noise before the chain's {target.torque_filter[0]:.3g} Hz "
-                 "low-pass (white through it): "
-                 + ", ".join(f"{r:.3g}" for r in raw) + " N·m, filtered: "
+    raw = np.where(on_repeating, raw_noise(out, source.torque_filter, _rate(source)),
+                   raw_noise(out, target.torque_filter, _rate(target)))
+    filters = {(source if r else target).torque_filter for r in on_repeating}
+    if filters != {None} and np.all(np.isfinite(raw)):
+        cuts = ", ".join(f"{f[0]:.3g} Hz" for f in sorted(x for x in filters if x))
+        text += (f"; the raw torques' noise before the chain's low-pass ({cuts}; white "
+                 "through it): " + ", ".join(f"{r:.3g}" for r in raw) + " N·m, filtered: "
                  + ", ".join(f"{x:.3g}" for x in out) + " N·m")
-    return NoiseFloor(out, method, period, cut, reliable, text, stderr, raw)
+    return NoiseFloor(out, method, period, cut, reliable, text, stderr, raw,
+                      on_repeating)
 
 
 def _rate(dataset: Dataset) -> float:
