@@ -96,7 +96,7 @@ def test_identify_output_writes_every_file(project, tmp_path, capsys):
     assert np.allclose(back.friction, fc, rtol=1e-12)
     assert np.allclose(fc, FC, rtol=0.05)
     mujoco.MjModel.from_xml_path(str(out / "robot.xml"))
-    check_html((out / "report.html").read_text(), n_images=6)
+    check_html((out / "report.html").read_text(), n_images=9)
 
 
 def test_identify_output_is_checked_first_and_needs_force(project, tmp_path, capsys):
@@ -135,7 +135,7 @@ def test_demo_writes_into_a_fresh_folder_from_any_urdf(project, tmp_path, monkey
     assert main(args) == 0
     report = tmp_path / "consistid-demo-arm3r-2" / "report.html"
     assert f"report: {report}" in capsys.readouterr().out
-    check_html(report.read_text(), n_images=6)
+    check_html(report.read_text(), n_images=9)
     assert main([*args, "--output", str(report.parent)]) == 2  # never an existing folder
     assert "exists" in capsys.readouterr().err
 
@@ -271,7 +271,7 @@ def test_identify_on_the_kuka_example(kuka_dir, tmp_path, capsys):
     fv = [named[f"{j}.fv"] for j in res.model.joint_names]
     back = pin.buildModelFromUrdf(str(out / "robot.urdf"))
     assert np.array_equal(back.friction, fc) and np.array_equal(back.damping, fv)
-    check_html((out / "report.html").read_text(), n_images=6)
+    check_html((out / "report.html").read_text(), n_images=9)
 
 
 def test_a_large_bag_shows_progress(tmp_path):
