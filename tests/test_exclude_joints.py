@@ -56,6 +56,14 @@ def test_excluded_rows_give_the_least_squares_of_the_other_rows(panda, logs):
     assert all(f"panda_joint7.{c}" in lost for c in ("fc", "fv", "fo"))
     assert not any(n.startswith("panda_joint7.") for n in res.parameter_names)
     assert np.all(res.rms(held)[:6] < 0.07)                     # noise 0.05
+    # the left-out channel judges nothing: NaN there, and the total is over the kept channels
+    assert np.isnan(res.rms(held)[6])
+    per_joint, total = res.relative_error(held)
+    r = held.tau[:, :6] - res.predict(held)[:, :6]
+    assert np.isnan(per_joint[6])
+    np.testing.assert_allclose(per_joint[:6], np.linalg.norm(r, axis=0)
+                               / np.linalg.norm(held.tau[:, :6], axis=0), rtol=1e-12)
+    assert total == pytest.approx(np.linalg.norm(r) / np.linalg.norm(held.tau[:, :6]))
 
 
 @pytest.mark.parametrize("value", [0.0, 3.25])

@@ -299,15 +299,26 @@ class IdentificationResult(StandardParameterSet):
         return np.array([terms.get(j, {}).get("fc", 0.0) for j in self.model.joint_names])
 
     def rms(self, dataset: Dataset) -> np.ndarray:
-        """Per-joint RMS of the residual on a dataset, (nv,)."""
-        return np.sqrt(np.mean(self.residual(dataset) ** 2, axis=0))
+        """Per-joint RMS of the residual on a dataset, (nv,); ``nan`` at the
+        :attr:`excluded_joints` (their torque channel was left out of the fit, e.g. a dead
+        sensor: its readings judge nothing)."""
+        rms = np.sqrt(np.mean(self.residual(dataset) ** 2, axis=0))
+        return np.where(self._kept_joints(), rms, np.nan)
 
     def relative_error(self, dataset: Dataset) -> tuple[np.ndarray, float]:
-        """Per-joint and total relative error ``‖τ − τ̂‖ / ‖τ‖`` on a dataset."""
+        """Per-joint and total relative error ``‖τ − τ̂‖ / ‖τ‖`` on a dataset; ``nan`` at the
+        :attr:`excluded_joints`, whose channels the total leaves out too."""
         dataset = as_dataset(dataset)
-        r, tau = self.residual(dataset), dataset.require_torque()
-        return (np.linalg.norm(r, axis=0) / np.linalg.norm(tau, axis=0),
-                float(np.linalg.norm(r) / np.linalg.norm(tau)))
+        kept = self._kept_joints()
+        r, tau = self.residual(dataset)[:, kept], dataset.require_torque()[:, kept]
+        per_joint = np.full(self.model.nv, np.nan)
+        per_joint[kept] = np.linalg.norm(r, axis=0) / np.linalg.norm(tau, axis=0)
+        return per_joint, float(np.linalg.norm(r) / np.linalg.norm(tau))
+
+    def _kept_joints(self) -> np.ndarray:
+        """(nv,) bool: the joints whose torque rows the fit used (not :attr:`excluded_joints`)."""
+        excluded = set(self.excluded_joints or ())
+        return np.array([name not in excluded for name in self.model.joint_names])
 
     # ----------------------------------------------------------------------------- reporting
     def summary(self, max_rows: int | None = None) -> str:
