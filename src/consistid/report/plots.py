@@ -56,6 +56,25 @@ def _thin(n: int) -> np.ndarray:
     return np.arange(0, n, step)
 
 
+def _edge_labels(ax: Any, j: int, n: int, cols: int, ylabel: str, xlabel: str) -> None:
+    """Axis labels on panel ``j`` of ``n`` in a grid of ``cols`` columns: y on the left
+    column, x on the bottom row."""
+    if j % cols == 0:
+        ax.set_ylabel(ylabel, fontsize=8)
+    if j >= n - cols:
+        ax.set_xlabel(xlabel, fontsize=8)
+
+
+def _legend_below(fig: Any, ncol: int, title: str) -> Any:
+    """``fig`` with the first panel's legend below the panels and ``title`` above them."""
+    handles, labels = fig.axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncol=ncol, fontsize=8,
+               frameon=False)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    return fig
+
+
 def torque_fit(t: np.ndarray, measured: np.ndarray, predicted: np.ndarray,
                joint_names: Sequence[str], title: str = "") -> Any:
     """Measured (thin black, drawn on top) and predicted (dashed orange, thicker, below)
@@ -72,15 +91,8 @@ def torque_fit(t: np.ndarray, measured: np.ndarray, predicted: np.ndarray,
         rms = float(np.sqrt(np.mean((measured[:, j] - predicted[:, j]) ** 2)))
         ax.set_title(f"{name}  (RMS {rms:.3g} N·m)", fontsize=8)
         ax.tick_params(labelsize=7)
-        if j % cols == 0:
-            ax.set_ylabel("τ [N·m]", fontsize=8)
-        if j >= n - cols:
-            ax.set_xlabel("t [s]", fontsize=8)
-    handles, labels = fig.axes[0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="outside lower center", ncol=2, fontsize=8, frameon=False)
-    if title:
-        fig.suptitle(title, fontsize=10)
-    return fig
+        _edge_labels(ax, j, n, cols, "τ [N·m]", "t [s]")
+    return _legend_below(fig, 2, title)
 
 
 def residual_over_time(t: np.ndarray, residual: np.ndarray, joint_names: Sequence[str],
@@ -102,15 +114,8 @@ def residual_over_time(t: np.ndarray, residual: np.ndarray, joint_names: Sequenc
         ax.axhline(0, color="k", lw=0.4)
         ax.set_title(name, fontsize=8)
         ax.tick_params(labelsize=7)
-        if j % cols == 0:
-            ax.set_ylabel("τ − τ̂ [N·m]", fontsize=8)
-        if j >= n - cols:
-            ax.set_xlabel("t [s]", fontsize=8)
-    handles, labels = fig.axes[0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="outside lower center", ncol=3, fontsize=8, frameon=False)
-    if title:
-        fig.suptitle(title, fontsize=10)
-    return fig
+        _edge_labels(ax, j, n, cols, "τ − τ̂ [N·m]", "t [s]")
+    return _legend_below(fig, 3, title)
 
 
 #: Parameters per column of :func:`parameter_errorbars` before it starts a second column.
@@ -189,11 +194,7 @@ def residual_histograms(residual: np.ndarray, joint_names: Sequence[str],
         ax.tick_params(labelsize=7)
         if j >= n - cols:
             ax.set_xlabel("τ − τ̂ [N·m]", fontsize=8)
-    handles, labels = fig.axes[0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="outside lower center", ncol=2, fontsize=8, frameon=False)
-    if title:
-        fig.suptitle(title, fontsize=10)
-    return fig
+    return _legend_below(fig, 2, title)
 
 
 def residual_spectra(residual: np.ndarray, rate: float, joint_names: Sequence[str],
