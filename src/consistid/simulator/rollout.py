@@ -26,6 +26,7 @@ import numpy as np
 from ..data.dataset import Dataset
 from ..errors import OptionError
 from ..report.html import Page
+from ..report.result import Reported
 from ..robot.model import RobotModel
 from .engine import Simulator, build_simulator, integrator_name
 from .options import RolloutOptions
@@ -57,7 +58,7 @@ def _rms(per_joint: np.ndarray) -> float:
 
 
 @dataclass(frozen=True, eq=False)
-class RolloutValidation:
+class RolloutValidation(Reported):
     """Replays of one log by several models in one simulator (module docstring).
 
     Attributes
@@ -121,16 +122,6 @@ class RolloutValidation:
         page.table(["model", "joint", "q error (mrad)", "τ error (N·m)", "open loop (mrad)"],
                    [tuple(r.values()) for r in self.joint_table()], keys=(0, 1))
         return page
-
-    def report(self, path: str | Path) -> Path:
-        """Write the HTML report (``*.html``) and return its path."""
-        path = Path(path)
-        if path.suffix.lower() not in (".html", ".htm"):
-            raise OptionError(f"report path {str(path)!r}: give an .html file")
-        return self.page().write(path)
-
-    def _repr_html_(self) -> str:
-        return self.page().fragment()
 
     def save(self, path: str | Path) -> Path:
         """Write the figures as JSON (``*.json``); :meth:`load` reads them back."""
