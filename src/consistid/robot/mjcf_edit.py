@@ -30,14 +30,12 @@ frame ``X`` (its placement in the joint frame): ``π_b = X⁻¹·(π − Σ π_k
 
 The result is written to a temporary file beside the output, compiled by MuJoCo and read back
 (:func:`~consistid.robot.mjcf_in.read_mjcf`); only when every written body and joint reads back
-as identified (relative 1e-9) is it moved onto ``path`` (``os.replace``). The source itself is
-never written.
+as identified (relative 1e-9) is it moved onto ``path``
+(:func:`consistid.filesafety.replacing`). The source itself is never written.
 """
 
 from __future__ import annotations
 
-import os
-import tempfile
 import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Sequence
@@ -46,6 +44,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import ExportWarning, InconsistentParametersError, ModelError
+from ..filesafety import replacing
 from .inertia import InertialParameters, body_slice
 from .joint_terms import export_parameters
 from .mjcf_in import body_inertia, body_label, check_safe_xml, compile_mjcf, read_mjcf
@@ -256,8 +255,9 @@ def write_mjcf_into(model: "RobotModel", path: str | Path, source: str | Path,
         edits += more
         inserted += [body_label(mj, b)] if new else []
     more, inherited, untouched = _joint_edits(data, els, mj, terms)
-    tmp = _write_checked(apply(data, edits + more), out, model, params, terms)
-    os.replace(tmp, out)
+    with replacing(out) as tmp:          # moved onto out only once it reads back as written
+        tmp.write_bytes(apply(data, edits + more))
+        _check_written(tmp, out, model, params, terms)
     _warn(inserted, inherited, untouched, terms)         # what was written, once it was
     return out
 
@@ -283,25 +283,16 @@ def _warn(inserted: list[str], inherited: list[str], untouched: list[str],
         warnings.warn(note, ExportWarning, stacklevel=3)
 
 
-def _write_checked(data: bytes, out: Path, model: "RobotModel", params: np.ndarray,
-                   terms: dict[str, dict[str, float]]) -> Path:
-    """``data`` in a temporary file beside ``out``, compiled and read back by MuJoCo; the
-    file's path when every body and joint term reads back as written, else ModelError."""
-    fd, name = tempfile.mkstemp(suffix=".xml", prefix=f".{out.stem}-", dir=out.parent)
-    tmp = Path(name)
+def _check_written(tmp: Path, out: Path, model: "RobotModel", params: np.ndarray,
+                   terms: dict[str, dict[str, float]]) -> None:
+    """The edited file ``tmp`` (beside ``out``) compiled and read back by MuJoCo; ModelError
+    unless every body and joint term reads back as written."""
     try:
-        with os.fdopen(fd, "wb") as handle:
-            handle.write(data)
-        try:
-            back, _, _ = read_mjcf(tmp, model.locked_joints, model.locked_configuration)
-        except ModelError as exc:
-            raise ModelError(f"{out.name} not written: the edited file does not compile "
-                             f"({exc})") from exc
-        _compare(back, model, params, terms)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    return tmp
+        back, _, _ = read_mjcf(tmp, model.locked_joints, model.locked_configuration)
+    except ModelError as exc:
+        raise ModelError(f"{out.name} not written: the edited file does not compile "
+                         f"({exc})") from exc
+    _compare(back, model, params, terms)
 
 
 def _compare(back: pin.Model, model: "RobotModel", params: np.ndarray,
