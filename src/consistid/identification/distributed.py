@@ -173,9 +173,10 @@ class DaskData(DataStream):
         tries = getattr(exc, "allowed_failures", "?")
         return IdentificationError(
             f"a Dask worker died while reducing {where} (KilledWorker: last on {worker}, "
-            f"{tries} allowed failures); a file that exhausts a worker's memory or crashes its "
-            "reader is the usual cause: read it alone (consistid.Dataset.load) or give the "
-            "workers more memory")
+            f"{tries} allowed failures; a worker holding several partitions when it died "
+            "shares the blame among them, and Dask names one); a file that exhausts a worker's "
+            "memory or crashes its reader is the usual cause: read it alone "
+            "(consistid.Dataset.load) or give the workers more memory")
 
     def compress(self, model: RobotModel, spec: RegressorSpec,
                  base: BaseParameters | None = None) -> CompressedProblem:
