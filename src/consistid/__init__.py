@@ -78,6 +78,7 @@ _EXPORTS: dict[str, str] = {
     "RolloutValidation": "simulator",
     "RolloutOptions": "simulator",
     "PDGains": "simulator",
+    "ComputedTorque": "simulator",
 }
 
 #: subpackages reachable as attributes (``ci.simulate.record``)
@@ -154,5 +155,5 @@ if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerl
     from .robot.inertia import InertialParameters, is_physically_consistent
     from .robot.model import RobotModel
     from .robot.shapes import Ellipsoid
-    from .simulator import (PDGains, RolloutOptions, RolloutValidation, SimulatorCalibration,
-                            calibrate_simulator, validate_rollout)
+    from .simulator import (ComputedTorque, PDGains, RolloutOptions, RolloutValidation,
+                            SimulatorCalibration, calibrate_simulator, validate_rollout)

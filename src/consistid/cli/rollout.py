@@ -7,7 +7,8 @@ The ``[model]``, ``[data]`` and ``[identify]`` tables as for ``consistid identif
     timestep = 0.002            # s; with mjcf, default the file's
     integrator = "implicitfast" # "Euler", "implicit", "implicitfast", "RK4"; with mjcf, the file's
     window = 1.0                # s, open-loop replays restart from the log this often
-    bandwidth = 20.0            # rad/s of the replay's PD (or kp = [...], kd = [...] per joint)
+    controller = "pd"           # "pd" (logged torque fed forward) or "computed_torque"
+    bandwidth = 20.0            # rad/s of the controller (or kp = [...], kd = [...] per joint)
     damping_ratio = 1.0
     calibrate = true            # also calibrate_simulator on the training logs
     refine_inertia = false      # … and refine the inertias by output error
@@ -27,26 +28,36 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..identification.identify import identify
-from ..simulator import PDGains, RolloutOptions, calibrate_simulator, validate_rollout
+from ..simulator import (ComputedTorque, PDGains, RolloutOptions, calibrate_simulator,
+                         validate_rollout)
 from .config import (RunConfig, config_identify, config_inputs, config_model,
                      config_recordings, load_config)
 from .files import atomic_path, check_output
 
 #: Keys of the ``[rollout]`` table.
-ROLLOUT_KEYS = ("mjcf", "timestep", "integrator", "window", "bandwidth", "damping_ratio", "kp",
-                "kd", "calibrate", "refine_inertia", "output", "threads")
-_KINDS = {"mjcf": "string", "timestep": "number", "integrator": "string", "window": "number",
+ROLLOUT_KEYS = ("mjcf", "timestep", "integrator", "window", "controller", "bandwidth",
+                "damping_ratio", "kp", "kd", "calibrate", "refine_inertia", "output", "threads")
+_KINDS = {"mjcf": "string", "controller": "string", "timestep": "number",
+          "integrator": "string", "window": "number",
           "bandwidth": "number", "damping_ratio": "number", "kp": "array of numbers",
           "kd": "array of numbers", "calibrate": "boolean", "refine_inertia": "boolean",
           "output": "string", "threads": "integer"}
+
+#: ``[rollout] controller`` values.
+CONTROLLERS = {"pd": PDGains, "computed_torque": ComputedTorque}
 
 
 def rollout_options(config: RunConfig, table: dict[str, Any]) -> RolloutOptions:
     """The :class:`RolloutOptions` of a ``[rollout]`` table (types checked in TOML terms)."""
     for key, value in table.items():
         config.expect("rollout", key, value, _KINDS[key])
-    gains = PDGains(**{k: (tuple(table[k]) if k in ("kp", "kd") else table[k])
-                       for k in ("bandwidth", "damping_ratio", "kp", "kd") if k in table})
+    kind = table.get("controller", "pd")
+    if kind not in CONTROLLERS:
+        raise ConfigError(f"{config.path.name}: [rollout] controller = {kind!r}; choose one of "
+                          f"{sorted(CONTROLLERS)}")
+    gains = CONTROLLERS[kind](**{k: (tuple(table[k]) if k in ("kp", "kd") else table[k])
+                                 for k in ("bandwidth", "damping_ratio", "kp", "kd")
+                                 if k in table})
     mjcf = "mjcf" in table
     return RolloutOptions(timestep=table.get("timestep", None if mjcf else 0.002),
                           integrator=table.get("integrator", None if mjcf else "implicitfast"),

@@ -6,8 +6,8 @@ their step and integrator) and the simulator-only terms calibrated by batched ro
 """
 
 from .calibrate import SimulatorCalibration, calibrate_simulator
-from .options import PDGains, RolloutOptions
+from .options import ComputedTorque, PDGains, RolloutOptions
 from .rollout import RolloutValidation, validate_rollout
 
-__all__ = ["PDGains", "RolloutOptions", "RolloutValidation", "SimulatorCalibration",
-           "calibrate_simulator", "validate_rollout"]
+__all__ = ["ComputedTorque", "PDGains", "RolloutOptions", "RolloutValidation",
+           "SimulatorCalibration", "calibrate_simulator", "validate_rollout"]

@@ -58,8 +58,8 @@ from ..report.result import Reported
 from ..identification.regressor import RegressorSpec, regressor
 from .engine import Simulator, build_simulator, integrator_name, write_inertias
 from .logcholesky import from_log_cholesky, to_log_cholesky
-from .options import PDGains, RolloutOptions
-from .replay import LogGrid, closed_loop
+from .options import ComputedTorque, Controller, PDGains, RolloutOptions
+from .replay import LogGrid, closed_loop_under
 
 #: The simulator terms, per joint, in the order of the calibrated vector.
 TERMS = ("armature", "damping", "frictionloss")
@@ -83,7 +83,8 @@ class SimulatorCalibration(Reported):
     names : ``"<joint>.<term>"`` of each simulator parameter (``term`` in :data:`TERMS`).
     start, values, std : (p,) the physical starting values, the calibrated values and their σ.
     timestep, integrator : the simulator they were calibrated for.
-    kp, kd : (nv,) the PD gains of the closed-loop replay.
+    kp, kd : (nv,) the gains of the closed-loop replay (its ``controller``: ``"PD"`` or
+        ``"computed torque"``, :mod:`.options`).
     cost_start, cost : mean square whitened correction torque before and after.
     evaluations : rollouts of the residual; seconds : wall time.
     message : the optimiser's.
@@ -115,6 +116,7 @@ class SimulatorCalibration(Reported):
     base_parameters: np.ndarray
     base_std: np.ndarray
     refined: bool
+    controller: str = "PD"
 
     @property
     def parameters(self) -> np.ndarray:
@@ -236,7 +238,8 @@ class SimulatorCalibration(Reported):
                "evaluations": self.evaluations, "seconds": self.seconds,
                "message": self.message, "inertial": self.inertial.tolist(),
                "base_parameters": self.base_parameters.tolist(),
-               "base_std": self.base_std.tolist(), "refined": self.refined}
+               "base_std": self.base_std.tolist(), "refined": self.refined,
+               "controller": self.controller}
         path.write_text(json.dumps(doc, indent=1), encoding="utf-8")
         return path
 
@@ -253,7 +256,7 @@ class SimulatorCalibration(Reported):
                    doc["timestep"], doc["integrator"], arr["kp"], arr["kd"], doc["cost_start"],
                    doc["cost"], doc["evaluations"], doc["seconds"], doc["message"],
                    arr["inertial"], arr["base_parameters"], arr["base_std"],
-                   bool(doc["refined"]))
+                   bool(doc["refined"]), str(doc.get("controller", "PD")))
 
 
 @dataclass(frozen=True)
@@ -287,9 +290,11 @@ class _Problem:
     """The whitened closed-loop correction as a function of the simulator terms and, when
     refined, the log-Cholesky parameters of the bodies (then with the inertia prior's rows)."""
 
-    def __init__(self, sim: Simulator, log: LogGrid, kp: np.ndarray, kd: np.ndarray,
-                 scale: np.ndarray, threads: int, prior: InertiaPrior | None) -> None:
+    def __init__(self, sim: Simulator, log: LogGrid, controller: Controller, kp: np.ndarray,
+                 kd: np.ndarray, scale: np.ndarray, threads: int,
+                 prior: InertiaPrior | None) -> None:
         self.sim, self.log, self.kp, self.kd = sim, log, kp, kd
+        self.controller = controller
         self.scale, self.threads, self.prior = scale, threads, prior
         self.evaluations = 0
         n_bodies = 0 if prior is None else prior.estimate.size // 10
@@ -315,7 +320,8 @@ class _Problem:
 
     def residuals(self, xs: list[np.ndarray]) -> np.ndarray:
         """(len(xs), rows) whitened corrections (and prior rows), one rollout batch."""
-        run = closed_loop(self.sim, self.models(xs), self.log, self.kp, self.kd, self.threads)
+        run = closed_loop_under(self.controller, self.sim, self.models(xs), self.log, self.kp,
+                                self.kd, self.threads)
         self.evaluations += len(xs)
         r = run.correction / self.scale
         r[run.diverged] = DIVERGED_RESIDUAL
@@ -334,7 +340,7 @@ class _Problem:
 
 def calibrate_simulator(result: Any, data: Dataset, mjcf: str | Path | None = None,
                         timestep: float = 0.002, integrator: str = "implicitfast",
-                        controller: PDGains | None = None, *, refine_inertia: bool = False,
+                        controller: Controller | None = None, *, refine_inertia: bool = False,
                         max_iterations: int = 10, threads: int = 1) -> SimulatorCalibration:
     """Calibrate the simulator-only terms (module docstring) on top of ``result``.
 
@@ -346,7 +352,9 @@ def calibrate_simulator(result: Any, data: Dataset, mjcf: str | Path | None = No
     mjcf : the user's MJCF file (loaded as is, not changed); default the robot's
         dynamics-only MJCF.
     timestep, integrator : the user's simulator (``RolloutOptions`` explains them).
-    controller : :class:`PDGains` of the closed-loop replay (default ω = 20 rad/s, ζ = 1).
+    controller : the closed-loop replay's :class:`PDGains` (default ω = 20 rad/s, ζ = 1) or
+        :class:`ComputedTorque` (then the correction minimised is the computed torque minus
+        the logged one; one ``mj_step`` loop per candidate, slower than the PD's batch).
     refine_inertia : also refine the inertias by output error, through each body's
         log-Cholesky parameters (consistent by construction, :mod:`.logcholesky`), paying the
         inverse-dynamics cost of moving them (:class:`InertiaPrior`): for short or poorly
@@ -373,7 +381,7 @@ def calibrate_simulator(result: Any, data: Dataset, mjcf: str | Path | None = No
     kp, kd = options.controller.resolve(sim.mass_diagonal(log.q[::max(1, log.t.size // 50)]))
     scale = np.maximum(np.asarray(result.rms(data), dtype=float), 1e-6)
     prior = InertiaPrior.of(result, data) if refine_inertia else None
-    problem = _Problem(sim, log, kp, kd, scale, options.threads, prior)
+    problem = _Problem(sim, log, options.controller, kp, kd, scale, options.threads, prior)
     start = np.concatenate(list(sim.joint_terms().values()))
     x0 = start if prior is None else np.concatenate(
         [start, *(to_log_cholesky(prior.estimate[10 * b:10 * b + 10])
@@ -393,7 +401,9 @@ def calibrate_simulator(result: Any, data: Dataset, mjcf: str | Path | None = No
                                 float(np.mean(r0 ** 2)),
                                 float(np.mean(fit.fun[:n_out] ** 2)) / problem.weight ** 2,
                                 problem.evaluations, time.perf_counter() - started, fit.message,
-                                inertial, base, base_std, prior is not None)
+                                inertial, base, base_std, prior is not None,
+                                "computed torque" if isinstance(options.controller,
+                                                                ComputedTorque) else "PD")
 
 
 def _row_weight(r: np.ndarray, log: LogGrid, nv: int) -> tuple[float, float]:

@@ -96,6 +96,13 @@ class Simulator:
         ``implicitfast``): their damping acts on the velocity at the end of the step."""
         return integrator_name(int(self.mj_model.opt.integrator)) in ("implicit", "implicitfast")
 
+    @property
+    def discrete_inverse(self) -> bool:
+        """MuJoCo's discrete-time inverse dynamics (``mjENBL_INVDISCRETE``) exists for this
+        integrator (all but ``RK4``): ``mj_inverse`` then returns the force that makes one step
+        reach the given acceleration, implicit damping included."""
+        return integrator_name(int(self.mj_model.opt.integrator)) != "RK4"
+
     def initial_state(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
         """The full physics state (``mjSTATE_FULLPHYSICS``) at joint positions and velocities
         ``q``, ``dq`` (nv,), every other coordinate at the model's ``qpos0`` and rest."""

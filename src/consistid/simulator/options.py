@@ -53,15 +53,7 @@ class PDGains:
     def __post_init__(self) -> None:
         check_number("PDGains.bandwidth", self.bandwidth, 0, strict=True)
         check_number("PDGains.damping_ratio", self.damping_ratio, 0, strict=True)
-        if (self.kp is None) != (self.kd is None):
-            raise OptionError("PDGains: give both kp and kd, or neither (then the bandwidth "
-                              "sets them)")
-        if self.kp is not None:
-            kp, kd = np.ravel(self.kp).astype(float), np.ravel(self.kd).astype(float)
-            if not (np.all(np.isfinite(kp)) and np.all(kp > 0) and np.all(np.isfinite(kd))
-                    and np.all(kd >= 0)):
-                raise OptionError(f"PDGains: kp must be > 0 and kd ≥ 0 (finite), got "
-                                  f"kp={self.kp!r}, kd={self.kd!r}")
+        _check_gains("PDGains", self.kp, self.kd)
 
     def resolve(self, mass_diagonal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(K_p, K_d)`` per joint, (nv,) each."""
@@ -69,12 +61,74 @@ class PDGains:
         if self.kp is None:
             w, z = self.bandwidth, self.damping_ratio
             return mass_diagonal * w ** 2, 2.0 * z * w * mass_diagonal
-        kp, kd = (np.broadcast_to(np.ravel(g).astype(float), (nv,)).copy()
-                  if np.size(g) in (1, nv) else None for g in (self.kp, self.kd))
-        if kp is None or kd is None:
-            raise OptionError(f"PDGains: kp and kd need 1 or {nv} values (one per joint), got "
-                              f"{np.size(self.kp)} and {np.size(self.kd)}")
-        return kp, kd
+        return _per_joint("PDGains", self.kp, self.kd, nv)
+
+
+@dataclass(frozen=True)
+class ComputedTorque:
+    r"""Computed-torque control of the closed-loop replay (module docstring): the commanded
+    joint acceleration ``a = q̈_log + K_d ė + K_p e`` is turned into torque by the inverse
+    dynamics of the simulated model (``mujoco.mj_inverse`` of the very ``MjModel`` stepped:
+    its armature, damping, friction loss and every body of the user's MJCF included, and, under
+    ``Euler``/``implicit``/``implicitfast``, MuJoCo's discrete-time inverse
+    (``mjENBL_INVDISCRETE``), so that the step reaches ``a`` exactly).
+
+    Gains are accelerations per error, the same for every joint and every model: either a
+    bandwidth (``K_p = ω²``, ``K_d = 2 ζ ω``) or explicit ``kp`` (1/s²) and ``kd`` (1/s), a
+    scalar or one per joint.
+
+    Parameters
+    ----------
+    bandwidth : ω (rad/s), > 0.
+    damping_ratio : ζ, > 0.
+    kp, kd : explicit gains (both or neither), ``kp > 0``, ``kd ≥ 0``.
+    """
+
+    bandwidth: float = 20.0
+    damping_ratio: float = 1.0
+    kp: float | tuple[float, ...] | None = None
+    kd: float | tuple[float, ...] | None = None
+
+    def __post_init__(self) -> None:
+        check_number("ComputedTorque.bandwidth", self.bandwidth, 0, strict=True)
+        check_number("ComputedTorque.damping_ratio", self.damping_ratio, 0, strict=True)
+        _check_gains("ComputedTorque", self.kp, self.kd)
+
+    def resolve(self, mass_diagonal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(K_p, K_d)`` per joint, (nv,) each (``mass_diagonal`` gives only the count: the
+        inverse dynamics scales the gains by the model's own mass matrix)."""
+        nv = mass_diagonal.size
+        if self.kp is None:
+            w, z = self.bandwidth, self.damping_ratio
+            return np.full(nv, w ** 2), np.full(nv, 2.0 * z * w)
+        return _per_joint("ComputedTorque", self.kp, self.kd, nv)
+
+
+#: The closed-loop controllers a replay runs.
+Controller = PDGains | ComputedTorque
+
+
+def _check_gains(owner: str, kp: object, kd: object) -> None:
+    """Explicit gains: both or neither, ``kp > 0``, ``kd ≥ 0``, finite."""
+    if (kp is None) != (kd is None):
+        raise OptionError(f"{owner}: give both kp and kd, or neither (then the bandwidth "
+                          "sets them)")
+    if kp is not None:
+        p, d = np.ravel(kp).astype(float), np.ravel(kd).astype(float)
+        if not (np.all(np.isfinite(p)) and np.all(p > 0) and np.all(np.isfinite(d))
+                and np.all(d >= 0)):
+            raise OptionError(f"{owner}: kp must be > 0 and kd ≥ 0 (finite), got "
+                              f"kp={kp!r}, kd={kd!r}")
+
+
+def _per_joint(owner: str, kp: object, kd: object, nv: int) -> tuple[np.ndarray, np.ndarray]:
+    """Explicit gains broadcast to (nv,) each."""
+    p, d = (np.broadcast_to(np.ravel(g).astype(float), (nv,)).copy()
+            if np.size(g) in (1, nv) else None for g in (kp, kd))
+    if p is None or d is None:
+        raise OptionError(f"{owner}: kp and kd need 1 or {nv} values (one per joint), got "
+                          f"{np.size(kp)} and {np.size(kd)}")
+    return p, d
 
 
 @dataclass(frozen=True)
@@ -88,14 +142,15 @@ class RolloutOptions:
         MJCF's own.
     window : open-loop replay: the state is reset to the logged one every ``window`` seconds
         and the drift ``q − q_log`` is reported per window; > 0.
-    controller : the closed-loop replay's :class:`PDGains`.
+    controller : the closed-loop replay's controller: :class:`PDGains` (joint PD around the
+        log, the logged torque fed forward) or :class:`ComputedTorque`.
     threads : threads of ``mujoco.rollout``, ≥ 1.
     """
 
     timestep: float | None = 0.002
     integrator: str | None = "implicitfast"
     window: float = 1.0
-    controller: PDGains = PDGains()
+    controller: Controller = PDGains()
     threads: int = 1
 
     def __post_init__(self) -> None:
@@ -105,6 +160,6 @@ class RolloutOptions:
             check_option("RolloutOptions.integrator", self.integrator, INTEGRATORS)
         check_number("RolloutOptions.window", self.window, 0, strict=True)
         check_number("RolloutOptions.threads", self.threads, 1, integer=True)
-        if not isinstance(self.controller, PDGains):
-            raise OptionError(f"RolloutOptions.controller must be a PDGains, got "
-                              f"{type(self.controller).__name__}")
+        if not isinstance(self.controller, (PDGains, ComputedTorque)):
+            raise OptionError(f"RolloutOptions.controller must be a PDGains or a "
+                              f"ComputedTorque, got {type(self.controller).__name__}")

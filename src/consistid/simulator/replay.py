@@ -13,6 +13,14 @@ torque loop applies it). Two replays:
   q̇_k))``: with the reference one step ahead, a robot that follows the log needs no correction,
   and the PD adds no inertia ``h K_d`` of its own (with ``a = 0`` it would, the bias that
   ``mujoco.sysid``'s armature absorbs); ``a = 0`` under ``Euler`` and ``RK4``;
+* **computed torque** (:func:`computed_torque`): at each step the torque
+  ``u_k = ID(q_k, q̇_k, a_k)`` of the simulated model itself with
+  ``a_k = a_{log,k} + K_d(q̇_{log,k} − q̇_k) + K_p(q_{log,k} − q_k)`` and
+  ``a_{log,k} = (q̇_{log,k+1} − q̇_{log,k}) / h`` the log's acceleration over the step (so that a
+  log that is a MuJoCo run at this step is followed exactly, whatever its filter's ``q̈``);
+  reported are ``e_k`` and ``c_k = u_k − τ_{log,k}``, the torque the model commands beyond the
+  logged one. One ``mj_inverse`` and one ``mj_step`` per step and model (no batch: the control
+  depends on the state);
 * **open loop** (:func:`open_loop`): the logged torque alone, the state reset to the logged
   one every ``W`` seconds (windows run as one batch); reported is the drift ``q − q_log`` per
   window. Open-loop replays of an arm under gravity diverge without feedback; the window keeps
@@ -35,6 +43,7 @@ import numpy as np
 from ..data.dataset import Dataset
 from ..errors import DatasetError
 from .engine import CONTROLS, Simulator
+from .options import ComputedTorque, Controller
 
 #: A tracking error beyond this (rad) marks a closed-loop rollout as diverged.
 DIVERGED = 1.0
@@ -125,6 +134,64 @@ def closed_loop(sim: Simulator, models: Sequence[Any], log: LogGrid, kp: np.ndar
         diverged = ~np.all(np.isfinite(error), axis=(1, 2)) | (
             np.nanmax(np.abs(error), axis=(1, 2)) > DIVERGED)
     return ClosedLoop(error, correction, diverged)
+
+
+def closed_loop_under(controller: Controller, sim: Simulator, models: Sequence[Any],
+                      log: LogGrid, kp: np.ndarray, kd: np.ndarray,
+                      threads: int = 1) -> ClosedLoop:
+    """The closed-loop replay of ``controller``'s kind: :func:`computed_torque` or the PD's
+    :func:`closed_loop`."""
+    if isinstance(controller, ComputedTorque):
+        return computed_torque(sim, models, log, kp, kd)
+    return closed_loop(sim, models, log, kp, kd, threads)
+
+
+def computed_torque(sim: Simulator, models: Sequence[Any], log: LogGrid, kp: np.ndarray,
+                    kd: np.ndarray) -> ClosedLoop:
+    """Closed-loop replay under computed torque (module docstring) of each of ``models``
+    (variants of ``sim``'s; the added PD actuators are switched off)."""
+    steps, nv = log.t.size - 1, sim.nv
+    h = float(sim.mj_model.opt.timestep)
+    accel = np.diff(log.dq, axis=0) / h
+    q = np.empty((len(models), steps + 1, nv))
+    correction = np.empty((len(models), steps, nv))
+    for b, model in enumerate(models):
+        model = sim.with_gains(model, np.zeros(nv), np.zeros(nv))
+        if not sim.discrete_inverse:
+            model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_INVDISCRETE)
+        else:
+            model.opt.enableflags |= int(mujoco.mjtEnableBit.mjENBL_INVDISCRETE)
+        q[b], correction[b] = _track(sim, model, log, accel, kp, kd)
+    error = q - log.q
+    with np.errstate(invalid="ignore"):
+        diverged = ~np.all(np.isfinite(error), axis=(1, 2)) | (
+            np.nanmax(np.abs(error), axis=(1, 2)) > DIVERGED)
+    return ClosedLoop(error, correction, diverged)
+
+
+def _track(sim: Simulator, model: Any, log: LogGrid, accel: np.ndarray, kp: np.ndarray,
+           kd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """One model's computed-torque run: positions (S, nv) and ``u − τ_log`` (S − 1, nv); NaN
+    from the step where the state left the finite numbers or MuJoCo reset it."""
+    data = mujoco.MjData(model)
+    data.qpos[sim.qpos], data.qvel[sim.dofs] = log.q[0], log.dq[0]
+    q = np.full((log.t.size, sim.nv), np.nan)
+    c = np.full((log.t.size - 1, sim.nv), np.nan)
+    q[0] = log.q[0]
+    for k in range(log.t.size - 1):
+        qk, vk = data.qpos[sim.qpos], data.qvel[sim.dofs]
+        data.qacc[:] = 0.0
+        data.qacc[sim.dofs] = accel[k] + kd * (log.dq[k] - vk) + kp * (log.q[k] - qk)
+        mujoco.mj_inverse(model, data)
+        u = data.qfrc_inverse[sim.dofs].copy()
+        data.qfrc_applied[:] = 0.0
+        data.qfrc_applied[sim.dofs] = u
+        mujoco.mj_step(model, data)
+        if not np.all(np.isfinite(data.qpos)) or data.warning[
+                mujoco.mjtWarning.mjWARN_BADQACC].number > 0:
+            break
+        q[k + 1], c[k] = data.qpos[sim.qpos], u - log.tau[k]
+    return q, c
 
 
 def open_loop(sim: Simulator, log: LogGrid, window: float, threads: int = 1) -> np.ndarray:

@@ -24,13 +24,16 @@ from typing import Any, Mapping
 import numpy as np
 
 from ..data.dataset import Dataset
-from ..errors import OptionError
+from ..errors import OptionError, ResultFileError
+from ..filesafety import replacing
+from ..identification.persistence import decode, encode
+from ..identification.resultschema import read_document
 from ..report.html import Page
 from ..report.result import Reported
 from ..robot.model import RobotModel
 from .engine import Simulator, build_simulator, integrator_name
-from .options import RolloutOptions
-from .replay import LogGrid, closed_loop, open_loop
+from .options import INTEGRATORS, ComputedTorque, RolloutOptions
+from .replay import LogGrid, closed_loop_under, open_loop
 
 
 @dataclass(frozen=True, eq=False)
@@ -66,8 +69,10 @@ class RolloutValidation(Reported):
     replays : one :class:`Replay` per model, "before" first, "after" last.
     joint_names : the robot's joints.
     timestep, integrator, window : the simulator's step (s), integrator, open-loop window (s).
-    kp, kd : (nv,) the PD gains every model was replayed with.
+    kp, kd : (nv,) the closed-loop gains every model was replayed with (N·m/rad and
+        N·m·s/rad under PD; 1/s² and 1/s under computed torque).
     duration : seconds replayed.
+    controller : ``"PD"`` (the logged torque fed forward) or ``"computed torque"``.
     """
 
     replays: tuple[Replay, ...]
@@ -78,6 +83,7 @@ class RolloutValidation(Reported):
     kp: np.ndarray
     kd: np.ndarray
     duration: float
+    controller: str = "PD"
 
     @property
     def shrink(self) -> dict[str, float]:
@@ -99,7 +105,7 @@ class RolloutValidation(Reported):
 
     def summary(self) -> str:
         lines = [f"Rollout validation: {self.duration:.3g} s replayed at {self.timestep:g} s "
-                 f"{self.integrator}; closed loop under PD (mean K_p "
+                 f"{self.integrator}; closed loop under {self.controller} (mean K_p "
                  f"{np.mean(self.kp):.3g}), open loop reset every {self.window:g} s",
                  f"{'model':<22}{'q error mrad':>14}{'τ error N·m':>14}{'open loop mrad':>16}"]
         for r in self.table():
@@ -124,28 +130,109 @@ class RolloutValidation(Reported):
         return page
 
     def save(self, path: str | Path) -> Path:
-        """Write the figures as JSON (``*.json``); :meth:`load` reads them back."""
+        """Write the figures as JSON (``*.json``; non-finite numbers tagged as in result
+        files), atomically (:func:`consistid.filesafety.replacing`: never half-written);
+        :meth:`load` reads them back."""
         path = Path(path)
         if path.suffix.lower() != ".json":
             raise OptionError(f"save path {str(path)!r}: give a .json file")
-        doc = {"joint_names": list(self.joint_names), "timestep": self.timestep,
-               "integrator": self.integrator, "window": self.window, "kp": self.kp.tolist(),
-               "kd": self.kd.tolist(), "duration": self.duration,
+        doc = {"format": FORMAT, "joint_names": list(self.joint_names),
+               "timestep": self.timestep, "integrator": self.integrator,
+               "window": self.window, "kp": self.kp.tolist(), "kd": self.kd.tolist(),
+               "duration": self.duration, "controller": self.controller,
                "replays": [{"label": r.label, "q_error": r.q_error.tolist(),
                             "tau_error": r.tau_error.tolist(), "drift": r.drift.tolist(),
                             "drift_max": r.drift_max.tolist(), "diverged": r.diverged}
                            for r in self.replays]}
-        path.write_text(json.dumps(doc, indent=1, allow_nan=True), encoding="utf-8")
+        text = json.dumps(encode(doc), indent=1, allow_nan=False)
+        with replacing(path) as tmp:
+            tmp.write_text(text, encoding="utf-8")
         return path
 
     @classmethod
     def load(cls, path: str | Path) -> "RolloutValidation":
-        doc = json.loads(Path(path).read_text(encoding="utf-8"))
-        replays = tuple(Replay(r["label"], *(np.asarray(r[k], float) for k in
-                                              ("q_error", "tau_error", "drift", "drift_max")),
-                               bool(r["diverged"])) for r in doc["replays"])
-        return cls(replays, tuple(doc["joint_names"]), doc["timestep"], doc["integrator"],
-                   doc["window"], np.asarray(doc["kp"]), np.asarray(doc["kd"]), doc["duration"])
+        """Read :meth:`save`'s file back; :class:`~consistid.errors.ResultFileError` naming the
+        file and the field for one that is not (not JSON, beyond a result file's size and
+        nesting limits, a field missing or of another type, shape or sign)."""
+        path = Path(path)
+        doc = read_document(path, path.name)
+        try:
+            doc = decode(doc)
+        except (ValueError, TypeError, KeyError, AttributeError) as exc:
+            raise ResultFileError(f"{path.name}: a tagged value does not decode: {exc}") from exc
+        return validation_from_document(doc, path.name)
+
+
+#: The ``format`` of a saved :class:`RolloutValidation`.
+FORMAT = "consistid.rollout"
+#: Per-joint figures of a saved replay, and whether each may be NaN (a diverged replay's).
+_REPLAY_FIELDS = {"q_error": True, "tau_error": True, "drift": True, "drift_max": True}
+
+
+def validation_from_document(doc: Any, where: str) -> RolloutValidation:
+    """The :class:`RolloutValidation` of a decoded document, every field checked."""
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        raise ResultFileError(f"{where} is not a saved rollout validation (format "
+                              f"{FORMAT!r} missing)")
+    joints = _field(doc, "joint_names", list, where)
+    if not joints or not all(isinstance(j, str) and 0 < len(j) <= 1000 for j in joints):
+        raise ResultFileError(f"{where}: field 'joint_names' must list the joints' names")
+    nv = len(joints)
+    scalars = {k: _positive(doc, k, where) for k in ("timestep", "window", "duration")}
+    integrator = _field(doc, "integrator", str, where)
+    if integrator not in INTEGRATORS:
+        raise ResultFileError(f"{where}: field 'integrator' is {integrator!r:.40}, not one of "
+                              f"{INTEGRATORS}")
+    controller = _field(doc, "controller", str, where)
+    if controller not in ("PD", "computed torque"):
+        raise ResultFileError(f"{where}: field 'controller' is {controller!r:.40}, not 'PD' "
+                              "or 'computed torque'")
+    gains = [_vector(doc, k, nv, where, nan=False) for k in ("kp", "kd")]
+    replays = _field(doc, "replays", list, where)
+    if not replays:
+        raise ResultFileError(f"{where}: field 'replays' is empty")
+    out = []
+    for k, r in enumerate(replays):
+        at = f"{where}: replays[{k}]"
+        label = _field(r, "label", str, at)
+        arrays = [_vector(r, f, nv, at, nan=n) for f, n in _REPLAY_FIELDS.items()]
+        out.append(Replay(label, *arrays, _field(r, "diverged", bool, at)))
+    return RolloutValidation(tuple(out), tuple(joints), scalars["timestep"], integrator,
+                             scalars["window"], *gains, scalars["duration"], controller)
+
+
+def _field(doc: Any, key: str, kind: type | tuple[type, ...], where: str) -> Any:
+    if not isinstance(doc, dict) or key not in doc:
+        raise ResultFileError(f"{where}: field {key!r} is missing")
+    value = doc[key]
+    kinds = kind if isinstance(kind, tuple) else (kind,)
+    if not isinstance(value, kinds) or (isinstance(value, bool) and bool not in kinds):
+        raise ResultFileError(f"{where}: field {key!r} must be "
+                              f"{' or '.join(k.__name__ for k in kinds)}, got "
+                              f"{type(value).__name__}")
+    return value
+
+
+def _positive(doc: Any, key: str, where: str) -> float:
+    value = _field(doc, key, (int, float), where)
+    if isinstance(value, bool) or not (np.isfinite(value) and value > 0):
+        raise ResultFileError(f"{where}: field {key!r} is {value!r:.40}, expected a finite "
+                              "number > 0")
+    return float(value)
+
+
+def _vector(doc: Any, key: str, n: int, where: str, *, nan: bool) -> np.ndarray:
+    """Field ``key``: ``n`` numbers ≥ 0, finite (NaN allowed when ``nan``)."""
+    value = _field(doc, key, list, where)
+    ok = len(value) == n and all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                 for v in value)
+    arr = np.asarray(value, dtype=float) if ok else np.empty(0)
+    finite = np.isfinite(arr) | (nan & np.isnan(arr))
+    if not ok or not np.all(finite) or np.any(arr[np.isfinite(arr)] < 0):
+        raise ResultFileError(f"{where}: field {key!r} must hold {n} numbers ≥ 0 (one per "
+                              f"joint{', NaN where the replay diverged' if nan else ''}), got "
+                              f"{str(value):.60}")
+    return arr
 
 
 def simulator_of(source: Any, *, mjcf: str | Path | None, options: RolloutOptions
@@ -171,7 +258,8 @@ def simulator_of(source: Any, *, mjcf: str | Path | None, options: RolloutOption
 def replay_one(sim: Simulator, label: str, log: LogGrid, kp: np.ndarray, kd: np.ndarray,
                options: RolloutOptions) -> Replay:
     """One model's closed- and open-loop replay as a :class:`Replay`."""
-    closed = closed_loop(sim, [sim.mj_model], log, kp, kd, options.threads)
+    closed = closed_loop_under(options.controller, sim, [sim.mj_model], log, kp, kd,
+                               options.threads)
     drift = open_loop(sim, log, options.window, options.threads)
     per_window = np.sqrt(np.nanmean(drift ** 2, axis=1))
     diverged = bool(closed.diverged[0])
@@ -213,5 +301,6 @@ def validate_rollout(data: Dataset, models: Mapping[str, Any], *,
     kp, kd = options.controller.resolve(first.mass_diagonal(log.q[::stride]))
     replays = tuple(replay_one(sim, label, log, kp, kd, options) for label, sim in sims.items())
     integrator = integrator_name(int(first.mj_model.opt.integrator))
+    kind = "computed torque" if isinstance(options.controller, ComputedTorque) else "PD"
     return RolloutValidation(replays, first.joint_names, timestep, integrator, options.window,
-                             kp, kd, float(log.t[-1] - log.t[0]))
+                             kp, kd, float(log.t[-1] - log.t[0]), kind)
