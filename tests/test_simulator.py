@@ -168,6 +168,58 @@ def test_results_save_and_report(panda, truth, tmp_path):
         v.save(tmp_path / "rollout.txt")
 
 
+@pytest.mark.parametrize("edit, match", [
+    (lambda d: d.pop("kp"), "field 'kp' is missing"),
+    (lambda d: d.update(format="other"), "not a saved rollout validation"),
+    (lambda d: d.update(timestep=-0.002), "field 'timestep'"),
+    (lambda d: d.update(integrator="semi"), "field 'integrator'"),
+    (lambda d: d["replays"][0].update(q_error=[0.1, 0.2]), "field 'q_error' must hold 7"),
+    (lambda d: d["replays"][0].update(tau_error=[-1.0] * 7), "field 'tau_error'"),
+    (lambda d: d.update(kd=[{"__float__": "nan"}] * 7), "field 'kd'"),
+    (lambda d: d["replays"][1].update(diverged="no"), r"replays\[1\]: field 'diverged'"),
+    (lambda d: d.update(replays=[]), "'replays' is empty"),
+])
+def test_a_tampered_rollout_file_is_refused(panda, truth, tmp_path, edit, match):
+    import json
+
+    _, params, names, *_ = truth
+    log = _simulated_log(panda, params, names, 0.5, seed=8)
+    path = validate_rollout(log, {"nominal": panda, "truth": _Fixed(panda, params, names)}
+                            ).save(tmp_path / "rollout.json")
+    doc = json.loads(path.read_text())
+    edit(doc)
+    path.write_text(json.dumps(doc))
+    with pytest.raises(ci.ResultFileError, match=match):
+        ci.RolloutValidation.load(path)
+
+
+def test_a_rollout_file_that_is_not_json_is_refused(tmp_path):
+    path = tmp_path / "rollout.json"
+    path.write_bytes(b"\xff\xfe not json")
+    with pytest.raises(ci.ResultFileError, match="not a JSON file"):
+        ci.RolloutValidation.load(path)
+    with pytest.raises(ci.ResultFileError, match="does not exist"):
+        ci.RolloutValidation.load(tmp_path / "missing.json")
+
+
+def test_a_failed_save_leaves_the_old_file(panda, truth, tmp_path, monkeypatch):
+    _, params, names, *_ = truth
+    log = _simulated_log(panda, params, names, 0.5, seed=9)
+    v = validate_rollout(log, {"truth": _Fixed(panda, params, names)})
+    path = v.save(tmp_path / "rollout.json")
+    before = path.read_bytes()
+
+    def broken(self, *args, **kwargs):
+        Path.write_bytes(self, b'{"format": "consistid.rollout", "jo')    # half-written
+        raise OSError("disk full")
+
+    monkeypatch.setattr(Path, "write_text", broken)
+    with pytest.raises(OSError, match="disk full"):
+        v.save(path)
+    monkeypatch.undo()
+    assert path.read_bytes() == before and [p.name for p in tmp_path.iterdir()] == [path.name]
+
+
 @pytest.mark.parametrize("kwargs, match", [
     (dict(timestep=0.0), "RolloutOptions.timestep"),
     (dict(integrator="semi"), "RolloutOptions.integrator"),
