@@ -50,7 +50,7 @@ import mujoco
 import numpy as np
 
 from ..data.dataset import Dataset
-from ..errors import ModelMisfitWarning, OptionError, check_number
+from ..errors import ModelMisfitWarning, OptionError, PoorExcitationWarning, check_number
 from ..identification.statistics import autocorrelation_time
 from ..report.html import Page
 from ..robot.inertia import is_physically_consistent
@@ -58,13 +58,10 @@ from ..report.result import Reported
 from ..identification.regressor import RegressorSpec, regressor
 from .engine import Simulator, build_simulator, integrator_name, write_inertias
 from .logcholesky import from_log_cholesky, to_log_cholesky
+from .terms import LOWER, TERMS, TYPICAL, TermLayout, check_terms
 from .options import ComputedTorque, Controller, PDGains, RolloutOptions
 from .replay import LogGrid, closed_loop_under
 
-#: The simulator terms, per joint, in the order of the calibrated vector.
-TERMS = ("armature", "damping", "frictionloss")
-#: Typical magnitudes (kg·m², N·m·s/rad, N·m) that set the finite-difference steps.
-TYPICAL = {"armature": 0.05, "damping": 0.1, "frictionloss": 0.1}
 #: Typical magnitude of a log-Cholesky entry (sets its finite-difference step).
 TYPICAL_LOG_CHOLESKY = 0.1
 #: Relative finite-difference step.
@@ -80,7 +77,8 @@ class SimulatorCalibration(Reported):
     Attributes
     ----------
     result : the identification (its physical parameters, base σ: ``result.std``).
-    names : ``"<joint>.<term>"`` of each simulator parameter (``term`` in :data:`TERMS`).
+    names : ``"<joint>.<term>"`` of each simulator parameter (``term`` in
+        :data:`~.terms.ALL_TERMS`), and ``"delay"``.
     start, values, std : (p,) the physical starting values, the calibrated values and their σ.
     timestep, integrator : the simulator they were calibrated for.
     kp, kd : (nv,) the gains of the closed-loop replay (its ``controller``: ``"PD"`` or
@@ -93,6 +91,8 @@ class SimulatorCalibration(Reported):
         identification's unless refined; then propagated from the refinement, and given the
         closed-loop rows' whitening).
     refined : whether the inertias were refined (``refine_inertia=True``).
+    controller : the closed-loop replay's, ``"PD"`` or ``"computed torque"``.
+    uninformed : the simulator parameters the data did not inform, held at their start.
 
     The σ of the simulator terms are those of the output-error fit given the physical
     parameters (conditional on them unless ``refined``).
@@ -117,6 +117,7 @@ class SimulatorCalibration(Reported):
     base_std: np.ndarray
     refined: bool
     controller: str = "PD"
+    uninformed: tuple[str, ...] = ()
 
     @property
     def parameters(self) -> np.ndarray:
@@ -128,7 +129,7 @@ class SimulatorCalibration(Reported):
         key = {"Ia": "armature", "fv": "damping", "fc": "frictionloss"}
         for k, name in enumerate(r.parameter_names[r.model.n_inertial:], r.model.n_inertial):
             joint, _, term = name.rpartition(".")
-            if term in key and joint in r.model.joint_names:
+            if term in key and key[term] in self.layout.terms and joint in r.model.joint_names:
                 j = r.model.joint_names.index(joint)
                 own = float(r.model.pin_model.armature[j]) if term == "Ia" else 0.0
                 out[k] = self.term(key[term])[j] - own
@@ -158,18 +159,24 @@ class SimulatorCalibration(Reported):
         """The calibrated simulator parameters (``std`` are theirs)."""
         return self.values
 
+    @property
+    def layout(self) -> TermLayout:
+        """Where each calibrated term sits in :attr:`values`."""
+        return TermLayout.of_names(self.names, self.result.model.joint_names)
+
     def term(self, name: str) -> np.ndarray:
-        """(nv,) the calibrated values of one term of :data:`TERMS`."""
-        if name not in TERMS:
-            raise OptionError(f"term={name!r}; choose one of {TERMS}")
-        k = TERMS.index(name)
-        return self.values.reshape(len(TERMS), -1)[k]
+        """The calibrated values of one term: (nv,), or (1,) for ``"delay"``."""
+        return self.values[self.layout.slice(name)]
+
+    def term_std(self, name: str) -> np.ndarray:
+        """σ of :meth:`term`."""
+        return self.std[self.layout.slice(name)]
 
     @property
     def armature_offset(self) -> np.ndarray:
         """(nv,) calibrated minus physical armature: the integrator's share."""
-        k = TERMS.index("armature")
-        return (self.values - self.start).reshape(len(TERMS), -1)[k]
+        k = self.layout.slice("armature")
+        return self.values[k] - self.start[k]
 
     def simulator(self, *, mjcf: str | Path | None = None, timestep: float | None = None,
                   integrator: str | None = None) -> Simulator:
@@ -187,13 +194,18 @@ class SimulatorCalibration(Reported):
         params[:r.model.n_inertial] = self.inertial
         sim = build_simulator(r.model, params, r.parameter_names, mjcf=mjcf,
                               timestep=timestep, integrator=integrator)
-        v = self.values.reshape(len(TERMS), -1)
-        for field, row in zip(("dof_armature", "dof_damping", "dof_frictionloss"), v):
-            getattr(sim.mj_model, field)[sim.dofs] = row
-        return sim
+        layout = self.layout
+        for field, term in (("dof_armature", "armature"), ("dof_damping", "damping"),
+                            ("dof_frictionloss", "frictionloss")):
+            if term in layout.terms:
+                getattr(sim.mj_model, field)[sim.dofs] = self.term(term)
+        gain = self.term("gain") if "gain" in layout.terms else None
+        delay = float(self.term("delay")[0]) if "delay" in layout.terms else 0.0
+        return replace(sim, gain=gain, delay=delay)
 
     def table(self) -> list[dict[str, Any]]:
-        """One row per simulator parameter: physical start, calibrated value, σ."""
+        """One row per simulator parameter: physical start (gain 1, delay 0), calibrated value,
+        σ (given the inertias' uncertainty unless refined, :func:`_inertia_share`)."""
         return [{"parameter": n, "physical": s, "simulator": v, "std": d}
                 for n, s, v, d in zip(self.names, self.start, self.values, self.std)]
 
@@ -207,6 +219,9 @@ class SimulatorCalibration(Reported):
                  f"{len(self.base_parameters)} base parameters (base_parameters ± base_std), "
                  f"consistent: {self.is_consistent}",
                  f"{'simulator parameter':<30}{'physical':>12}{'simulator':>12}{'± σ':>12}"]
+        if self.uninformed:
+            lines.insert(3, "not informed by the data, held at their start: "
+                            + ", ".join(self.uninformed))
         lines += [f"{r['parameter']:<30}{r['physical']:>12.4g}{r['simulator']:>12.4g}"
                   f"{r['std']:>12.3g}" for r in self.table()]
         return "\n".join(lines)
@@ -239,7 +254,7 @@ class SimulatorCalibration(Reported):
                "message": self.message, "inertial": self.inertial.tolist(),
                "base_parameters": self.base_parameters.tolist(),
                "base_std": self.base_std.tolist(), "refined": self.refined,
-               "controller": self.controller}
+               "controller": self.controller, "uninformed": list(self.uninformed)}
         path.write_text(json.dumps(doc, indent=1), encoding="utf-8")
         return path
 
@@ -256,7 +271,8 @@ class SimulatorCalibration(Reported):
                    doc["timestep"], doc["integrator"], arr["kp"], arr["kd"], doc["cost_start"],
                    doc["cost"], doc["evaluations"], doc["seconds"], doc["message"],
                    arr["inertial"], arr["base_parameters"], arr["base_std"],
-                   bool(doc["refined"]), str(doc.get("controller", "PD")))
+                   bool(doc["refined"]), str(doc.get("controller", "PD")),
+                   tuple(doc.get("uninformed", ())))
 
 
 @dataclass(frozen=True)
@@ -292,36 +308,55 @@ class _Problem:
 
     def __init__(self, sim: Simulator, log: LogGrid, controller: Controller, kp: np.ndarray,
                  kd: np.ndarray, scale: np.ndarray, threads: int,
-                 prior: InertiaPrior | None) -> None:
+                 prior: InertiaPrior | None, layout: TermLayout) -> None:
         self.sim, self.log, self.kp, self.kd = sim, log, kp, kd
-        self.controller = controller
+        self.controller, self.layout = controller, layout
         self.scale, self.threads, self.prior = scale, threads, prior
         self.evaluations = 0
         n_bodies = 0 if prior is None else prior.estimate.size // 10
-        self.typical = np.concatenate([np.repeat([TYPICAL[t] for t in TERMS], sim.nv),
+        self.typical = np.concatenate([layout.per_entry(TYPICAL),
                                        np.full(10 * n_bodies, TYPICAL_LOG_CHOLESKY)])
-        self.lower = np.concatenate([np.zeros(3 * sim.nv), np.full(10 * n_bodies, -np.inf)])
+        self.lower = np.concatenate([layout.per_entry(LOWER), np.full(10 * n_bodies, -np.inf)])
         self.weight = 1.0             # 1/√τ of the closed-loop rows, set once τ is known
 
+    def start(self) -> np.ndarray:
+        """The terms' starting values: the simulator's own joint terms, gain 1, delay 0."""
+        own = self.sim.joint_terms()
+        return np.concatenate([own[t] if t in own else np.full(self.layout.size_of(t),
+                                                                 float(t == "gain"))
+                               for t in self.layout.terms])
+
     def inertial(self, x: np.ndarray) -> np.ndarray:
-        u = x[3 * self.sim.nv:]
+        u = x[self.layout.size:]
         return np.concatenate([from_log_cholesky(u[10 * b:10 * b + 10])
                                for b in range(u.size // 10)])
 
-    def models(self, xs: list[np.ndarray]) -> list[Any]:
-        nv, out = self.sim.nv, []
-        for x in xs:
-            m = self.sim.variant(x[:nv], x[nv:2 * nv], x[2 * nv:3 * nv])
-            if self.prior is not None:
-                write_inertias(self.sim, m, self.inertial(x))
+    def models(self, xs: list[np.ndarray], inertials: list[np.ndarray] | None = None
+               ) -> list[Any]:
+        """The candidate ``MjModel`` of each ``x`` (with ``inertials``, these inertias)."""
+        out, lay = [], self.layout
+        for k, x in enumerate(xs):
+            terms = {t: x[lay.slice(t)] for t in TERMS if t in lay.terms}
+            m = self.sim.variant(*(terms.get(t) for t in TERMS))
+            inertial = (inertials[k] if inertials is not None
+                        else self.inertial(x) if self.prior is not None else None)
+            if inertial is not None:
+                write_inertias(self.sim, m, inertial)
                 mujoco.mj_setConst(m, mujoco.MjData(m))
             out.append(m)
         return out
 
-    def residuals(self, xs: list[np.ndarray]) -> np.ndarray:
+    def actuation(self, x: np.ndarray) -> tuple[np.ndarray | None, float]:
+        lay = self.layout
+        return (x[lay.slice("gain")] if "gain" in lay.terms else None,
+                float(x[lay.slice("delay")][0]) if "delay" in lay.terms else 0.0)
+
+    def residuals(self, xs: list[np.ndarray], inertials: list[np.ndarray] | None = None
+                  ) -> np.ndarray:
         """(len(xs), rows) whitened corrections (and prior rows), one rollout batch."""
-        run = closed_loop_under(self.controller, self.sim, self.models(xs), self.log, self.kp,
-                                self.kd, self.threads)
+        run = closed_loop_under(self.controller, self.sim, self.models(xs, inertials),
+                                self.log, self.kp, self.kd, self.threads,
+                                [self.actuation(x) for x in xs])
         self.evaluations += len(xs)
         r = run.correction / self.scale
         r[run.diverged] = DIVERGED_RESIDUAL
@@ -341,7 +376,8 @@ class _Problem:
 def calibrate_simulator(result: Any, data: Dataset, mjcf: str | Path | None = None,
                         timestep: float = 0.002, integrator: str = "implicitfast",
                         controller: Controller | None = None, *, refine_inertia: bool = False,
-                        max_iterations: int = 10, threads: int = 1) -> SimulatorCalibration:
+                        terms: tuple[str, ...] = TERMS, max_iterations: int = 10,
+                        threads: int = 1) -> SimulatorCalibration:
     """Calibrate the simulator-only terms (module docstring) on top of ``result``.
 
     Parameters
@@ -360,6 +396,12 @@ def calibrate_simulator(result: Any, data: Dataset, mjcf: str | Path | None = No
         inverse-dynamics cost of moving them (:class:`InertiaPrior`): for short or poorly
         exciting runs, where the positions the robot reached tell more than the torques. Ten
         more rollouts per body and Jacobian.
+    terms : the simulator terms fitted (:mod:`.terms`): ``"armature"``, ``"damping"``,
+        ``"frictionloss"`` (default), ``"gain"`` (per joint) and ``"delay"`` (one; both under
+        the PD replay only). A term the data do not inform (its σ at the answer above its
+        typical magnitude, :data:`~.terms.TYPICAL`) is held at its start, the others fitted
+        again, and named in a :class:`~consistid.errors.PoorExcitationWarning` and in
+        ``uninformed``.
     max_iterations : Gauss–Newton iterations (Jacobians), ≥ 1.
     threads : threads of ``mujoco.rollout``.
 
@@ -374,6 +416,11 @@ def calibrate_simulator(result: Any, data: Dataset, mjcf: str | Path | None = No
                                             "sigma", "base")):
         raise OptionError(f"calibrate_simulator: result must be an IdentificationResult, got "
                           f"{type(result).__name__}")
+    terms = check_terms(terms)
+    if isinstance(options.controller, ComputedTorque) and {"gain", "delay"} & set(terms):
+        raise OptionError(f"terms={terms!r}: gain and delay act on the logged torque and are "
+                          "calibrated under the PD replay; give controller=PDGains(...) or "
+                          "leave them out of terms")
     started = time.perf_counter()
     sim = build_simulator(result.model, result.parameters, result.parameter_names, mjcf=mjcf,
                           timestep=options.timestep, integrator=options.integrator)
@@ -381,18 +428,28 @@ def calibrate_simulator(result: Any, data: Dataset, mjcf: str | Path | None = No
     kp, kd = options.controller.resolve(sim.mass_diagonal(log.q[::max(1, log.t.size // 50)]))
     scale = np.maximum(np.asarray(result.rms(data), dtype=float), 1e-6)
     prior = InertiaPrior.of(result, data) if refine_inertia else None
-    problem = _Problem(sim, log, options.controller, kp, kd, scale, options.threads, prior)
-    start = np.concatenate(list(sim.joint_terms().values()))
+    layout = TermLayout(terms, sim.nv)
+    problem = _Problem(sim, log, options.controller, kp, kd, scale, options.threads, prior,
+                       layout)
+    start = problem.start()
     x0 = start if prior is None else np.concatenate(
         [start, *(to_log_cholesky(prior.estimate[10 * b:10 * b + 10])
                   for b in range(prior.estimate.size // 10))])
     n_out = (log.t.size - 1) * sim.nv
     r0 = problem.residuals([x0])[0][:n_out]
     problem.weight, tau = _row_weight(r0, log, sim.nv)
+    n = layout.size
+    names = layout.names(sim.joint_names)
     fit = gauss_newton(problem, x0, max_iterations)
     cov = _covariance(fit.jac, n_out, float(np.mean(fit.fun[:n_out] ** 2)) * tau)
-    n = 3 * sim.nv
-    names = tuple(f"{j}.{t}" for t in TERMS for j in sim.joint_names)
+    held = _uninformed(np.sqrt(np.diag(cov))[:n], problem.typical[:n], names)
+    if held.size:                     # fit the others again with these at their start
+        x1 = fit.x.copy()
+        x1[held] = x0[held]
+        fit = gauss_newton(problem, x1, max_iterations, np.isin(np.arange(x0.size), held))
+        cov = _covariance(fit.jac, n_out, float(np.mean(fit.fun[:n_out] ** 2)) * tau)
+    if prior is None:
+        cov[:n, :n] += _inertia_share(result, problem, fit, n_out, held)
     inertial = problem.inertial(fit.x) if prior is not None else result.inertial_parameters
     base, base_std = _physical(result, problem, fit.x, cov)
     return SimulatorCalibration(result, names, start, fit.x[:n], np.sqrt(np.diag(cov))[:n],
@@ -403,7 +460,58 @@ def calibrate_simulator(result: Any, data: Dataset, mjcf: str | Path | None = No
                                 problem.evaluations, time.perf_counter() - started, fit.message,
                                 inertial, base, base_std, prior is not None,
                                 "computed torque" if isinstance(options.controller,
-                                                                ComputedTorque) else "PD")
+                                                                ComputedTorque) else "PD",
+                                tuple(names[k] for k in held))
+
+
+def _uninformed(std: np.ndarray, typical: np.ndarray, names: tuple[str, ...]) -> np.ndarray:
+    """Indices of the simulator terms the data do not inform: σ at the answer (every term
+    free, given the inertias) above the term's typical magnitude (:data:`~.terms.TYPICAL`);
+    named in a :class:`PoorExcitationWarning`."""
+    held = np.flatnonzero(~(std <= typical))
+    if held.size:
+        listed = ", ".join(f"{names[k]} (σ {std[k]:.3g} ≥ {typical[k]:g})" for k in held)
+        warnings.warn(f"calibrate_simulator: the data do not inform {listed}; held at their "
+                      "start values (the identification's, gain 1, delay 0) and listed in "
+                      ".uninformed: record a run that moves these joints (velocity reversals "
+                      "for frictionloss, changing torques for gain and delay) or leave them "
+                      "out of terms=", PoorExcitationWarning, stacklevel=3)
+    return held
+
+
+def _inertia_share(result: Any, problem: _Problem, fit: "Fit", n_out: int,
+                   held: np.ndarray) -> np.ndarray:
+    r"""The simulator terms' covariance due to the physical inertias' uncertainty.
+
+    The terms are fitted with the inertias ``π`` held at the identification's ``π̂``; their
+    answer moves with ``π`` as ``∂θ̂/∂π = −(J_θᵀJ_θ)⁻¹ J_θᵀ ∂r/∂π`` (implicit function
+    theorem at the minimum), so ``Cov θ ⊇ G Cov_π Gᵀ``. ``Cov_π = K⁺ Cov_β K⁺ᵀ`` is the
+    identified base covariance mapped to the inertial columns of the base map ``K`` (a
+    direction the data do not inform moves no torque and no rollout); ``∂r/∂π`` along each
+    of its principal directions by one more rollout each (one batch), a tenth of σ long.
+    Added to the conditional covariance as independent (the calibration data and the
+    identification's are often the same: then this errs on the wide side).
+    """
+    p = result.model.n_inertial
+    cov_beta = np.asarray(result.base_covariance, dtype=float)
+    k_inertial = np.linalg.pinv(np.asarray(result.base.matrix, dtype=float)[:, :p])
+    if not np.all(np.isfinite(cov_beta)):
+        return np.zeros((problem.layout.size,) * 2)
+    cov_pi = k_inertial @ cov_beta @ k_inertial.T
+    w, v = np.linalg.eigh(0.5 * (cov_pi + cov_pi.T))
+    keep = w > 1e-12 * max(w.max(), 1e-300)
+    directions = (v[:, keep] * np.sqrt(w[keep])).T            # one σ along each
+    pi = np.asarray(result.inertial_parameters, dtype=float)
+    eps = 0.1
+    rs = problem.residuals([fit.x] * (len(directions) + 1),
+                           [pi] + [pi + eps * d for d in directions])[:, :n_out]
+    sens = ((rs[1:] - rs[0]) / eps).T                          # (rows, directions)
+    n = problem.layout.size
+    free = np.setdiff1d(np.arange(n), held)
+    jac = fit.jac[:n_out][:, free]
+    g = np.zeros((n, len(directions)))
+    g[free] = -np.linalg.lstsq(jac, sens, rcond=None)[0]
+    return g @ g.T
 
 
 def _row_weight(r: np.ndarray, log: LogGrid, nv: int) -> tuple[float, float]:
@@ -437,7 +545,7 @@ def _physical(result: Any, problem: _Problem, x: np.ndarray, cov: np.ndarray
     with ``Cov β = K G Cov_u Gᵀ Kᵀ`` (``G = ∂π/∂u``, forward differences)."""
     if problem.prior is None:
         return np.asarray(result.base_parameters, float), np.asarray(result.std, float)
-    n, p = 3 * problem.sim.nv, result.model.n_inertial
+    n, p = problem.layout.size, result.model.n_inertial
     params = np.asarray(result.parameters, float).copy()
     params[:p] = problem.inertial(x)
     k = np.asarray(result.base.matrix, float)[:, :p]
@@ -469,8 +577,12 @@ STEP_LENGTHS = (1.0, 0.3, 0.1, 0.03)
 RELATIVE_DECREASE = 1e-4
 
 
-def gauss_newton(problem: _Problem, x0: np.ndarray, max_iterations: int) -> Fit:
-    r"""Bounded Gauss–Newton (``x ≥ problem.lower``) on ``problem``'s residual.
+def gauss_newton(problem: _Problem, x0: np.ndarray, max_iterations: int,
+                 fixed: np.ndarray | None = None,
+                 first: tuple[np.ndarray, np.ndarray] | None = None) -> Fit:
+    r"""Bounded Gauss–Newton (``x ≥ problem.lower``) on ``problem``'s residual, the variables
+    ``fixed`` (a mask) held at ``x0``; ``first``: the Jacobian and residual at ``x0`` when
+    already computed.
 
     Each iteration solves ``(JᵀJ + λ diag JᵀJ) δ = −Jᵀr`` over the free variables (a variable
     at its bound whose step points out of the box is held there, and the system solved again
@@ -480,12 +592,13 @@ def gauss_newton(problem: _Problem, x0: np.ndarray, max_iterations: int) -> Fit:
     *Numerical Optimization*, 2nd ed., §10.3, doi:10.1007/978-0-387-40065-5).
     """
     lower = problem.lower
+    fixed = np.zeros(x0.size, dtype=bool) if fixed is None else fixed
     x, lam = np.maximum(x0, lower), 1e-2
-    jac, r = problem.jac_and_fun(x)
+    jac, r = first if first is not None and np.all(x == x0) else problem.jac_and_fun(x)
     cost = float(r @ r)
     message = f"stopped after {max_iterations} iterations (max_iterations)"
     for _ in range(max_iterations):
-        step = _step(jac, r, x <= lower, lam)
+        step = _step(jac, r, x <= lower, lam, fixed)
         xs = [np.maximum(x + a * step, lower) for a in STEP_LENGTHS]
         rs = problem.residuals(xs)
         costs = np.einsum("ij,ij->i", rs, rs)
@@ -506,11 +619,12 @@ def gauss_newton(problem: _Problem, x0: np.ndarray, max_iterations: int) -> Fit:
     return Fit(x, r, jac, message)
 
 
-def _step(jac: np.ndarray, r: np.ndarray, at_bound: np.ndarray, lam: float) -> np.ndarray:
+def _step(jac: np.ndarray, r: np.ndarray, at_bound: np.ndarray, lam: float,
+          fixed: np.ndarray) -> np.ndarray:
     """The damped Gauss–Newton step with the lower bounds as an active set (``at_bound``: the
-    variables on theirs)."""
+    variables on theirs), zero for the ``fixed`` ones."""
     a, g = jac.T @ jac, jac.T @ r
-    free = np.ones(at_bound.size, dtype=bool)
+    free = ~fixed
     step = np.zeros(at_bound.size)
     for _ in range(2):
         sub = a[np.ix_(free, free)]

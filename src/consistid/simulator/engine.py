@@ -52,12 +52,16 @@ class Simulator:
     mj_model : ``mujoco.MjModel`` with one PD actuator per robot joint (actuators ``0..nv-1``).
     dofs, qpos : (nv,) MuJoCo dof and ``qpos`` index of each robot joint (joint order).
     joint_names : the robot's joints.
+    gain, delay : the actuation of a commanded torque ``τ``: the joints receive
+        ``gain ⊙ τ(t − delay)`` ((nv,), s; :mod:`.terms`); ``None``, 0: as commanded.
     """
 
     mj_model: Any
     dofs: np.ndarray
     qpos: np.ndarray
     joint_names: tuple[str, ...]
+    gain: np.ndarray | None = None
+    delay: float = 0.0
 
     @property
     def nv(self) -> int:

@@ -26,6 +26,11 @@ torque loop applies it). Two replays:
   window. Open-loop replays of an arm under gravity diverge without feedback; the window keeps
   the measure finite and comparable.
 
+Every replay applies the simulator's actuation to a commanded torque ``τ`` (the logged one,
+or the computed torque): the joint receives ``g ⊙ τ(t − δ)`` (:func:`actuated`; gain ``g`` and
+delay ``δ`` of :mod:`.terms`, 1 and 0 unless calibrated), ``τ`` interpolated linearly between
+grid points and held at its first value before the log starts.
+
 A rollout that diverges (a non-finite state, MuJoCo's ``BADQACC`` reset, or a tracking error
 beyond :data:`DIVERGED` rad) is flagged rather than raised, so that one bad candidate does not
 abort a calibration (unlike ``mujoco.sysid`` 4.0.0).
@@ -77,6 +82,17 @@ class LogGrid:
         return cls(t, q, dq, np.asarray(data.tau, dtype=float)[held])
 
 
+def actuated(tau: np.ndarray, timestep: float, gain: np.ndarray | None,
+             delay: float) -> np.ndarray:
+    """``g ⊙ τ(t − δ)`` of a torque ``tau`` (S, nv) on a grid of step ``timestep`` (module
+    docstring)."""
+    out = tau
+    if delay > 0.0:
+        s = np.arange(tau.shape[0]) - delay / timestep
+        out = np.column_stack([np.interp(s, np.arange(tau.shape[0]), c) for c in tau.T])
+    return out if gain is None else out * gain
+
+
 def _rollout(models: Sequence[Any], sim: Simulator, states: np.ndarray, controls: np.ndarray,
              threads: int) -> np.ndarray:
     """``mujoco.rollout`` of ``models`` (one per batch row) from ``states`` under ``controls``
@@ -113,16 +129,22 @@ class ClosedLoop:
 
 
 def closed_loop(sim: Simulator, models: Sequence[Any], log: LogGrid, kp: np.ndarray,
-                kd: np.ndarray, threads: int = 1) -> ClosedLoop:
+                kd: np.ndarray, threads: int = 1,
+                actuation: Sequence[tuple[np.ndarray | None, float]] | None = None
+                ) -> ClosedLoop:
     """Closed-loop replay (module docstring) of each of ``models`` (variants of ``sim``'s,
-    copied with the gains, :meth:`Simulator.with_gains`), one ``mujoco.rollout`` call."""
+    copied with the gains, :meth:`Simulator.with_gains`), one ``mujoco.rollout`` call;
+    ``actuation``: ``(gain, delay)`` per model (default ``sim``'s)."""
     models = [sim.with_gains(m, kp, kd) for m in models]
+    actuation = actuation or [(sim.gain, sim.delay)] * len(models)
     a = int(sim.implicit)
     steps = log.t.size - 1
+    h = float(sim.mj_model.opt.timestep)
     ref = log.q[:-1] + (kd / kp) * log.dq[a:steps + a]
-    controls = _controls(sim, ref, log.tau[:-1])
+    controls = np.stack([_controls(sim, ref, actuated(log.tau, h, g, d)[:-1])
+                         for g, d in actuation])
     start = sim.initial_state(log.q[0], log.dq[0])
-    states = _rollout(models, sim, np.tile(start, (len(models), 1)), controls[None], threads)
+    states = _rollout(models, sim, np.tile(start, (len(models), 1)), controls, threads)
     q, dq = _positions(sim, states)
     q0 = np.broadcast_to(log.q[0], (len(models), 1, sim.nv))
     dq0 = np.broadcast_to(log.dq[0], (len(models), 1, sim.nv))
@@ -137,13 +159,14 @@ def closed_loop(sim: Simulator, models: Sequence[Any], log: LogGrid, kp: np.ndar
 
 
 def closed_loop_under(controller: Controller, sim: Simulator, models: Sequence[Any],
-                      log: LogGrid, kp: np.ndarray, kd: np.ndarray,
-                      threads: int = 1) -> ClosedLoop:
-    """The closed-loop replay of ``controller``'s kind: :func:`computed_torque` or the PD's
-    :func:`closed_loop`."""
+                      log: LogGrid, kp: np.ndarray, kd: np.ndarray, threads: int = 1,
+                      actuation: Sequence[tuple[np.ndarray | None, float]] | None = None
+                      ) -> ClosedLoop:
+    """The closed-loop replay of ``controller``'s kind: :func:`computed_torque` (with
+    ``sim``'s actuation) or the PD's :func:`closed_loop` (with ``actuation`` per model)."""
     if isinstance(controller, ComputedTorque):
         return computed_torque(sim, models, log, kp, kd)
-    return closed_loop(sim, models, log, kp, kd, threads)
+    return closed_loop(sim, models, log, kp, kd, threads, actuation)
 
 
 def computed_torque(sim: Simulator, models: Sequence[Any], log: LogGrid, kp: np.ndarray,
@@ -177,21 +200,34 @@ def _track(sim: Simulator, model: Any, log: LogGrid, accel: np.ndarray, kp: np.n
     data.qpos[sim.qpos], data.qvel[sim.dofs] = log.q[0], log.dq[0]
     q = np.full((log.t.size, sim.nv), np.nan)
     c = np.full((log.t.size - 1, sim.nv), np.nan)
+    u_all = np.zeros_like(c)
+    lag = sim.delay / float(model.opt.timestep)
     q[0] = log.q[0]
     for k in range(log.t.size - 1):
         qk, vk = data.qpos[sim.qpos], data.qvel[sim.dofs]
         data.qacc[:] = 0.0
         data.qacc[sim.dofs] = accel[k] + kd * (log.dq[k] - vk) + kp * (log.q[k] - qk)
         mujoco.mj_inverse(model, data)
-        u = data.qfrc_inverse[sim.dofs].copy()
+        u = u_all[k] = data.qfrc_inverse[sim.dofs]
         data.qfrc_applied[:] = 0.0
-        data.qfrc_applied[sim.dofs] = u
+        data.qfrc_applied[sim.dofs] = _lagged(u_all, k, lag) * (1.0 if sim.gain is None
+                                                                else sim.gain)
         mujoco.mj_step(model, data)
         if not np.all(np.isfinite(data.qpos)) or data.warning[
                 mujoco.mjtWarning.mjWARN_BADQACC].number > 0:
             break
         q[k + 1], c[k] = data.qpos[sim.qpos], u - log.tau[k]
     return q, c
+
+
+def _lagged(u: np.ndarray, k: int, lag: float) -> np.ndarray:
+    """``u`` at step ``k − lag`` (linear between steps, ``u[0]`` before the start)."""
+    if lag <= 0.0:
+        return u[k]
+    s = max(k - lag, 0.0)
+    m = int(np.floor(s))
+    f = s - m
+    return (1.0 - f) * u[m] + f * u[min(m + 1, k)]
 
 
 def open_loop(sim: Simulator, log: LogGrid, window: float, threads: int = 1) -> np.ndarray:
@@ -202,7 +238,8 @@ def open_loop(sim: Simulator, log: LogGrid, window: float, threads: int = 1) -> 
     if starts.size == 0:
         starts, steps = np.array([0]), log.t.size - 1
     m = sim.with_gains(sim.mj_model, np.zeros(sim.nv), np.zeros(sim.nv))   # no feedback
-    controls = np.stack([_controls(sim, np.zeros((steps, sim.nv)), log.tau[k:k + steps])
+    tau = actuated(log.tau, float(sim.mj_model.opt.timestep), sim.gain, sim.delay)
+    controls = np.stack([_controls(sim, np.zeros((steps, sim.nv)), tau[k:k + steps])
                          for k in starts])
     states = np.stack([sim.initial_state(log.q[k], log.dq[k]) for k in starts])
     out = _rollout([m] * starts.size, sim, states, controls, threads)
