@@ -279,6 +279,8 @@ def test_cli_rollout_under_computed_torque(tmp_path, capsys):
     assert "closed loop under computed torque (mean K_p 100)" in capsys.readouterr().out
     assert main(["rollout", _config(tmp_path, 'controller = "lqr"')]) == 2
     assert "[rollout] controller = 'lqr'" in capsys.readouterr().err
+    assert main(["rollout", _config(tmp_path, 'calibrate = true\nterms = ["mass"]')]) == 2
+    assert "[rollout] terms = ['mass']" in capsys.readouterr().err
 
 
 def test_cli_rollout_names_a_bad_key_in_toml(tmp_path, capsys):

@@ -11,6 +11,7 @@ The ``[model]``, ``[data]`` and ``[identify]`` tables as for ``consistid identif
     bandwidth = 20.0            # rad/s of the controller (or kp = [...], kd = [...] per joint)
     damping_ratio = 1.0
     calibrate = true            # also calibrate_simulator on the training logs
+    terms = ["armature", "damping", "frictionloss"]  # … of these ("gain", "delay" too)
     refine_inertia = false      # … and refine the inertias by output error
     output = "rollout.html"     # report (optional)
 
@@ -30,15 +31,17 @@ from ..errors import ConfigError
 from ..identification.identify import identify
 from ..simulator import (ComputedTorque, PDGains, RolloutOptions, calibrate_simulator,
                          validate_rollout)
+from ..simulator.terms import ALL_TERMS, TERMS
 from .config import (RunConfig, config_identify, config_inputs, config_model,
                      config_recordings, load_config)
 from .files import atomic_path, check_output
 
 #: Keys of the ``[rollout]`` table.
 ROLLOUT_KEYS = ("mjcf", "timestep", "integrator", "window", "controller", "bandwidth",
-                "damping_ratio", "kp", "kd", "calibrate", "refine_inertia", "output", "threads")
-_KINDS = {"mjcf": "string", "controller": "string", "timestep": "number",
-          "integrator": "string", "window": "number",
+                "damping_ratio", "kp", "kd", "calibrate", "terms", "refine_inertia", "output",
+                "threads")
+_KINDS = {"mjcf": "string", "controller": "string", "terms": "array of strings",
+          "timestep": "number", "integrator": "string", "window": "number",
           "bandwidth": "number", "damping_ratio": "number", "kp": "array of numbers",
           "kd": "array of numbers", "calibrate": "boolean", "refine_inertia": "boolean",
           "output": "string", "threads": "integer"}
@@ -73,6 +76,10 @@ def run_rollout(config_path: str, *, output: str | None = None, force: bool = Fa
     model = config_model(config)
     table = config.table("rollout", ROLLOUT_KEYS, required=False)
     options = rollout_options(config, table)
+    terms = tuple(table.get("terms", TERMS))
+    if set(terms) - set(ALL_TERMS) or not terms or len(set(terms)) != len(terms):
+        raise ConfigError(f"{config.path.name}: [rollout] terms = {list(terms)}; give distinct "
+                          f"terms among {list(ALL_TERMS)}")
     mjcf = config.resolve(table["mjcf"]) if "mjcf" in table else None
     if mjcf is not None and not mjcf.is_file():
         raise ConfigError(f"{config.path.name}: [rollout] mjcf = {table['mjcf']!r} does not "
@@ -96,6 +103,7 @@ def run_rollout(config_path: str, *, output: str | None = None, force: bool = Fa
                                   integrator=options.integrator or "implicitfast",
                                   controller=options.controller,
                                   refine_inertia=table.get("refine_inertia", False),
+                                  terms=terms,
                                   threads=options.threads)
         log(cal.summary())
         models["calibrated"] = cal

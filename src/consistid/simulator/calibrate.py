@@ -496,6 +496,10 @@ def _inertia_share(result: Any, problem: _Problem, fit: "Fit", n_out: int,
     cov_beta = np.asarray(result.base_covariance, dtype=float)
     k_inertial = np.linalg.pinv(np.asarray(result.base.matrix, dtype=float)[:, :p])
     if not np.all(np.isfinite(cov_beta)):
+        warnings.warn("calibrate_simulator: the identification's base covariance is not finite "
+                      "(a direction its data did not inform); the σ of the simulator terms are "
+                      "conditional on the inertias (refine_inertia=True fits them jointly)",
+                      PoorExcitationWarning, stacklevel=3)
         return np.zeros((problem.layout.size,) * 2)
     cov_pi = k_inertial @ cov_beta @ k_inertial.T
     w, v = np.linalg.eigh(0.5 * (cov_pi + cov_pi.T))
