@@ -159,6 +159,9 @@ def test_calibration_recovers_armature_and_damping(panda, truth):
     assert np.allclose(got_a[2:], armature[2:], rtol=0.1, atol=4e-3), (got_a, armature)
     assert np.allclose(got_d, damping, rtol=0.1, atol=0.03), (got_d, damping)
     assert np.all(np.abs(cal.term("frictionloss")) < 0.05)     # none was simulated
+    # σ cover the truth (the inertias' uncertainty in them, joints 3… as above)
+    assert np.all(np.abs(got_a[2:] - armature[2:]) < 3 * cal.term_std("armature")[2:])
+    assert np.all(np.abs(got_d - damping) < 3 * cal.term_std("damping"))
 
 
 def test_results_save_and_report(panda, truth, tmp_path):

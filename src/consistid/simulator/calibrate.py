@@ -50,6 +50,7 @@ import mujoco
 import numpy as np
 
 from ..data.dataset import Dataset
+from ..filesafety import replacing
 from ..errors import ModelMisfitWarning, OptionError, PoorExcitationWarning, check_number
 from ..identification.statistics import autocorrelation_time
 from ..report.html import Page
@@ -241,7 +242,7 @@ class SimulatorCalibration(Reported):
 
     def save(self, path: str | Path) -> Path:
         """The calibrated terms as JSON (``*.json``; the identification is saved on its own,
-        ``result.save``)."""
+        ``result.save``), written atomically."""
         path = Path(path)
         if path.suffix.lower() != ".json":
             raise OptionError(f"save path {str(path)!r}: give a .json file")
@@ -255,7 +256,9 @@ class SimulatorCalibration(Reported):
                "base_parameters": self.base_parameters.tolist(),
                "base_std": self.base_std.tolist(), "refined": self.refined,
                "controller": self.controller, "uninformed": list(self.uninformed)}
-        path.write_text(json.dumps(doc, indent=1), encoding="utf-8")
+        text = json.dumps(doc, indent=1)
+        with replacing(path) as tmp:                # never a half-written file
+            tmp.write_text(text, encoding="utf-8")
         return path
 
     @classmethod
