@@ -335,7 +335,7 @@ def test_a_diagnosis_carries_the_rollout(panda, truth, tmp_path):
         np.testing.assert_array_equal(a.q_error, b.q_error)
 
 
-def test_computed_torque_replays_with_the_model_under_test(panda, truth):
+def test_computed_torque_replays_with_the_model_under_test(panda, truth, tmp_path):
     """Under computed torque every model follows the log (its own inverse dynamics linearises
     it exactly); the model shows in the torque it commands: none beyond the log for the truth,
     the identification's between the truth's and the nominal's."""
@@ -358,6 +358,11 @@ def test_computed_torque_replays_with_the_model_under_test(panda, truth):
                                  "truth": _Fixed(panda, params, names)})
     q = [r.row()["q_error_mrad"] for r in pd.replays]
     assert q[2] < 1e-6 < q[1] < q[0]
+    # through the user's MJCF (nominal inertias in the file, the truth's put in memory)
+    path = write_mjcf(panda, tmp_path / "robot.xml")
+    own = validate_rollout(held, {"truth": _Fixed(panda, params, names)}, mjcf=path,
+                           options=RolloutOptions(controller=ComputedTorque()))
+    assert np.all(own.replays[0].tau_error < 1e-9) and np.all(own.replays[0].q_error < 1e-9)
 
 
 def test_calibration_under_computed_torque_recovers_damping(panda, truth):
@@ -420,3 +425,27 @@ def test_gain_and_delay_are_refused_under_computed_torque(panda, truth):
         calibrate_simulator(res, log, controller=ComputedTorque(), terms=("armature", "gain"))
     with pytest.raises(ci.OptionError, match="terms="):
         calibrate_simulator(res, log, terms=("armature", "mass"))
+
+
+def test_the_actuation_applies_gain_and_delay(panda, truth):
+    """``actuated`` is a shift by whole steps and a scaling (closed form); under computed
+    torque through a drive of gain 2 the model commands half the logged torque and still
+    tracks; a 4 ms delay in it is followed by the lagged command."""
+    from consistid.simulator.engine import build_simulator
+    from consistid.simulator.replay import LogGrid, actuated, computed_torque
+
+    tau = np.arange(12.0).reshape(6, 2)
+    got = actuated(tau, 0.002, np.array([2.0, 0.5]), 0.004)
+    want = np.vstack([tau[:1], tau[:1], tau[:4]]) * [2.0, 0.5]
+    np.testing.assert_allclose(got, want)
+    _, params, names, *_ = truth
+    log = LogGrid.from_dataset(_computed_torque_log(panda, params, names, 0.4, seed=14), H)
+    sim = build_simulator(panda, params, names, timestep=H, integrator="implicitfast")
+    kp, kd = ComputedTorque().resolve(np.ones(panda.nv))
+    doubled = dataclasses.replace(sim, gain=np.full(panda.nv, 2.0))
+    run = computed_torque(doubled, [doubled.mj_model], log, kp, kd)
+    assert np.nanmax(np.abs(run.error)) < 1e-9
+    np.testing.assert_allclose(run.correction[0], -0.5 * log.tau[:-1], atol=1e-8)
+    late = dataclasses.replace(sim, delay=2 * H)
+    run = computed_torque(late, [late.mj_model], log, kp, kd)
+    assert not run.diverged[0] and np.nanmax(np.abs(run.error)) > 1e-6   # the lag is felt

@@ -19,8 +19,10 @@ torque loop applies it). Two replays:
   ``a_{log,k} = (q̇_{log,k+1} − q̇_{log,k}) / h`` the log's acceleration over the step (so that a
   log that is a MuJoCo run at this step is followed exactly, whatever its filter's ``q̈``);
   reported are ``e_k`` and ``c_k = u_k − τ_{log,k}``, the torque the model commands beyond the
-  logged one. One ``mj_inverse`` and one ``mj_step`` per step and model (no batch: the control
-  depends on the state);
+  logged one. The model's inverse includes its drive gain (``u = ID / g``, so that the joint
+  receives ``ID``), not its delay (the command is applied late, as a real one would be). One
+  ``mj_inverse`` and one ``mj_step`` per step and model (no batch: the control depends on the
+  state);
 * **open loop** (:func:`open_loop`): the logged torque alone, the state reset to the logged
   one every ``W`` seconds (windows run as one batch); reported is the drift ``q − q_log`` per
   window. Open-loop replays of an arm under gravity diverge without feedback; the window keeps
@@ -202,16 +204,16 @@ def _track(sim: Simulator, model: Any, log: LogGrid, accel: np.ndarray, kp: np.n
     c = np.full((log.t.size - 1, sim.nv), np.nan)
     u_all = np.zeros_like(c)
     lag = sim.delay / float(model.opt.timestep)
+    gain = np.ones(sim.nv) if sim.gain is None else sim.gain
     q[0] = log.q[0]
     for k in range(log.t.size - 1):
         qk, vk = data.qpos[sim.qpos], data.qvel[sim.dofs]
         data.qacc[:] = 0.0
         data.qacc[sim.dofs] = accel[k] + kd * (log.dq[k] - vk) + kp * (log.q[k] - qk)
         mujoco.mj_inverse(model, data)
-        u = u_all[k] = data.qfrc_inverse[sim.dofs]
+        u = u_all[k] = data.qfrc_inverse[sim.dofs] / gain
         data.qfrc_applied[:] = 0.0
-        data.qfrc_applied[sim.dofs] = _lagged(u_all, k, lag) * (1.0 if sim.gain is None
-                                                                else sim.gain)
+        data.qfrc_applied[sim.dofs] = gain * _lagged(u_all, k, lag)
         mujoco.mj_step(model, data)
         if not np.all(np.isfinite(data.qpos)) or data.warning[
                 mujoco.mjtWarning.mjWARN_BADQACC].number > 0:
