@@ -449,3 +449,43 @@ def test_the_actuation_applies_gain_and_delay(panda, truth):
     late = dataclasses.replace(sim, delay=2 * H)
     run = computed_torque(late, [late.mj_model], log, kp, kd)
     assert not run.diverged[0] and np.nanmax(np.abs(run.error)) > 1e-6   # the lag is felt
+
+
+_JSON = st.recursive(st.none() | st.booleans() | st.integers(-10, 10) | st.floats()
+                     | st.text(max_size=5),
+                     lambda inner: st.lists(inner, max_size=8)
+                     | st.dictionaries(st.text(max_size=5), inner, max_size=3), max_leaves=12)
+
+
+@settings(max_examples=80, deadline=None)
+@given(key=st.sampled_from(["format", "joint_names", "timestep", "integrator", "window", "kp",
+                            "kd", "duration", "controller", "replays", "replays.0.q_error",
+                            "replays.0.label", "replays.1.diverged", "replays.1.drift_max"]),
+       value=_JSON)
+def test_a_fuzzed_rollout_file_loads_or_is_refused_by_name(key, value):
+    """Any JSON value in any field: a RolloutValidation or a ResultFileError, nothing else."""
+    import json
+    import tempfile
+
+    from consistid.simulator.rollout import Replay, RolloutValidation
+
+    nv = 2
+    replays = tuple(Replay(label, np.full(nv, 1e-3), np.full(nv, 0.1), np.full(nv, 2e-3),
+                           np.full(nv, 3e-3), False) for label in ("nominal", "identified"))
+    v = RolloutValidation(replays, ("j1", "j2"), 0.002, "implicitfast", 1.0, np.ones(nv),
+                          np.ones(nv), 2.0)
+    with tempfile.TemporaryDirectory() as folder:
+        path = v.save(Path(folder) / "rollout.json")
+        doc = json.loads(path.read_text())
+        *parents, last = key.split(".")
+        target = doc
+        for p in parents:
+            target = target[int(p)] if p.isdigit() else target[p]
+        target[int(last) if last.isdigit() else last] = value
+        path.write_text(json.dumps(doc))
+        try:
+            back = RolloutValidation.load(path)
+        except ci.ResultFileError:
+            return
+        assert isinstance(back, RolloutValidation) and len(back.replays) >= 1
+        assert all(r.q_error.shape == (len(back.joint_names),) for r in back.replays)
