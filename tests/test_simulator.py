@@ -367,14 +367,14 @@ def test_computed_torque_replays_with_the_model_under_test(panda, truth, tmp_pat
 
 def test_calibration_under_computed_torque_recovers_damping(panda, truth):
     _, params, names, armature, damping = truth
-    log = _computed_torque_log(panda, params, names, 2.0, seed=13, noise=0.02)
+    log = _computed_torque_log(panda, params, names, 1.2, seed=13, noise=0.02)
     res = ci.identify(panda, log, method="sdp", friction=("viscous",), armature=True)
     start = res.parameters.copy()
     for k, n in enumerate(res.parameter_names):
         if n.endswith(".fv"):
             start[k] = 0.0
     cal = calibrate_simulator(dataclasses.replace(res, parameters=start), log,
-                              controller=ComputedTorque(), max_iterations=4)
+                              controller=ComputedTorque(), max_iterations=3)
     assert cal.controller == "computed torque" and cal.cost < 0.1 * cal.cost_start
     assert np.allclose(cal.term("damping"), damping, rtol=0.1, atol=0.03)
     assert np.allclose(cal.term("armature")[2:], armature[2:], rtol=0.1, atol=4e-3)
