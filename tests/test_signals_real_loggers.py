@@ -6,7 +6,6 @@ import warnings
 
 import numpy as np
 import pytest
-import scipy.signal
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -14,38 +13,18 @@ import consistid as ci
 from consistid.data import filters, signals
 from consistid.data.chain import run_chain
 from consistid.excitation import FourierTrajectory
-from consistid.simulate import Effects, record
-
-
-def burst_stamps(n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """Samples taken every 1 ms, stamped on arrival after a delay of 0–4 ms and at least 0.5 ms
-    after the stamp before (a logger that writes in bursts): ``(true times, stamps)``, steps
-    0.5 to ~5 ms."""
-    t = np.arange(n) * 1e-3
-    arrival = t + rng.uniform(0.0, 4e-3, n)
-    stamps = np.empty(n)
-    stamps[0] = arrival[0]
-    for k in range(1, n):
-        stamps[k] = max(stamps[k - 1] + 0.5e-3, arrival[k])
-    return t, stamps
+from consistid.simulate import Effects, jittered_log, record
 
 
 def slow_joint_log(robot: str, seed: int, noise: str):
-    """A 30 s log of a 5-harmonic excitation (band ``harmonics / period``) stamped in bursts, the
-    last joint moving 2 % of its range, position noise white or AR(1) (φ = 0.95) of 2e-4 rad and
-    17-bit encoder counts."""
+    """A 30 s log of a 5-harmonic excitation (band ``harmonics / period``) stamped in bursts
+    (steps 0.5 to ~5 ms), the last joint moving 2 % of its range, position noise white or AR(1)
+    (φ = 0.95) of 2e-4 rad and 17-bit encoder counts (:func:`consistid.simulate.jittered_log`)."""
     rng = np.random.default_rng(seed)
     model = ci.RobotModel.example(robot)
     period = float(rng.choice([4.0, 10.0]))
     traj = FourierTrajectory.random(model, 5, period, seed=seed)
-    t, stamps = burst_stamps(30000, rng)
-    q = traj.evaluate(t)[0]
-    q[:, -1] = q[:, -1].mean() + 0.02 * (q[:, -1] - q[:, -1].mean())
-    e = 2e-4 * rng.standard_normal(q.shape)
-    if noise == "ar1":
-        e = scipy.signal.lfilter([np.sqrt(1 - 0.95 ** 2)], [1.0, -0.95], e, axis=0)
-    count = 2 * np.pi / 2 ** 17
-    q = np.round((q + e) / count) * count
+    _, stamps, q = jittered_log(traj, rng, noise)
     return stamps, q, 5 / period
 
 

@@ -19,21 +19,16 @@ chain, in order (each step appears in the record when it did something):
    before and after it is a step (Coulomb friction reversing), kept
    (:func:`~consistid.data.filters.hampel`); torque samples a logger repeated while the joint
    moved are bridged (:func:`~consistid.data.filters.stuck_samples`);
-3. **cut-off**: the positions' ``cutoff`` given, or ``min(10 × bandwidth, 0.4 × rate)``, and
-   the torques' ``torque_cutoff`` given, or ``min(10 × bandwidth, 0.4 × rate)`` and never
-   below the positions', with the bandwidth given or estimated from the positions of the
-   longest stretch (on the uniform grid, linearly interpolated), from the part of their
-   spectrum that stands above its noise (:func:`~consistid.data.filters.estimate_bandwidth`:
-   the error of jittered stamps, sensor noise and encoder counts are not motion). Given both
-   ``cutoff`` (below 10 × the band) and ``bandwidth``, the torques keep 10 × the band: the
-   torque, nonlinear in the motion, has harmonics beyond the positions' band that the
-   regressor of the filtered positions keeps (:mod:`consistid.data.filters`). A ``cutoff``
-   given without a ``bandwidth`` applies to both, as it always did;
+3. **cut-off**: given, or ``min(10 × bandwidth, 0.4 × rate)`` with the bandwidth given or
+   estimated from the positions of the longest stretch (on the uniform grid, linearly
+   interpolated), from the part of their spectrum that stands above its noise
+   (:func:`~consistid.data.filters.estimate_bandwidth`: the error of jittered stamps, sensor
+   noise and encoder counts are not motion);
 4. **gaps**: a step longer than the gap limit splits the log into *segments*, which the filters
    never cross. By default the limit is the larger of ``5`` median steps and half a period of
-   the torques' cut-off (:data:`GAP_CUTOFF_PERIODS`): a shorter step is bridged by the cubic
-   spline, whose second-derivative error across a step ``h`` at the excitation bandwidth
-   ``f_b = f_τ/10`` is about ``(2π f_b h)²/12 ≤ 0.8 %`` there (de Boor 2001, ch. V), and the
+   the cut-off (:data:`GAP_CUTOFF_PERIODS`): a shorter step is bridged by the cubic spline,
+   whose second-derivative error across a step ``h`` at the excitation bandwidth
+   ``f_b = f_c/10`` is about ``(2π f_b h)²/12 ≤ 0.8 %`` there (de Boor 2001, ch. V), and the
    filter then averages it with its neighbours. ``gap=`` (median steps) sets the limit alone;
 5. **timestamp**: signals a logger averaged over each interval and stamped at its ``"start"`` or
    ``"end"`` (``timestamp=``; by default the torques) are moved to the interval centres and
@@ -45,13 +40,15 @@ chain, in order (each step appears in the record when it did something):
    ``rate`` below 0.9 × a segment's own is refused (use ``decimate``);
 7. **filter and differentiate** (``derivative``):
 
-   * ``"central"`` (default): zero-phase Butterworths (order 4) on ``q`` at ``cutoff`` and on
-     ``τ`` and ``sign(q̇)`` (the Coulomb column, :attr:`ChainResult.dq_sign`) at
-     ``torque_cutoff``, then central differences of the filtered ``q``;
+   * ``"central"`` (default): the same zero-phase Butterworth (order 4) on ``q`` and ``τ``,
+     then central differences of the filtered ``q``. It does not distort both sides of
+     ``τ = Y π`` alike: ``Y`` is nonlinear in the motion, and the cut-off must pass the torque's
+     harmonics (:mod:`consistid.data.filters`); ``sign(q̇)`` is filtered like ``τ``
+     (``dq_sign``);
    * ``"savgol"``: Savitzky–Golay smoothing of ``q`` (value, first, second derivative) and of
-     ``τ`` (value), windows from the two cut-offs;
+     ``τ`` (value), window from the cut-off;
    * ``"fourier"``: ``q`` and ``τ`` averaged over whole periods of ``period`` and truncated to
-     the harmonics below their cut-offs; the result is the one averaged period;
+     the harmonics below the cut-off; the result is the one averaged period;
 8. **edges**: ``trim`` seconds cut at both ends of each segment (default ``3 / f_c``; none for
    ``"fourier"``, which refuses a ``trim``), where the filters' transients sit;
 9. optional **decimation** (``decimate``, after the low-pass, so it does not alias) and
@@ -71,7 +68,6 @@ from ..errors import DataQualityWarning, DatasetError, OptionError, check_number
 from .filters import (
     CUTOFF_FACTOR,
     MAX_CUTOFF_FRACTION,
-    TORQUE_CUTOFF_FACTOR,
     as_2d,
     central_difference,
     default_cutoff,
@@ -144,9 +140,7 @@ class PreprocessOptions:
     Attributes
     ----------
     derivative : ``"central"``, ``"savgol"`` or ``"fourier"``.
-    cutoff : low-pass cut-off of the positions (Hz); default 10 × ``bandwidth``.
-    torque_cutoff : low-pass cut-off of the torques (Hz); default 10 × ``bandwidth`` (at least
-        ``cutoff``), or ``cutoff`` when that is given without a ``bandwidth``.
+    cutoff : low-pass cut-off (Hz); default from ``bandwidth``.
     bandwidth : excitation bandwidth (Hz), e.g. ``harmonics / period``; default estimated.
     order : Butterworth order (one direction).
     period : excitation period (s), needed by ``derivative="fourier"``.
@@ -161,7 +155,7 @@ class PreprocessOptions:
     duplicate_tol : steps shorter than this × the median step are duplicate stamps.
     duplicates : ``None`` (average; collapsed stamps refused), ``"average"``, ``"first"``,
         ``"error"``, ``"spread"`` (:func:`consistid.data.timestamps.merge_duplicates`).
-    filter_torque : low-pass the torques (at ``torque_cutoff``).
+    filter_torque : low-pass the torques with the same filter as the positions.
     polyorder : Savitzky–Golay polynomial order.
     timestamp : how the logger stamps the torques it averaged over each interval:
         ``"centre"`` (default: no shift), ``"start"`` or ``"end"``; or a mapping per field
@@ -189,13 +183,12 @@ class PreprocessOptions:
     polyorder: int = 5
     timestamp: str | Mapping[str, str] = "centre"
     time_unit: str | None = None
-    torque_cutoff: float | None = None
 
     def __post_init__(self) -> None:
         check_option("derivative", self.derivative, DERIVATIVES)
         check_option("duplicates", self.duplicates, (None, *DUPLICATES))
         check_option("time_unit", self.time_unit, (None, "auto", *TIME_UNITS))
-        for name in ("cutoff", "torque_cutoff", "bandwidth", "period", "rate", "outliers", "gap"):
+        for name in ("cutoff", "bandwidth", "period", "rate", "outliers", "gap"):
             if getattr(self, name) is not None:
                 check_number(name, getattr(self, name), 0.0, strict=True)
         for name in ("order", "outlier_window", "polyorder"):
@@ -238,10 +231,9 @@ class ChainResult:
         the torques were not filtered.
     steps : the :class:`Step` s applied, in order.
     rate : sampling rate of the result (Hz), after resampling/decimation.
-    cutoff : low-pass cut-off of the positions (Hz).
+    cutoff : low-pass cut-off used (Hz).
     bandwidth : excitation bandwidth used to choose it (Hz), or ``None`` when given.
     options : the :class:`PreprocessOptions` used.
-    torque_cutoff : low-pass cut-off of the torques and of ``dq_sign`` (Hz).
     """
 
     t: np.ndarray
@@ -256,7 +248,6 @@ class ChainResult:
     cutoff: float
     bandwidth: float | None
     options: PreprocessOptions
-    torque_cutoff: float
 
     @property
     def torque_filter(self) -> tuple[float, int] | None:
@@ -266,7 +257,7 @@ class ChainResult:
         (its response is then not that of the same filter at the result's rate)."""
         if (self.options.filter_torque and self.options.derivative == "central"
                 and self.options.decimate == 1):
-            return float(self.torque_cutoff), int(self.options.order)
+            return float(self.cutoff), int(self.options.order)
         return None
 
     def __str__(self) -> str:
@@ -437,13 +428,10 @@ def _outliers(t: np.ndarray, x: np.ndarray, stretches: list[slice], nv: int,
 
 
 def _cutoff(t: np.ndarray, q: np.ndarray, stretches: list[slice], rate: float,
-            o: PreprocessOptions, steps: list[Step]) -> tuple[float, float, float | None]:
-    """``(positions' cut-off, torques' cut-off, bandwidth or None)`` (module docstring, 3)."""
-    if o.cutoff is not None and o.bandwidth is None:
-        torque = float(o.cutoff if o.torque_cutoff is None else o.torque_cutoff)
-        steps.append(Step("cut-off", f"{o.cutoff:.4g} Hz (given)" + (
-            f"; torques {torque:.4g} Hz (given)" if o.torque_cutoff is not None else "")))
-        return float(o.cutoff), torque, None
+            o: PreprocessOptions, steps: list[Step]) -> tuple[float, float | None]:
+    if o.cutoff is not None:
+        steps.append(Step("cut-off", f"{o.cutoff:.4g} Hz (given)"))
+        return float(o.cutoff), None
     if o.bandwidth is None:
         longest = max(stretches, key=lambda s: s.stop - s.start)
         ts, qs = t[longest], q[longest]
@@ -458,22 +446,11 @@ def _cutoff(t: np.ndarray, q: np.ndarray, stretches: list[slice], rate: float,
                        "counts): left out")
     else:
         bandwidth, origin = float(o.bandwidth), "given"
-    if o.cutoff is None:
-        cutoff = default_cutoff(bandwidth, rate)
-        how = (f"min({CUTOFF_FACTOR:g} × bandwidth {bandwidth:.4g} Hz ({origin}), "
-               f"{MAX_CUTOFF_FRACTION:g} × {rate:.6g} Hz)")
-    else:
-        cutoff, how = float(o.cutoff), f"given (bandwidth {bandwidth:.4g} Hz, {origin})"
-    if o.torque_cutoff is None:
-        torque = max(default_cutoff(bandwidth, rate, TORQUE_CUTOFF_FACTOR), cutoff)
-        torque_how = f"max(min({TORQUE_CUTOFF_FACTOR:g} × bandwidth, {MAX_CUTOFF_FRACTION:g} × " \
-                     "rate), the positions')"
-    else:
-        torque, torque_how = float(o.torque_cutoff), "given"
-    steps.append(Step("cut-off", f"positions {cutoff:.4g} Hz = {how}; torques {torque:.4g} Hz "
-                                 f"= {torque_how}: the torque's harmonics reach past the "
-                                 "motion's band"))
-    return cutoff, torque, bandwidth
+    cutoff = default_cutoff(bandwidth, rate)
+    steps.append(Step("cut-off", f"{cutoff:.4g} Hz = min({CUTOFF_FACTOR:g} × bandwidth "
+                                 f"{bandwidth:.4g} Hz ({origin}), {MAX_CUTOFF_FRACTION:g} × "
+                                 f"{rate:.6g} Hz)"))
+    return cutoff, bandwidth
 
 
 def _segments(t: np.ndarray, h: float, cutoff: float, o: PreprocessOptions,
@@ -569,15 +546,14 @@ def run_chain(t: np.ndarray, q: np.ndarray, tau: np.ndarray,
                                       f"{np.diff(t).max() * 1e3:.4g} ms, median {h * 1e3:.4g} ms"))
     if o.outliers is not None:
         x = _outliers(t, x, stretches, nv, o, steps)
-    cutoff, torque_cutoff, bandwidth = _cutoff(t, x[:, :nv], stretches, rate, o, steps)
+    cutoff, bandwidth = _cutoff(t, x[:, :nv], stretches, rate, o, steps)
     if o.derivative == "fourier" and o.period is None:
         raise OptionError("derivative='fourier' needs the excitation period (s)")
-    top = max(cutoff, torque_cutoff) if o.filter_torque else cutoff
-    if o.decimate > 1 and top >= 0.5 * rate / o.decimate:
+    if o.decimate > 1 and cutoff >= 0.5 * rate / o.decimate:
         raise OptionError(f"decimate = {o.decimate} brings the Nyquist frequency to "
-                          f"{0.5 * rate / o.decimate:.4g} Hz, below the {top:.4g} Hz cut-off: "
+                          f"{0.5 * rate / o.decimate:.4g} Hz, below the {cutoff:.4g} Hz cut-off: "
                           "the decimated signal would alias")
-    segments = _segments(t, h, torque_cutoff, o, steps)
+    segments = _segments(t, h, cutoff, o, steps)
     if o.derivative == "fourier" and len(segments) > 1:
         raise DatasetError("derivative='fourier' needs one gap-free log; this one has "
                            f"{len(segments)} segments")
@@ -624,35 +600,30 @@ def run_chain(t: np.ndarray, q: np.ndarray, tau: np.ndarray,
         ts, xs = pieces[0]
         mean, n_periods = period_average(xs, o.period, rate)
         harmonics = int(np.floor(cutoff * o.period + 1e-9))
-        torque_harmonics = max(int(np.floor(torque_cutoff * o.period + 1e-9)), 1)
         qf, dqf, ddqf = fourier_derivatives(mean[:, :nv], rate, o.period, harmonics)
-        tauf = (fourier_derivatives(mean[:, nv:], rate, o.period, torque_harmonics)[0]
+        tauf = (fourier_derivatives(mean[:, nv:], rate, o.period, harmonics)[0]
                 if o.filter_torque else mean[:, nv:])
         # the Coulomb column through the torque's filter (Dataset.dq_sign)
-        signf = (fourier_derivatives(np.sign(dqf), rate, o.period, torque_harmonics)[0]
+        signf = (fourier_derivatives(np.sign(dqf), rate, o.period, harmonics)[0]
                  if o.filter_torque else np.sign(dqf))
         p = mean.shape[0]
         steps.append(Step("fourier", f"averaged {n_periods} period(s) of {o.period:g} s "
                                      f"({p} samples; {xs.shape[0] - n_periods * p} trailing "
                                      f"samples unused), kept harmonics 1–{harmonics} "
                                      f"(≤ {cutoff:.4g} Hz) of q"
-                                     + (f" and 1–{torque_harmonics} (≤ {torque_cutoff:.4g} Hz) "
-                                        "of τ" if o.filter_torque else "")
-                                     + ", differentiated in the frequency domain"))
+                                     f"{' and τ' if o.filter_torque else ''}, differentiated in "
+                                     "the frequency domain"))
         out_t.append(ts[:p]), out_q.append(qf), out_dq.append(dqf), out_ddq.append(ddqf)
         out_tau.append(tauf), out_seg.append(np.zeros(p, dtype=int)), out_sign.append(signf)
     else:
-        trim = (TRIM_PERIODS / min(cutoff, torque_cutoff) if o.trim is None
-                else float(o.trim))
+        trim = TRIM_PERIODS / cutoff if o.trim is None else float(o.trim)
+        both = " and τ" if o.filter_torque else ""
         if o.derivative == "central":
-            both = f", {torque_cutoff:.4g} Hz on τ" if o.filter_torque else ""
             steps.append(Step("low-pass", f"zero-phase Butterworth, order {o.order}, "
                                           f"{cutoff:.4g} Hz on q{both}; central differences of "
                                           "the filtered q"))
         else:
             window = savgol_window(cutoff, rate, o.polyorder)
-            tau_window = savgol_window(torque_cutoff, rate, o.polyorder)
-            both = f", {tau_window} samples on τ" if o.filter_torque else ""
             steps.append(Step("savitzky-golay", f"window {window} samples "
                                                 f"({window / rate * 1e3:.4g} ms), order "
                                                 f"{o.polyorder}, on q{both}"))
@@ -662,15 +633,14 @@ def run_chain(t: np.ndarray, q: np.ndarray, tau: np.ndarray,
             if o.derivative == "central":
                 qf = lowpass(qs, cutoff, rate, o.order)
                 dqf, ddqf = central_difference(qf, rate)
-                tauf = (lowpass(taus, torque_cutoff, rate, o.order) if o.filter_torque
-                        else taus)
-                signf = (lowpass(np.sign(dqf), torque_cutoff, rate, o.order) if o.filter_torque
+                tauf = lowpass(taus, cutoff, rate, o.order) if o.filter_torque else taus
+                signf = (lowpass(np.sign(dqf), cutoff, rate, o.order) if o.filter_torque
                          else np.sign(dqf))
             else:
                 qf, dqf, ddqf = savgol_derivatives(qs, rate, window, o.polyorder)
-                tauf = (savgol_derivatives(taus, rate, tau_window, o.polyorder)[0]
+                tauf = (savgol_derivatives(taus, rate, window, o.polyorder)[0]
                         if o.filter_torque else taus)
-                signf = (savgol_derivatives(np.sign(dqf), rate, tau_window, o.polyorder)[0]
+                signf = (savgol_derivatives(np.sign(dqf), rate, window, o.polyorder)[0]
                          if o.filter_torque else np.sign(dqf))
             tol = 1e-3 / rate                   # float stamps (Unix seconds) are not exact
             keep = (ts >= ts[0] + trim - tol) & (ts <= ts[-1] - trim + tol)
@@ -711,5 +681,4 @@ def run_chain(t: np.ndarray, q: np.ndarray, tau: np.ndarray,
         LOG.info("%s", step)
     if not o.filter_torque:
         arrays[-1] = None          # unfiltered torques: the Coulomb column is sign(dq)
-    return ChainResult(*arrays, tuple(steps), float(rate), float(cutoff), bandwidth, o,
-                       float(torque_cutoff))
+    return ChainResult(*arrays, tuple(steps), float(rate), float(cutoff), bandwidth, o)

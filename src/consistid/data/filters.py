@@ -32,24 +32,16 @@ doi:10.1109/70.631234).
 :func:`estimate_bandwidth`, :func:`default_cutoff`
     the excitation bandwidth from the part of the position spectrum that stands above its
     noise (so that sensor noise, encoder counts and the error of stamps that jitter are not read
-    as motion), and the cut-offs ``f_c = 10 × bandwidth`` of the positions and of the torques
-    (Gautier's rule of thumb; with the few-Hz excitations of the seeds it gives their 30 Hz at
-    1 kHz), at most 0.4 × the sampling rate.
-
-    The torques need it: ``τ = Y(q, q̇, q̈) π`` is nonlinear in the motion, and the torque of
-    a motion band-limited to ``f_b`` has harmonics up to several ``f_b`` (products of
-    velocities, ``sin``/``cos`` of the angles), which ``Y`` of the filtered positions keeps.
-    A low-pass on ``τ`` must pass them, or the two sides of the fit see different signals
-    (which is why parallel filtering, Gautier 1997, filters ``τ`` and the columns of ``Y``
-    alike): the same filter on ``q`` and ``τ`` at 2–3 × the band made the base parameters of
-    MuJoCo-simulated arms 10–100 × less accurate than at 10 ×, and ``τ`` kept at 10 × made
-    them as accurate as filtering ``Y`` too (``benchmarks/cutoff.py --factors``). The
-    positions alone could be filtered at 3–4 × (the forward-backward Butterworth of order
-    ``n`` passes ``|H|² = 1/(1 + (f/f_c)^{2n})`` of a harmonic at ``f``: 4.4e-5 lost at
-    ``f_c = 3.5 f_b``, ``n = 4``), but its transient at a segment's ends lasts ``∝ 1/f_c``: at
-    3.5 × the band ``q̈`` is still 1–2 % off 0.6 s in (0.5 Hz band), where 10 × is at 1e-4, so
-    the default edge trim would have to triple and short segments would be lost. Give
-    ``cutoff=`` with ``bandwidth=`` (the torques then keep 10 × the band) to choose that trade.
+    as motion), and the cut-off ``f_c = 10 × bandwidth`` (Gautier's rule of thumb; with the
+    few-Hz excitations of the seeds it gives their 30 Hz at 1 kHz), at most 0.4 × the sampling
+    rate. A torque is a nonlinear function of the motion, whose harmonics reach past the
+    position's band (products of velocities, ``sin``/``cos`` of the angles), and the same filter
+    on ``τ`` must not cut what ``Y(q̂) π`` holds: ``Y`` of the filtered positions keeps them.
+    At 2–4 × the band that mismatch makes the base parameters of MuJoCo-simulated arms
+    10–100 × less accurate than at 10 × (``benchmarks/cutoff.py --factors``); filtering the
+    columns of ``Y`` with the same low-pass as ``τ`` (parallel filtering, Gautier 1997) removes
+    it, which needs the regressor and so is not the chain's to do. Only ``sign(q̇)``, the
+    Coulomb column, is filtered alike here (:attr:`~consistid.data.dataset.Dataset.dq_sign`).
 
 The chain that strings them together is :mod:`consistid.data.chain`.
 """
@@ -66,12 +58,8 @@ import scipy.signal
 
 from ..errors import DatasetError, OptionError
 
-#: The positions' cut-off = this × the excitation bandwidth (Gautier's rule of thumb; module
-#: docstring: a lower one costs long edge transients).
+#: Cut-off = this × the excitation bandwidth (Gautier's rule of thumb; module docstring).
 CUTOFF_FACTOR = 10.0
-#: The torques' cut-off = this × the excitation bandwidth (Gautier's rule of thumb: it passes
-#: the harmonics that the torque's nonlinearity in the motion adds; module docstring).
-TORQUE_CUTOFF_FACTOR = 10.0
 #: The cut-off never exceeds this fraction of the sampling rate (0.8 × Nyquist).
 MAX_CUTOFF_FRACTION = 0.4
 #: A periodogram bin of :func:`estimate_bandwidth` counts as motion by its power above this
@@ -585,9 +573,8 @@ def _noise_level(power: np.ndarray) -> np.ndarray:
                                        origin=(-(width // 2), 0))
 
 
-def default_cutoff(bandwidth: float, rate: float, factor: float = CUTOFF_FACTOR) -> float:
-    """``min(factor × bandwidth, 0.4 × rate)`` (Hz): the positions' cut-off by default
-    (:data:`CUTOFF_FACTOR`), the torques' with ``factor=TORQUE_CUTOFF_FACTOR``."""
+def default_cutoff(bandwidth: float, rate: float) -> float:
+    """``min(10 × bandwidth, 0.4 × rate)`` (Hz) (:data:`CUTOFF_FACTOR`)."""
     if not bandwidth > 0:
         raise OptionError(f"bandwidth = {bandwidth} Hz must be positive")
-    return float(min(factor * bandwidth, MAX_CUTOFF_FRACTION * rate))
+    return float(min(CUTOFF_FACTOR * bandwidth, MAX_CUTOFF_FRACTION * rate))

@@ -23,7 +23,6 @@ from .filters import (
     CUTOFF_FACTOR,
     MAX_CUTOFF_FRACTION,
     PAD_PERIODS,
-    TORQUE_CUTOFF_FACTOR,
     central_difference,
     default_cutoff,
     estimate_bandwidth,
@@ -42,13 +41,13 @@ from .resample import resample, supported_rate, to_uniform, uniform_grid
 from .timestamps import duplicate_groups, group_mean, interval_centres, long_steps
 
 __all__ = [
-    "CUTOFF_FACTOR", "DERIVATIVES", "MAX_CUTOFF_FRACTION", "PAD_PERIODS", "TORQUE_CUTOFF_FACTOR",
-    "TRIM_PERIODS", "ChainResult", "PreprocessOptions", "Preprocessed", "Step",
-    "central_difference", "default_cutoff", "duplicate_groups", "estimate_bandwidth",
-    "fourier_derivatives", "group_mean", "hampel", "interval_centres", "long_steps",
-    "low_speed_mask", "lowpass", "period_average", "preprocess", "resample", "samples_per_period",
-    "savgol_cutoff", "savgol_derivatives", "savgol_window", "stuck_samples", "supported_rate",
-    "to_uniform", "uniform_grid",
+    "CUTOFF_FACTOR", "DERIVATIVES", "MAX_CUTOFF_FRACTION", "PAD_PERIODS", "TRIM_PERIODS",
+    "ChainResult", "PreprocessOptions", "Preprocessed", "Step", "central_difference",
+    "default_cutoff", "duplicate_groups", "estimate_bandwidth", "fourier_derivatives",
+    "group_mean", "hampel", "interval_centres", "long_steps", "low_speed_mask", "lowpass",
+    "period_average", "preprocess", "resample", "samples_per_period", "savgol_cutoff",
+    "savgol_derivatives", "savgol_window", "stuck_samples", "supported_rate", "to_uniform",
+    "uniform_grid",
 ]
 
 
@@ -61,9 +60,8 @@ class Preprocessed:
     dataset : the :class:`Dataset` (one segment per gap-free stretch of the log).
     steps : the :class:`Step` s applied, in order.
     rate : sampling rate of the dataset (Hz), after resampling/decimation.
-    cutoff : low-pass cut-off of the positions (Hz).
-    torque_cutoff : low-pass cut-off of the torques (Hz; :attr:`Dataset.torque_filter`).
-    bandwidth : excitation bandwidth used to choose them (Hz; given or estimated), or ``None``
+    cutoff : low-pass cut-off used (Hz).
+    bandwidth : excitation bandwidth used to choose it (Hz; given or estimated), or ``None``
         when the cut-off was given.
     options : the :class:`PreprocessOptions` used.
     """
@@ -74,7 +72,6 @@ class Preprocessed:
     cutoff: float
     bandwidth: float | None
     options: PreprocessOptions
-    torque_cutoff: float | None = None
 
     def __str__(self) -> str:
         return self.summary()
@@ -109,4 +106,4 @@ def preprocess(t: np.ndarray, q: np.ndarray, tau: np.ndarray, *,
     """
     res = run_chain(t, q, tau, PreprocessOptions.from_kwargs(options))
     return Preprocessed(Dataset.from_chain(res, joint_names), res.steps, res.rate, res.cutoff,
-                        res.bandwidth, res.options, res.torque_cutoff)
+                        res.bandwidth, res.options)
