@@ -184,7 +184,8 @@ def main() -> None:
                 ratios.append(bw)
                 print(f"{arm:<7} {seed:>4} {noise:<6} {steps:>11} {band:>9.3g} {bw:>14.3f} "
                       f"{cut:>12.2f} {err:>13.3g}", flush=True)
-    print(f"bandwidth / band over {len(ratios)} cases: {min(ratios):.3f}–{max(ratios):.3f}")
+    if ratios:
+        print(f"bandwidth / band over {len(ratios)} cases: {min(ratios):.3f}–{max(ratios):.3f}")
     if args.kuka:
         kuka(args.kuka)
     if args.factors or args.friction:
