@@ -40,9 +40,11 @@ chain, in order (each step appears in the record when it did something):
    ``rate`` below 0.9 × a segment's own is refused (use ``decimate``);
 7. **filter and differentiate** (``derivative``):
 
-   * ``"central"`` (default): the same zero-phase Butterworth (order 4) on ``q`` and ``τ``
-     (parallel filtering, so the filter distorts both sides of ``τ = Y π`` alike), then central
-     differences of the filtered ``q``;
+   * ``"central"`` (default): the same zero-phase Butterworth (order 4) on ``q`` and ``τ``,
+     then central differences of the filtered ``q``. It does not distort both sides of
+     ``τ = Y π`` alike: ``Y`` is nonlinear in the motion, and the cut-off must pass the torque's
+     harmonics (:mod:`consistid.data.filters`); ``sign(q̇)`` is filtered like ``τ``
+     (``dq_sign``);
    * ``"savgol"``: Savitzky–Golay smoothing of ``q`` (value, first, second derivative) and of
      ``τ`` (value), window from the cut-off;
    * ``"fourier"``: ``q`` and ``τ`` averaged over whole periods of ``period`` and truncated to

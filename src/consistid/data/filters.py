@@ -35,10 +35,13 @@ doi:10.1109/70.631234).
     as motion), and the cut-off ``f_c = 10 × bandwidth`` (Gautier's rule of thumb; with the
     few-Hz excitations of the seeds it gives their 30 Hz at 1 kHz), at most 0.4 × the sampling
     rate. A torque is a nonlinear function of the motion, whose harmonics reach past the
-    position's band, and the same filter on ``τ`` must not cut what ``Y(q̂) π`` holds: at
-    3.5 × the bandwidth it cuts 0.26 % of ``cos q`` for a 5-harmonic excitation, and the
-    base parameters of a simulated Panda come out 17–40 × less accurate than at 10 ×
-    (``benchmarks/cutoff.py``).
+    position's band (products of velocities, ``sin``/``cos`` of the angles), and the same filter
+    on ``τ`` must not cut what ``Y(q̂) π`` holds: ``Y`` of the filtered positions keeps them.
+    At 2–4 × the band that mismatch makes the base parameters of MuJoCo-simulated arms
+    10–100 × less accurate than at 10 × (``benchmarks/cutoff.py --factors``); filtering the
+    columns of ``Y`` with the same low-pass as ``τ`` (parallel filtering, Gautier 1997) removes
+    it, which needs the regressor and so is not the chain's to do. Only ``sign(q̇)``, the
+    Coulomb column, is filtered alike here (:attr:`~consistid.data.dataset.Dataset.dq_sign`).
 
 The chain that strings them together is :mod:`consistid.data.chain`.
 """
@@ -564,10 +567,16 @@ def _noise_level(power: np.ndarray) -> np.ndarray:
     """The running median of each column of a periodogram over the :data:`NOISE_WINDOW` of its
     bins at and above each (at least 15; the top end reflected): looking up, a window at the
     band's top harmonic holds the noise beyond it, not the lines below it, however few bins a
-    short log gives the band."""
+    short log gives the band. Or the median over the window centred on the bin where that is
+    higher: where coloured noise falls with frequency (AR(1) position noise beyond its corner,
+    ``∝ 1/f²``) the bins above read half its level a window up, and one noise bin in ~30
+    rather than ~1000 would pass :data:`NOISE_MARGIN` (on a slow joint's 5 mrad motion under
+    AR(1) noise, φ = 0.95, that read 3.3–9.8 × the band)."""
     width = max(int(NOISE_WINDOW * power.shape[0]) | 1, 15)
-    return scipy.ndimage.median_filter(power, size=(width, 1), mode="reflect",
-                                       origin=(-(width // 2), 0))
+    above = scipy.ndimage.median_filter(power, size=(width, 1), mode="reflect",
+                                        origin=(-(width // 2), 0))
+    centred = scipy.ndimage.median_filter(power, size=(width, 1), mode="reflect")
+    return np.maximum(above, centred)
 
 
 def default_cutoff(bandwidth: float, rate: float) -> float:

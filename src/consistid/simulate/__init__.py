@@ -3,13 +3,15 @@
 :mod:`~consistid.simulate.effects` describes the effects (friction, payload, elasticity, sensor
 noise, delay …), :mod:`~consistid.simulate.mujoco_robot` builds the MuJoCo model with
 ``MjSpec``, and :mod:`~consistid.simulate.experiments` runs excitation experiments with a known
-ground truth (regressor-only runs and MuJoCo recordings).
+ground truth (regressor-only runs and MuJoCo recordings); :mod:`~consistid.simulate.loggers`
+makes logs as real loggers write them (stamps in bursts, coloured noise, encoder counts).
 """
 
 from .effects import Effects, MountedPayload
 from .experiments import (MAX_TRACKING_ERROR, DesiredMotion, SimulatedRecording, SimulatedRun,
                           TrackingController, ar1_noise, excitation_run, nominal_residual, record)
+from .loggers import burst_stamps, jittered_log
 
 __all__ = ["MAX_TRACKING_ERROR", "DesiredMotion", "Effects", "MountedPayload",
            "SimulatedRecording", "SimulatedRun", "TrackingController", "ar1_noise",
-           "excitation_run", "nominal_residual", "record"]
+           "burst_stamps", "excitation_run", "jittered_log", "nominal_residual", "record"]
