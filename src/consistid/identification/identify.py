@@ -255,7 +255,10 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
         ``details["autocorrelation_time"]`` gives ``τ_j`` (samples, per joint), and that pass
         also tests each joint's residual where it stands still against where it moves
         (:func:`standstill_note`: a :class:`~consistid.errors.ModelMisfitWarning` and
-        ``details["standstill"]``; not with ``"iid"``, which reads the data once).
+        ``details["standstill"]``; not with ``"iid"``, which reads the data once), and names
+        the joints with friction terms too slow to check their friction law
+        (:func:`slow_note`: a :class:`~consistid.errors.PoorExcitationWarning` and
+        ``details["slow_joints"]``).
     exclude_joints : joints (names or indices) whose torque rows are left out, e.g. a broken
         sensor: the other joints' rows still inform the rigid-body parameters
         (:mod:`consistid.identification.subset`); their friction columns are dropped, and
