@@ -65,3 +65,36 @@ def test_the_weight_follows_how_far_the_data_put_the_parameters_from_the_prior()
         gamma, _ = evidence_weight(a, s, b, (1e-9, 1e9), 1.0)
         assert 0.7 / spread ** 2 < gamma < 1.4 / spread ** 2
     assert evidence_weight(a, s, b, (10.0, 1e9), 1.0)[0] == 10.0
+
+
+def test_with_the_joint_prior_rows_the_weight_maximises_that_model_s_evidence():
+    """The SDP appends the joint prior's rows ``‖Dθ‖²`` (a Gaussian of fixed precision on the
+    per-joint terms, :mod:`consistid.identification.joint_prior`) to the data before choosing
+    the weight: the weight returned is then the maximiser of the evidence of the model with
+    that Gaussian on the free block (brute force on the full matrices), and differs from the
+    flat-prior choice where the free block is weakly determined (so this fails there)."""
+    from consistid.identification.joint_prior import append_rows
+
+    rng = np.random.default_rng(7)
+    k, free, m = 6, 3, 30
+    a, s, b = problem(rng, k, free, 0.5, m)
+    a[:, k:] *= 0.02                                       # the per-joint terms barely excited
+    b = b + a[:, k:] @ (20.0 * rng.standard_normal(free))
+    d = np.zeros((free, k + free))
+    d[np.arange(free), k + np.arange(free)] = 1.0 / 3.0   # their prior: σ = 3
+    precision = d.T @ d
+
+    def log_evidence_gauss(gamma):
+        big = a.T @ a + gamma * s + precision
+        theta = np.linalg.solve(big, a.T @ b)
+        fit = np.sum((a @ theta - b) ** 2) + theta @ (gamma * s + precision) @ theta
+        return 0.5 * k * np.log(gamma) - 0.5 * np.linalg.slogdet(big)[1] - 0.5 * fit
+
+    r2, z2 = append_rows(a, b, d, np.zeros(free))
+    gamma, _ = evidence_weight(r2, s, z2, (1e-6, 1e6), 1.0)
+    found = scipy.optimize.minimize_scalar(lambda x: -log_evidence_gauss(np.exp(x)),
+                                           bounds=np.log((1e-6, 1e6)), method="bounded",
+                                           options={"xatol": 1e-8})
+    np.testing.assert_allclose(gamma, np.exp(found.x), rtol=1e-2)
+    flat, _ = evidence_weight(a, s, b, (1e-6, 1e6), 1.0)
+    assert abs(np.log(flat / gamma)) > 0.1

@@ -235,7 +235,7 @@ def test_the_inertia_prior_of_a_result_with_an_excluded_joint(panda, dead_log):
 
 def test_a_nonlinear_friction_result_says_weak_directions_were_not_assessed(panda):
     """friction='tanh' goes through the nonlinear search, which does not compute the weakly
-    informed directions: the result says so (details['weakly_informed']), as a stream's does,
+    informed directions: the result says so (details['weakly_informed']), as a Dask one's does,
     instead of an empty weakly_informed that reads as 'none'."""
     d = ci.FourierTrajectory.random(panda, harmonics=3, period=5.0, seed=1).sample(100.0, 5.0)
     tau = panda.rnea(d.q, d.dq, d.ddq) + 0.5 * np.sign(d.dq)

@@ -95,6 +95,32 @@ def test_reversed_motion_warns_and_is_no_worse_than_nominal(one_way, fitted):
     assert abs(fc) < 10 * coulomb[0] and abs(fo) < 10 * coulomb[0]     # not ±859 N·m
 
 
+def test_a_stream_gets_the_same_envelope_and_weak_directions_as_its_dataset(one_way, fitted):
+    """The one-way training log read as a stream of three parts (identify's DataStream, the
+    coloured covariance reading it twice): the envelope is the whole dataset's (computed here
+    on the stacked arrays), the one-way joint is named and warned as in the batch fit, and
+    prediction on reversed motion warns. Before, a stream kept neither ("not assessed")."""
+    model, train, held, _ = one_way
+    res, _ = fitted
+    edges = np.linspace(0, train.n_samples, 4).astype(int)
+    parts = [train.select(np.arange(a, b)) for a, b in zip(edges[:-1], edges[1:])]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        streamed = ci.identify(model, ci.identification.streaming.DataStream(parts),
+                               method="sdp")
+    whole = TrainingEnvelope.of(train, model.joint_names)
+    for field in ("q_min", "q_max", "dq_max", "ddq_max", "positive", "negative"):
+        np.testing.assert_array_equal(getattr(streamed.envelope, field), getattr(whole, field))
+    assert streamed.envelope.n_samples == train.n_samples
+    joint = model.joint_names[0]
+    said = [str(w.message) for w in caught if w.category is PoorExcitationWarning
+            and "barely inform" in str(w.message)]
+    assert said and f"{joint} moves one way only" in said[0]
+    assert streamed.weakly_informed[0] == res.weakly_informed[0]
+    with pytest.warns(ExtrapolationWarning, match=f"{joint} moves with q̇ < 0"):
+        streamed.rms(held)
+
+
 def test_the_envelope_survives_save_and_load_and_old_files_load_without_it(one_way, fitted,
                                                                            tmp_path):
     model, _, held, _ = one_way

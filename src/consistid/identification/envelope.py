@@ -73,12 +73,26 @@ class TrainingEnvelope:
            ) -> "TrainingEnvelope":
         """The envelope of a dataset (one pass over its arrays); ``joint_names`` (the model's)
         name the joints, else the dataset's own names or ``joint 1..n``."""
-        pos, neg = _counts(dataset.dq)
         names = joint_names or dataset.joint_names or tuple(f"joint {j + 1}"
                                                             for j in range(dataset.nv))
-        return cls(tuple(names), dataset.q.min(axis=0), dataset.q.max(axis=0),
-                   np.abs(dataset.dq).max(axis=0), np.abs(dataset.ddq).max(axis=0), pos, neg,
-                   int(dataset.q.shape[0]))
+        return cls.of_states(dataset.q, dataset.dq, dataset.ddq, names)
+
+    @classmethod
+    def of_states(cls, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray,
+                  joint_names: Sequence[str]) -> "TrainingEnvelope":
+        """The envelope of ``(N, nv)`` state arrays (an online estimator's samples)."""
+        pos, neg = _counts(dq)
+        return cls(tuple(joint_names), q.min(axis=0), q.max(axis=0), np.abs(dq).max(axis=0),
+                   np.abs(ddq).max(axis=0), pos, neg, int(q.shape[0]))
+
+    def __add__(self, other: "TrainingEnvelope") -> "TrainingEnvelope":
+        """The envelope of two data sets together (ranges joined, sign counts summed): a
+        stream's, part by part."""
+        return TrainingEnvelope(
+            self.joint_names, np.minimum(self.q_min, other.q_min),
+            np.maximum(self.q_max, other.q_max), np.maximum(self.dq_max, other.dq_max),
+            np.maximum(self.ddq_max, other.ddq_max), self.positive + other.positive,
+            self.negative + other.negative, self.n_samples + other.n_samples)
 
     def one_way(self) -> list[tuple[int, str]]:
         """``(joint, "q̇ > 0" | "q̇ < 0")`` for each joint that moved, but one way only: the

@@ -82,8 +82,8 @@ from .envelope import TrainingEnvelope
 from .weak import one_way_note, weakly_informed
 from .subset import (dead_channels, expand, lost_parameters, resolve_excluded, restricted,
                      rows_base, without_joints)
-from .streaming import (BAND_ALPHA, BAND_RATIO, DataStream, ResidualStatistics, as_stream,
-                        compress_data, is_one_pass, is_stream, residual_statistics)
+from .streaming import (BAND_ALPHA, BAND_RATIO, SPEED_EDGES, DataStream, ResidualStatistics,
+                        as_stream, compress_data, is_one_pass, is_stream, residual_statistics)
 
 METHODS = ("ols", "wls", "sdp")
 #: ``covariance=`` choices: rows counted as independent, as ``N / τ_j`` per joint, or the HAC
@@ -255,7 +255,10 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
         ``details["autocorrelation_time"]`` gives ``τ_j`` (samples, per joint), and that pass
         also tests each joint's residual where it stands still against where it moves
         (:func:`standstill_note`: a :class:`~consistid.errors.ModelMisfitWarning` and
-        ``details["standstill"]``; not with ``"iid"``, which reads the data once).
+        ``details["standstill"]``; not with ``"iid"``, which reads the data once), and names
+        the joints with friction terms too slow to check their friction law
+        (:func:`slow_note`: a :class:`~consistid.errors.PoorExcitationWarning` and
+        ``details["slow_joints"]``).
     exclude_joints : joints (names or indices) whose torque rows are left out, e.g. a broken
         sensor: the other joints' rows still inform the rigid-body parameters
         (:mod:`consistid.identification.subset`); their friction columns are dropped, and
@@ -407,11 +410,15 @@ def with_weak_directions(result: IdentificationResult, problem: CompressedProble
     """``result`` with its training :attr:`~IdentificationResult.envelope` and its
     :attr:`~IdentificationResult.weakly_informed` directions
     (:func:`consistid.identification.weak.weakly_informed`), warned with a
-    :class:`PoorExcitationWarning`; a stream (read part by part) keeps neither."""
-    if not isinstance(dataset, Dataset):
+    :class:`PoorExcitationWarning`. A stream's envelope is that of its parts, joined as
+    :meth:`DataStream.compress` read them; a collection compressed where it lies (Dask) has
+    none and keeps neither."""
+    envelope = (TrainingEnvelope.of(dataset, result.model.joint_names)
+                if isinstance(dataset, Dataset) else getattr(dataset, "envelope", None))
+    if envelope is None:
         return dataclasses.replace(result, details={
-            **result.details, "weakly_informed": "not assessed (a stream: no training envelope)"})
-    envelope = TrainingEnvelope.of(dataset, result.model.joint_names)
+            **result.details, "weakly_informed": "not assessed (data compressed where they lie: "
+                                                 "no training envelope)"})
     r_b, _, _ = problem.stacked(sigma=result.sigma, columns=result.base.independent)
     weak = weakly_informed(result.model, result.spec, result.base, r_b, envelope,
                            np.sqrt(problem.tau_sum_squares / max(problem.n_samples, 1)), kept)
@@ -482,6 +489,10 @@ def with_covariance(result: IdentificationResult, problem: CompressedProblem,
     if note:
         warnings.warn(note, ModelMisfitWarning, stacklevel=3)
         details["standstill"] = note
+    note = slow_note(stats, result, kept)
+    if note:
+        warnings.warn(note, PoorExcitationWarning, stacklevel=3)
+        details["slow_joints"] = note
     return dataclasses.replace(result, base_covariance=cov, details=details)
 
 
@@ -528,6 +539,29 @@ def with_rest_error(result: IdentificationResult, problem: CompressedProblem,
             "without those rows)" if wide.size else
             "the rows at rest move no base parameter beyond its noise ±")
     return cov, {**details, "model_error": np.sqrt(b2), "model_error_note": note}
+
+
+def slow_note(stats: ResidualStatistics, result: IdentificationResult,
+              kept: np.ndarray) -> str:
+    """What to say of the joints with fitted Coulomb or viscous terms that never move fast
+    enough for :meth:`ResidualStatistics.rest_speeds` to check where their residual is the
+    noise's (:meth:`ResidualStatistics.slow_joints`), or ``""``."""
+    names = result.model.joint_names
+    terms = set(result.parameter_names)
+    slow = [j for j in stats.slow_joints() if j in kept
+            and ({f"{names[j]}.fc", f"{names[j]}.fv"} & terms)]
+    if not slow:
+        return ""
+    speeds = stats.rest_speeds()
+    which = ", ".join(f"{names[j]} (rows below {speeds[j]:g} rad/s counted as at rest)"
+                      for j in slow)
+    return (f"{which} never moved faster than {SPEED_EDGES[-1]:g} rad/s long enough to check "
+            "its friction law against the noise: dry friction smoothed over a band of slow "
+            "speeds (a gearbox's Stribeck band, MuJoCo's soft frictionloss) looks like a "
+            "steep viscous slope there, not like f_c·sign(q̇) + f_v·q̇, and its Coulomb and "
+            "viscous estimates may be far off; their intervals include the model error the "
+            "data can show (details['model_error']). Move those joints faster to identify "
+            "their friction")
 
 
 def standstill_note(stats: ResidualStatistics, joint_names: Sequence[str],

@@ -21,9 +21,18 @@ difference of the two covariances is that of ``δ``). Its excess over that noise
 
 is an unbiased estimate of the squared bias of parameter ``i`` (clipped at zero), added to the
 diagonal of the covariance as a model-error term: the interval of a parameter the rows at rest
-move by more than chance widens by that much, the others (nothing at rest, or a model that
-describes it) by a small fraction of their variance on average. Least squares' own estimate is
-used for ``δ`` whatever the method (the SDP sits on the same rows).
+move by more than chance widens by that much. Where they do not (``δ_i² ≤ 2 ΔV_ii``,
+``ΔV = V_moving − V_all``) the test cannot tell a bias of the order of ``ΔV_ii`` from noise, and
+the term is ``ΔV_ii``: no interval is narrower than that of the rows the model is not suspected
+on (``V_all + b² ≥ V_moving``),
+
+.. math::  b_i^2 = \max\big(δ_i^2 − ΔV_{ii},\ ΔV_{ii}\big).
+
+A parameter that the rows at rest hardly inform (most of them) is widened by a small fraction
+of its variance; one that they inform most of (a joint that barely moves: its friction) gets
+the interval of the moving rows, not the false precision of rows the model does not describe
+(``benchmarks/coverage_friction.py``: the xArm7's and the Kinova's friction terms). Least
+squares' own estimate is used for ``δ`` whatever the method (the SDP sits on the same rows).
 
 The rows "at rest" are joint ``j``'s rows with ``|q̇_j|`` below a speed chosen from the
 residual: :data:`~consistid.robot.joint_terms.STANDSTILL_SPEED`, or higher where the residual of
@@ -93,4 +102,5 @@ def rest_bias(problem: CompressedProblem, rest: CompressedProblem, columns: np.n
     v_move = np.diag(coloured_covariance(c_move, g_move, w, tau, variances))
     if not (np.all(np.isfinite(v_move)) and np.all(np.isfinite(delta))):
         return zero, zero
-    return np.maximum(delta ** 2 - np.maximum(v_move - v_all, 0.0), 0.0), delta
+    gap = np.maximum(v_move - v_all, 0.0)
+    return np.maximum(delta ** 2 - gap, gap), delta

@@ -17,8 +17,11 @@ Gaussian model, Bishop 2006, *Pattern Recognition and Machine Learning*, §3.5.2
 determine. It asks the prior's spread to match how far the data put the bodies from the CAD
 values: a URDF the data contradict gets a small weight (the answer follows the data where they
 inform it), one they confirm a large one; unexcited directions (``γ tr(A⁻¹S)`` counts them out)
-keep the prior whatever the weight. Chosen on the quadratic model of the prior at ``π₀`` without
-the constraints: no extra SDP solve, and the program compiled once is re-solved at that ``γ``.
+keep the prior whatever the weight. The per-joint terms (friction, offset) are integrated out
+under the joint prior the solve adds (:mod:`consistid.identification.joint_prior`: its rows are
+appended to ``R`` and ``z`` first, so the evidence is that of the model solved), flat where it
+has none. Chosen on the quadratic model of the prior at ``π₀`` without the constraints: no
+extra SDP solve, and the program compiled once is re-solved at that ``γ``.
 The answer is clipped to the weights over which every benchmark solve ended ``optimal``
 (:data:`~consistid.identification.sdp.PRIOR_WEIGHT_SOLVED`).
 
@@ -45,7 +48,9 @@ def evidence_weight(a: np.ndarray, s: np.ndarray, b: np.ndarray,
 
     The parameters the prior does not weigh (zero rows of ``s``: friction, armature) are
     integrated out flat first, by projecting them out of ``a`` and ``b`` (their Schur
-    complement); the prior-weighted block is then whitened by ``s`` and diagonalised once,
+    complement; a Gaussian prior on them of fixed precision ``DᵀD`` is rows ``(D, D θ₀)``
+    appended to ``a`` and ``b``, :func:`~consistid.identification.joint_prior.append_rows`);
+    the prior-weighted block is then whitened by ``s`` and diagonalised once,
     ``cᵀc = V diag(λ) Vᵀ``, so that every iteration is ``O(k)``:
     ``tr(A⁻¹S) = Σ 1/(λ_i + γ)`` and ``ΔᵀSΔ = Σ g_i²/(λ_i + γ)²`` with ``g = Vᵀcᵀb``.
 

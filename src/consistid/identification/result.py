@@ -132,8 +132,9 @@ class IdentificationResult(StandardParameterSet):
         (:func:`consistid.identification.weak.weakly_informed`); warned when the result is made.
     envelope : where the training data went, per joint
         (:class:`~consistid.identification.envelope.TrainingEnvelope`); :meth:`predict` warns
-        (:class:`~consistid.errors.ExtrapolationWarning`) on data that leave it. ``None`` for a
-        stream or a result file written without it.
+        (:class:`~consistid.errors.ExtrapolationWarning`) on data that leave it (a stream's:
+        its parts' joined). ``None`` for data compressed where they lie (Dask) or a result file
+        written without it.
     excluded_joints : joints whose torque rows were left out (``exclude_joints=``, or a dead
         channel): their ``sigma`` and ``train_rms`` are NaN, and ``details["excluded_joints"]``
         names what cannot be identified without them (:mod:`consistid.identification.subset`).

@@ -397,15 +397,15 @@ def identify_sdp(model: RobotModel, problem: CompressedProblem, base: BaseParame
                               f"{sigma!r}")
     sig = floor_sigma(sig, problem)
     evidence = None
+    prior_rows = (joint_prior_rows(model, spec, prior_vec) if opts.joint_prior
+                  else (np.zeros((0, prior_vec.size)), np.zeros(0), "off (joint_prior=False)"))
     if opts.from_data:
         t0 = time.perf_counter()
         gamma, iterations_gamma = _evidence_gamma(problem, sig, prior_vec, setup, model.n_bodies,
-                                                  gamma_default)
+                                                  gamma_default, prior_rows[:2])
         setup = replace(setup, gamma=gamma)
         evidence = (iterations_gamma, time.perf_counter() - t0)
 
-    prior_rows = (joint_prior_rows(model, spec, prior_vec) if opts.joint_prior
-                  else (np.zeros((0, prior_vec.size)), np.zeros(0), "off (joint_prior=False)"))
     work, theta = problem, None
     solve_time = compile_time = 0.0
     iterations = refinements = 0
@@ -714,11 +714,14 @@ def _normalising_map(r: np.ndarray, setup: _Setup, p: int, nb: int) -> np.ndarra
 
 
 def _evidence_gamma(problem: CompressedProblem, sig: np.ndarray, prior_vec: np.ndarray,
-                    setup: _Setup, nb: int, gamma_default: float) -> tuple[float, int]:
+                    setup: _Setup, nb: int, gamma_default: float,
+                    joint_rows: tuple[np.ndarray, np.ndarray]) -> tuple[float, int]:
     """The prior weight of :func:`~consistid.identification.prior_weight.evidence_weight` on
-    the σ-weighted ``problem``, in prior-normalised coordinates, within
+    the σ-weighted ``problem`` with the joint prior's rows ``(D, t)`` appended, as the solve
+    has them (:mod:`consistid.identification.joint_prior`: the per-joint terms are integrated
+    out under that Gaussian, not flat), in prior-normalised coordinates, within
     :data:`EVIDENCE_RANGE` × the default; ``(γ, iterations)``."""
-    r, z, _ = problem.stacked(sigma=sig)
+    r, z = append_rows(*problem.stacked(sigma=sig)[:2], *joint_rows)
     p, p_in = prior_vec.size, 10 * nb
     t = _normalising_map(r, setup, p, nb)
     s = np.zeros((p, p))

@@ -50,6 +50,7 @@ from ..robot.joint_terms import STANDSTILL_SPEED
 from ..robot.model import RobotModel
 from .base import BaseParameters
 from .compression import CompressedProblem, compress
+from .envelope import TrainingEnvelope
 from .model_error import rest_problem
 from .regressor import RegressorSpec, predict_torque
 from .statistics import add_lagged, autocovariance_sum, integrated_time
@@ -232,11 +233,22 @@ class ResidualStatistics:
         :meth:`standstill_excess`); at least
         :data:`~consistid.robot.joint_terms.STANDSTILL_SPEED`. Dry friction that a simulator or
         a gearbox smooths over a band of speeds (MuJoCo's soft ``frictionloss`` on a light
-        joint: up to ~0.1 rad/s) is not ``f_c sign(q̇)`` anywhere in that band."""
+        joint: up to ~0.1 rad/s) is not ``f_c sign(q̇)`` anywhere in that band.
+
+        A joint too slow for the test whose residual differs between the bands it reaches
+        (:meth:`slow_joints`) has no speed at which its residual is shown to be the noise's:
+        every band but the fastest it reaches counts as at rest (a Kinova's wrist in a random
+        excitation, ≤ 0.3 rad/s: its Coulomb and viscous terms 4–6 σ off with the rest speed
+        at 0.02 rad/s, ``benchmarks/coverage_friction.py``)."""
         tau = np.maximum(self.autocorrelation_time(), 1.0)
         out = np.full(self.sum_squares.size, STANDSTILL_SPEED)
+        effective = self.band_count / tau[:, None]
+        for j in self.slow_joints():
+            reached = np.flatnonzero(effective[j] >= MIN_REST_SAMPLES)
+            if reached.size and reached[-1] >= 2:
+                out[j] = SPEED_EDGES[reached[-1] - 1]
         for j in range(out.size):
-            ref_n = self.band_count[j, -1] / tau[j]
+            ref_n = effective[j, -1]
             if ref_n < MIN_REST_SAMPLES or self.band_sum_squares[j, -1] <= 0:
                 continue
             ref_var = self.band_sum_squares[j, -1] / self.band_count[j, -1]
@@ -249,6 +261,31 @@ class ResidualStatistics:
                     break
                 out[j] = SPEED_EDGES[k]
         return out
+
+    def slow_joints(self) -> np.ndarray:
+        """The joints too slow for :meth:`rest_speeds`' test whose residual is structured: their
+        fastest speed band (above ``SPEED_EDGES[-1]``) holds fewer than
+        :data:`MIN_REST_SAMPLES` effectively independent samples (``n/τ_j``), and the RMS of
+        the largest-residual band they reach (with as many) is :data:`BAND_RATIO` times that of
+        the smallest or more, beyond chance at level :data:`BAND_ALPHA` (the F-test of
+        :meth:`rest_speeds`, both bands from the data). A residual alike at every speed
+        (white noise on a well-described slow joint) does not make a joint one of them."""
+        tau = np.maximum(self.autocorrelation_time(), 1.0)
+        effective = self.band_count / tau[:, None]
+        out = []
+        for j in np.flatnonzero(effective[:, -1] < MIN_REST_SAMPLES):
+            reached = np.flatnonzero(effective[j] >= MIN_REST_SAMPLES)
+            if reached.size < 2:
+                continue
+            var = self.band_sum_squares[j, reached] / self.band_count[j, reached]
+            hi, lo = reached[np.argmax(var)], reached[np.argmin(var)]
+            if not var.min() > 0:
+                continue
+            f = var.max() / var.min()
+            if (f >= BAND_RATIO ** 2
+                    and scipy.stats.f.sf(f, effective[j, hi], effective[j, lo]) < BAND_ALPHA):
+                out.append(j)
+        return np.array(out, dtype=int)
 
     def standstill_excess(self) -> tuple[np.ndarray, np.ndarray]:
         r"""``(ratio, p)`` per joint: the residual's RMS on the samples where the joint stands
@@ -318,6 +355,9 @@ class DataStream:
         self.source = source
         self.loader = loader or Dataset.load
         self._read = False
+        #: The training envelope of the parts the last :meth:`compress` read (``None``
+        #: before): where the data went, for ``identify``'s weak-direction check.
+        self.envelope: TrainingEnvelope | None = None
 
     @property
     def rereadable(self) -> bool:
@@ -376,13 +416,17 @@ class DataStream:
                  base: BaseParameters | None = None) -> CompressedProblem:
         """The compressed problem of every part: one pass, each part compressed and merged
         (:func:`merge`); memory that of one part plus ``O(nv·p²)``. ``base``: see
-        :func:`~consistid.identification.compression.compress`."""
-        problem = None
+        :func:`~consistid.identification.compression.compress`. Sets :attr:`envelope`, the
+        parts' :class:`~consistid.identification.envelope.TrainingEnvelope` joined."""
+        problem, envelope = None, None
         for _, data in self.parts(model):
             part = compress(model, data, spec, base=base)
             problem = part if problem is None else merge(problem, part)
+            seen = TrainingEnvelope.of(data, model.joint_names)
+            envelope = seen if envelope is None else envelope + seen
         if problem is None:
             raise DatasetError("the data stream is empty: it yielded no Dataset or file")
+        self.envelope = envelope
         return problem
 
     def residual_statistics(self, model: RobotModel, spec: RegressorSpec,

@@ -68,9 +68,13 @@ import scipy.stats
 from scipy.linalg.lapack import dpotrf as _potrf
 from scipy.linalg.lapack import dtrtri as _trtri
 
-from ..errors import (DataQualityWarning, DatasetError, IdentificationError, JointCountError,
-                      OptionError, check_number, check_option)
+from ..data.dataset import Dataset
+from ..errors import (DataQualityWarning, DatasetError, ExtrapolationWarning, IdentificationError,
+                      JointCountError, OptionError, PoorExcitationWarning, check_number,
+                      check_option)
 from ..identification.base import BaseParameters, compute_base_parameters, random_states
+from ..identification.envelope import TrainingEnvelope
+from ..identification.weak import weakly_informed
 from ..identification.regressor import (DEFAULT_FRICTION, FrictionArg, RegressorSpec,
                                         parameter_names, prior_vector, regressor)
 from ..identification.summary import table
@@ -310,6 +314,10 @@ class RecursiveEstimator:
         self._flag = False
         self._absorbing = 0
         self.n_updates = 0
+        # where the samples taken went: q min, q max, |q̇| max, |q̈| max, counts moving with
+        # q̇ > 0 and q̇ < 0, torque squares (rows), and how many samples
+        self._seen = np.vstack([np.full(nv, np.inf), np.full(nv, -np.inf), np.zeros((5, nv))])
+        self._n_seen = 0
         self._last_time: float | None = None
         self.last_statistic = float("nan")
         self.last_forgetting = self.forgetting
@@ -407,9 +415,79 @@ class RecursiveEstimator:
         """Every change flagged so far, in order."""
         return tuple(self._changes)
 
+    @property
+    def envelope(self) -> TrainingEnvelope | None:
+        """Where the samples taken so far went (position range, velocity signs, largest
+        ``|q̇|``, ``|q̈|``: :class:`~consistid.identification.envelope.TrainingEnvelope`), as
+        ``res.envelope`` of a batch fit; ``None`` before the first update. Forgetting does not
+        shrink it: a state seen once and forgotten is extrapolation all the same."""
+        if not self._n_seen:
+            return None
+        s = self._seen
+        return TrainingEnvelope(tuple(self.model.joint_names), s[0].copy(), s[1].copy(),
+                                s[2].copy(), s[3].copy(), s[4].astype(int), s[5].astype(int),
+                                self._n_seen)
+
+    @property
+    def weakly_informed(self) -> tuple[str, ...]:
+        """The directions of the base parameters that the samples taken barely inform, in
+        words (:func:`consistid.identification.weak.weakly_informed`, as
+        ``res.weakly_informed``): each joint with a Coulomb column that moved one way only,
+        then each direction along which one standard deviation of the current estimate
+        (:attr:`covariance`, the initial spread included) changes the predicted torque on the
+        envelope by more than a quarter of the torque RMS seen. Empty before the first
+        update."""
+        envelope = self.envelope
+        if envelope is None:
+            return ()
+        chol = _potrf(np.linalg.inv(self._p), lower=0)
+        if chol[1] != 0:
+            return ()
+        rms = np.sqrt(self._seen[6] / self._n_seen)
+        return weakly_informed(self.model, self.spec, self.base, np.triu(chol[0]), envelope,
+                               rms)
+
+    def check_excitation(self) -> tuple[str, ...]:
+        """:attr:`weakly_informed`, with a :class:`~consistid.errors.PoorExcitationWarning`
+        naming them (as ``identify`` warns) when there are any: call it after a run of
+        updates, e.g. at the end of an excitation."""
+        weak = self.weakly_informed
+        if weak:
+            warnings.warn(f"the samples taken barely inform {len(weak)} direction(s) of the "
+                          f"parameters: {'; '.join(weak[:3])}{' …' if len(weak) > 3 else ''}. "
+                          "Their estimate is the initial one's or the noise's; predict warns on "
+                          "data beyond the envelope. Move every joint both ways, over its range, "
+                          "to inform them", PoorExcitationWarning, stacklevel=2)
+        return weak
+
+    def _observe(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray, tau: np.ndarray
+                 ) -> None:
+        """Add samples (``(N, nv)`` arrays) to :attr:`envelope` and the torque RMS."""
+        s = self._seen
+        np.minimum(s[0], q.min(axis=0), out=s[0])
+        np.maximum(s[1], q.max(axis=0), out=s[1])
+        np.maximum(s[2], np.abs(dq).max(axis=0), out=s[2])
+        np.maximum(s[3], np.abs(ddq).max(axis=0), out=s[3])
+        s[4] += np.sum(dq >= STANDSTILL_SPEED, axis=0)      # as TrainingEnvelope counts them
+        s[5] += np.sum(dq <= -STANDSTILL_SPEED, axis=0)
+        s[6] += np.sum(tau ** 2, axis=0)
+        self._n_seen += q.shape[0]
+
     def predict(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> np.ndarray:
-        """``W(q, q̇, q̈) β̂`` for one sample (vectors) or many (``(N, nv)`` arrays)."""
+        """``W(q, q̇, q̈) β̂`` for one sample (vectors) or many (``(N, nv)`` arrays); on many
+        that leave the :attr:`envelope` (a velocity sign never seen, a range exceeded:
+        :meth:`~consistid.identification.envelope.TrainingEnvelope.departures`) an
+        :class:`~consistid.errors.ExtrapolationWarning` names where."""
         q, dq, ddq = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (q, dq, ddq))
+        envelope = self.envelope
+        if envelope is not None and q.shape[1] == self.model.nv:
+            away = envelope.departures(Dataset(t=np.arange(q.shape[0], dtype=float), q=q,
+                                                 dq=dq, ddq=ddq))
+            if away:
+                warnings.warn(f"these states go where the samples taken never went: "
+                              f"{'; '.join(away[:4])}{' …' if len(away) > 4 else ''}. The "
+                              "prediction there extrapolates (est.envelope holds the ranges "
+                              "seen)", ExtrapolationWarning, stacklevel=2)
         out = np.empty_like(q)
         for k in range(q.shape[0]):
             out[k] = self.row(q[k], dq[k], ddq[k]) @ self._beta
@@ -465,6 +543,7 @@ class RecursiveEstimator:
             t = float(self._check_times("update", np.array([t], dtype=float))[0])
         self._still = np.abs(dq) < STANDSTILL_SPEED
         out = self._update(self.row(q, dq, ddq), tau, t)
+        self._observe(q[None], dq[None], ddq[None], tau[None])
         if t is not None:
             self._last_time = t
         return out
@@ -678,6 +757,8 @@ class RecursiveEstimator:
                 stds[k] = np.sqrt(np.diag(self._p))
         if times is not None and n:
             self._last_time = float(times[-1])
+        if n:
+            self._observe(qa, dqa, ddqa, taua)
         return RecursiveTrace(np.arange(start, start + n), times, betas, stds, stats,
                               np.array(flagged, dtype=int))
 
