@@ -18,9 +18,12 @@ Rules (issue 14), for every ``consistid`` subcommand that writes files:
    :func:`atomic_dir` does the same for a folder of files: a new folder appears whole (one
    rename), files into an existing one are renamed under a journal that readers check, and
    SIGINT/SIGTERM wait for the renames (:mod:`consistid.filesafety`).
-5. **One writer.** A checked output is locked until the command ends
+6. **One writer.** A checked output is locked until the command ends
    (:func:`consistid.filesafety.lock_output`): a second run asking for the same output is
-   refused by name instead of replacing the first one's files.
+   refused by name instead of replacing the first one's files. A folder of files
+   (:func:`check_output_dir`) is held alone; a file (:func:`check_output`) is held alone and
+   its folder shared, so a file of one command (``rollout --output DIR/r.html``) never lands
+   among the set another writes into the same folder (``identify --output DIR``).
 
 Usage in a subcommand::
 
@@ -42,7 +45,8 @@ from typing import Iterable, Iterator
 
 from ..errors import ConfigError, OutputPathError, ResultFileError
 from ..identification.persistence import check_input
-from ..filesafety import commit_folder, lock_output, replacing, signals_deferred
+from ..filesafety import (commit_folder, lock_output, lock_output_file, replacing,
+                          signals_deferred)
 
 __all__ = ["check_output", "check_output_dir", "check_inputs", "atomic_path", "atomic_dir",
            "same_file"]
@@ -121,7 +125,7 @@ def check_output(path: str | os.PathLike, *, inputs: Iterable[str | os.PathLike]
         raise OutputPathError(f"{what} {str(out)!r} exists; pass --force to replace it (or "
                               "choose another path)")
     _check_folder(out.parent, what, out)
-    lock_output(out, what)
+    lock_output_file(out, what)
     return out
 
 
