@@ -252,22 +252,40 @@ def _write_identification(res: "ci.IdentificationResult", folder: Path, train: "
                           held: "ci.Dataset | None") -> None:
     """:data:`IDENTIFY_OUTPUTS` into ``folder``, all renamed into place at the end. A model
     file that cannot be written (an inconsistent body, no source URDF) is named with the
-    reason, and the rest is written."""
-    skipped = []
+    reason, and the rest is written. ``robot.xml`` of a model read from the user's MJCF is a
+    copy of that file with the identified values written in (:func:`_write_mjcf`)."""
+    notes = []
     with atomic_dir(folder) as tmp:
         res.save(tmp / "result.json")
         res.to_csv(tmp / "parameters.csv")
-        for name, write in (("robot.urdf", res.to_urdf), ("robot.xml", res.to_mjcf)):
+        for name, write in (("robot.urdf", lambda path: res.to_urdf(path) and None),
+                            ("robot.xml", lambda path: _write_mjcf(res, path))):
             try:
-                write(tmp / name)
+                what = write(tmp / name)
             except (ci.InconsistentParametersError, ci.ModelError) as exc:
-                skipped.append(f"{name} not written: {exc}")
+                notes.append(f"{name} not written: {exc}")
+                continue
+            notes += [f"{name}: {what}"] if what else []
         res.report(tmp / "report.html", data=train, held_out=held)
         written = sorted(p.name for p in tmp.iterdir())
-    for line in skipped:
+    for line in notes:
         _log(line)
     _log(f"wrote {', '.join(written)} into {folder}")
     print(f"\nreport: {folder / 'report.html'}")
+
+
+def _write_mjcf(res: "ci.IdentificationResult", path: Path) -> str:
+    """Write ``robot.xml`` at ``path`` and say what it is: for a model read from the user's
+    MJCF, a copy of that file with the identified values written in (every other byte kept but
+    the ``<compiler>``'s ``meshdir``/``texturedir``, made absolute so that its meshes and
+    textures resolve from the output folder); otherwise a new MJCF without geometry."""
+    source = res.model.source if res.model.source_format == "mjcf" else None
+    if source is None:
+        res.to_mjcf(path)
+        return "a new MJCF of the identified model, without geometry (no MJCF was given)"
+    res.to_mjcf(path, source=source, absolute_assets=True)
+    return (f"a copy of {source} with the identified values written in; its <compiler> "
+            "meshdir/texturedir name that file's asset folders by absolute path")
 
 
 def excite(args: argparse.Namespace) -> int:

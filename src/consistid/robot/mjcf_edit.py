@@ -28,6 +28,14 @@ frame ``X`` (its placement in the joint frame): ``π_b = X⁻¹·(π − Σ π_k
   has no other); terms not identified keep the file's value, and an :class:`ExportWarning` lists
   those that are non-zero (the identified model did not include them).
 
+* Assets (meshes, textures, height fields, skins) named by relative ``file`` resolve from the
+  MJCF's folder (through ``<compiler meshdir/texturedir/assetdir>``). An output in another
+  folder is refused, unless ``absolute_assets=True``: then every ``<compiler>`` of the copy
+  gets ``meshdir`` and ``texturedir`` set to the absolute folders MuJoCo resolved for the
+  source (``assetdir``, which they override, is removed; a file without ``<compiler>`` gets
+  one), so that the copy loads the source's assets from anywhere on this machine. A relative
+  ``file`` that no compiler folder governs (``<model file>``) is still refused.
+
 The result is written to a temporary file beside the output, compiled by MuJoCo and read back
 (:func:`~consistid.robot.mjcf_in.read_mjcf`); only when every written body and joint reads back
 as identified (relative 1e-9) is it moved onto ``path``
@@ -60,6 +68,10 @@ JOINT_ATTRIBUTES = {"fv": "damping", "fc": "frictionloss", "Ia": "armature"}
 INERTIAL_REPLACED = ("quat", "axisangle", "xyaxes", "zaxis", "euler", "diaginertia")
 #: Relative tolerance of the read-back check.
 READBACK_RTOL = 1e-9
+#: Asset elements whose relative files MuJoCo looks up in ``<compiler meshdir>`` …
+MESHDIR_ASSETS = ("mesh", "skin", "hfield")
+#: … and in ``texturedir`` (a cube or skybox texture names up to six files).
+TEXTUREDIR_ASSETS = ("texture",)
 
 
 def _num(values: Any) -> str:
@@ -73,9 +85,11 @@ def _in_bodies(els: list[Element], tag: str) -> list[Element]:
             and els[e.parent].tag in ("body", "frame", "worldbody")]
 
 
-def _check_source(model: "RobotModel", source: Path, out: Path, els: list[Element]) -> None:
+def _check_source(model: "RobotModel", source: Path, out: Path, els: list[Element],
+                  absolute_assets: bool = False) -> None:
     """Refuse an output over the source, an ``<include>``, ``inertiafromgeom="true"``, and
-    relative asset files when the output goes to another folder."""
+    relative asset files when the output goes to another folder (except those the compiler's
+    folders govern, with ``absolute_assets``)."""
     if out.is_dir() or not out.parent.is_dir():
         raise ModelError(f"to_mjcf({str(out)!r}): " + ("a folder, not a file name" if out.is_dir()
                                                       else f"no folder {str(out.parent)!r}"))
@@ -94,12 +108,40 @@ def _check_source(model: "RobotModel", source: Path, out: Path, els: list[Elemen
                              "ignore every <inertial>; set it to \"auto\" (the default) so that "
                              "the identified inertials are used")
     if out.resolve().parent != source.resolve().parent:
-        files = [e.attrs["file"] for e in els if "file" in e.attrs
-                 and not Path(e.attrs["file"]).is_absolute()]
+        governed = MESHDIR_ASSETS + TEXTUREDIR_ASSETS if absolute_assets else ()
+        files = [value for e in els if e.tag not in governed for key, value in e.attrs.items()
+                 if key.startswith("file") and not Path(value).is_absolute()]
         if files:
             raise ModelError(f"{source.name} refers to files by relative path ({files[0]!r} …), "
                              f"which would not resolve from {out.resolve().parent}; write the "
-                             f"output into {source.resolve().parent}")
+                             f"output into {source.resolve().parent}" + (
+                                 "" if absolute_assets else ", or pass absolute_assets=True "
+                                 "(the copy's <compiler> then names the source's asset "
+                                 "folders by absolute path)"))
+
+
+def _asset_folder_edits(data: bytes, els: list[Element], source: Path
+                        ) -> list[tuple[int, int, bytes]]:
+    """The edits that set ``meshdir`` and ``texturedir`` of every ``<compiler>`` to the absolute
+    folders MuJoCo resolves for ``source`` (and remove ``assetdir``, which they override), or
+    insert a ``<compiler>`` holding them."""
+    import mujoco
+    from xml.sax.saxutils import quoteattr
+
+    spec = mujoco.MjSpec.from_file(str(source))
+    folders = {key: str((source.resolve().parent / value).resolve())
+               for key, value in (("meshdir", spec.meshdir), ("texturedir", spec.texturedir))}
+    compilers = [e for e in els if e.tag == "compiler"]
+    if not compilers:
+        attrs = " ".join(f"{key}={quoteattr(value)}" for key, value in folders.items())
+        return [insert_first_child(data, els[0], f"<compiler {attrs}/>")]
+    edits = []
+    for el in compilers:
+        for key, value in folders.items():
+            edits.append(set_attribute(data, el, key, quoteattr(value)[1:-1]))
+        removed = remove_attribute(data, el, "assetdir")
+        edits += [removed] if removed is not None else []
+    return edits
 
 
 def _mjcf_bodies(mj: Any, els: list[Element], source: str) -> dict[int, Element]:
@@ -218,7 +260,8 @@ def _joint_edits(data: bytes, els: list[Element], mj: Any,
 
 def write_mjcf_into(model: "RobotModel", path: str | Path, source: str | Path,
                     parameters: np.ndarray | None = None,
-                    parameter_names: Sequence[str] | None = None) -> Path:
+                    parameter_names: Sequence[str] | None = None, *,
+                    absolute_assets: bool = False) -> Path:
     """Write ``source`` (an MJCF) to ``path`` carrying ``parameters`` (module docstring).
 
     Parameters
@@ -229,6 +272,9 @@ def write_mjcf_into(model: "RobotModel", path: str | Path, source: str | Path,
     parameters : (10·nbodies [+ k],) standard parameters then per-joint terms named by
         ``parameter_names`` (``"<joint>.fv"``, ``".fc"``, ``".Ia"``; offsets and position terms
         have no MJCF attribute and are listed by an :class:`ExportWarning`).
+    absolute_assets : for an output outside the source's folder: name the source's mesh and
+        texture folders by absolute path in the copy's ``<compiler>`` (module docstring);
+        without it such an output is refused when the file names assets by relative path.
 
     Raises
     ------
@@ -241,7 +287,7 @@ def write_mjcf_into(model: "RobotModel", path: str | Path, source: str | Path,
     text = check_safe_xml(source)
     data = text.encode("utf-8")
     els = elements(data)
-    _check_source(model, source, out, els)
+    _check_source(model, source, out, els, absolute_assets)
     params, terms = export_parameters(model, parameters, parameter_names)
     mj = compile_mjcf(source)
     reduced, _, _ = read_mjcf(source, model.locked_joints, model.locked_configuration)
@@ -255,6 +301,8 @@ def write_mjcf_into(model: "RobotModel", path: str | Path, source: str | Path,
         edits += more
         inserted += [body_label(mj, b)] if new else []
     more, inherited, untouched = _joint_edits(data, els, mj, terms)
+    if absolute_assets and out.resolve().parent != source.resolve().parent:
+        more += _asset_folder_edits(data, els, source)
     with replacing(out) as tmp:          # moved onto out only once it reads back as written
         tmp.write_bytes(apply(data, edits + more))
         _check_written(tmp, out, model, params, terms)
