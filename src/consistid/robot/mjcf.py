@@ -34,7 +34,7 @@ import pinocchio as pin
 
 from ..errors import ExportWarning, InconsistentParametersError, ModelError
 from .export import check_not_source
-from .inertia import body_slice, check_body
+from .inertia import body_slice, writable_bodies
 from .joint_terms import export_parameters
 
 if TYPE_CHECKING:
@@ -86,11 +86,7 @@ def mjcf_spec(model: "RobotModel", parameters: np.ndarray | None = None,
     import mujoco  # heavy: loaded with the first export
 
     params, terms = export_parameters(model, parameters, parameter_names)
-    for body, name in enumerate(model.body_names):
-        verdict = check_body(params[body_slice(body)], "pseudo-inertia", name)
-        if not verdict.ok:
-            raise InconsistentParametersError(f"refusing to write an inconsistent body: "
-                                              f"{verdict.reason}")
+    writable_bodies(params, model.body_names)
     dropped = []
     for joint, values in terms.items():
         for term, attr in MJCF_TERMS.items():

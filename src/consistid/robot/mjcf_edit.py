@@ -53,7 +53,7 @@ import pinocchio as pin
 
 from ..errors import ExportWarning, InconsistentParametersError, ModelError
 from ..filesafety import replacing
-from .inertia import InertialParameters, body_slice
+from .inertia import InertialParameters, body_slice, writable_bodies
 from .joint_terms import export_parameters
 from .mjcf_in import body_inertia, body_label, check_safe_xml, compile_mjcf, read_mjcf
 from .xml_spans import (Element, apply, elements, insert_first_child, remove_attribute,
@@ -186,12 +186,8 @@ def _written_inertias(model: "RobotModel", params: np.ndarray, mj: Any, reduced:
 
     out = {}
     ids = {body_label(mj, b): b for b in range(1, mj.nbody)}    # unnamed ones too
-    for i, name in enumerate(model.body_names):
-        total = InertialParameters(params[body_slice(i)])
-        verdict = total.consistent(name=name)
-        if not verdict.ok:
-            raise InconsistentParametersError(f"refusing to write an inconsistent body: "
-                                              f"{verdict.reason}")
+    for i, (name, total) in enumerate(zip(model.body_names,
+                                          writable_bodies(params, model.body_names))):
         jid = reduced.getJointId(model.joint_names[i])
         own = int(mj.jnt_bodyid[mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_JOINT,
                                                   model.joint_names[i])])
