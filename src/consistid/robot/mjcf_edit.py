@@ -54,7 +54,7 @@ import pinocchio as pin
 from ..errors import ExportWarning, InconsistentParametersError, ModelError
 from ..filesafety import replacing
 from .inertia import InertialParameters, body_slice, writable_bodies
-from .joint_terms import export_parameters
+from .joint_terms import MJCF_ATTRIBUTES, check_nonnegative, export_parameters
 from .mjcf_in import body_inertia, body_label, check_safe_xml, compile_mjcf, read_mjcf
 from .xml_spans import (Element, apply, elements, insert_first_child, remove_attribute,
                         set_attribute)
@@ -62,8 +62,6 @@ from .xml_spans import (Element, apply, elements, insert_first_child, remove_att
 if TYPE_CHECKING:
     from .model import RobotModel
 
-#: Per-joint parameter suffixes and the MJCF ``<joint>`` attribute each sets.
-JOINT_ATTRIBUTES = {"fv": "damping", "fc": "frictionloss", "Ia": "armature"}
 #: ``<inertial>`` attributes replaced by ``pos``/``mass``/``fullinertia``.
 INERTIAL_REPLACED = ("quat", "axisangle", "xyaxes", "zaxis", "euler", "diaginertia")
 #: Relative tolerance of the read-back check.
@@ -230,6 +228,7 @@ def _joint_edits(data: bytes, els: list[Element], mj: Any,
     non-zero values the identification left out."""
     import mujoco
 
+    check_nonnegative(terms, MJCF_ATTRIBUTES, "an MJCF joint")
     joints = {e.attrs.get("name"): e for e in _in_bodies(els, "joint")}
     edits, inherited, untouched = [], [], []
     for joint, values in terms.items():
@@ -237,12 +236,8 @@ def _joint_edits(data: bytes, els: list[Element], mj: Any,
         if el is None:
             raise ModelError(f"joint {joint!r} is not a <joint> of a body in the file")
         dof = int(mj.jnt_dofadr[mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_JOINT, joint)])
-        for suffix, attr in JOINT_ATTRIBUTES.items():
+        for suffix, attr in MJCF_ATTRIBUTES.items():
             value = values.get(suffix)
-            if value is not None and value < 0:
-                raise InconsistentParametersError(
-                    f"joint {joint!r}: negative {attr} {value:.6g} (an MJCF joint's {attr} must "
-                    "be ≥ 0)")
             before = float(getattr(mj, f"dof_{attr}")[dof])
             if value is None:
                 if before:
@@ -309,7 +304,7 @@ def write_mjcf_into(model: "RobotModel", path: str | Path, source: str | Path,
 def _warn(inserted: list[str], inherited: list[str], untouched: list[str],
           terms: dict[str, dict[str, float]]) -> None:
     dropped = [f"{j}.{t}={v:.4g}" for j, vs in terms.items() for t, v in vs.items()
-               if t not in JOINT_ATTRIBUTES and v]
+               if t not in MJCF_ATTRIBUTES and v]
     notes = []
     if inserted:
         notes.append(f"bodies {inserted} had no <inertial> (MuJoCo derived theirs from the "
