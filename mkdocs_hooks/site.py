@@ -7,6 +7,10 @@
   with the first line of its docstring and a link to its full entry.
 * A subpackage page (``::: consistid.<package>``) opens with the top-level names that package
   defines, before its modules.
+* MathJax is served from the site itself (``js/mathjax/``), copied from the pip package
+  ``django-static-mathjax`` (MathJax 3.2.2's build as released, Apache-2.0; it needs no Django)
+  of the ``docs`` extra: the combined TeX → CommonHTML script, its fonts and the TeX extensions
+  it loads on demand, so that the site renders its equations offline.
 """
 
 from __future__ import annotations
@@ -57,3 +61,32 @@ def on_page_markdown(markdown: str, page: Any, **kwargs: Any) -> str:
             markdown = (markdown[:found.start()] + "Its names at the top level of `consistid`:\n\n"
                         + table + "\n\n" + markdown[found.start():])
     return ROLE.sub(_role, convert_math(markdown))
+
+
+#: What the site serves of MathJax's ``es5`` build (:data:`MATHJAX_DIR` in the site).
+MATHJAX_PARTS = ("tex-mml-chtml.js", "output/chtml/fonts/woff-v2", "input/tex/extensions")
+MATHJAX_DIR = "js/mathjax"
+
+
+def _mathjax_build() -> Path:
+    """The ``es5`` folder of the installed MathJax package."""
+    try:
+        import mathjax                 # the django-static-mathjax distribution's package
+    except ImportError:
+        raise SystemExit("the docs site serves MathJax itself: pip install \"consistid[docs]\" "
+                         "(it brings django-static-mathjax, MathJax's release files)") from None
+    return Path(mathjax.__file__).parent / "static" / "mathjax" / "es5"
+
+
+def on_files(files: Any, config: Any, **kwargs: Any) -> Any:
+    from mkdocs.structure.files import File
+
+    build = _mathjax_build()
+    for part in MATHJAX_PARTS:
+        found = [build / part] if (build / part).is_file() else sorted(
+            f for f in (build / part).rglob("*") if f.is_file())
+        for path in found:
+            uri = f"{MATHJAX_DIR}/{path.relative_to(build).as_posix()}"
+            files.append(File.generated(config, uri, abs_src_path=str(path)))
+    return files
+

@@ -1,4 +1,4 @@
-"""The ``consistid`` command's outputs: identify --output, demo's fresh folder, any URDF,
+"""The ``consistid`` command's outputs: identify --output, demo --output, any URDF,
 --version, -q, and error hints in TOML syntax."""
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 import consistid as ci
-from consistid.cli import main
+from consistid.cli import commands, main
 from consistid.cli.config import config_identify, config_recordings, load_config
 from consistid.cli.hints import toml_hints
 from consistid.identification.base import random_states
@@ -127,17 +127,27 @@ def test_errors_give_toml_hints(project, capsys):
     assert 'prior = "flat"' in err and "prior='flat'" not in err
 
 
-def test_demo_writes_into_a_fresh_folder_from_any_urdf(project, tmp_path, monkeypatch, capsys):
-    monkeypatch.chdir(tmp_path)
-    (tmp_path / "consistid-demo-arm3r").mkdir()                # taken: the demo picks -2
+def test_demo_writes_only_where_asked_from_any_urdf(project, tmp_path, monkeypatch, capsys):
+    """Without --output the demo prints and writes nothing (the current folder stays empty);
+    with it, the named folder receives the set, and existing files there need --force."""
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    monkeypatch.chdir(cwd)
     urdf = project.parent.parent / "data" / "arm3r.urdf"
-    args = ["-q", "demo", "--urdf", str(urdf), "--duration", "4", "--rate", "200"]
+    args = ["demo", "--urdf", str(urdf), "--duration", "4", "--rate", "200"]
     assert main(args) == 0
-    report = tmp_path / "consistid-demo-arm3r-2" / "report.html"
-    assert f"report: {report}" in capsys.readouterr().out
-    check_html(report.read_text(), n_images=9)
-    assert main([*args, "--output", str(report.parent)]) == 2  # never an existing folder
-    assert "exists" in capsys.readouterr().err
+    out = capsys.readouterr()
+    assert "no file written; consistid demo --output DIR writes report.html" in out.err
+    assert "report:" not in out.out and "j3" in out.out and list(cwd.iterdir()) == []
+    folder = tmp_path / "demo"
+    assert main(["-q", *args, "--output", str(folder)]) == 0
+    assert f"report: {folder / 'report.html'}" in capsys.readouterr().out
+    check_html((folder / "report.html").read_text(), n_images=9)
+    assert sorted(p.name for p in folder.iterdir()) == sorted(commands.DEMO_OUTPUTS)
+    assert ci.IdentificationResult.load(folder / "result.json").model.nv == 3
+    monkeypatch.setattr(ci.simulate, "excitation_run", lambda *a, **k: pytest.fail("ran"))
+    assert main([*args, "--output", str(folder)]) == 2           # checked before the work
+    assert "exists; pass --force" in capsys.readouterr().err
 
 
 def test_simulate_takes_any_urdf(project, capsys):
@@ -298,14 +308,15 @@ def test_a_large_bag_shows_progress(tmp_path):
 
 
 def test_a_failed_demo_leaves_no_folder(tmp_path, monkeypatch):
-    """A demo that fails after making its folder (here: the simulation) removes it again."""
+    """A demo that fails in its work (here: the simulation) leaves neither its --output folder
+    nor a temporary or a lock."""
     monkeypatch.chdir(tmp_path)
 
     def fail(*args, **kwargs):
         raise ci.ModelError("simulated failure")
 
     monkeypatch.setattr(ci.simulate, "excitation_run", fail)
-    assert main(["-q", "demo", "--robot", "ur5"]) == 2
+    assert main(["-q", "demo", "--robot", "ur5", "--output", str(tmp_path / "out")]) == 2
     assert list(tmp_path.iterdir()) == []
 
 

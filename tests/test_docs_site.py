@@ -97,6 +97,34 @@ def test_math_is_marked_for_mathjax(site):
     assert "mathjax" in index.lower()
 
 
+def test_mathjax_is_served_by_the_site(site):
+    """Every script a page loads is a file of the site (no CDN): MathJax, its fonts and the
+    TeX extensions it loads on demand are copied in by the build."""
+    index = (site / "concepts" / "index.html")
+    sources = re.findall(r'<script[^>]* src="([^"]+)"', index.read_text(encoding="utf-8"))
+    assert any(src.endswith("mathjax/tex-mml-chtml.js") for src in sources), sources
+    for src in sources:
+        assert "://" not in src and (index.parent / src).resolve().is_file(), src
+    fonts = site / "js" / "mathjax" / "output" / "chtml" / "fonts" / "woff-v2"
+    assert len(list(fonts.glob("*.woff"))) > 10
+    assert (site / "js" / "mathjax" / "input" / "tex" / "extensions" / "physics.js").is_file()
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="no Chromium at /usr/bin/chromium")
+def test_math_renders_offline(site, tmp_path):
+    """In a headless Chromium with no network, MathJax typesets every marked equation of the
+    concepts page, without an error."""
+    page = site / "concepts" / "index.html"
+    marked = page.read_text(encoding="utf-8").count('class="arithmatex"')
+    out = subprocess.run([CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu",
+                          "--disable-background-networking", "--disable-component-update",
+                          "--disable-sync", "--no-first-run", f"--user-data-dir={tmp_path}",
+                          "--virtual-time-budget=8000", "--dump-dom", page.as_uri()],
+                         capture_output=True, text=True, timeout=120).stdout
+    assert marked > 0 and out.count("<mjx-container") >= marked, out[-500:]
+    assert "<mjx-merror" not in out
+
+
 def test_type_column_holds_types(site):
     bad = []
     for page in (site / "api").rglob("*.html"):

@@ -251,8 +251,10 @@ def test_numeric_arguments_are_checked_before_the_work(tmp_path, capsys, monkeyp
 
 def test_demo_output_that_exists_is_refused(tmp_path, capsys, monkeypatch):
     (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "report.html").write_text("mine")
     forbid(monkeypatch, ci.simulate, "excitation_run")
     assert "--output" in run(["demo", "--output", tmp_path / "out"], capsys)
+    assert (tmp_path / "out" / "report.html").read_text() == "mine"
 
 
 def test_identify_output_refuses_existing_results_before_identifying(project, capsys,

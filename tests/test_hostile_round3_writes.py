@@ -92,6 +92,74 @@ def test_the_lock_is_released_when_the_command_ends(config, capsys):
     assert ci.IdentificationResult.load(out / "result.json").n_samples == 300
 
 
+ROLLOUT = IDENTIFY + """[rollout]
+calibrate = false
+"""
+#: A process that holds what a command takes for its output, then waits: ``check_output_dir``
+#: (identify, diagnose: a set of files in a folder) or ``check_output`` (rollout: one file).
+HOLD = ("import sys; from consistid.cli import files; from consistid.cli.commands import "
+        "IDENTIFY_OUTPUTS as names; kind, path = sys.argv[1:3];"
+        "files.check_output_dir(path, names) if kind == 'dir' else files.check_output(path);"
+        "print('held', flush=True); sys.stdin.read()")
+
+
+def _holding(kind: str, path: Path) -> subprocess.Popen:
+    holder = _python(HOLD, kind, path, stdin=subprocess.PIPE)
+    assert holder.stdout.readline().strip() == "held", holder.communicate(timeout=30)
+    return holder
+
+
+def _stop(holder: subprocess.Popen) -> None:
+    holder.kill()
+    holder.communicate(timeout=30)
+
+
+@pytest.mark.parametrize("holds, runs", [("dir", "rollout"), ("file", "identify")])
+def test_identify_and_rollout_into_one_folder_cannot_interleave(config, capsys, monkeypatch,
+                                                                holds, runs):
+    """A set of files (identify) and a file (rollout) written into one folder at once: the
+    second writer is refused by name before its work, whichever comes first."""
+    out = config.parent.parent / "out"
+    out.mkdir()
+    rollout = config.with_name("rollout.toml")
+    rollout.write_text(ROLLOUT)
+    from consistid.cli import rollout as rollout_cli
+    monkeypatch.setattr(ci, "identify", lambda *a, **k: pytest.fail("identified anyway"))
+    monkeypatch.setattr(rollout_cli, "identify", lambda *a, **k: pytest.fail("ran anyway"))
+    holder = _holding(holds, out if holds == "dir" else out / "rollout.html")
+    try:
+        argv = (["identify", str(config), "--output", str(out)] if runs == "identify" else
+                ["rollout", str(rollout), "--output", str(out / "rollout.html")])
+        assert main(["-q", *argv, "--force"]) == 2
+        err = capsys.readouterr().err
+        assert "being written by another consistid run" in err and str(out) in err, err
+        assert "Traceback" not in err
+        assert not [p for p in out.iterdir() if not p.name.endswith(".consistid-lock")]
+    finally:
+        _stop(holder)
+
+
+def test_two_files_into_one_folder_share_it(tmp_path):
+    """Runs writing different single files into one folder do not stop each other; the same
+    file is refused; the folder's shared lock outlives its first holder, so that a set writer
+    is refused until the last file writer ends, and the lock files go with the last one."""
+    from consistid.cli.files import check_output, check_output_dir
+    holder = _holding("file", tmp_path / "a.html")
+    try:
+        check_output(tmp_path / "b.html")
+        with pytest.raises(OutputPathError, match="another consistid run"):
+            check_output(tmp_path / "a.html")
+        release_output_locks()
+        with pytest.raises(OutputPathError, match="another consistid run"):
+            check_output_dir(tmp_path, ["c.csv"])       # the holder still shares the folder
+    finally:
+        _stop(holder)
+    check_output_dir(tmp_path, ["c.csv"])
+    release_output_locks()
+    assert not list(tmp_path.parent.glob(f".{tmp_path.name}.consistid-lock"))
+    assert not (tmp_path / ".b.html.consistid-lock").exists()   # (a killed holder's file stays)
+
+
 # ----------------------------------------------------------------------------- all or nothing
 def _old_set(folder: Path, names=("a.txt", "b.txt", "c.txt")) -> tuple[str, ...]:
     folder.mkdir()

@@ -507,3 +507,97 @@ def test_cli_model_table_reads_an_mjcf(tmp_path):
     conf.write_text('[model]\nmjcf = "arm.xml"\nurdf = "arm.urdf"\n')
     with pytest.raises(ConfigError, match="takes no urdf"):
         config_model(load_config(conf))
+
+
+def _png(path: Path) -> None:
+    import matplotlib.pyplot as plt
+
+    plt.imsave(path, np.random.default_rng(0).random((8, 8)), cmap="gray")
+
+
+#: Source variants: the assets under ``assetdir`` with a texture, or named from the file's folder
+#: without any ``<compiler>`` (MuJoCo's defaults then: degrees, no autolimits).
+ASSET_LAYOUTS = {
+    "assetdir": (ARM.replace('meshdir="assets"', 'assetdir="assets"').replace(
+        "  <asset>\n", '  <asset>\n    <texture name="grid" type="2d" file="grid.png"/>\n')),
+    "no compiler": (ARM.replace('  <compiler angle="radian" meshdir="assets" autolimits="true"/>\n',
+                                "").replace('file="link.stl"', 'file="assets/link.stl"')
+                    .replace('file="tip.obj"', 'file="assets/tip.obj"')),
+}
+
+
+def _compiler_attrs(text: bytes) -> dict[str, str]:
+    from consistid.robot.xml_spans import elements
+    return {k: v for e in elements(text) if e.tag == "compiler" for k, v in e.attrs.items()}
+
+
+@pytest.mark.parametrize("layout", list(ASSET_LAYOUTS))
+def test_written_elsewhere_names_the_asset_folders_absolutely(tmp_path, layout):
+    """A copy written outside the source's folder with absolute_assets=True compiles there with
+    the source's meshes and textures; its <compiler> names the source's asset folders by
+    absolute path and every other byte is the source's (as written in place); without the
+    keyword the output is refused by name."""
+    import mujoco
+
+    path = _arm(tmp_path / "src", ASSET_LAYOUTS[layout])
+    _png(tmp_path / "src" / "assets" / "grid.png")
+    model = ci.RobotModel.from_mjcf(path, locked_joints=["j4"])
+    params, names = _identified(model, 3)
+    (tmp_path / "elsewhere").mkdir()
+    with pytest.raises(ModelError, match="absolute_assets=True"):
+        write_mjcf_into(model, tmp_path / "elsewhere" / "o.xml", path, params, names)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ExportWarning)
+        out = write_mjcf_into(model, tmp_path / "elsewhere" / "o.xml", path, params, names,
+                              absolute_assets=True)
+        beside = write_mjcf_into(model, tmp_path / "src" / "o.xml", path, params, names)
+    src, got = mujoco.MjModel.from_xml_path(str(path)), mujoco.MjModel.from_xml_path(str(out))
+    assert got.nmesh == 2 and np.array_equal(got.mesh_vert, src.mesh_vert)
+    assert got.ntex == src.ntex and np.array_equal(got.tex_data, src.tex_data)
+    compiler = _compiler_attrs(out.read_bytes())
+    assert compiler.pop("meshdir") == compiler.pop("texturedir") == str(
+        (tmp_path / "src" / ("assets" if layout == "assetdir" else "")).resolve())
+    before = _compiler_attrs(path.read_bytes())
+    before.pop("assetdir", None)
+    assert compiler == before
+    # every other byte is what the in-place writer writes: the <compiler> tag is the only change
+    token = re.compile(rb"<compiler [^>]*>\n?\s*")
+    assert token.sub(b"", out.read_bytes()) == token.sub(b"", beside.read_bytes())
+    back = ci.RobotModel.from_mjcf(out, locked_joints=["j4"])
+    assert np.allclose(back.prior_parameters, params[:model.n_inertial], rtol=1e-12, atol=1e-15)
+
+
+def test_cli_identify_writes_the_users_mjcf_with_its_meshes(tmp_path, capsys):
+    """``consistid identify --output DIR`` of a model read from an MJCF writes robot.xml as a
+    copy of that MJCF (meshes by an absolute meshdir) that MuJoCo compiles from DIR, carrying
+    the identified inertias; the source is untouched."""
+    import mujoco
+    from consistid.cli import main
+
+    path = _arm(tmp_path / "arm")
+    before = path.read_bytes()
+    model = ci.RobotModel.from_mjcf(path, locked_joints=["j4"])
+    t, q, dq, ddq = _excitation(3, 30.0, 7)
+    tau = _mj_inverse(path, q, dq, ddq, damping=True)          # MuJoCo's torques: the truth
+    tau += np.random.default_rng(8).normal(0, 0.02, tau.shape)
+    (tmp_path / "data").mkdir()
+    ci.Dataset(t=t, q=q, dq=dq, ddq=ddq, tau=tau, joint_names=model.joint_names).save(
+        tmp_path / "data" / "run.npz")
+    conf = tmp_path / "run.toml"
+    conf.write_text('[model]\nmjcf = "arm/arm.xml"\nlocked_joints = ["j4"]\n'
+                    '[data]\ndir = "data"\nkeys = "consistid"\ntrain = ["run.npz"]\n'
+                    '[identify]\nfriction = ["viscous"]\narmature = true\n')
+    out = tmp_path / "out"
+    assert main(["identify", str(conf), "--output", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert f"robot.xml: a copy of {path}" in err, err
+    res = ci.IdentificationResult.load(out / "result.json", urdf=path)
+    written = mujoco.MjModel.from_xml_path(str(out / "robot.xml"))
+    assert written.nmesh == 2 and np.array_equal(
+        written.mesh_vert, mujoco.MjModel.from_xml_path(str(path)).mesh_vert)
+    assert _compiler_attrs((out / "robot.xml").read_bytes())["meshdir"] == str(
+        (tmp_path / "arm" / "assets").resolve())
+    back = ci.RobotModel.from_mjcf(out / "robot.xml", locked_joints=["j4"])
+    assert np.allclose(back.prior_parameters, res.parameters[:model.n_inertial], rtol=1e-9,
+                       atol=1e-12)
+    assert path.read_bytes() == before

@@ -8,7 +8,11 @@ identify --output DIR``) is useful only whole: a new ``parameters.csv`` beside a
    ``flock`` on ``.NAME.consistid-lock`` beside it; the kernel releases it when the process
    dies, so a killed run leaves no stale lock). A second run that asks for the same output is
    refused by name (:class:`~consistid.errors.OutputPathError`) instead of replacing the
-   first one's files.
+   first one's files. A folder is one output: a run that writes a set of files into a folder
+   holds the folder alone, and a run that writes one file (:func:`lock_output_file`) holds
+   that file alone and *shares* the folder that receives it (``LOCK_SH`` on the folder's
+   lock), so that no file of another run lands among a set while it is written, and two runs
+   that write different files into one folder do not stop each other.
 2. **All or nothing.** The files are written into a staging folder; a new output folder is
    that staging folder renamed once (``rename(2)`` is atomic). Into an existing folder the files
    are renamed one by one under a journal (:data:`JOURNAL`, listing them) written before the
@@ -33,7 +37,8 @@ from typing import Iterator
 
 from .errors import OutputPathError
 
-__all__ = ["JOURNAL", "Terminated", "lock_output", "release_output_locks", "interrupted_files",
+__all__ = ["JOURNAL", "Terminated", "lock_output", "lock_output_file", "release_output_locks",
+           "interrupted_files",
            "commit_folder", "replacing", "signals_deferred", "sigterm_interrupts"]
 
 #: The file an output folder holds while a set of files is renamed into it (one name a line).
@@ -50,13 +55,17 @@ def _lock_file(out: Path) -> Path:
     return out.parent / f".{out.name}.consistid-lock"
 
 
-def lock_output(path: str | os.PathLike, what: str = "output") -> Path:
-    """Hold an exclusive lock on the output ``path`` (a file or a folder) until
-    :func:`release_output_locks` or the process ends; returns the lock file.
+def lock_output(path: str | os.PathLike, what: str = "output", *,
+                shared: bool = False) -> Path:
+    """Hold a lock on the output ``path`` (a file or a folder) until
+    :func:`release_output_locks` or the process ends; returns the lock file. The lock is
+    exclusive, or with ``shared=True`` shared with other shared holders (the folder that
+    receives one file of :func:`lock_output_file`; where ``flock`` is missing, exclusive).
 
     Raises
     ------
-    OutputPathError : another process holds the lock (names its pid and what to do).
+    OutputPathError : another process holds the lock (names its pid and what to do), or the
+        lock file cannot be made beside ``path``.
     """
     out = Path(path).expanduser().resolve()
     lock = _lock_file(out)
@@ -66,16 +75,21 @@ def lock_output(path: str | os.PathLike, what: str = "output") -> Path:
         import fcntl
     except ImportError:                         # Windows: an exclusive create instead
         fcntl = None
+    mode = (fcntl.LOCK_SH if shared else fcntl.LOCK_EX) if fcntl else 0
     while True:
         flags = os.O_RDWR | os.O_CREAT | (0 if fcntl else os.O_EXCL)
         try:
             fd = os.open(lock, flags, 0o644)
         except FileExistsError:
             _refuse(out, lock, what)
+        except OSError as exc:
+            raise OutputPathError(f"{what} {str(out)!r}: cannot make its lock {str(lock)!r} "
+                                  f"({exc.strerror}); choose an output in a writable folder"
+                                  ) from None
         if fcntl is None:
             break
         try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            fcntl.flock(fd, mode | fcntl.LOCK_NB)
         except OSError:
             os.close(fd)
             _refuse(out, lock, what)
@@ -86,10 +100,24 @@ def lock_output(path: str | os.PathLike, what: str = "output") -> Path:
         if same:
             break
         os.close(fd)
-    os.ftruncate(fd, 0)
-    os.write(fd, f"{os.getpid()}\n".encode())
+    if not shared:                              # shared holders leave the first one's pid
+        os.ftruncate(fd, 0)
+        os.write(fd, f"{os.getpid()}\n".encode())
+    elif os.fstat(fd).st_size == 0:
+        os.write(fd, f"{os.getpid()}\n".encode())
     _HELD[lock] = fd
     return lock
+
+
+def lock_output_file(path: str | os.PathLike, what: str = "output") -> Path:
+    """Lock the output file ``path`` for one run: its folder shared (a run writing a set of
+    files into that folder is refused, and refuses this one), the file itself exclusive
+    (module docstring, rule 1); returns the file's lock."""
+    out = Path(path).expanduser().resolve()
+    if os.access(_lock_file(out.parent).parent, os.W_OK | os.X_OK):
+        lock_output(out.parent, what, shared=True)
+    # else no run can lock that folder for a set of files either (its lock cannot be made)
+    return lock_output(out, what)
 
 
 def _refuse(out: Path, lock: Path, what: str) -> None:
@@ -105,12 +133,26 @@ def _refuse(out: Path, lock: Path, what: str) -> None:
 
 def release_output_locks() -> None:
     """Release every lock :func:`lock_output` took in this process (and remove the files)."""
-    for lock, fd in list(_HELD.items()):
-        with contextlib.suppress(OSError):
-            lock.unlink()
+    for lock, fd in reversed(list(_HELD.items())):
+        if _alone(fd):                          # a shared lock stays while others hold it
+            with contextlib.suppress(OSError):
+                lock.unlink()
         with contextlib.suppress(OSError):
             os.close(fd)
         del _HELD[lock]
+
+
+def _alone(fd: int) -> bool:
+    """Whether this process is the lock's only holder (an exclusive ``flock`` is granted)."""
+    try:
+        import fcntl
+    except ImportError:
+        return True
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        return False
+    return True
 
 
 atexit.register(release_output_locks)

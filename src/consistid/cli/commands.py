@@ -1,10 +1,12 @@
 """The ``consistid`` command.
 
 ``consistid demo`` runs the main job on a bundled default: a simulated excitation run of the
-Panda arm (ground truth = URDF parameters perturbed by ±20 %), identified, with a report written
-into a fresh folder (its path is printed). ``demo`` and ``simulate`` take any URDF
-(``--urdf PATH``). ``consistid identify CONFIG --output DIR`` writes the result as JSON, the
-parameter table as CSV, the identified URDF and MJCF and the HTML report.
+Panda arm (ground truth = URDF parameters perturbed by ±20 %), identified and printed; with
+``--output DIR`` the report, result and parameter table are written into ``DIR`` (as
+``identify --output``: existing files need ``--force``), without it no file is written.
+``demo`` and ``simulate`` take any URDF (``--urdf PATH``). ``consistid identify CONFIG --output
+DIR`` writes the result as JSON, the parameter table as CSV, the identified URDF and MJCF and the
+HTML report.
 
 Progress bars (``tqdm``) appear on a terminal; ``-q`` silences them and the step messages.
 Error messages give option hints in TOML syntax (:mod:`consistid.cli.hints`), the syntax of the
@@ -76,44 +78,22 @@ def _cli_model(args: argparse.Namespace) -> "ci.RobotModel":
     return ci.RobotModel.example(args.robot)
 
 
-def _fresh_dir(requested: str | None, default: str) -> Path:
-    """A folder created now, never one that exists: ``requested`` (refused if it exists), or
-    ``default``, ``default-2``, ``default-3`` … in the current folder, the first that is free."""
-    if requested:
-        path = Path(requested).expanduser().resolve()
-        if path.exists():
-            raise OutputPathError(f"--output {str(path)!r} exists; the demo writes into a new "
-                                  "folder only: choose another name")
-        if not path.parent.is_dir():
-            raise OutputPathError(f"--output {str(path)!r}: folder {str(path.parent)!r} does "
-                                  "not exist")
-        path.mkdir()
-        return path
-    for k in range(1, 10_000):
-        path = Path.cwd() / (default if k == 1 else f"{default}-{k}")
-        try:
-            path.mkdir()
-            return path
-        except FileExistsError:
-            continue
-    raise OutputPathError(f"no free folder name {default}-N in {str(Path.cwd())!r}")
+#: What ``consistid demo --output DIR`` writes (without ``--output`` it writes nothing).
+DEMO_OUTPUTS = ("report.html", "result.json", "parameters.csv")
 
 
 def demo(args: argparse.Namespace) -> int:
-    """Simulate, identify, report."""
+    """Simulate, identify, print; with ``--output DIR`` also write :data:`DEMO_OUTPUTS`."""
     for name, value, minimum, strict in (("--duration", args.duration, 0, True),
                                          ("--rate", args.rate, 0, True),
                                          ("--noise", args.noise, 0, False)):
         check_number(name, value, minimum, strict=strict)   # before any folder is made
     model = _cli_model(args)
     _check_demo_bodies(model, args.urdf)                 # before any folder is made
-    folder = _fresh_dir(args.output, f"consistid-demo-{model.name}")
-    try:
-        return _demo(args, model, folder)
-    except BaseException:
-        if folder.is_dir() and not any(folder.iterdir()):
-            folder.rmdir()                         # a failed demo leaves no empty folder
-        raise
+    inputs = [args.urdf] if args.urdf else []
+    folder = (check_output_dir(args.output, DEMO_OUTPUTS, inputs=inputs, force=args.force,
+                               what="--output") if args.output else None)
+    return _demo(args, model, folder)
 
 
 def _check_demo_bodies(model: "ci.RobotModel", urdf: str | None) -> None:
@@ -137,8 +117,8 @@ def _check_demo_bodies(model: "ci.RobotModel", urdf: str | None) -> None:
                           "with prior = \"euclidean\" in [identify])")
 
 
-def _demo(args: argparse.Namespace, model: "ci.RobotModel", folder: Path) -> int:
-    """The demo's work (:func:`demo`), its files written into ``folder``."""
+def _demo(args: argparse.Namespace, model: "ci.RobotModel", folder: Path | None) -> int:
+    """The demo's work (:func:`demo`), its files written into ``folder`` when one is named."""
     from consistid.robot.inertia import perturb
 
     rng = np.random.default_rng(args.seed)
@@ -171,12 +151,17 @@ def _demo(args: argparse.Namespace, model: "ci.RobotModel", folder: Path) -> int
     print("\n" + table(["method", "held-out RMS/σ", "bodies consistent",
                         "base params within 3σ of truth", "time [s]"], rows))
     print(f"OLS (nearest standard set): {results['ols'].consistency}")
+    if folder is None:
+        _log(f"\nno file written; consistid demo --output DIR writes {', '.join(DEMO_OUTPUTS)}"
+             " into DIR")
+        return 0
     sdp = results["sdp"].with_provenance(config={"command": "demo", **{
         k: v for k, v in vars(args).items() if k != "func"}})
-    report = sdp.report(folder / "report.html", data=run.dataset, held_out=held.dataset)
-    sdp.save(folder / "result.json")
-    sdp.to_csv(folder / "parameters.csv")
-    print(f"\nreport: {report}")
+    with atomic_dir(folder) as tmp:
+        sdp.report(tmp / "report.html", data=run.dataset, held_out=held.dataset)
+        sdp.save(tmp / "result.json")
+        sdp.to_csv(tmp / "parameters.csv")
+    print(f"\nreport: {folder / 'report.html'}")
     return 0
 
 
@@ -267,22 +252,40 @@ def _write_identification(res: "ci.IdentificationResult", folder: Path, train: "
                           held: "ci.Dataset | None") -> None:
     """:data:`IDENTIFY_OUTPUTS` into ``folder``, all renamed into place at the end. A model
     file that cannot be written (an inconsistent body, no source URDF) is named with the
-    reason, and the rest is written."""
-    skipped = []
+    reason, and the rest is written. ``robot.xml`` of a model read from the user's MJCF is a
+    copy of that file with the identified values written in (:func:`_write_mjcf`)."""
+    notes = []
     with atomic_dir(folder) as tmp:
         res.save(tmp / "result.json")
         res.to_csv(tmp / "parameters.csv")
-        for name, write in (("robot.urdf", res.to_urdf), ("robot.xml", res.to_mjcf)):
+        for name, write in (("robot.urdf", lambda path: res.to_urdf(path) and None),
+                            ("robot.xml", lambda path: _write_mjcf(res, path))):
             try:
-                write(tmp / name)
+                what = write(tmp / name)
             except (ci.InconsistentParametersError, ci.ModelError) as exc:
-                skipped.append(f"{name} not written: {exc}")
+                notes.append(f"{name} not written: {exc}")
+                continue
+            notes += [f"{name}: {what}"] if what else []
         res.report(tmp / "report.html", data=train, held_out=held)
         written = sorted(p.name for p in tmp.iterdir())
-    for line in skipped:
+    for line in notes:
         _log(line)
     _log(f"wrote {', '.join(written)} into {folder}")
     print(f"\nreport: {folder / 'report.html'}")
+
+
+def _write_mjcf(res: "ci.IdentificationResult", path: Path) -> str:
+    """Write ``robot.xml`` at ``path`` and say what it is: for a model read from the user's
+    MJCF, a copy of that file with the identified values written in (every other byte kept but
+    the ``<compiler>``'s ``meshdir``/``texturedir``, made absolute so that its meshes and
+    textures resolve from the output folder); otherwise a new MJCF without geometry."""
+    source = res.model.source if res.model.source_format == "mjcf" else None
+    if source is None:
+        res.to_mjcf(path)
+        return "a new MJCF of the identified model, without geometry (no MJCF was given)"
+    res.to_mjcf(path, source=source, absolute_assets=True)
+    return (f"a copy of {source} with the identified values written in; its <compiler> "
+            "meshdir/texturedir name that file's asset folders by absolute path")
 
 
 def excite(args: argparse.Namespace) -> int:
@@ -593,8 +596,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--noise", type=float, default=0.1, help="torque noise σ in N·m")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--output", metavar="DIR",
-                   help="new folder for report.html, result.json and parameters.csv (default: "
-                        "consistid-demo-ROBOT[-N] in the current folder; never an existing one)")
+                   help=f"folder to write {', '.join(DEMO_OUTPUTS)} into (created if missing; "
+                        "existing files need --force; without it the demo writes no file)")
+    _add_force(p)
     p = sub.add_parser("identify", help=COMMANDS["identify"][1])
     p.add_argument("config", help="TOML file with [model], [data] and [identify] tables")
     p.add_argument("--all", action="store_true", help="list every base parameter")

@@ -18,9 +18,12 @@ Rules (issue 14), for every ``consistid`` subcommand that writes files:
    :func:`atomic_dir` does the same for a folder of files: a new folder appears whole (one
    rename), files into an existing one are renamed under a journal that readers check, and
    SIGINT/SIGTERM wait for the renames (:mod:`consistid.filesafety`).
-5. **One writer.** A checked output is locked until the command ends
+6. **One writer.** A checked output is locked until the command ends
    (:func:`consistid.filesafety.lock_output`): a second run asking for the same output is
-   refused by name instead of replacing the first one's files.
+   refused by name instead of replacing the first one's files. A folder of files
+   (:func:`check_output_dir`) is held alone; a file (:func:`check_output`) is held alone and
+   its folder shared, so a file of one command (``rollout --output DIR/r.html``) never lands
+   among the set another writes into the same folder (``identify --output DIR``).
 
 Usage in a subcommand::
 
@@ -42,7 +45,8 @@ from typing import Iterable, Iterator
 
 from ..errors import ConfigError, OutputPathError, ResultFileError
 from ..identification.persistence import check_input
-from ..filesafety import commit_folder, lock_output, replacing, signals_deferred
+from ..filesafety import (commit_folder, lock_output, lock_output_file, replacing,
+                          signals_deferred)
 
 __all__ = ["check_output", "check_output_dir", "check_inputs", "atomic_path", "atomic_dir",
            "same_file"]
@@ -95,6 +99,18 @@ def _check_folder(folder: Path, what: str, path: Path) -> None:
         raise OutputPathError(f"{what} {str(path)!r}: folder {str(folder)!r} is not writable")
 
 
+def _check_target(target: Path, inputs: Iterable[str | os.PathLike], force: bool, what: str,
+                  other: str) -> None:
+    """An output file ``target`` is no input, no folder, and new unless ``force``; the
+    message names it after ``what`` and says to choose another ``other`` (path, folder)."""
+    _check_not_input(target, inputs, what.rstrip(":"))
+    if target.is_dir():
+        raise OutputPathError(f"{what} {str(target)!r} is an existing folder, not a file")
+    if target.exists() and not force:
+        raise OutputPathError(f"{what} {str(target)!r} exists; pass --force to replace it (or "
+                              f"choose another {other})")
+
+
 def check_output(path: str | os.PathLike, *, inputs: Iterable[str | os.PathLike] = (),
                  force: bool = False, what: str = "output") -> Path:
     """The output file ``path`` (absolute) if it is safe to write, else :class:`OutputPathError`.
@@ -114,14 +130,9 @@ def check_output(path: str | os.PathLike, *, inputs: Iterable[str | os.PathLike]
     if path is None or str(path) == "":
         raise OutputPathError(f"{what} is empty: give a file path")
     out = _resolved(path)
-    _check_not_input(out, inputs, what)
-    if out.is_dir():
-        raise OutputPathError(f"{what} {str(out)!r} is an existing folder, not a file")
-    if out.exists() and not force:
-        raise OutputPathError(f"{what} {str(out)!r} exists; pass --force to replace it (or "
-                              "choose another path)")
+    _check_target(out, inputs, force, what, "path")
     _check_folder(out.parent, what, out)
-    lock_output(out, what)
+    lock_output_file(out, what)
     return out
 
 
@@ -138,13 +149,7 @@ def check_output_dir(path: str | os.PathLike, names: Iterable[str], *,
         raise OutputPathError(f"{what} {str(out)!r} is an existing file, not a folder")
     inputs = list(inputs)
     for name in names:
-        target = out / name
-        _check_not_input(target, inputs, what)
-        if target.is_dir():
-            raise OutputPathError(f"{what}: {str(target)!r} is an existing folder, not a file")
-        if target.exists() and not force:
-            raise OutputPathError(f"{what}: {str(target)!r} exists; pass --force to replace it "
-                                  "(or choose another folder)")
+        _check_target(out / name, inputs, force, f"{what}:", "folder")
     _check_folder(out if out.is_dir() else out.parent, what, out)
     lock_output(out, what)
     return out

@@ -35,7 +35,7 @@ from __future__ import annotations
 import time
 import warnings
 from dataclasses import dataclass
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 import pinocchio as pin
@@ -52,6 +52,9 @@ from ..robot.model import RobotModel
 from ..simulate.effects import (Effects, explicit_friction, explicit_friction_slope,
                                 has_explicit_friction)
 from .ramp import RampPlan, ramp_plan
+
+if TYPE_CHECKING:
+    from ..simulate.mujoco_robot import MujocoRobot
 
 #: Default detection threshold ``v_th`` (rad/s) and standstill before an event (s).
 THRESHOLD, MIN_STILL = STANDSTILL_SPEED, 0.1
@@ -193,84 +196,108 @@ def simulate_ramps(model: RobotModel, plan: RampPlan, effects: Effects | None = 
     MuJoCo's exact ``q, q̇, q̈`` and the commanded torque with ``effects.torque_noise``.
     Raises :class:`ModelError` for elastic joints (the ramp acts on the link).
     """
-    import mujoco
-
     from ..simulate.mujoco_robot import MujocoRobot
 
     robot = MujocoRobot(model, effects, parameters, timestep=timestep)
-    eff = robot.effects
-    if eff.elastic.any():
+    if robot.effects.elastic.any():
         raise ModelError("ramp experiments act on rigid joints; switch elasticity off")
-    mj, data = robot.mj_model, mujoco.MjData(robot.mj_model)
-    link, nv = robot.link_dof, model.nv
-    pm = model.pin_model
-    pdata = pm.createData()
-    if has_explicit_friction(eff):     # applied once per step: h·slope/M_jj < 1 at the pose
-        inertia = np.diag(pin.crba(pm, pdata, model.configuration(plan.pose))) \
-            + np.asarray(eff.armature)
-        ratio = timestep * explicit_friction_slope(eff) / inertia
-        if np.any(ratio >= 1.0):
-            j = int(np.argmax(ratio))
-            raise ModelError(f"the explicit friction on {model.joint_names[j]!r} is too steep "
-                             f"for the physics step at the pose: h·slope/M_jj = {ratio[j]:.3g} "
-                             "≥ 1; shorten timestep or soften the friction law")
-    kp, kd = HOLD_BANDWIDTH ** 2, 2.0 * HOLD_BANDWIDTH
-    data.qpos[link] = plan.pose
-    data.qvel[:] = 0.0
-    explicit = has_explicit_friction(eff)
-    log_q, log_dq, log_ddq, log_u = [], [], [], []
-    windows = []
-    h = robot.timestep
-
-    def step(u: np.ndarray) -> None:
-        log_q.append(data.qpos[link].copy())
-        log_dq.append(data.qvel[link].copy())
-        applied = u - explicit_friction(eff, data.qvel[link]) if explicit else u
-        data.qfrc_applied[link] = applied
-        mujoco.mj_step(mj, data)
-        log_ddq.append(data.qacc[link].copy())
-        log_u.append(u.copy())
-
-    def hold() -> np.ndarray:
-        q, v = data.qpos[link].copy(), data.qvel[link].copy()
-        a = kp * (plan.pose - q) - kd * v
-        return pin.rnea(pm, pdata, model.configuration(q), v, a)
-
-    n_settle = int(round(plan.settle / h))
-    for ramp in plan.ramps:
-        u_start = plan.gravity[ramp.joint]
-        for _ in range(n_settle):
-            u = hold()
-            step(u)
-            u_start = u[ramp.joint]
-        first, moved = len(log_u), False
-        top = float(plan.max_torque[ramp.joint])
-        k = 0
-        while True:
-            # from the holding torque (a step to g(q0) would jolt the stuck joint)
-            commanded = u_start + ramp.direction * plan.rate * k * h
-            if abs(commanded - plan.gravity[ramp.joint]) > top:
-                break
-            u = hold()       # the ramped joint's own torque is replaced; its hold term stays
-            u[ramp.joint] = commanded     # in the others' (a jump there would jolt it too)
-            step(u)
-            k += 1
-            j = ramp.joint
-            if abs(data.qvel[link[j]]) >= plan.abort_speed or \
-                    abs(data.qpos[link[j]] - plan.pose[j]) > plan.max_excursion:
-                moved = True
-                break
-        windows.append((ramp, first, len(log_u) - 1, moved))
-    n = len(log_u)
-    if not (np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(log_dq[-1]))):
+    _check_friction_step(model, robot.effects, plan, timestep)
+    rec = _RampRecorder(model, robot, plan)
+    n_settle = int(round(plan.settle / rec.h))
+    windows = tuple(_run_ramp(rec, plan, ramp, n_settle) for ramp in plan.ramps)
+    n = len(rec.log_u)
+    if not (np.all(np.isfinite(rec.data.qpos)) and np.all(np.isfinite(rec.log_dq[-1]))):
         raise ModelError("the simulated ramp experiment diverged (non-finite state): a friction "
                          "law too steep for the physics step; shorten timestep")
     rng = np.random.default_rng(seed)
-    tau = np.asarray(log_u) + np.asarray(eff.torque_noise) * rng.standard_normal((n, nv))
-    t = np.arange(n) * h
-    dataset = Dataset(t=t, q=np.asarray(log_q), dq=np.asarray(log_dq), ddq=np.asarray(log_ddq),
-                      tau=tau, joint_names=tuple(model.joint_names))
-    return RampRun(dataset, plan, tuple(windows))
+    tau = np.asarray(rec.log_u) + np.asarray(rec.eff.torque_noise) * rng.standard_normal(
+        (n, model.nv))
+    dataset = Dataset(t=np.arange(n) * rec.h, q=np.asarray(rec.log_q),
+                      dq=np.asarray(rec.log_dq), ddq=np.asarray(rec.log_ddq), tau=tau,
+                      joint_names=tuple(model.joint_names))
+    return RampRun(dataset, plan, windows)
+
+
+def _check_friction_step(model: RobotModel, eff: Effects, plan: RampPlan,
+                         timestep: float) -> None:
+    """An explicit friction law is applied once per physics step: refuse one whose slope makes
+    ``h·slope/M_jj ≥ 1`` at the pose (the step would overshoot)."""
+    if not has_explicit_friction(eff):
+        return
+    pm = model.pin_model
+    inertia = np.diag(pin.crba(pm, pm.createData(), model.configuration(plan.pose))) \
+        + np.asarray(eff.armature)
+    ratio = timestep * explicit_friction_slope(eff) / inertia
+    if np.any(ratio >= 1.0):
+        j = int(np.argmax(ratio))
+        raise ModelError(f"the explicit friction on {model.joint_names[j]!r} is too steep "
+                         f"for the physics step at the pose: h·slope/M_jj = {ratio[j]:.3g} "
+                         "≥ 1; shorten timestep or soften the friction law")
+
+
+class _RampRecorder:
+    """The MuJoCo robot of a ramp experiment at the plan's pose, at rest: one physics
+    :meth:`step` under a torque (logged), and the computed-torque :meth:`hold` of the pose."""
+
+    def __init__(self, model: RobotModel, robot: "MujocoRobot", plan: RampPlan) -> None:
+        import mujoco
+
+        self.model, self.plan, self.eff = model, plan, robot.effects
+        self.mj, self.data = robot.mj_model, mujoco.MjData(robot.mj_model)
+        self.link, self.h = robot.link_dof, robot.timestep
+        self.pm = model.pin_model
+        self.pdata = self.pm.createData()
+        self.explicit = has_explicit_friction(self.eff)
+        self.data.qpos[self.link] = plan.pose
+        self.data.qvel[:] = 0.0
+        self.log_q, self.log_dq, self.log_ddq, self.log_u = [], [], [], []
+
+    def step(self, u: np.ndarray) -> None:
+        import mujoco
+
+        data, link = self.data, self.link
+        self.log_q.append(data.qpos[link].copy())
+        self.log_dq.append(data.qvel[link].copy())
+        applied = u - explicit_friction(self.eff, data.qvel[link]) if self.explicit else u
+        data.qfrc_applied[link] = applied
+        mujoco.mj_step(self.mj, data)
+        self.log_ddq.append(data.qacc[link].copy())
+        self.log_u.append(u.copy())
+
+    def hold(self) -> np.ndarray:
+        kp, kd = HOLD_BANDWIDTH ** 2, 2.0 * HOLD_BANDWIDTH
+        q, v = self.data.qpos[self.link].copy(), self.data.qvel[self.link].copy()
+        a = kp * (self.plan.pose - q) - kd * v
+        return pin.rnea(self.pm, self.pdata, self.model.configuration(q), v, a)
+
+
+def _run_ramp(rec: _RampRecorder, plan: RampPlan, ramp: object, n_settle: int
+              ) -> tuple[object, int, int, bool]:
+    """Hold the pose ``n_settle`` steps, then ramp ``ramp.joint``'s torque (module docstring of
+    :func:`simulate_ramps`); returns the window ``(ramp, first, last, moved)``."""
+    j = ramp.joint
+    u_start = plan.gravity[j]
+    for _ in range(n_settle):
+        u = rec.hold()
+        rec.step(u)
+        u_start = u[j]
+    first, moved = len(rec.log_u), False
+    top = float(plan.max_torque[j])
+    k = 0
+    while True:
+        # from the holding torque (a step to g(q0) would jolt the stuck joint)
+        commanded = u_start + ramp.direction * plan.rate * k * rec.h
+        if abs(commanded - plan.gravity[j]) > top:
+            break
+        u = rec.hold()       # the ramped joint's own torque is replaced; its hold term stays
+        u[j] = commanded     # in the others' (a jump there would jolt it too)
+        rec.step(u)
+        k += 1
+        if abs(rec.data.qvel[rec.link[j]]) >= plan.abort_speed or \
+                abs(rec.data.qpos[rec.link[j]] - plan.pose[j]) > plan.max_excursion:
+            moved = True
+            break
+    return ramp, first, len(rec.log_u) - 1, moved
 
 
 def _reading_window(dq: np.ndarray, segment: np.ndarray, k: int, speed: float) -> np.ndarray:
@@ -354,83 +381,145 @@ def estimate_breakaway(model: RobotModel | StandardParameterSet, data: Dataset |
     if missing not in MISSING:
         raise OptionError(f"missing={missing!r} is not supported; allowed: {MISSING}")
     nv, names = robot.nv, robot.joint_names
-    windows = None
     if data is None:
-        start_time = time.perf_counter()
-        plan = plan or ramp_plan(robot, **plan_options)  # type: ignore[arg-type]
-        if threshold >= plan.abort_speed:
-            raise OptionError(f"threshold = {threshold:g} rad/s must lie below the plan's "
-                              f"abort_speed = {plan.abort_speed:g} rad/s (a ramp stops there)")
-        run = simulate_ramps(robot, plan, effects, parameters, seed=seed)
-        data = run.dataset
-        windows = run.windows
-        source = (f"{len(plan.ramps)} simulated torque ramps at {plan.rate:g} N·m/s "
-                  f"(MuJoCo, {time.perf_counter() - start_time:.1f} s wall)")
-        default_joints = sorted({r.joint for r in plan.ramps})
+        run, source = _simulated(robot, effects, plan, parameters, threshold, seed,
+                                 plan_options)
+        data, default_joints = run.dataset, sorted({r.joint for r in run.plan.ramps})
     else:
-        if plan_options or plan is not None or effects is not None or parameters is not None:
-            raise OptionError("effects, parameters, plan and ramp options apply to the simulated "
-                              "experiment (data=None), not to a given log")
-        if not isinstance(data, Dataset):
-            raise DatasetError(f"data must be a Dataset (or None to simulate ramps), got "
-                               f"{type(data).__name__}")
-        data.check_joints(nv, names)
-        source = "log"
-        default_joints = list(range(nv))
+        _check_log(robot, data, effects, plan, parameters, plan_options)
+        run, source, default_joints = None, "log", list(range(nv))
     tau = data.require_torque()
-    chosen = default_joints if joints is None else [
-        names.index(j) if isinstance(j, str) and j in names else j for j in joints]
-    for j in chosen:
-        if isinstance(j, bool) or not isinstance(j, (int, np.integer)) or not 0 <= j < nv:
-            raise OptionError(f"joints: {j!r} is not a joint of {robot.name} ({names})")
-    dq, ddq = (data.dq, data.ddq) if inertial else (np.zeros_like(data.dq),) * 2
+    chosen = _chosen_joints(robot, joints, default_joints)
     segment = data.segment if data.segment is not None else np.zeros(data.n_samples, int)
-    events: list[BreakawayEvent] = []
-    rising: dict[int, int] = {}   # events whose friction still rose at the window's end
     notes: list[str] = []
     problems: list[tuple[type, str]] = []
+    found = {}
     for j in chosen:
-        if windows is not None:
-            idx, tried, still = [], 0, {1: 0, -1: 0}
-            for ramp, first, last, moved in windows:
-                if ramp.joint != j:
-                    continue
-                tried += 1
-                found, _ = _events(data.dq[first:last + 1, j], data.t[first:last + 1],
-                                   segment[first:last + 1], threshold, 0.0, first)
-                idx += found[:1]
-                still[ramp.direction] += not found
-            top = float(run.plan.max_torque[j])
-            if not idx:
-                problems.append((IdentificationError,
-                                 f"joint {names[j]!r} did not move in any of its {tried} ramps "
-                                 f"up to ±{top:.4g} N·m beyond g(q0): its break-away torque is "
-                                 f"above {top:.4g} N·m, not a number (raise max_torque within "
-                                 "the effort limit) or the joint is blocked"))
-                continue
-            for sign, count in still.items():
-                if count:
-                    message = (f"{names[j]}: {count} ramp(s) towards {'+' if sign > 0 else '−'} "
-                               f"ended without motion at ±{top:.4g} N·m beyond g(q0): the "
-                               f"break-away that way is above {top:.4g} N·m in those; the "
-                               "estimate comes from the ramps that moved (raise max_torque)")
-                    warnings.warn(message, UserWarning, stacklevel=2)
-                    notes.append(message)
-        else:
-            idx, still = _events(data.dq[:, j], data.t, segment, threshold, min_still)
-            if not still:
-                problems.append((DatasetError,
-                                 f"joint {names[j]!r} never stands still (|q̇| < {threshold:g} "
-                                 f"rad/s for ≥ {min_still:g} s) in the log: no break-away event; "
-                                 "record a ramp from rest (consistid.friction.ramp) or lower "
-                                 "min_still"))
-                continue
-            if not idx:
-                problems.append((DatasetError,
-                                 f"joint {names[j]!r} stands still in the log but never starts "
-                                 f"to move again (|q̇| ≥ {threshold:g} rad/s): no break-away "
-                                 "event"))
-                continue
+        idx = (_log_events(names, data, segment, j, threshold, min_still, problems)
+               if run is None else
+               _ramp_events(names, data, segment, j, run, threshold, notes, problems))
+        if idx is not None:
+            found[j] = idx
+    events, rising = _read_events(robot, data, tau, segment, found, threshold, inertial)
+    for kind, message in problems:
+        if missing == "raise":
+            raise kind(message)
+        warnings.warn(message, UserWarning, stacklevel=2)
+        notes.append(message)
+    torque, spread, pos, neg, count = _statistics(names, chosen, events, rising, notes)
+    measured = np.zeros(nv, dtype=bool)
+    measured[list(chosen)] = True
+    return BreakawayEstimate(tuple(names), torque, spread, pos, neg, count, tuple(events),
+                             measured, threshold, min_still, bool(inertial), source,
+                             float(data.t[-1] - data.t[0]), tuple(notes))
+
+
+def _simulated(robot: RobotModel, effects: Effects | None, plan: RampPlan | None,
+               parameters: np.ndarray | None, threshold: float, seed: int,
+               plan_options: dict) -> tuple[RampRun, str]:
+    """The ramp experiment of :func:`estimate_breakaway` with ``data=None``, and its
+    description."""
+    start_time = time.perf_counter()
+    plan = plan or ramp_plan(robot, **plan_options)  # type: ignore[arg-type]
+    if threshold >= plan.abort_speed:
+        raise OptionError(f"threshold = {threshold:g} rad/s must lie below the plan's "
+                          f"abort_speed = {plan.abort_speed:g} rad/s (a ramp stops there)")
+    run = simulate_ramps(robot, plan, effects, parameters, seed=seed)
+    return run, (f"{len(plan.ramps)} simulated torque ramps at {plan.rate:g} N·m/s "
+                 f"(MuJoCo, {time.perf_counter() - start_time:.1f} s wall)")
+
+
+def _check_log(robot: RobotModel, data: object, effects: Effects | None,
+               plan: RampPlan | None, parameters: np.ndarray | None, plan_options: dict
+               ) -> None:
+    """A given log: a :class:`Dataset` of the robot's joints, and no option of the simulated
+    experiment."""
+    if plan_options or plan is not None or effects is not None or parameters is not None:
+        raise OptionError("effects, parameters, plan and ramp options apply to the simulated "
+                          "experiment (data=None), not to a given log")
+    if not isinstance(data, Dataset):
+        raise DatasetError(f"data must be a Dataset (or None to simulate ramps), got "
+                           f"{type(data).__name__}")
+    data.check_joints(robot.nv, robot.joint_names)
+
+
+def _chosen_joints(robot: RobotModel, joints: Sequence[int | str] | None,
+                   default: list[int]) -> list[int]:
+    """The indices of ``joints`` (names or indices; ``None``: ``default``), checked."""
+    names = robot.joint_names
+    chosen = default if joints is None else [
+        names.index(j) if isinstance(j, str) and j in names else j for j in joints]
+    for j in chosen:
+        if isinstance(j, bool) or not isinstance(j, (int, np.integer)) or not 0 <= j < robot.nv:
+            raise OptionError(f"joints: {j!r} is not a joint of {robot.name} ({names})")
+    return chosen
+
+
+def _ramp_events(names: Sequence[str], data: Dataset, segment: np.ndarray, j: int,
+                 run: RampRun, threshold: float, notes: list[str],
+                 problems: list[tuple[type, str]]) -> list[int] | None:
+    """The event of each of joint ``j``'s simulated ramps that moved (``None`` and a problem
+    when none did); a warning and a note for the ramps that did not."""
+    idx, tried, still = [], 0, {1: 0, -1: 0}
+    for ramp, first, last, moved in run.windows:
+        if ramp.joint != j:
+            continue
+        tried += 1
+        found, _ = _events(data.dq[first:last + 1, j], data.t[first:last + 1],
+                           segment[first:last + 1], threshold, 0.0, first)
+        idx += found[:1]
+        still[ramp.direction] += not found
+    top = float(run.plan.max_torque[j])
+    if not idx:
+        problems.append((IdentificationError,
+                         f"joint {names[j]!r} did not move in any of its {tried} ramps "
+                         f"up to ±{top:.4g} N·m beyond g(q0): its break-away torque is "
+                         f"above {top:.4g} N·m, not a number (raise max_torque within "
+                         "the effort limit) or the joint is blocked"))
+        return None
+    for sign, count in still.items():
+        if count:
+            message = (f"{names[j]}: {count} ramp(s) towards {'+' if sign > 0 else '−'} "
+                       f"ended without motion at ±{top:.4g} N·m beyond g(q0): the "
+                       f"break-away that way is above {top:.4g} N·m in those; the "
+                       "estimate comes from the ramps that moved (raise max_torque)")
+            warnings.warn(message, UserWarning, stacklevel=3)
+            notes.append(message)
+    return idx
+
+
+def _log_events(names: Sequence[str], data: Dataset, segment: np.ndarray, j: int,
+                threshold: float, min_still: float,
+                problems: list[tuple[type, str]]) -> list[int] | None:
+    """Joint ``j``'s events in a log (``None`` and a problem when it never stands still or
+    never starts again)."""
+    idx, still = _events(data.dq[:, j], data.t, segment, threshold, min_still)
+    if not still:
+        problems.append((DatasetError,
+                         f"joint {names[j]!r} never stands still (|q̇| < {threshold:g} "
+                         f"rad/s for ≥ {min_still:g} s) in the log: no break-away event; "
+                         "record a ramp from rest (consistid.friction.ramp) or lower "
+                         "min_still"))
+        return None
+    if not idx:
+        problems.append((DatasetError,
+                         f"joint {names[j]!r} stands still in the log but never starts "
+                         f"to move again (|q̇| ≥ {threshold:g} rad/s): no break-away "
+                         "event"))
+        return None
+    return idx
+
+
+def _read_events(robot: RobotModel, data: Dataset, tau: np.ndarray, segment: np.ndarray,
+                 found: dict[int, list[int]], threshold: float, inertial: bool
+                 ) -> tuple[list[BreakawayEvent], dict[int, int]]:
+    """Each found event's friction (module docstring: the peak of the moving mean of
+    ``s·(τ − RNEA)`` over the reading window), and per joint the number of events whose
+    friction still rose at the window's end."""
+    dq, ddq = (data.dq, data.ddq) if inertial else (np.zeros_like(data.dq),) * 2
+    events: list[BreakawayEvent] = []
+    rising: dict[int, int] = {}
+    for j, idx in found.items():
         for k in idx:
             window = _reading_window(data.dq[:, j], segment, k, PEAK_FACTOR * threshold)
             s = int(np.sign(data.dq[k, j]))
@@ -440,11 +529,14 @@ def estimate_breakaway(model: RobotModel | StandardParameterSet, data: Dataset |
             events.append(BreakawayEvent(j, float(data.t[k]), s, float(np.max(f)),
                                          float(abs(data.dq[k, j]))))
             rising[j] = rising.get(j, 0) + int(_still_rising(f))
-    for kind, message in problems:
-        if missing == "raise":
-            raise kind(message)
-        warnings.warn(message, UserWarning, stacklevel=2)
-        notes.append(message)
+    return events, rising
+
+
+def _statistics(names: Sequence[str], chosen: list[int], events: list[BreakawayEvent],
+                rising: dict[int, int], notes: list[str]) -> tuple[np.ndarray, ...]:
+    """Per joint the median break-away torque, its spread ``1.4826·MAD``, the medians per
+    direction and the number of events; notes (and warnings) on what makes them doubtful."""
+    nv = len(names)
     torque, spread, pos, neg = (np.full(nv, np.nan) for _ in range(4))
     count = np.zeros(nv, dtype=int)
     for j in chosen:
@@ -464,7 +556,7 @@ def estimate_breakaway(model: RobotModel | StandardParameterSet, data: Dataset |
                        f"window in {rising[j]} of {values.size} events (the joint crept past "
                        f"{PEAK_FACTOR:g}·threshold before it broke free): the break-away torque "
                        "may read low; raise threshold (and abort_speed for a ramp)")
-            warnings.warn(message, UserWarning, stacklevel=2)
+            warnings.warn(message, UserWarning, stacklevel=3)
             notes.append(message)
         pos[j] = float(np.median(values[dirs > 0])) if np.any(dirs > 0) else np.nan
         neg[j] = float(np.median(values[dirs < 0])) if np.any(dirs < 0) else np.nan
@@ -474,14 +566,10 @@ def estimate_breakaway(model: RobotModel | StandardParameterSet, data: Dataset |
                        f"{values.size} event(s)) is not physical: static friction opposes "
                        "the motion; the model's gravity (or a torque offset) is off by about "
                        "the break-away torque: identify the rigid body and offsets first")
-            warnings.warn(message, ModelMisfitWarning, stacklevel=2)
+            warnings.warn(message, ModelMisfitWarning, stacklevel=3)
             notes.append(message)
         elif np.any(values <= 0):
             notes.append(f"{names[j]}: {int(np.sum(values <= 0))} event(s) with friction "
                          "against the motion ≤ 0: the model's gravity (or a torque offset) "
                          "is off by about the break-away torque")
-    measured = np.zeros(nv, dtype=bool)
-    measured[list(chosen)] = True
-    return BreakawayEstimate(tuple(names), torque, spread, pos, neg, count, tuple(events),
-                             measured, threshold, min_still, bool(inertial), source,
-                             float(data.t[-1] - data.t[0]), tuple(notes))
+    return torque, spread, pos, neg, count

@@ -77,7 +77,8 @@ class StandardParameterSet:
         """Jupyter: each body's consistency and margin, the per-joint terms, the summary."""
         return standard_set_page(self, f"{type(self).__name__}: {self.model.name}").fragment()
 
-    def to_mjcf(self, path: str | Path, source: str | Path | None = None) -> Path:
+    def to_mjcf(self, path: str | Path, source: str | Path | None = None, *,
+                absolute_assets: bool = False) -> Path:
         """Write an MJCF of the model with these inertias, Coulomb friction (``frictionloss``),
         viscous friction (``damping``) and armature; refuses an inconsistent body.
 
@@ -85,9 +86,12 @@ class StandardParameterSet:
         (:func:`consistid.robot.mjcf.write_mjcf`). ``source=`` the user's MJCF (e.g.
         ``self.model.source`` of a model read by ``RobotModel.from_mjcf``): a copy of it with
         these values written in and every other byte unchanged (meshes, actuators, sensors;
-        :func:`consistid.robot.mjcf_edit.write_mjcf_into`)."""
+        :func:`consistid.robot.mjcf_edit.write_mjcf_into`). ``absolute_assets=True``: a copy
+        written outside the source's folder names the source's mesh and texture folders by
+        absolute path (its ``<compiler meshdir/texturedir>``), so that its assets resolve."""
         if source is not None:
-            return write_mjcf_into(self.model, path, source, *self.exported_terms())
+            return write_mjcf_into(self.model, path, source, *self.exported_terms(),
+                                   absolute_assets=absolute_assets)
         return write_mjcf(self.model, path, *self.exported_terms())
 
 

@@ -56,6 +56,19 @@ def _thin(n: int) -> np.ndarray:
     return np.arange(0, n, step)
 
 
+def _joint_panels(joint_names: Sequence[str], row_height: float, max_cols: int = 3
+                  ) -> tuple[Any, int, list[Any]]:
+    """A figure of one panel per joint (at most ``max_cols`` columns, ``row_height`` inches a
+    row, small tick labels), its number of columns, and the panels in joint order."""
+    n = len(joint_names)
+    rows, cols = _grid(n, max_cols)
+    fig = _figure(WIDTH, row_height * rows + 0.5)
+    axes = [fig.add_subplot(rows, cols, j + 1) for j in range(n)]
+    for ax in axes:
+        ax.tick_params(labelsize=7)
+    return fig, cols, axes
+
+
 def _edge_labels(ax: Any, j: int, n: int, cols: int, ylabel: str, xlabel: str) -> None:
     """Axis labels on panel ``j`` of ``n`` in a grid of ``cols`` columns: y on the left
     column, x on the bottom row."""
@@ -80,17 +93,14 @@ def torque_fit(t: np.ndarray, measured: np.ndarray, predicted: np.ndarray,
     """Measured (thin black, drawn on top) and predicted (dashed orange, thicker, below)
     torque against time, one panel per joint; the panel title gives the residual RMS."""
     n = len(joint_names)
-    rows, cols = _grid(n)
-    fig = _figure(WIDTH, 2.1 * rows + 0.5)
+    fig, cols, axes = _joint_panels(joint_names, 2.1)
     keep = _thin(len(t))
-    for j, name in enumerate(joint_names):
-        ax = fig.add_subplot(rows, cols, j + 1)
+    for j, (name, ax) in enumerate(zip(joint_names, axes)):
         ax.plot(t[keep], predicted[keep, j], color="tab:orange", lw=1.6, ls=(0, (4, 2)),
                 label="predicted", zorder=2)
         ax.plot(t[keep], measured[keep, j], color="k", lw=0.5, label="measured", zorder=3)
         rms = float(np.sqrt(np.mean((measured[:, j] - predicted[:, j]) ** 2)))
         ax.set_title(f"{name}  (RMS {rms:.3g} N·m)", fontsize=8)
-        ax.tick_params(labelsize=7)
         _edge_labels(ax, j, n, cols, "τ [N·m]", "t [s]")
     return _legend_below(fig, 2, title)
 
@@ -100,11 +110,9 @@ def residual_over_time(t: np.ndarray, residual: np.ndarray, joint_names: Sequenc
     """The residual τ − τ̂ against time, one panel per joint; with ``sigma``, the ±σ band
     shaded and ±2σ dotted (white noise stays inside ±2σ about 95 % of the time)."""
     n = len(joint_names)
-    rows, cols = _grid(n)
-    fig = _figure(WIDTH, 1.9 * rows + 0.5)
+    fig, cols, axes = _joint_panels(joint_names, 1.9)
     keep = _thin(len(t))
-    for j, name in enumerate(joint_names):
-        ax = fig.add_subplot(rows, cols, j + 1)
+    for j, (name, ax) in enumerate(zip(joint_names, axes)):
         ax.plot(t[keep], residual[keep, j], color="tab:red", lw=0.5, label="τ − τ̂")
         if sigma is not None and sigma[j] > 0:
             ax.axhspan(-sigma[j], sigma[j], color="0.85", zorder=0, label="±σ")
@@ -113,7 +121,6 @@ def residual_over_time(t: np.ndarray, residual: np.ndarray, joint_names: Sequenc
             ax.plot([], [], color="k", lw=0.6, ls=":", label="±2σ")
         ax.axhline(0, color="k", lw=0.4)
         ax.set_title(name, fontsize=8)
-        ax.tick_params(labelsize=7)
         _edge_labels(ax, j, n, cols, "τ − τ̂ [N·m]", "t [s]")
     return _legend_below(fig, 3, title)
 
@@ -178,10 +185,8 @@ def residual_histograms(residual: np.ndarray, joint_names: Sequence[str],
     """Histogram (density) of the residual per joint; with ``sigma``, the normal density
     ``N(0, σ_j²)`` over it."""
     n = len(joint_names)
-    rows, cols = _grid(n, 4)
-    fig = _figure(WIDTH, 1.9 * rows + 0.5)
-    for j, name in enumerate(joint_names):
-        ax = fig.add_subplot(rows, cols, j + 1)
+    fig, cols, axes = _joint_panels(joint_names, 1.9, 4)
+    for j, (name, ax) in enumerate(zip(joint_names, axes)):
         r = residual[:, j]
         ax.hist(r, bins=min(60, max(10, int(np.sqrt(r.size)))), density=True,
                 color="tab:blue", alpha=0.6, label="residual")
@@ -191,7 +196,6 @@ def residual_histograms(residual: np.ndarray, joint_names: Sequence[str],
             ax.plot(x, np.exp(-0.5 * (x / sigma[j]) ** 2) / (sigma[j] * np.sqrt(2 * np.pi)),
                     color="k", lw=1, label="N(0, σ²)")
         ax.set_title(name, fontsize=8)
-        ax.tick_params(labelsize=7)
         if j >= n - cols:
             ax.set_xlabel("τ − τ̂ [N·m]", fontsize=8)
     return _legend_below(fig, 2, title)

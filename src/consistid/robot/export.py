@@ -53,8 +53,8 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import ExportWarning, InconsistentParametersError, ModelError, check_option
-from .inertia import InertialParameters, body_slice
-from .joint_terms import export_parameters
+from .inertia import InertialParameters, writable_bodies
+from .joint_terms import URDF_ATTRIBUTES, check_nonnegative, export_parameters
 from .urdf import parse_urdf, remove_dynamics, robot_joints, robot_links
 
 if TYPE_CHECKING:
@@ -217,12 +217,8 @@ def write_urdf(model: RobotModel, path: str | Path, parameters: np.ndarray | Non
     links = _links(model, _kinematic_model(root), root)
     elements = {link.get("name"): link for link in robot_links(root)}
 
-    for body, name in enumerate(model.body_names):
-        inertial = InertialParameters(params[body_slice(body)])
-        verdict = inertial.consistent(name=name)
-        if not verdict.ok:
-            raise InconsistentParametersError(f"refusing to write an inconsistent body: "
-                                              f"{verdict.reason}")
+    for body, (name, inertial) in enumerate(zip(model.body_names,
+                                                 writable_bodies(params, model.body_names))):
         mine = [ln for ln in links if ln.owner == body]
         child = [ln for ln in mine if ln.via == "child"]
         if len(child) != 1:
@@ -259,12 +255,8 @@ def write_urdf(model: RobotModel, path: str | Path, parameters: np.ndarray | Non
 
     dropped = []
     joints = {j.get("name"): j for j in robot_joints(root)}
+    check_nonnegative(terms, URDF_ATTRIBUTES, "a URDF <dynamics>")
     for joint, values in terms.items():
-        for term, attr in (("fc", "friction"), ("fv", "damping")):
-            if values.get(term, 0.0) < 0:
-                raise InconsistentParametersError(
-                    f"joint {joint!r}: negative {attr} {values[term]:.6g} (URDF <dynamics> "
-                    f"{attr} must be ≥ 0)")
         dropped += [f"{joint}.{t}={v:.4g}" for t, v in values.items()
                     if t not in ("fc", "fv") and v]
         if "fc" in values or "fv" in values:

@@ -441,3 +441,20 @@ class InertialParameters:
     def __repr__(self) -> str:
         return (f"InertialParameters(m={self.mass:.6g} kg, h={np.round(self.vector[1:4], 6)}, "
                 f"I_origin=[{', '.join(f'{x:.4g}' for x in self.vector[4:])}])")
+
+
+def writable_bodies(parameters: np.ndarray, names: Sequence[str]) -> list[InertialParameters]:
+    """Each named body of the stacked standard vector ``parameters`` as
+    :class:`InertialParameters`, for a writer of model files, which never writes an
+    inconsistent body: :class:`InconsistentParametersError` names the first one (pseudo-inertia
+    level, :func:`check_body`)."""
+    out = []
+    for i, name in enumerate(names):
+        body = InertialParameters(np.asarray(parameters[body_slice(i)], dtype=float))
+        verdict = body.consistent(name=name)
+        if not verdict.ok:
+            raise InconsistentParametersError(f"refusing to write an inconsistent body: "
+                                              f"{verdict.reason}")
+        out.append(body)
+    return out
+

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
-from ..errors import ModelError
+from ..errors import InconsistentParametersError, ModelError
 
 if TYPE_CHECKING:
     from .model import RobotModel
@@ -34,6 +34,25 @@ SUFFIXES: tuple[str, ...] = tuple(s for suffixes in TERM_COLUMNS.values() for s 
 #: leave such rows out by default, the break-away estimate detects motion above it, and a
 #: result's ``residual(..., at_rest="cone")`` judges such samples against the friction cone.
 STANDSTILL_SPEED = 0.02
+
+
+#: Per-joint term suffix → the MJCF ``<joint>`` attribute that holds it …
+MJCF_ATTRIBUTES = {"fv": "damping", "fc": "frictionloss", "Ia": "armature"}
+#: … and the URDF ``<dynamics>`` attribute.
+URDF_ATTRIBUTES = {"fc": "friction", "fv": "damping"}
+
+
+def check_nonnegative(terms: dict[str, dict[str, float]], attributes: dict[str, str],
+                      element: str) -> None:
+    """:class:`InconsistentParametersError` naming the first joint term that a model file
+    holds as one of ``attributes`` (suffix → attribute of ``element``, e.g. "an MJCF joint")
+    and that is negative: friction, damping and armature are ≥ 0 there."""
+    for joint, values in terms.items():
+        for term, attr in attributes.items():
+            if values.get(term, 0.0) < 0:
+                raise InconsistentParametersError(
+                    f"joint {joint!r}: negative {attr} {values[term]:.6g} ({element}'s {attr} "
+                    "must be ≥ 0)")
 
 
 def export_parameters(model: "RobotModel", parameters: np.ndarray | None,

@@ -32,16 +32,15 @@ from typing import TYPE_CHECKING, Any, Sequence
 import numpy as np
 import pinocchio as pin
 
-from ..errors import ExportWarning, InconsistentParametersError, ModelError
+from ..errors import ExportWarning, ModelError
 from .export import check_not_source
-from .inertia import body_slice, check_body
-from .joint_terms import export_parameters
+from .inertia import body_slice, writable_bodies
+from .joint_terms import MJCF_ATTRIBUTES, check_nonnegative, export_parameters
 
 if TYPE_CHECKING:
     from .model import RobotModel
 
 #: Per-joint parameter suffixes MJCF has an element for, and the joint attribute they set.
-MJCF_TERMS = {"fv": "damping", "fc": "frictionloss", "Ia": "armature"}
 
 
 def joint_axes(model: "RobotModel") -> tuple[list[str], np.ndarray]:
@@ -86,20 +85,12 @@ def mjcf_spec(model: "RobotModel", parameters: np.ndarray | None = None,
     import mujoco  # heavy: loaded with the first export
 
     params, terms = export_parameters(model, parameters, parameter_names)
-    for body, name in enumerate(model.body_names):
-        verdict = check_body(params[body_slice(body)], "pseudo-inertia", name)
-        if not verdict.ok:
-            raise InconsistentParametersError(f"refusing to write an inconsistent body: "
-                                              f"{verdict.reason}")
+    writable_bodies(params, model.body_names)
     dropped = []
+    check_nonnegative(terms, MJCF_ATTRIBUTES, "an MJCF joint")
     for joint, values in terms.items():
-        for term, attr in MJCF_TERMS.items():
-            if values.get(term, 0.0) < 0:
-                raise InconsistentParametersError(
-                    f"joint {joint!r}: negative {attr} {values[term]:.6g} (an MJCF joint's "
-                    f"{attr} must be ≥ 0)")
         dropped += [f"{joint}.{t}={v:.4g}" for t, v in values.items()
-                    if t not in MJCF_TERMS and v]
+                    if t not in MJCF_ATTRIBUTES and v]
     if dropped:
         warnings.warn(f"MJCF has no element for torque offsets or position terms; not written: "
                       f"{', '.join(dropped)}", ExportWarning, stacklevel=3)
@@ -192,7 +183,7 @@ def _exact_numbers(spec: Any, xml: str) -> str:
         el.set("axis", _num(joint.axis))
         if joint.limited == 1:                            # mjLIMITED_TRUE
             el.set("range", _num(joint.range))
-        for attr in MJCF_TERMS.values():
+        for attr in MJCF_ATTRIBUTES.values():
             value = np.ravel(getattr(joint, attr))         # frictionloss etc. may be arrays
             if np.any(value):
                 el.set(attr, _num(value[:1]))

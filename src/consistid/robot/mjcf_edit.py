@@ -28,6 +28,14 @@ frame ``X`` (its placement in the joint frame): ``π_b = X⁻¹·(π − Σ π_k
   has no other); terms not identified keep the file's value, and an :class:`ExportWarning` lists
   those that are non-zero (the identified model did not include them).
 
+* Assets (meshes, textures, height fields, skins) named by relative ``file`` resolve from the
+  MJCF's folder (through ``<compiler meshdir/texturedir/assetdir>``). An output in another
+  folder is refused, unless ``absolute_assets=True``: then every ``<compiler>`` of the copy
+  gets ``meshdir`` and ``texturedir`` set to the absolute folders MuJoCo resolved for the
+  source (``assetdir``, which they override, is removed; a file without ``<compiler>`` gets
+  one), so that the copy loads the source's assets from anywhere on this machine. A relative
+  ``file`` that no compiler folder governs (``<model file>``) is still refused.
+
 The result is written to a temporary file beside the output, compiled by MuJoCo and read back
 (:func:`~consistid.robot.mjcf_in.read_mjcf`); only when every written body and joint reads back
 as identified (relative 1e-9) is it moved onto ``path``
@@ -45,8 +53,8 @@ import pinocchio as pin
 
 from ..errors import ExportWarning, InconsistentParametersError, ModelError
 from ..filesafety import replacing
-from .inertia import InertialParameters, body_slice
-from .joint_terms import export_parameters
+from .inertia import InertialParameters, body_slice, writable_bodies
+from .joint_terms import MJCF_ATTRIBUTES, check_nonnegative, export_parameters
 from .mjcf_in import body_inertia, body_label, check_safe_xml, compile_mjcf, read_mjcf
 from .xml_spans import (Element, apply, elements, insert_first_child, remove_attribute,
                         set_attribute)
@@ -54,12 +62,14 @@ from .xml_spans import (Element, apply, elements, insert_first_child, remove_att
 if TYPE_CHECKING:
     from .model import RobotModel
 
-#: Per-joint parameter suffixes and the MJCF ``<joint>`` attribute each sets.
-JOINT_ATTRIBUTES = {"fv": "damping", "fc": "frictionloss", "Ia": "armature"}
 #: ``<inertial>`` attributes replaced by ``pos``/``mass``/``fullinertia``.
 INERTIAL_REPLACED = ("quat", "axisangle", "xyaxes", "zaxis", "euler", "diaginertia")
 #: Relative tolerance of the read-back check.
 READBACK_RTOL = 1e-9
+#: Asset elements whose relative files MuJoCo looks up in ``<compiler meshdir>`` …
+MESHDIR_ASSETS = ("mesh", "skin", "hfield")
+#: … and in ``texturedir`` (a cube or skybox texture names up to six files).
+TEXTUREDIR_ASSETS = ("texture",)
 
 
 def _num(values: Any) -> str:
@@ -73,9 +83,11 @@ def _in_bodies(els: list[Element], tag: str) -> list[Element]:
             and els[e.parent].tag in ("body", "frame", "worldbody")]
 
 
-def _check_source(model: "RobotModel", source: Path, out: Path, els: list[Element]) -> None:
+def _check_source(model: "RobotModel", source: Path, out: Path, els: list[Element],
+                  absolute_assets: bool = False) -> None:
     """Refuse an output over the source, an ``<include>``, ``inertiafromgeom="true"``, and
-    relative asset files when the output goes to another folder."""
+    relative asset files when the output goes to another folder (except those the compiler's
+    folders govern, with ``absolute_assets``)."""
     if out.is_dir() or not out.parent.is_dir():
         raise ModelError(f"to_mjcf({str(out)!r}): " + ("a folder, not a file name" if out.is_dir()
                                                       else f"no folder {str(out.parent)!r}"))
@@ -94,12 +106,40 @@ def _check_source(model: "RobotModel", source: Path, out: Path, els: list[Elemen
                              "ignore every <inertial>; set it to \"auto\" (the default) so that "
                              "the identified inertials are used")
     if out.resolve().parent != source.resolve().parent:
-        files = [e.attrs["file"] for e in els if "file" in e.attrs
-                 and not Path(e.attrs["file"]).is_absolute()]
+        governed = MESHDIR_ASSETS + TEXTUREDIR_ASSETS if absolute_assets else ()
+        files = [value for e in els if e.tag not in governed for key, value in e.attrs.items()
+                 if key.startswith("file") and not Path(value).is_absolute()]
         if files:
             raise ModelError(f"{source.name} refers to files by relative path ({files[0]!r} …), "
                              f"which would not resolve from {out.resolve().parent}; write the "
-                             f"output into {source.resolve().parent}")
+                             f"output into {source.resolve().parent}" + (
+                                 "" if absolute_assets else ", or pass absolute_assets=True "
+                                 "(the copy's <compiler> then names the source's asset "
+                                 "folders by absolute path)"))
+
+
+def _asset_folder_edits(data: bytes, els: list[Element], source: Path
+                        ) -> list[tuple[int, int, bytes]]:
+    """The edits that set ``meshdir`` and ``texturedir`` of every ``<compiler>`` to the absolute
+    folders MuJoCo resolves for ``source`` (and remove ``assetdir``, which they override), or
+    insert a ``<compiler>`` holding them."""
+    import mujoco
+    from xml.sax.saxutils import quoteattr
+
+    spec = mujoco.MjSpec.from_file(str(source))
+    folders = {key: str((source.resolve().parent / value).resolve())
+               for key, value in (("meshdir", spec.meshdir), ("texturedir", spec.texturedir))}
+    compilers = [e for e in els if e.tag == "compiler"]
+    if not compilers:
+        attrs = " ".join(f"{key}={quoteattr(value)}" for key, value in folders.items())
+        return [insert_first_child(data, els[0], f"<compiler {attrs}/>")]
+    edits = []
+    for el in compilers:
+        for key, value in folders.items():
+            edits.append(set_attribute(data, el, key, quoteattr(value)[1:-1]))
+        removed = remove_attribute(data, el, "assetdir")
+        edits += [removed] if removed is not None else []
+    return edits
 
 
 def _mjcf_bodies(mj: Any, els: list[Element], source: str) -> dict[int, Element]:
@@ -144,12 +184,8 @@ def _written_inertias(model: "RobotModel", params: np.ndarray, mj: Any, reduced:
 
     out = {}
     ids = {body_label(mj, b): b for b in range(1, mj.nbody)}    # unnamed ones too
-    for i, name in enumerate(model.body_names):
-        total = InertialParameters(params[body_slice(i)])
-        verdict = total.consistent(name=name)
-        if not verdict.ok:
-            raise InconsistentParametersError(f"refusing to write an inconsistent body: "
-                                              f"{verdict.reason}")
+    for i, (name, total) in enumerate(zip(model.body_names,
+                                          writable_bodies(params, model.body_names))):
         jid = reduced.getJointId(model.joint_names[i])
         own = int(mj.jnt_bodyid[mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_JOINT,
                                                   model.joint_names[i])])
@@ -192,6 +228,7 @@ def _joint_edits(data: bytes, els: list[Element], mj: Any,
     non-zero values the identification left out."""
     import mujoco
 
+    check_nonnegative(terms, MJCF_ATTRIBUTES, "an MJCF joint")
     joints = {e.attrs.get("name"): e for e in _in_bodies(els, "joint")}
     edits, inherited, untouched = [], [], []
     for joint, values in terms.items():
@@ -199,12 +236,8 @@ def _joint_edits(data: bytes, els: list[Element], mj: Any,
         if el is None:
             raise ModelError(f"joint {joint!r} is not a <joint> of a body in the file")
         dof = int(mj.jnt_dofadr[mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_JOINT, joint)])
-        for suffix, attr in JOINT_ATTRIBUTES.items():
+        for suffix, attr in MJCF_ATTRIBUTES.items():
             value = values.get(suffix)
-            if value is not None and value < 0:
-                raise InconsistentParametersError(
-                    f"joint {joint!r}: negative {attr} {value:.6g} (an MJCF joint's {attr} must "
-                    "be ≥ 0)")
             before = float(getattr(mj, f"dof_{attr}")[dof])
             if value is None:
                 if before:
@@ -218,7 +251,8 @@ def _joint_edits(data: bytes, els: list[Element], mj: Any,
 
 def write_mjcf_into(model: "RobotModel", path: str | Path, source: str | Path,
                     parameters: np.ndarray | None = None,
-                    parameter_names: Sequence[str] | None = None) -> Path:
+                    parameter_names: Sequence[str] | None = None, *,
+                    absolute_assets: bool = False) -> Path:
     """Write ``source`` (an MJCF) to ``path`` carrying ``parameters`` (module docstring).
 
     Parameters
@@ -229,6 +263,9 @@ def write_mjcf_into(model: "RobotModel", path: str | Path, source: str | Path,
     parameters : (10·nbodies [+ k],) standard parameters then per-joint terms named by
         ``parameter_names`` (``"<joint>.fv"``, ``".fc"``, ``".Ia"``; offsets and position terms
         have no MJCF attribute and are listed by an :class:`ExportWarning`).
+    absolute_assets : for an output outside the source's folder: name the source's mesh and
+        texture folders by absolute path in the copy's ``<compiler>`` (module docstring);
+        without it such an output is refused when the file names assets by relative path.
 
     Raises
     ------
@@ -241,7 +278,7 @@ def write_mjcf_into(model: "RobotModel", path: str | Path, source: str | Path,
     text = check_safe_xml(source)
     data = text.encode("utf-8")
     els = elements(data)
-    _check_source(model, source, out, els)
+    _check_source(model, source, out, els, absolute_assets)
     params, terms = export_parameters(model, parameters, parameter_names)
     mj = compile_mjcf(source)
     reduced, _, _ = read_mjcf(source, model.locked_joints, model.locked_configuration)
@@ -255,6 +292,8 @@ def write_mjcf_into(model: "RobotModel", path: str | Path, source: str | Path,
         edits += more
         inserted += [body_label(mj, b)] if new else []
     more, inherited, untouched = _joint_edits(data, els, mj, terms)
+    if absolute_assets and out.resolve().parent != source.resolve().parent:
+        more += _asset_folder_edits(data, els, source)
     with replacing(out) as tmp:          # moved onto out only once it reads back as written
         tmp.write_bytes(apply(data, edits + more))
         _check_written(tmp, out, model, params, terms)
@@ -265,7 +304,7 @@ def write_mjcf_into(model: "RobotModel", path: str | Path, source: str | Path,
 def _warn(inserted: list[str], inherited: list[str], untouched: list[str],
           terms: dict[str, dict[str, float]]) -> None:
     dropped = [f"{j}.{t}={v:.4g}" for j, vs in terms.items() for t, v in vs.items()
-               if t not in JOINT_ATTRIBUTES and v]
+               if t not in MJCF_ATTRIBUTES and v]
     notes = []
     if inserted:
         notes.append(f"bodies {inserted} had no <inertial> (MuJoCo derived theirs from the "

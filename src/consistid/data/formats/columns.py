@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Iterable, Mapping, Sequence
 
 import numpy as np
@@ -55,6 +56,15 @@ SUFFIX_UNITS = {"rad": "rad", "deg": "deg", "degree": "deg", "degrees": "deg", "
                 "rad_s": "rad/s", "deg_s": "deg/s"}
 _SUFFIX_UNIT = re.compile(r"^(?P<base>.+?)_(?P<unit>" + "|".join(
     sorted(SUFFIX_UNITS, key=len, reverse=True)) + r")$", re.I)
+
+
+def log_file(path: str | Path) -> Path:
+    """``path`` as a :class:`~pathlib.Path` if it names a file, else :class:`DatasetError`
+    (every log reader's first check)."""
+    path = Path(path)
+    if not path.is_file():
+        raise DatasetError(f"log file {str(path)!r} does not exist")
+    return path
 
 
 def _strip_suffix_unit(name: str) -> tuple[str, str | None]:

@@ -25,7 +25,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ...errors import DataQualityWarning, DatasetError, MissingColumnsError
-from .columns import Log, log_from_columns, map_columns
+from .columns import Log, log_file, log_from_columns, map_columns
 
 DELIMITERS = ",;\t| "
 #: Characters read to sniff the delimiter.
@@ -118,10 +118,8 @@ def read_csv(path: str | Path, *, joints: Sequence[str] | None = None,
         that is not a number (naming the line and the column), a non-finite stamp or value.
     MissingColumnsError : no time, position or torque columns (listing the header).
     """
-    path = Path(path)
+    path = log_file(path)
     source = path.name
-    if not path.is_file():
-        raise DatasetError(f"log file {str(path)!r} does not exist")
     raw_text = read_text(path, source)
     head = raw_text[:SNIFF_CHARS]
     if not head.strip():
@@ -197,10 +195,8 @@ def read_table(path: str | Path, delimiter: str | None = None
     """``(column names, (N, k) numbers, note)`` of a delimited text file with one header line,
     every column numeric (comments, delimiter sniffing and decimal commas as for
     :func:`read_csv`; a bad value is named by line and column)."""
-    path = Path(path)
+    path = log_file(path)
     source = path.name
-    if not path.is_file():
-        raise DatasetError(f"log file {str(path)!r} does not exist")
     text = read_text(path, source)
     lines = text[:SNIFF_CHARS].splitlines()
     k, header_line = _header(lines, source)

@@ -23,7 +23,7 @@ import numpy as np
 import scipy.io
 
 from ...errors import DatasetError, MissingColumnsError
-from .columns import FIELD_ALIASES, Log, log_from_columns, map_columns, time_unit_of
+from .columns import FIELD_ALIASES, Log, log_file, log_from_columns, map_columns, time_unit_of
 
 
 def _strings(value: np.ndarray) -> list[str]:
@@ -74,9 +74,7 @@ def read_mat(path: str | Path, *, joints: Sequence[str] | None = None,
              columns: Mapping[str, str | Sequence[str]] | None = None) -> Log:
     """Read a ``.mat`` log into a :class:`~consistid.data.formats.columns.Log` (module
     docstring for the layouts; ``joints``, ``columns`` as for CSV)."""
-    path = Path(path)
-    if not path.is_file():
-        raise DatasetError(f"log file {str(path)!r} does not exist")
+    path = log_file(path)
     variables = _variables(path)
     source = path.name
     lower = {k.lower(): k for k in variables}

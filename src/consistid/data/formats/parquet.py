@@ -12,7 +12,7 @@ import numpy as np
 
 from ...errors import DatasetError, MissingDependencyError
 from ..timestamps import seconds_of
-from .columns import Log, log_from_columns, map_columns
+from .columns import Log, log_file, log_from_columns, map_columns
 
 
 def read_parquet(path: str | Path, *, joints: Sequence[str] | None = None,
@@ -25,9 +25,7 @@ def read_parquet(path: str | Path, *, joints: Sequence[str] | None = None,
     except ImportError:
         raise MissingDependencyError("reading Parquet needs pyarrow: pip install "
                                      "'consistid[io]' (or pip install pyarrow)") from None
-    path = Path(path)
-    if not path.is_file():
-        raise DatasetError(f"log file {str(path)!r} does not exist")
+    path = log_file(path)
     try:
         table = pq.read_table(path)
     except Exception as exc:                      # pyarrow raises its own ArrowInvalid, OSError
