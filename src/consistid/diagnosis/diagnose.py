@@ -87,6 +87,7 @@ from .remainder import (
     set_valued_refit,
     standstill_mask,
 )
+from .verdict import verdict_head
 
 #: Fewest samples clear of standstill on which a remainder is judged point-valued before the
 #: set-valued friction through a filter is tried (:func:`_set_valued_friction`).
@@ -313,15 +314,14 @@ class Diagnosis:
 
     @property
     def verdict(self) -> str:
-        """``"explained"``, ``"remainder on <joints>"`` or ``"undetermined on <joints>"`` (the
-        noise floor could not be seen there; see :attr:`remainder`)."""
+        """``"explained"``, ``"remainder on <joints>"``, ``"undetermined on <joints>"`` (the
+        noise floor could not be seen there, or the joint is left above the flag within the
+        signal chain's tolerance; see :attr:`remainder`), or both, ``"remainder on A;
+        undetermined on B"``: every joint the held-out table leaves above the flag is named
+        (:func:`consistid.diagnosis.verdict.verdict_head`)."""
         if self.remainder is None:
             return "explained"
-        if self.remainder.flagged:
-            return f"remainder on {', '.join(self.remainder.flagged)}"
-        if self.remainder.undetermined:
-            return f"undetermined on {', '.join(self.remainder.undetermined)}"
-        return "explained"
+        return verdict_head(self.remainder.flagged, self.remainder.undetermined)
 
     @property
     def gap_to_noise(self) -> np.ndarray:
