@@ -105,6 +105,10 @@ WORSE_RATIO = 1.1
 DETERMINED_Z = 2.0
 #: Held-out corrections with at least this cosine explain the same residual (rivals).
 RIVAL_COSINE = 0.5
+#: Speed (rad/s) below which a joint counts as at rest when a Stribeck hump is weighed against
+#: what is left (:func:`_clear_of_rest`): the presliding or soft-constraint regime of dry
+#: friction, where no law of q̇ predicts the torque.
+REST_SPEED = 0.01
 #: Effects that are dry friction: set-valued at rest (judged against their cone there, see
 #: :func:`consistid.diagnosis.remainder.dry_friction_at_rest`).
 DRY_FRICTION = ("coulomb", "stribeck")
@@ -530,6 +534,9 @@ class _Problem:
     tau_corr: np.ndarray | float = 1.0
     #: time-stamp resolution (s): the median sample interval of the training data
     resolution: float = 0.0
+    #: per Stribeck atom (index): held-out Grams of its joint on the rows clear of rest, and
+    #: their count (:func:`_clear_of_rest`)
+    moving: dict[int, tuple["_Grams", int]] = field(default_factory=dict)
 
     def cols(self, chosen: Sequence[int]) -> np.ndarray:
         if not chosen:
@@ -616,9 +623,12 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
             per_joint = reduced / np.maximum(nominal_ho[rows], 1e-300)
             relevance = float(per_joint.max())
             excess = sse_ho[rows] - prob.held.n
+            if i in prob.moving:           # a hump: what is left where it can explain it
+                grams, n_moving = prob.moving[i]
+                excess = prob.w[rows] * grams.sse(cols, theta) - n_moving
             above = sse_ho[rows] > REMAINDER_RATIO ** 2 * prob.held.n
-            of_excess = float(np.max(np.where(above, reduced / np.maximum(excess, 1e-300),
-                                              0.0)))
+            of_excess = float(np.max(np.where(above & (excess > 0),
+                                              reduced / np.maximum(excess, 1e-300), 0.0)))
             if gain <= 0:
                 return "does not reduce the held-out residual", dbic, p
             unphysical = REGISTRY[atom.effect].unphysical(atom, s[6], prob.resolution)
@@ -718,6 +728,29 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
         (cols, theta, rank), sse_tr, sse_ho = pick[7], pick[3], pick[4]
     return [i for i in chosen if i not in nuisance], alternatives, steps, bics, pvals, rivals, \
         nuisance
+
+
+def _clear_of_rest(atoms: Sequence[Atom], phi_ho: np.ndarray, held: GapData
+                   ) -> dict[int, tuple[_Grams, int]]:
+    r"""Per Stribeck atom, the held-out Grams of its joint on the rows clear of rest,
+    ``|q̇_j| ≥ min(v_s / 2, REST_SPEED)`` with ``sign(q̇_j)`` resolved
+    (:attr:`GapData.sign_unresolved`), and their count: ``min_excess`` weighs a hump against
+    what is left there. Nearer rest the torque is set-valued (any torque within the friction
+    cone; a simulator's soft friction constraint, presliding on a real joint): no law of
+    ``q̇`` predicts it, and the verdict judges those samples against the cone too. Weighed
+    against the whole excess, most of it the error at rest, a hump 5 × the noise on the UR5
+    or xArm7 explained 18–21 % of it and was refused; where the plain Coulomb step leaves
+    nothing clear of rest, no hump passes."""
+    out = {}
+    for i, atom in enumerate(atoms):
+        if atom.effect != "stribeck" or atom.joint is None:
+            continue
+        j = atom.joint
+        rest = min(0.5 * (atom.setting or 0.0), REST_SPEED)
+        keep = (np.abs(held.dataset.dq[:, j]) >= rest) & ~held.sign_unresolved[:, j]
+        g = _Grams.build(phi_ho[keep][:, [j], :], held.residual[keep][:, [j]])
+        out[i] = (g, int(keep.sum()))
+    return out
 
 
 def _cand_table(prob: _Problem, scores: list, joint_names: list[str], top: int = 8
@@ -1040,6 +1073,7 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     prob = _Problem(library, atoms, slices, _Grams.build(phi_tr, train.residual),
                     _Grams.build(phi_ho, held.residual), 1.0 / floor ** 2)
     prob.resolution = float(np.median(np.diff(train.dataset.t)))
+    prob.moving = _clear_of_rest(atoms, phi_ho, held)
     everything_cols, theta_all, _ = prob.fit(list(range(len(atoms))))
     library_floor = np.sqrt(prob.held.sse(everything_cols, theta_all) / held.n)
     # Rows are not independent when the residual is coloured (filtered noise): count effective
