@@ -61,7 +61,7 @@ OUT_KINDS = ("position_friction", "drifting_friction", "load_friction", "quadrat
              "dead_zone", "crosstalk", "backlash")
 FRICTION = {"coulomb", "viscous"}
 MIXED_RIGHT = {"inertia", "coulomb", "viscous"}
-FIRST_SEED = 6000
+FIRST_SEED = 7000
 
 
 def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
@@ -157,6 +157,7 @@ def table(rows: list[dict], title: str) -> None:
                 continue
             k = sum(r["right"] for r in sel)
             lo, hi = wilson(k, len(sel))
+            lo = max(lo, 0.0)
             frac = f"{k / len(sel):.0%} ({lo:.0%}–{hi:.0%})" if sel else "-"
             print(f"| {which} | {label} | {len(sel)} | {k} | {frac} |")
 

@@ -87,6 +87,7 @@ from .remainder import (
     set_valued_refit,
     standstill_mask,
 )
+from .confidence import DETERMINED_Z, Evidence, confidence_label
 from .verdict import verdict_head
 
 #: Fewest samples clear of standstill on which a remainder is judged point-valued before the
@@ -94,15 +95,9 @@ from .verdict import verdict_head
 FAR_SAMPLES = 200
 #: A held-out shrink below this fraction does not list a joint under an arm-wide effect.
 JOINT_SHRINK_FLOOR = 0.05
-#: A runner-up whose held-out gain is within this fraction of the chosen one's makes a finding
-#: of low confidence (both are shown).
-CLOSE_MARGIN = 0.2
 #: An effect raising a joint's held-out RMS above this factor (and above the remainder's flag)
 #: makes that joint worse: a per-joint atom is refused, an arm-wide effect reported, low.
 WORSE_RATIO = 1.1
-#: A parameter closer to zero than this many standard deviations is not determined by the data:
-#: a finding holding one is not of high confidence.
-DETERMINED_Z = 2.0
 #: Held-out corrections with at least this cosine explain the same residual (rivals).
 RIVAL_COSINE = 0.5
 #: Speed (rad/s) below which a joint counts as at rest when a Stribeck hump is weighed against
@@ -148,6 +143,8 @@ class EffectFinding:
     worsened : joints whose held-out RMS this (arm-wide) effect raised above
         :data:`WORSE_RATIO` × what it was and above the remainder's flag (a per-joint atom
         that does so on its own joint is refused instead).
+    unexplained : its joints that the verdict leaves flagged or undetermined (what is left
+        there is above the floor: the effect is not the whole story).
     """
 
     name: str
@@ -166,6 +163,7 @@ class EffectFinding:
     runner_up: str = ""
     margin: float = 1.0
     worsened: tuple[str, ...] = ()
+    unexplained: tuple[str, ...] = ()
 
     @property
     def determined(self) -> bool:
@@ -178,13 +176,11 @@ class EffectFinding:
 
     @property
     def confidence(self) -> str:
-        """``"high"`` (margin ≥ 0.5 over the runner-up, p < 1e-6 and its parameters
-        determined), ``"low"`` (margin < 0.2: the runner-up explains nearly as much; or it
-        makes some joint worse on the held-out data, :attr:`worsened`) or ``"medium"``."""
-        if self.margin < CLOSE_MARGIN or self.worsened:
-            return "low"
-        return ("high" if self.margin >= 0.5 and self.p_value < 1e-6 and self.determined
-                else "medium")
+        """``"high"``, ``"medium"`` or ``"low"``
+        (:func:`consistid.diagnosis.confidence.confidence_label`: low when a parameter is not
+        determined, a refused rival explains more, or it worsens a joint; high with a margin
+        ≥ 0.5, p < 1e-6 and none of its joints left unexplained by the verdict)."""
+        return confidence_label(Evidence.of(self))
 
     def __str__(self) -> str:
         alt = f" (indistinguishable from {', '.join(self.alternatives)})" if self.alternatives \
@@ -1229,6 +1225,9 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
                                   tried=bool(library.effects) and max_steps > 0,
                                   refused=_refused_by_min_gain(steps), held_out=rms_left,
                                   held_floor=held_floor)
+    named = set(remainder.flagged) | set(remainder.undetermined)
+    findings = [replace(f, unexplained=tuple(j for j in f.joints if j in named))
+                for f in findings]
     if not noise.reliable.all():
         unseen = ("the noise floor cannot be seen on "
                   + ", ".join(names[j] for j in np.flatnonzero(~noise.reliable))
