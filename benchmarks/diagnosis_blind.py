@@ -113,10 +113,11 @@ def draw(rng: np.random.Generator, name: str, nv: int, scale: float = 1.0) -> Tr
     raise ValueError(name)
 
 
-def simulator_setup(model: ci.RobotModel, truths: list[Truth]
+def simulator_setup(model: ci.RobotModel, truths: list[Truth], base: Effects | None = None
                     ) -> tuple[Effects, np.ndarray | None]:
-    """The simulator's Effects and true inertial parameters for the injected truths."""
-    eff = Effects(torque_noise=NOISE)
+    """The simulator's Effects and true inertial parameters for the injected truths (on top of
+    ``base``: nuisances present in every case, default the torque noise only)."""
+    eff = Effects(torque_noise=NOISE) if base is None else base
     params = None
     for t in truths:
         if t.name in ("coulomb", "viscous", "offset", "gain", "armature"):
@@ -212,7 +213,7 @@ def shrink_on(rms_before: np.ndarray, rms_after: np.ndarray, sigma: np.ndarray,
 
 def run_scenario(model: ci.RobotModel, library: EffectLibrary, seed: int, n_effects: int,
                  inertia_solver: str = "sdp", scale: float = 1.0,
-                 pool: tuple[str, ...] = EFFECTS) -> dict:
+                 pool: tuple[str, ...] = EFFECTS, base: Effects | None = None) -> dict:
     rng = np.random.default_rng(seed)
     names = list(rng.choice(pool, size=n_effects, replace=False))
     truths = [draw(rng, str(n), model.nv, scale) for n in names]
@@ -220,7 +221,7 @@ def run_scenario(model: ci.RobotModel, library: EffectLibrary, seed: int, n_effe
         truths[1].joint = (truths[1].joint + 1 + int(rng.integers(model.nv - 1))) % model.nv
         if truths[1].name == "elasticity":
             truths[1].joint = truths[1].joint % 4
-    eff, params = simulator_setup(model, truths)
+    eff, params = simulator_setup(model, truths, base)
     robot = model  # the simulated robot: a tilted base turns its gravity
     for t in truths:
         if t.name == "tilt":

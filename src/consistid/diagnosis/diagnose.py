@@ -87,23 +87,23 @@ from .remainder import (
     set_valued_refit,
     standstill_mask,
 )
+from .confidence import DETERMINED_Z, Evidence, confidence_label
+from .verdict import verdict_head
 
 #: Fewest samples clear of standstill on which a remainder is judged point-valued before the
 #: set-valued friction through a filter is tried (:func:`_set_valued_friction`).
 FAR_SAMPLES = 200
 #: A held-out shrink below this fraction does not list a joint under an arm-wide effect.
 JOINT_SHRINK_FLOOR = 0.05
-#: A runner-up whose held-out gain is within this fraction of the chosen one's makes a finding
-#: of low confidence (both are shown).
-CLOSE_MARGIN = 0.2
 #: An effect raising a joint's held-out RMS above this factor (and above the remainder's flag)
 #: makes that joint worse: a per-joint atom is refused, an arm-wide effect reported, low.
 WORSE_RATIO = 1.1
-#: A parameter closer to zero than this many standard deviations is not determined by the data:
-#: a finding holding one is not of high confidence.
-DETERMINED_Z = 2.0
 #: Held-out corrections with at least this cosine explain the same residual (rivals).
 RIVAL_COSINE = 0.5
+#: Speed (rad/s) below which a joint counts as at rest when a Stribeck hump is weighed against
+#: what is left (:func:`_clear_of_rest`): the presliding or soft-constraint regime of dry
+#: friction, where no law of q̇ predicts the torque.
+REST_SPEED = 0.01
 #: Effects that are dry friction: set-valued at rest (judged against their cone there, see
 #: :func:`consistid.diagnosis.remainder.dry_friction_at_rest`).
 DRY_FRICTION = ("coulomb", "stribeck")
@@ -143,6 +143,8 @@ class EffectFinding:
     worsened : joints whose held-out RMS this (arm-wide) effect raised above
         :data:`WORSE_RATIO` × what it was and above the remainder's flag (a per-joint atom
         that does so on its own joint is refused instead).
+    unexplained : its joints that the verdict leaves flagged or undetermined (what is left
+        there is above the floor: the effect is not the whole story).
     """
 
     name: str
@@ -161,6 +163,7 @@ class EffectFinding:
     runner_up: str = ""
     margin: float = 1.0
     worsened: tuple[str, ...] = ()
+    unexplained: tuple[str, ...] = ()
 
     @property
     def determined(self) -> bool:
@@ -173,13 +176,11 @@ class EffectFinding:
 
     @property
     def confidence(self) -> str:
-        """``"high"`` (margin ≥ 0.5 over the runner-up, p < 1e-6 and its parameters
-        determined), ``"low"`` (margin < 0.2: the runner-up explains nearly as much; or it
-        makes some joint worse on the held-out data, :attr:`worsened`) or ``"medium"``."""
-        if self.margin < CLOSE_MARGIN or self.worsened:
-            return "low"
-        return ("high" if self.margin >= 0.5 and self.p_value < 1e-6 and self.determined
-                else "medium")
+        """``"high"``, ``"medium"`` or ``"low"``
+        (:func:`consistid.diagnosis.confidence.confidence_label`: low when a parameter is not
+        determined, a refused rival explains more, or it worsens a joint; high with a margin
+        ≥ 0.5, p < 1e-6 and none of its joints left unexplained by the verdict)."""
+        return confidence_label(Evidence.of(self))
 
     def __str__(self) -> str:
         alt = f" (indistinguishable from {', '.join(self.alternatives)})" if self.alternatives \
@@ -313,15 +314,14 @@ class Diagnosis:
 
     @property
     def verdict(self) -> str:
-        """``"explained"``, ``"remainder on <joints>"`` or ``"undetermined on <joints>"`` (the
-        noise floor could not be seen there; see :attr:`remainder`)."""
+        """``"explained"``, ``"remainder on <joints>"``, ``"undetermined on <joints>"`` (the
+        noise floor could not be seen there, or the joint is left above the flag within the
+        signal chain's tolerance; see :attr:`remainder`), or both, ``"remainder on A;
+        undetermined on B"``: every joint the held-out table leaves above the flag is named
+        (:func:`consistid.diagnosis.verdict.verdict_head`)."""
         if self.remainder is None:
             return "explained"
-        if self.remainder.flagged:
-            return f"remainder on {', '.join(self.remainder.flagged)}"
-        if self.remainder.undetermined:
-            return f"undetermined on {', '.join(self.remainder.undetermined)}"
-        return "explained"
+        return verdict_head(self.remainder.flagged, self.remainder.undetermined)
 
     @property
     def gap_to_noise(self) -> np.ndarray:
@@ -530,6 +530,9 @@ class _Problem:
     tau_corr: np.ndarray | float = 1.0
     #: time-stamp resolution (s): the median sample interval of the training data
     resolution: float = 0.0
+    #: per Stribeck atom (index): held-out Grams of its joint on the rows clear of rest, and
+    #: their count (:func:`_clear_of_rest`)
+    moving: dict[int, tuple["_Grams", int]] = field(default_factory=dict)
 
     def cols(self, chosen: Sequence[int]) -> np.ndarray:
         if not chosen:
@@ -616,9 +619,12 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
             per_joint = reduced / np.maximum(nominal_ho[rows], 1e-300)
             relevance = float(per_joint.max())
             excess = sse_ho[rows] - prob.held.n
+            if i in prob.moving:           # a hump: what is left where it can explain it
+                grams, n_moving = prob.moving[i]
+                excess = prob.w[rows] * grams.sse(cols, theta) - n_moving
             above = sse_ho[rows] > REMAINDER_RATIO ** 2 * prob.held.n
-            of_excess = float(np.max(np.where(above, reduced / np.maximum(excess, 1e-300),
-                                              0.0)))
+            of_excess = float(np.max(np.where(above & (excess > 0),
+                                              reduced / np.maximum(excess, 1e-300), 0.0)))
             if gain <= 0:
                 return "does not reduce the held-out residual", dbic, p
             unphysical = REGISTRY[atom.effect].unphysical(atom, s[6], prob.resolution)
@@ -718,6 +724,29 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
         (cols, theta, rank), sse_tr, sse_ho = pick[7], pick[3], pick[4]
     return [i for i in chosen if i not in nuisance], alternatives, steps, bics, pvals, rivals, \
         nuisance
+
+
+def _clear_of_rest(atoms: Sequence[Atom], phi_ho: np.ndarray, held: GapData
+                   ) -> dict[int, tuple[_Grams, int]]:
+    r"""Per Stribeck atom, the held-out Grams of its joint on the rows clear of rest,
+    ``|q̇_j| ≥ min(v_s / 2, REST_SPEED)`` with ``sign(q̇_j)`` resolved
+    (:attr:`GapData.sign_unresolved`), and their count: ``min_excess`` weighs a hump against
+    what is left there. Nearer rest the torque is set-valued (any torque within the friction
+    cone; a simulator's soft friction constraint, presliding on a real joint): no law of
+    ``q̇`` predicts it, and the verdict judges those samples against the cone too. Weighed
+    against the whole excess, most of it the error at rest, a hump 5 × the noise on the UR5
+    or xArm7 explained 18–21 % of it and was refused; where the plain Coulomb step leaves
+    nothing clear of rest, no hump passes."""
+    out = {}
+    for i, atom in enumerate(atoms):
+        if atom.effect != "stribeck" or atom.joint is None:
+            continue
+        j = atom.joint
+        rest = min(0.5 * (atom.setting or 0.0), REST_SPEED)
+        keep = (np.abs(held.dataset.dq[:, j]) >= rest) & ~held.sign_unresolved[:, j]
+        g = _Grams.build(phi_ho[keep][:, [j], :], held.residual[keep][:, [j]])
+        out[i] = (g, int(keep.sum()))
+    return out
 
 
 def _cand_table(prob: _Problem, scores: list, joint_names: list[str], top: int = 8
@@ -1040,6 +1069,7 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     prob = _Problem(library, atoms, slices, _Grams.build(phi_tr, train.residual),
                     _Grams.build(phi_ho, held.residual), 1.0 / floor ** 2)
     prob.resolution = float(np.median(np.diff(train.dataset.t)))
+    prob.moving = _clear_of_rest(atoms, phi_ho, held)
     everything_cols, theta_all, _ = prob.fit(list(range(len(atoms))))
     library_floor = np.sqrt(prob.held.sse(everything_cols, theta_all) / held.n)
     # Rows are not independent when the residual is coloured (filtered noise): count effective
@@ -1195,6 +1225,9 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
                                   tried=bool(library.effects) and max_steps > 0,
                                   refused=_refused_by_min_gain(steps), held_out=rms_left,
                                   held_floor=held_floor)
+    named = set(remainder.flagged) | set(remainder.undetermined)
+    findings = [replace(f, unexplained=tuple(j for j in f.joints if j in named))
+                for f in findings]
     if not noise.reliable.all():
         unseen = ("the noise floor cannot be seen on "
                   + ", ".join(names[j] for j in np.flatnonzero(~noise.reliable))

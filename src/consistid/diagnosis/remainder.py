@@ -71,6 +71,7 @@ import scipy.stats
 from ..data.filters import impulse_response
 from ..identification.statistics import autocorrelation_time
 from .gapdata import GapData, Segment, lowpass_segments
+from .verdict import verdict_text
 
 #: The remaining RMS must exceed the noise floor by this factor to flag a remainder.
 REMAINDER_RATIO = 1.5
@@ -221,36 +222,40 @@ class Remainder:
 
     @property
     def verdict(self) -> str:
-        if not self.flagged and self.undetermined:
-            unseen = [j.joint for j in self.joints if not j.determined]
-            within = [j.joint for j in self.joints if j.determined and j.tolerated]
-            why = []
-            if unseen:
-                why.append(f"the noise floor cannot be seen on {', '.join(unseen)} (torques "
-                           "filtered below the motion band and an excitation that does not "
-                           "repeat); pass sigma, or record two periods or more")
-            if within:
-                why.append(f"{', '.join(within)} "
-                           f"{'is' if len(within) == 1 else 'are'} left above "
-                           f"{REMAINDER_RATIO:g} × the floor by less than the signal chain's "
-                           "own error or not significantly: neither explained nor a remainder")
-            return f"undetermined on {', '.join(self.undetermined)}: " + "; ".join(why)
-        if not self.flagged:
-            return "explained: what the selected effects leave is at the noise floor"
+        """Every joint not explained named, the remainder's first
+        (:func:`consistid.diagnosis.verdict.verdict_text`): ``"remainder on A; undetermined on
+        B: <why>; <why>"``; ``"explained: …"`` only when no joint is flagged or undetermined."""
+        return verdict_text(self.flagged, self.undetermined, self._why_flagged(),
+                            self._why_undetermined(),
+                            "what the selected effects leave is at the noise floor")
+
+    def _why_undetermined(self) -> str:
+        unseen = [j.joint for j in self.joints if not j.determined]
+        within = [j.joint for j in self.joints if j.determined and j.tolerated and not j.flagged]
+        why = []
+        if unseen:
+            why.append(f"the noise floor cannot be seen on {', '.join(unseen)} (torques "
+                       "filtered below the motion band and an excitation that does not "
+                       "repeat); pass sigma, or record two periods or more")
+        if within:
+            why.append(f"{', '.join(within)} "
+                       f"{'is' if len(within) == 1 else 'are'} left above "
+                       f"{REMAINDER_RATIO:g} × the floor by less than the signal chain's "
+                       "own error or not significantly: neither explained nor a remainder")
+        return "; ".join(why)
+
+    def _why_flagged(self) -> str:
         if not self.tried:
-            return (f"remainder on {', '.join(self.flagged)}: the nominal model leaves more than "
-                    "the noise there, and no candidate effect was tried (effects=[] or "
-                    "max_steps=0)")
+            return ("the nominal model leaves more than the noise there, and no candidate "
+                    "effect was tried (effects=[] or max_steps=0)")
         if self.refused:
-            return (f"remainder on {', '.join(self.flagged)}: the selected effects leave more "
-                    f"than the noise there; the selection stopped at {self.refused} (min_gain is "
-                    "a fraction of each joint's nominal residual, min_excess of what is left "
-                    "above its floor: a smaller min_gain or min_excess lets smaller effects "
-                    "in), or an effect outside the candidate list (or a wrong floor: pass "
-                    "sigma)")
-        return (f"remainder on {', '.join(self.flagged)}: the selected effects leave more than "
-                "the noise there; an effect outside the candidate list (or a wrong floor: "
-                "pass sigma)")
+            return (f"the selected effects leave more than the noise there; the selection "
+                    f"stopped at {self.refused} (min_gain is a fraction of each joint's nominal "
+                    "residual, min_excess of what is left above its floor: a smaller min_gain "
+                    "or min_excess lets smaller effects in), or an effect outside the candidate "
+                    "list (or a wrong floor: pass sigma)")
+        return ("the selected effects leave more than the noise there; an effect outside the "
+                "candidate list (or a wrong floor: pass sigma)")
 
     def summary(self) -> str:
         return "\n".join([f"Unexplained remainder ({self.source} data): {self.verdict}."]
