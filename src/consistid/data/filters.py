@@ -70,6 +70,11 @@ NOISE_MARGIN = 10.0
 #: Width of that neighbourhood as a fraction of the bins up to the Nyquist frequency (1/64:
 #: 7.8 Hz at 1 kHz), wide beside an excitation band of a few Hz, narrow beside coloured noise.
 NOISE_WINDOW = 1.0 / 64
+#: How far the centred median may raise the looking-up one in :func:`_noise_level`: ``4`` is
+#: the ratio of the two medians of ``1/f²`` noise at half a window from zero,
+#: ``(1 + w/(2f))²`` at ``f = w/2``, and less beyond; lines of the motion in the centred window
+#: (a short log's band fills it) raise it without bound.
+CENTRED_GAIN = 4.0
 #: :func:`hampel`'s noise level is taken over this many windows around each sample.
 HAMPEL_SCALE_WINDOWS = 25
 #: The relative rounding step of float32 (``2⁻²³``): :func:`hampel`'s least scale.
@@ -567,16 +572,18 @@ def _noise_level(power: np.ndarray) -> np.ndarray:
     """The running median of each column of a periodogram over the :data:`NOISE_WINDOW` of its
     bins at and above each (at least 15; the top end reflected): looking up, a window at the
     band's top harmonic holds the noise beyond it, not the lines below it, however few bins a
-    short log gives the band. Or the median over the window centred on the bin where that is
-    higher: where coloured noise falls with frequency (AR(1) position noise beyond its corner,
-    ``∝ 1/f²``) the bins above read half its level a window up, and one noise bin in ~30
-    rather than ~1000 would pass :data:`NOISE_MARGIN` (on a slow joint's 5 mrad motion under
-    AR(1) noise, φ = 0.95, that read 3.3–9.8 × the band)."""
+    short log gives the band. Raised towards the median over the window centred on the bin,
+    by at most :data:`CENTRED_GAIN`: where coloured noise falls with frequency (AR(1) position
+    noise beyond its corner, ``∝ 1/f²``) the bins above read a fraction of its level a window
+    up, and one noise bin in ~30 rather than ~1000 would pass :data:`NOISE_MARGIN` (on a slow
+    joint's 5 mrad motion under AR(1) noise, φ = 0.95, that read 3.3–9.8 × the band). Uncapped,
+    the centred window at the top harmonic of a short log holds the band's own lines and reads
+    the whole band as noise (321 Hz for a 2.5 Hz band on a 2 s log)."""
     width = max(int(NOISE_WINDOW * power.shape[0]) | 1, 15)
     above = scipy.ndimage.median_filter(power, size=(width, 1), mode="reflect",
                                         origin=(-(width // 2), 0))
     centred = scipy.ndimage.median_filter(power, size=(width, 1), mode="reflect")
-    return np.maximum(above, centred)
+    return np.maximum(above, np.minimum(centred, CENTRED_GAIN * above))
 
 
 def default_cutoff(bandwidth: float, rate: float) -> float:
