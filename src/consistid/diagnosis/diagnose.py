@@ -569,6 +569,39 @@ def _rigid_prior(prob: _Problem, nominal: np.ndarray) -> np.ndarray | None:
     return evidence_prior_weight(g, c, curvature[np.ix_(cols, cols)]) * curvature
 
 
+def _nested_by_final_fit(prob: _Problem, nuisance: list[int], chosen: list[int],
+                         train: GapData, held: GapData, model: RobotModel, nominal: np.ndarray,
+                         extra_fn, names: list[str], notes: list[str]) -> list[int]:
+    """``chosen`` with a selected ``payload`` replaced by ``inertia`` (whose columns span it)
+    when the final fit with ``inertia`` (the consistent SDP near the nominal, every body free)
+    predicts the held-out data better than the final fit with the payload: a larger held-out
+    Gaussian log-likelihood with each joint's noise variance profiled out,
+    ``−(N/2) Σ_j log SSE_j`` (the floors, which may be unreliable where the noise cannot be
+    seen, do not weigh the joints); a note says so. The selection scores both by regularised
+    least squares, where the ten payload columns can edge out the full rigid body on held-out
+    data (xArm7 mixed case, seed 2: 6 % more held-out gain) although the consistent fit of
+    every body, the one the user gets, predicts it better (worst joint 0.92 × ``identify``'s
+    against 1.27 × with the payload): the held-out data, with the final fit, decide."""
+    kinds = [prob.atoms[i].effect for i in chosen]
+    inertia = [i for i, a in enumerate(prob.atoms) if a.effect == "inertia"]
+    if "payload" not in kinds or "inertia" in kinds or not inertia:
+        return chosen
+    swapped = [inertia[0] if prob.atoms[i].effect == "payload" else i for i in chosen]
+
+    def held_rms(atoms: list[int]) -> np.ndarray:
+        fit = _refit(prob, nuisance + atoms, train, model, nominal, extra_fn, "sdp")[0]
+        return np.sqrt(np.mean((held.residual - fit.correction(held)) ** 2, axis=0))
+
+    with_payload, with_inertia = held_rms(chosen), held_rms(swapped)
+    if np.sum(np.log(with_inertia)) >= np.sum(np.log(with_payload)):
+        return chosen
+    how = ", ".join(f"{n} {a:.3g} → {b:.3g}" for n, a, b in zip(names, with_payload, with_inertia))
+    notes.append("payload was selected; inertia (its columns span the payload's) fitted by the "
+                 "consistent SDP in its place predicts the held-out data better (held-out RMS, "
+                 f"N·m: {how}): inertia kept")
+    return swapped
+
+
 def _floor_without_tails(floor: np.ndarray, noise: NoiseFloor, source: str, on: GapData,
                          train: GapData, held: GapData, phi_tr: np.ndarray, phi_ho: np.ndarray,
                          cols: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, str]:
@@ -1130,6 +1163,9 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     notes: list[str] = []
     chosen, alts, bics, pvals, rivals = _prune_nested(prob, chosen, alts, bics, pvals, rivals,
                                                       names, notes)
+    if inertia_solver == "sdp":
+        chosen = _nested_by_final_fit(prob, nuisance, chosen, train, held, model, pi0, extra_fn,
+                                      names, notes)
     # Group the atoms by effect and rank the groups by how much the held-out residual grows
     # when the group is removed from all the selected atoms; add them one by one in that order.
     groups = list(dict.fromkeys(prob.atoms[i].effect for i in chosen))
