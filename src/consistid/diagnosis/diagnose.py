@@ -34,6 +34,18 @@ Method
    torques make neighbouring samples nearly equal, and tests counting every row would accept
    any wiggle.
 
+   Two kinds of atom are scored otherwise. The rigid-body atoms (``inertia``, ``payload``)
+   are fitted with the quadratic model of the final fit's log-det prior around the nominal
+   bodies, its weight of greatest evidence (:mod:`consistid.diagnosis.rigid_prior`): tens of
+   base parameters, some barely excited, are not set from the noise. And an atom whose effect
+   names *companions* (inertia and payload: Coulomb and viscous friction) is scored against
+   the chosen atoms plus its companions not yet chosen, the partial test of a block beside
+   nuisance columns (:mod:`consistid.diagnosis.interaction`): friction still missing on
+   some joint is not taken up by the inertia, which would then fail on held-out data. Where
+   the floor is read from the residual spectrum, it is read again without the tails of every
+   candidate fitted at once before the selection (an unexplained Coulomb step's ``1/f²`` tail
+   raises it several-fold and would weigh that joint down in every test).
+
    Atoms whose held-out reductions are within ``tie`` of the best and whose corrections are
    nearly collinear with it (cosine ≥ 0.9 on the held-out data) are *indistinguishable* on these
    data: the one with fewer parameters is kept and the others are listed as alternatives instead
@@ -44,7 +56,10 @@ Method
 4. *How far it shrinks.* Selected atoms are grouped by effect and the groups ranked by how
    much the held-out residual grows when a group is removed from all the selected atoms (atoms
    nested in the span of others, e.g. a payload inside inertia, are merged first); the groups
-   are added one by one in that order, each time refitted on the training data (the delay
+   are added one by one in that order (a per-joint atom of an effect that is a companion of a
+   group still to come is judged, for making its joint worse, with every selected atom in the
+   fit; a selected payload gives way to inertia when the consistent fit of every body predicts
+   the held-out data better), each time refitted on the training data (the delay
    refined exactly, ``τ_nom(t − d)``; inertia by the consistent SDP near the nominal, started
    from the joint least-squares fit) and scored per joint on the held-out data: RMS before →
    after, shrink, parameters ± standard deviation (each joint's rows counted as ``N / τ_j``
