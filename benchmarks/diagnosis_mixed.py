@@ -17,7 +17,7 @@ acceptance: inertia and friction named, held-out RMS per joint ≤ 1.2 × identi
 whose judged held-out RMS is above 1.5 × its floor flagged or undetermined).
 
 Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/diagnosis_mixed.py [--arms ur5,panda,xarm7,kinova]
-[--seeds 0,1,2]``.
+[--seeds 0,1,2] [--inertia 0.12]``.
 """
 
 from __future__ import annotations
@@ -44,14 +44,15 @@ FLAG_RATIO = 1.5
 
 
 def mixed_case(arm: str, seed: int, train_s: float = 30.0, held_s: float = 10.0,
-               rate: float = RATE, noise: float = NOISE):
-    """``(model, train, held, truth)``: the seeded mixed-mismatch logs of ``arm``.
+               rate: float = RATE, noise: float = NOISE, inertia: float = 0.12):
+    """``(model, train, held, truth)``: the seeded mixed-mismatch logs of ``arm`` (every body's
+    inertial parameters scaled by factors within ``1 ± inertia``).
 
     ``truth`` holds the simulated inertial parameters, Coulomb and viscous friction per joint.
     """
     model = ci.RobotModel.example(arm)
     rng = np.random.default_rng(seed)
-    params = perturb(model.prior_parameters, 0.12, rng)
+    params = perturb(model.prior_parameters, inertia, rng)
     coulomb = rng.uniform(0.8, 2.0, model.nv)
     viscous = rng.uniform(0.3, 1.5, model.nv)
     eff = Effects(coulomb=coulomb, viscous=viscous, torque_noise=noise)
@@ -71,9 +72,9 @@ def held_rms(predicted: np.ndarray, held: ci.Dataset) -> np.ndarray:
     return np.sqrt(np.mean((held.tau - predicted) ** 2, axis=0))
 
 
-def compare(arm: str, seed: int) -> dict:
+def compare(arm: str, seed: int, inertia: float = 0.12) -> dict:
     """Diagnose and identify(sdp) on one mixed case; held-out RMS per joint of each."""
-    model, train, held, _ = mixed_case(arm, seed)
+    model, train, held, _ = mixed_case(arm, seed, inertia=inertia)
     t0 = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -114,11 +115,13 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--arms", default="ur5,panda,xarm7,kinova")
     parser.add_argument("--seeds", default="0,1,2")
+    parser.add_argument("--inertia", type=float, default=0.12,
+                        help="every body's inertial parameters scaled within 1 ± this")
     args = parser.parse_args()
     rows = []
     for arm in args.arms.split(","):
         for seed in (int(s) for s in args.seeds.split(",")):
-            out = compare(arm, seed)
+            out = compare(arm, seed, args.inertia)
             print_case(out)
             rows.append(out)
     print("\n| arm | seed | effects named | worst diagnose / identify | joints > 1.5 × floor "

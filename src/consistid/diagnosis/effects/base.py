@@ -154,6 +154,9 @@ class Effect:
     searched : its atoms are found on the training residual (:meth:`atoms` needs it).
     row_only : an atom on joint ``j`` acts on row ``j`` alone (its columns are zero on the other
         joints' rows; :meth:`row` gives that row): the candidate matrix is filled row by row.
+    companions : effects whose atoms this effect's atoms interact with: the selection scores
+        an atom of this effect with every not yet selected atom of these effects fitted beside
+        it (:mod:`consistid.diagnosis.interaction`).
     """
 
     name: ClassVar[str] = ""
@@ -168,6 +171,7 @@ class Effect:
     tuned: ClassVar[bool] = False
     searched: ClassVar[bool] = False
     row_only: ClassVar[bool] = False
+    companions: ClassVar[tuple[str, ...]] = ()
 
     # ------------------------------------------------------------------ candidates
     def atoms(self, library: "EffectLibrary", tuning: GapData | None = None,

@@ -17,6 +17,8 @@ class Inertia(Effect):
     equation = ("`W_b δβ` (base parameters); finally fitted by the consistent SDP with a "
                 "log-det prior around the nominal")
     scope = "arm"
+    #: scored with every joint's friction free beside it (the interaction module)
+    companions = ("coulomb", "viscous")
 
     def atoms(self, library, tuning=None, residual=None) -> list[Atom]:
         base = library.base

@@ -16,6 +16,8 @@ class Payload(Effect):
     signature = "a load on the last body: gravity/inertia residual on all joints"
     equation = "last body's 10 parameters"
     scope = "arm"
+    #: scored with every joint's friction free beside it (the interaction module)
+    companions = ("coulomb", "viscous")
     nonnegative = (0,)
 
     def atoms(self, library, tuning=None, residual=None) -> list[Atom]:
