@@ -88,7 +88,8 @@ def test_nearest_on_noisy_ols_reports_moves(panda, noisy_ols):
         float(np.sum((np.linalg.solve(np.linalg.cholesky(res.base_covariance),
                                       recovered - res.base_parameters)) ** 2)), rel=1e-6)
     check = rec.check(data)
-    assert check.ok and np.max(check.torque_difference) < 0.05
+    # the move changes the predicted torque by a tenth of the 1 N·m noise at most
+    assert check.ok and np.max(check.torque_difference) < 0.1
     assert "moved" in rec.summary() and "panda_link2" in rec.summary()
 
 

@@ -107,6 +107,9 @@ from .remainder import (
 from .confidence import DETERMINED_Z, Evidence, confidence_label
 from .verdict import verdict_head
 
+#: Two candidates are not indistinguishable when one leaves a joint above the flag's ratio with
+#: more than this × the other's held-out sum of squares there (twice its RMS).
+DISTINCT_LEFT = 4.0
 #: Fewest samples clear of standstill on which a remainder is judged point-valued before the
 #: set-valued friction through a filter is tried (:func:`_set_valued_friction`).
 FAR_SAMPLES = 200
@@ -779,13 +782,19 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
             if progress is not None:
                 progress(f"step {len(steps)}: stop — {steps[-1].reason}")
             break
-        # Indistinguishable candidates: similar held-out gain and collinear corrections; the one
-        # with the fewest parameters (that passes) is kept, the others are its alternatives.
+        # Indistinguishable candidates: similar held-out gain, collinear corrections, and none
+        # leaving a joint above the flag's ratio with more than DISTINCT_LEFT × the held-out
+        # residual the best leaves there; the one with the fewest parameters (that passes) is
+        # kept, the others are its alternatives. (Gains alone are measured against different
+        # fits when an atom has companions: a 2-parameter stand-in leaving 385 × the floor
+        # tied with the inertia that leaves 1.5 ×.)
         ub = passing[5]
         nb = float(ub @ g_ho @ ub)
         group = [passing]
+        flag = REMAINDER_RATIO ** 2 * prob.held.n
         for sc in scores:
-            if sc is passing or abs(sc[1] - passing[1]) > tie * passing[1]:
+            if sc is passing or abs(sc[1] - passing[1]) > tie * passing[1] \
+                    or np.any((sc[4] > flag) & (sc[4] > DISTINCT_LEFT * passing[4])):
                 continue
             ns = float(sc[5] @ g_ho @ sc[5])
             if nb > 0 and ns > 0 and (sc[5] @ g_ho @ ub) / np.sqrt(nb * ns) >= 0.9:
