@@ -585,11 +585,9 @@ RELATIVE_DECREASE = 1e-4
 
 
 def gauss_newton(problem: _Problem, x0: np.ndarray, max_iterations: int,
-                 fixed: np.ndarray | None = None,
-                 first: tuple[np.ndarray, np.ndarray] | None = None) -> Fit:
+                 fixed: np.ndarray | None = None) -> Fit:
     r"""Bounded Gauss–Newton (``x ≥ problem.lower``) on ``problem``'s residual, the variables
-    ``fixed`` (a mask) held at ``x0``; ``first``: the Jacobian and residual at ``x0`` when
-    already computed.
+    ``fixed`` (a mask) held at ``x0``.
 
     Each iteration solves ``(JᵀJ + λ diag JᵀJ) δ = −Jᵀr`` over the free variables (a variable
     at its bound whose step points out of the box is held there, and the system solved again
@@ -601,7 +599,7 @@ def gauss_newton(problem: _Problem, x0: np.ndarray, max_iterations: int,
     lower = problem.lower
     fixed = np.zeros(x0.size, dtype=bool) if fixed is None else fixed
     x, lam = np.maximum(x0, lower), 1e-2
-    jac, r = first if first is not None and np.all(x == x0) else problem.jac_and_fun(x)
+    jac, r = problem.jac_and_fun(x)
     cost = float(r @ r)
     message = f"stopped after {max_iterations} iterations (max_iterations)"
     for _ in range(max_iterations):
