@@ -489,3 +489,56 @@ def test_a_fuzzed_rollout_file_loads_or_is_refused_by_name(key, value):
             return
         assert isinstance(back, RolloutValidation) and len(back.replays) >= 1
         assert all(r.q_error.shape == (len(back.joint_names),) for r in back.replays)
+
+
+def _short_calibration(panda, truth, monkeypatch, step: float):
+    """Calibrate on a 0.3 s log (the σ's inertia share dominates), recording whether each
+    inertia vector the simulator was given is physically consistent."""
+    from consistid.robot.inertia import is_physically_consistent
+    from consistid.simulator import calibrate as calibrate_module
+
+    _, params, names, *_ = truth
+    log = _simulated_log(panda, params, names, 0.3, seed=4, noise=0.02)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ci.PoorExcitationWarning)
+        res = ci.identify(panda, log, method="sdp", friction=("viscous",), armature=True)
+    given = []
+    write = calibrate_module.write_inertias
+
+    def spy(sim, mj, inertial):
+        given.append(is_physically_consistent(inertial, "pseudo-inertia", panda.body_names).ok)
+        return write(sim, mj, inertial)
+
+    monkeypatch.setattr(calibrate_module, "write_inertias", spy)
+    monkeypatch.setattr(calibrate_module, "INERTIA_STEP", step)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ci.PoorExcitationWarning)
+        return calibrate_simulator(res, log), given
+
+
+def test_the_inertia_share_of_sigma_is_physical_and_does_not_depend_on_the_step(
+        panda, truth, monkeypatch):
+    """The inertias' share of σ is a derivative: every perturbed body the simulator gets is
+    consistent (none clipped), and σ is the same at steps of 0.1, 0.01 and 0.001 σ. Figures
+    (panda, 0.3 s): joint-1 armature σ 0.895 / 0.895 / 0.894 kg·m²; before, with a 0.1 σ step
+    in π, 38 of 43 perturbed bodies were inconsistent and σ went 23 / 4.2 / 1.7 with the step."""
+    stds = []
+    for step in (0.1, 0.01, 0.001):
+        cal, given = _short_calibration(panda, truth, monkeypatch, step)
+        assert given and all(given), f"{given.count(False)} of {len(given)} inconsistent"
+        stds.append(cal.std)
+    assert np.all(np.isfinite(stds))
+    np.testing.assert_allclose(stds[0], stds[2], rtol=0.02)
+    np.testing.assert_allclose(stds[1], stds[2], rtol=0.02)
+
+
+def test_an_inconsistent_body_is_not_clipped_silently(panda, truth):
+    """A perturbed candidate with a negative moment reaches the simulator only with a warning."""
+    from consistid.simulator.engine import build_simulator, write_inertias
+
+    _, params, names, *_ = truth
+    sim = build_simulator(panda, params, names, timestep=H, integrator="implicitfast")
+    bad = params[:panda.n_inertial].copy()
+    bad[4] = -1.0                                # body 1's Ixx: a negative moment
+    with pytest.warns(ci.ModelMisfitWarning, match="panda_link1.*negative"):
+        write_inertias(sim, sim.mj_model, bad)

@@ -69,6 +69,10 @@ TYPICAL_LOG_CHOLESKY = 0.1
 FD_STEP = 1e-3
 #: Whitened residual given to a diverged rollout's samples.
 DIVERGED_RESIDUAL = 1e3
+#: Step (in σ) of the central differences of the inertias' share of σ (:func:`_inertia_share`).
+INERTIA_STEP = 1e-2
+#: Largest move of one log-Cholesky coordinate in those differences.
+MAX_LOG_CHOLESKY_STEP = 0.05
 
 
 @dataclass(frozen=True, eq=False)
@@ -490,10 +494,20 @@ def _inertia_share(result: Any, problem: _Problem, fit: "Fit", n_out: int,
     answer moves with ``π`` as ``∂θ̂/∂π = −(J_θᵀJ_θ)⁻¹ J_θᵀ ∂r/∂π`` (implicit function
     theorem at the minimum), so ``Cov θ ⊇ G Cov_π Gᵀ``. ``Cov_π = K⁺ Cov_β K⁺ᵀ`` is the
     identified base covariance mapped to the inertial columns of the base map ``K`` (a
-    direction the data do not inform moves no torque and no rollout); ``∂r/∂π`` along each
-    of its principal directions by one more rollout each (one batch), a tenth of σ long.
-    Added to the conditional covariance as independent (the calibration data and the
-    identification's are often the same: then this errs on the wide side).
+    direction the data do not inform moves no torque and no rollout).
+
+    The derivative is taken in each body's log-Cholesky coordinates ``u`` (:mod:`.logcholesky`),
+    where every point is a physically consistent body: ``Cov_u = L⁻¹ Cov_π L⁻ᵀ`` with
+    ``L = ∂π/∂u`` at ``û`` (:func:`_log_cholesky_jacobian`; ``L Cov_u Lᵀ = Cov_π``, the same
+    first-order propagation), and ``∂r/∂u`` along each principal direction ``d`` of ``Cov_u``
+    (one σ long) by central differences ``(r(û + s d) − r(û − s d)) / 2s`` with
+    ``s =`` :data:`INERTIA_STEP`, shortened so that no coordinate moves by more than
+    :data:`MAX_LOG_CHOLESKY_STEP` (a logarithm's step is a relative one). Every perturbed
+    body is consistent by construction, so none is clipped by :func:`~.engine.write_inertias`
+    (a step of a tenth of σ in ``π`` itself left most perturbed bodies inconsistent, their
+    negative moments clipped, and σ ten times that of a small step). Added to the conditional
+    covariance as independent (the calibration data and the identification's are often the
+    same: then this errs on the wide side).
     """
     p = result.model.n_inertial
     cov_beta = np.asarray(result.base_covariance, dtype=float)
@@ -505,20 +519,45 @@ def _inertia_share(result: Any, problem: _Problem, fit: "Fit", n_out: int,
                       PoorExcitationWarning, stacklevel=3)
         return np.zeros((problem.layout.size,) * 2)
     cov_pi = k_inertial @ cov_beta @ k_inertial.T
-    w, v = np.linalg.eigh(0.5 * (cov_pi + cov_pi.T))
+    u0 = np.concatenate([to_log_cholesky(b) for b in
+                         np.asarray(result.inertial_parameters, float).reshape(-1, 10)])
+    jac_u = _log_cholesky_jacobian(u0)
+    cov_u = np.linalg.solve(jac_u, np.linalg.solve(jac_u, cov_pi).T)
+    w, v = np.linalg.eigh(0.5 * (cov_u + cov_u.T))
     keep = w > 1e-12 * max(w.max(), 1e-300)
     directions = (v[:, keep] * np.sqrt(w[keep])).T            # one σ along each
-    pi = np.asarray(result.inertial_parameters, dtype=float)
-    eps = 0.1
-    rs = problem.residuals([fit.x] * (len(directions) + 1),
-                           [pi] + [pi + eps * d for d in directions])[:, :n_out]
-    sens = ((rs[1:] - rs[0]) / eps).T                          # (rows, directions)
+    steps = np.minimum(INERTIA_STEP,
+                       MAX_LOG_CHOLESKY_STEP / np.max(np.abs(directions), axis=1))
+    moved = [u0 + sign * s * d for s, d in zip(steps, directions) for sign in (1.0, -1.0)]
+    rs = problem.residuals([fit.x] * len(moved),
+                           [_inertial_of(u) for u in moved])[:, :n_out]
+    sens = ((rs[0::2] - rs[1::2]) / (2.0 * steps[:, None])).T  # (rows, directions)
     n = problem.layout.size
     free = np.setdiff1d(np.arange(n), held)
     jac = fit.jac[:n_out][:, free]
     g = np.zeros((n, len(directions)))
     g[free] = -np.linalg.lstsq(jac, sens, rcond=None)[0]
     return g @ g.T
+
+
+def _inertial_of(u: np.ndarray) -> np.ndarray:
+    """The standard inertial vector of stacked log-Cholesky vectors (10 per body)."""
+    return np.concatenate([from_log_cholesky(b) for b in u.reshape(-1, 10)])
+
+
+def _log_cholesky_jacobian(u: np.ndarray) -> np.ndarray:
+    """``∂π/∂u`` (block diagonal, one 10 × 10 block per body) by central differences of
+    :func:`~.logcholesky.from_log_cholesky` (a polynomial in ``exp u₀…₃`` and ``u₄…₉``, step
+    1e-6: error ~1e-12 relative)."""
+    out = np.zeros((u.size, u.size))
+    for b in range(u.size // 10):
+        blk = slice(10 * b, 10 * b + 10)
+        for i in range(10):
+            du = np.zeros(10)
+            du[i] = 1e-6 * max(1.0, abs(u[blk][i]))
+            out[blk, 10 * b + i] = (from_log_cholesky(u[blk] + du)
+                                    - from_log_cholesky(u[blk] - du)) / (2.0 * du[i])
+    return out
 
 
 def _row_weight(r: np.ndarray, log: LogGrid, nv: int) -> tuple[float, float]:
