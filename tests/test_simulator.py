@@ -542,3 +542,24 @@ def test_an_inconsistent_body_is_not_clipped_silently(panda, truth):
     bad[4] = -1.0                                # body 1's Ixx: a negative moment
     with pytest.warns(ci.ModelMisfitWarning, match="panda_link1.*negative"):
         write_inertias(sim, sim.mj_model, bad)
+
+
+@pytest.mark.parametrize("term, value, std, floor, informed", [
+    ("armature", 5.0, 0.5, 0.01, True),        # an industrial arm's, to 10 %: informed
+    ("damping", 40.0, 2.0, 0.05, True),
+    ("damping", 0.01, 0.08, 0.001, False),     # a small arm's, σ 800 %: not informed
+    ("armature", 0.002, 0.004, 1e-4, False),
+    ("frictionloss", 0.0, 0.004, 0.02, True),  # ≈ 0 and known to be below the noise
+    ("frictionloss", 0.0, 0.3, 5.0, False),    # a joint that hardly moves: no floor of 5 N·m
+    ("gain", 1.0, 0.05, np.inf, True),
+    ("gain", 1.0, 0.3, np.inf, False),
+])
+def test_informed_is_relative_to_the_terms_magnitude(term, value, std, floor, informed):
+    """σ against the term's own magnitude (a large arm's terms are not held for being large,
+    a small arm's not passed for being small), a noise floor near zero."""
+    from consistid.simulator.terms import TermLayout, informed_threshold
+
+    layout = TermLayout((term,), 1)
+    threshold = informed_threshold(layout, np.array([value]), np.array([value]),
+                                   np.array([floor]))
+    assert bool(std <= threshold[0]) is informed, threshold

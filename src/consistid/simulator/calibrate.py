@@ -59,7 +59,7 @@ from ..report.result import Reported
 from ..identification.regressor import RegressorSpec, regressor
 from .engine import Simulator, build_simulator, integrator_name, write_inertias
 from .logcholesky import from_log_cholesky, to_log_cholesky
-from .terms import LOWER, TERMS, TYPICAL, TermLayout, check_terms
+from .terms import LOWER, TERMS, TYPICAL, TermLayout, check_terms, informed_threshold
 from .options import ComputedTorque, Controller, PDGains, RolloutOptions
 from .replay import LogGrid, closed_loop_under
 
@@ -372,6 +372,18 @@ class _Problem:
             return r
         return np.hstack([r, np.stack([self.prior.rows(self.inertial(x)) for x in xs])])
 
+    def noise_floor(self) -> np.ndarray:
+        """(size,) per term the σ whose torque on this log equals the identification's
+        residual RMS ``s_j`` of its joint: ``s_j / RMS(q̈_j)`` (armature), ``s_j / RMS(q̇_j)``
+        (damping), ``s_j / RMS(sign q̇_j)`` (frictionloss); ``inf`` for the others (unused,
+        :func:`~.terms.informed_threshold`)."""
+        ddq = np.gradient(self.log.dq, self.log.t, axis=0)
+        column = {"armature": ddq, "damping": self.log.dq, "frictionloss": np.sign(self.log.dq)}
+        return np.concatenate([
+            self.scale / np.maximum(np.sqrt(np.mean(column[t] ** 2, axis=0)), 1e-300)
+            if t in column else np.full(self.layout.size_of(t), np.inf)
+            for t in self.layout.terms])
+
     def jac_and_fun(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Forward-difference Jacobian and the residual at ``x``, one batch of ``p + 1``."""
         steps = FD_STEP * (np.abs(x) + self.typical)
@@ -405,8 +417,9 @@ def calibrate_simulator(result: Any, data: Dataset, mjcf: str | Path | None = No
         more rollouts per body and Jacobian.
     terms : the simulator terms fitted (:mod:`.terms`): ``"armature"``, ``"damping"``,
         ``"frictionloss"`` (default), ``"gain"`` (per joint) and ``"delay"`` (one; both under
-        the PD replay only). A term the data do not inform (its σ at the answer above its
-        typical magnitude, :data:`~.terms.TYPICAL`) is held at its start, the others fitted
+        the PD replay only). A term the data do not inform (its σ at the answer above half
+        its magnitude and above its noise floor, :func:`~.terms.informed_threshold`; for
+        gain and delay above 0.1 and 5 ms) is held at its start, the others fitted
         again, and named in a :class:`~consistid.errors.PoorExcitationWarning` and in
         ``uninformed``.
     max_iterations : Gauss–Newton iterations (Jacobians), ≥ 1.
@@ -449,7 +462,9 @@ def calibrate_simulator(result: Any, data: Dataset, mjcf: str | Path | None = No
     names = layout.names(sim.joint_names)
     fit = gauss_newton(problem, x0, max_iterations)
     cov = _covariance(fit.jac, n_out, float(np.mean(fit.fun[:n_out] ** 2)) * tau)
-    held = _uninformed(np.sqrt(np.diag(cov))[:n], problem.typical[:n], names)
+    held = _uninformed(np.sqrt(np.diag(cov))[:n],
+                       informed_threshold(layout, fit.x[:n], start, problem.noise_floor()),
+                       names)
     if held.size:                     # fit the others again with these at their start
         x1 = fit.x.copy()
         x1[held] = x0[held]
@@ -471,13 +486,14 @@ def calibrate_simulator(result: Any, data: Dataset, mjcf: str | Path | None = No
                                 tuple(names[k] for k in held))
 
 
-def _uninformed(std: np.ndarray, typical: np.ndarray, names: tuple[str, ...]) -> np.ndarray:
+def _uninformed(std: np.ndarray, threshold: np.ndarray, names: tuple[str, ...]) -> np.ndarray:
     """Indices of the simulator terms the data do not inform: σ at the answer (every term
-    free, given the inertias) above the term's typical magnitude (:data:`~.terms.TYPICAL`);
-    named in a :class:`PoorExcitationWarning`."""
-    held = np.flatnonzero(~(std <= typical))
+    free, given the inertias) above its threshold (:func:`~.terms.informed_threshold`: a
+    fraction of the term's own magnitude, or a noise floor for a term near zero); named in a
+    :class:`PoorExcitationWarning`."""
+    held = np.flatnonzero(~(std <= threshold))
     if held.size:
-        listed = ", ".join(f"{names[k]} (σ {std[k]:.3g} ≥ {typical[k]:g})" for k in held)
+        listed = ", ".join(f"{names[k]} (σ {std[k]:.3g} > {threshold[k]:.3g})" for k in held)
         warnings.warn(f"calibrate_simulator: the data do not inform {listed}; held at their "
                       "start values (the identification's, gain 1, delay 0) and listed in "
                       ".uninformed: record a run that moves these joints (velocity reversals "
