@@ -563,3 +563,19 @@ def test_informed_is_relative_to_the_terms_magnitude(term, value, std, floor, in
     threshold = informed_threshold(layout, np.array([value]), np.array([value]),
                                    np.array([floor]))
     assert bool(std <= threshold[0]) is informed, threshold
+
+
+def test_a_term_reported_informed_has_its_final_sigma_below_the_threshold(panda, truth,
+                                                                          monkeypatch):
+    """Which terms are informed is decided on the σ reported (the inertias' share included):
+    on a 0.3 s log that share dominates, so terms must be held, and none reported informed may
+    carry a σ above its threshold (at most half its magnitude or its typical scale,
+    :func:`~consistid.simulator.terms.informed_threshold`)."""
+    from consistid.simulator.terms import RELATIVE, TYPICAL
+
+    cal, _ = _short_calibration(panda, truth, monkeypatch, 0.01)
+    assert cal.uninformed
+    for name, std, value, start in zip(cal.names, cal.std, cal.values, cal.start):
+        if name not in cal.uninformed:
+            bound = max(RELATIVE * max(abs(value), abs(start)), TYPICAL[name.rpartition(".")[2]])
+            assert std <= bound, (name, std, bound)

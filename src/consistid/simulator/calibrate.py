@@ -461,20 +461,28 @@ def calibrate_simulator(result: Any, data: Dataset, mjcf: str | Path | None = No
     n = layout.size
     names = layout.names(sim.joint_names)
     fit = gauss_newton(problem, x0, max_iterations)
-    cov = _covariance(fit.jac, n_out, float(np.mean(fit.fun[:n_out] ** 2)) * tau)
-    held = _uninformed(np.sqrt(np.diag(cov))[:n],
-                       informed_threshold(layout, fit.x[:n], start, problem.noise_floor()),
-                       names)
-    if held.size:                     # fit the others again with these at their start
+    held = np.empty(0, dtype=int)
+    cov = _final_covariance(result, problem, fit, n_out, tau, held)
+    std = np.sqrt(np.diag(cov))[:n]
+    # hold the uninformed terms at their start and fit the others again, until every term
+    # left free is informed by its final σ (held only grows: at most n rounds); a held term
+    # keeps the σ it was judged by (held, it has no inertia share, and its conditional σ
+    # would read as informed)
+    while (more := np.setdiff1d(_uninformed(std, layout, fit.x, start, problem), held)).size:
+        judged = std[more]
+        held = np.union1d(held, more)
         x1 = fit.x.copy()
         x1[held] = x0[held]
         fit = gauss_newton(problem, x1, max_iterations, np.isin(np.arange(x0.size), held))
-        cov = _covariance(fit.jac, n_out, float(np.mean(fit.fun[:n_out] ** 2)) * tau)
-    if prior is None:
-        cov[:n, :n] += _inertia_share(result, problem, fit, n_out, held)
+        cov = _final_covariance(result, problem, fit, n_out, tau, held)
+        kept = std[held].copy()
+        std = np.sqrt(np.diag(cov))[:n]
+        std[held] = kept
+        std[more] = judged
+    _warn_uninformed(std, layout, fit.x, start, problem, names, held)
     inertial = problem.inertial(fit.x) if prior is not None else result.inertial_parameters
     base, base_std = _physical(result, problem, fit.x, cov)
-    return SimulatorCalibration(result, names, start, fit.x[:n], np.sqrt(np.diag(cov))[:n],
+    return SimulatorCalibration(result, names, start, fit.x[:n], std,
                                 float(sim.mj_model.opt.timestep),
                                 integrator_name(int(sim.mj_model.opt.integrator)), kp, kd,
                                 float(np.mean(r0 ** 2)),
@@ -486,12 +494,33 @@ def calibrate_simulator(result: Any, data: Dataset, mjcf: str | Path | None = No
                                 tuple(names[k] for k in held))
 
 
-def _uninformed(std: np.ndarray, threshold: np.ndarray, names: tuple[str, ...]) -> np.ndarray:
-    """Indices of the simulator terms the data do not inform: σ at the answer (every term
-    free, given the inertias) above its threshold (:func:`~.terms.informed_threshold`: a
-    fraction of the term's own magnitude, or a noise floor for a term near zero); named in a
-    :class:`PoorExcitationWarning`."""
-    held = np.flatnonzero(~(std <= threshold))
+def _final_covariance(result: Any, problem: _Problem, fit: "Fit", n_out: int, tau: float,
+                      held: np.ndarray) -> np.ndarray:
+    """The covariance reported: the output-error fit's (:func:`_covariance`, ``ŝ²`` its mean
+    square × ``τ``) plus, unless the inertias were refined, their uncertainty's share
+    (:func:`_inertia_share`). Which terms are informed is decided on this one, the σ the user
+    reads."""
+    cov = _covariance(fit.jac, n_out, float(np.mean(fit.fun[:n_out] ** 2)) * tau)
+    if problem.prior is None:
+        n = problem.layout.size
+        cov[:n, :n] += _inertia_share(result, problem, fit, n_out, held)
+    return cov
+
+
+def _uninformed(std: np.ndarray, layout: TermLayout, x: np.ndarray, start: np.ndarray,
+                problem: _Problem) -> np.ndarray:
+    """Indices of the simulator terms the data do not inform: σ (with the inertias' share,
+    :func:`_final_covariance`) above its threshold (:func:`~.terms.informed_threshold`: a
+    fraction of the term's own magnitude, or a noise floor for a term near zero)."""
+    threshold = informed_threshold(layout, x[:layout.size], start, problem.noise_floor())
+    return np.flatnonzero(~(std <= threshold))
+
+
+def _warn_uninformed(std: np.ndarray, layout: TermLayout, x: np.ndarray, start: np.ndarray,
+                     problem: _Problem, names: tuple[str, ...], held: np.ndarray) -> None:
+    """Name the ``held`` terms, their σ and threshold, in a :class:`PoorExcitationWarning`."""
+    n = layout.size
+    threshold = informed_threshold(layout, x[:n], start, problem.noise_floor())
     if held.size:
         listed = ", ".join(f"{names[k]} (σ {std[k]:.3g} > {threshold[k]:.3g})" for k in held)
         warnings.warn(f"calibrate_simulator: the data do not inform {listed}; held at their "
@@ -499,7 +528,6 @@ def _uninformed(std: np.ndarray, threshold: np.ndarray, names: tuple[str, ...]) 
                       ".uninformed: record a run that moves these joints (velocity reversals "
                       "for frictionloss, changing torques for gain and delay) or leave them "
                       "out of terms=", PoorExcitationWarning, stacklevel=3)
-    return held
 
 
 def _inertia_share(result: Any, problem: _Problem, fit: "Fit", n_out: int,
@@ -532,7 +560,7 @@ def _inertia_share(result: Any, problem: _Problem, fit: "Fit", n_out: int,
         warnings.warn("calibrate_simulator: the identification's base covariance is not finite "
                       "(a direction its data did not inform); the σ of the simulator terms are "
                       "conditional on the inertias (refine_inertia=True fits them jointly)",
-                      PoorExcitationWarning, stacklevel=3)
+                      PoorExcitationWarning, stacklevel=4)
         return np.zeros((problem.layout.size,) * 2)
     cov_pi = k_inertial @ cov_beta @ k_inertial.T
     u0 = np.concatenate([to_log_cholesky(b) for b in
