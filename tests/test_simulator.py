@@ -579,3 +579,109 @@ def test_a_term_reported_informed_has_its_final_sigma_below_the_threshold(panda,
         if name not in cal.uninformed:
             bound = max(RELATIVE * max(abs(value), abs(start)), TYPICAL[name.rpartition(".")[2]])
             assert std <= bound, (name, std, bound)
+
+
+@pytest.fixture(scope="module")
+def saved_calibration(panda, truth, tmp_path_factory):
+    """An identification and the JSON document of a calibration made on it (0.3 s log)."""
+    import json
+
+    _, params, names, *_ = truth
+    log = _simulated_log(panda, params, names, 0.3, seed=4, noise=0.02)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ci.PoorExcitationWarning)
+        res = ci.identify(panda, log, method="sdp", friction=("viscous",), armature=True)
+        cal = calibrate_simulator(res, log, max_iterations=1)
+    path = cal.save(tmp_path_factory.mktemp("cal") / "calibration.json")
+    return res, cal, json.loads(path.read_text())
+
+
+def test_a_calibration_round_trips(saved_calibration, tmp_path):
+    from consistid.simulator import SimulatorCalibration
+
+    res, cal, _ = saved_calibration
+    back = SimulatorCalibration.load(cal.save(tmp_path / "c.json"), res)
+    for key in ("start", "values", "std", "kp", "kd", "inertial", "base_parameters",
+                "base_std"):
+        np.testing.assert_array_equal(getattr(back, key), getattr(cal, key))
+    assert (back.names, back.uninformed, back.controller) == (cal.names, cal.uninformed,
+                                                              cal.controller)
+
+
+@pytest.mark.parametrize("edit, match", [
+    (lambda d: d["names"].__setitem__(0, "panda_joint1.mass"), "field 'names'"),
+    (lambda d: d["names"].__setitem__(0, "panda_joint2.armature"), "field 'names'"),
+    (lambda d: d.update(values=d["values"][:-1]), "field 'values' must hold 21"),
+    (lambda d: d.update(std=[-1.0] * 21), "field 'std'"),
+    (lambda d: d.update(kind="other"), "not a saved SimulatorCalibration"),
+    (lambda d: d.pop("kp"), "field 'kp' is missing"),
+    (lambda d: d.update(controller="LQR"), "field 'controller'"),
+    (lambda d: d.update(uninformed=["panda_joint1.gain"]), "field 'uninformed'"),
+    (lambda d: d.update(integrator="semi"), "field 'integrator'"),
+    (lambda d: d.update(inertial=d["inertial"][:10]), "field 'inertial' must hold 70"),
+    (lambda d: d.update(refined="no"), "field 'refined'"),
+    (lambda d: d.update(timestep=0), "field 'timestep'"),
+])
+def test_a_tampered_calibration_file_is_refused(saved_calibration, tmp_path, edit, match):
+    import json
+
+    from consistid.simulator import SimulatorCalibration
+
+    res, _, doc = saved_calibration
+    doc = json.loads(json.dumps(doc))
+    edit(doc)
+    path = tmp_path / "c.json"
+    path.write_text(json.dumps(doc))
+    with pytest.raises(ci.ResultFileError, match=match):
+        SimulatorCalibration.load(path, res)
+
+
+def test_gain_under_computed_torque_is_refused_in_a_calibration_file(saved_calibration,
+                                                                     tmp_path):
+    import json
+
+    from consistid.simulator import SimulatorCalibration
+
+    res, _, doc = saved_calibration
+    names = doc["names"][:7] + [n.replace("armature", "gain") for n in doc["names"][:7]]
+    doc = dict(doc, names=names, start=doc["start"][:14], values=doc["values"][:14],
+               std=doc["std"][:14], uninformed=[])
+    (tmp_path / "c.json").write_text(json.dumps(doc))
+    assert SimulatorCalibration.load(tmp_path / "c.json", res).layout.terms == ("armature",
+                                                                               "gain")
+    (tmp_path / "c.json").write_text(json.dumps(dict(doc, controller="computed torque")))
+    with pytest.raises(ci.ResultFileError, match="gain or delay.*'computed torque'"):
+        SimulatorCalibration.load(tmp_path / "c.json", res)
+
+
+@settings(max_examples=60, deadline=None)
+@given(key=st.sampled_from(["kind", "names", "names.0", "names.20", "start", "values",
+                            "values.3", "std", "std.0", "timestep", "integrator", "kp", "kd.2",
+                            "cost", "evaluations", "message", "inertial", "inertial.5",
+                            "base_parameters", "base_std", "refined", "controller",
+                            "uninformed"]),
+       value=_JSON)
+def test_a_fuzzed_calibration_file_loads_or_is_refused_by_name(saved_calibration, key, value):
+    """Any JSON value in any field: a SimulatorCalibration or a ResultFileError, nothing else."""
+    import json
+    import tempfile
+
+    from consistid.simulator import SimulatorCalibration
+
+    res, _, saved = saved_calibration
+    doc = json.loads(json.dumps(saved))
+    *parents, last = key.split(".")
+    target = doc
+    for p in parents:
+        target = target[p]
+    target[int(last) if last.isdigit() else last] = value
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "c.json"
+        path.write_text(json.dumps(doc))
+        try:
+            back = SimulatorCalibration.load(path, res)
+        except ci.ResultFileError:
+            return
+    n = len(back.names)
+    assert back.values.shape == back.std.shape == back.start.shape == (n,)
+    assert back.layout.size == n and set(back.uninformed) <= set(back.names)

@@ -51,7 +51,9 @@ import numpy as np
 
 from ..data.dataset import Dataset
 from ..filesafety import replacing
-from ..errors import ModelMisfitWarning, OptionError, PoorExcitationWarning, check_number
+from ..errors import (ModelMisfitWarning, OptionError, PoorExcitationWarning, ResultFileError,
+                      check_number)
+from ..identification.resultschema import read_document
 from ..identification.statistics import autocorrelation_time
 from ..report.html import Page
 from ..robot.inertia import is_physically_consistent
@@ -60,7 +62,8 @@ from ..identification.regressor import RegressorSpec, regressor
 from .engine import Simulator, build_simulator, integrator_name, write_inertias
 from .logcholesky import from_log_cholesky, to_log_cholesky
 from .terms import LOWER, TERMS, TYPICAL, TermLayout, check_terms, informed_threshold
-from .options import ComputedTorque, Controller, PDGains, RolloutOptions
+from .fields import field, number, vector
+from .options import INTEGRATORS, ComputedTorque, Controller, PDGains, RolloutOptions
 from .replay import LogGrid, closed_loop_under
 
 #: Typical magnitude of a log-Cholesky entry (sets its finite-difference step).
@@ -200,10 +203,10 @@ class SimulatorCalibration(Reported):
         sim = build_simulator(r.model, params, r.parameter_names, mjcf=mjcf,
                               timestep=timestep, integrator=integrator)
         layout = self.layout
-        for field, term in (("dof_armature", "armature"), ("dof_damping", "damping"),
-                            ("dof_frictionloss", "frictionloss")):
+        for attr, term in (("dof_armature", "armature"), ("dof_damping", "damping"),
+                           ("dof_frictionloss", "frictionloss")):
             if term in layout.terms:
-                getattr(sim.mj_model, field)[sim.dofs] = self.term(term)
+                getattr(sim.mj_model, attr)[sim.dofs] = self.term(term)
         gain = self.term("gain") if "gain" in layout.terms else None
         delay = float(self.term("delay")[0]) if "delay" in layout.terms else 0.0
         return replace(sim, gain=gain, delay=delay)
@@ -267,19 +270,64 @@ class SimulatorCalibration(Reported):
 
     @classmethod
     def load(cls, path: str | Path, result: Any) -> "SimulatorCalibration":
-        """Read :meth:`save`'s file back, with the identification ``result`` it was made on."""
-        doc = json.loads(Path(path).read_text(encoding="utf-8"))
-        if doc.get("kind") != "simulator_calibration":
-            raise OptionError(f"{str(path)!r} is not a saved SimulatorCalibration")
-        arr = {k: np.asarray(doc[k], float) for k in ("start", "values", "std", "kp", "kd",
-                                                       "inertial", "base_parameters",
-                                                       "base_std")}
-        return cls(result, tuple(doc["names"]), arr["start"], arr["values"], arr["std"],
-                   doc["timestep"], doc["integrator"], arr["kp"], arr["kd"], doc["cost_start"],
-                   doc["cost"], doc["evaluations"], doc["seconds"], doc["message"],
-                   arr["inertial"], arr["base_parameters"], arr["base_std"],
-                   bool(doc["refined"]), str(doc.get("controller", "PD")),
-                   tuple(doc.get("uninformed", ())))
+        """Read :meth:`save`'s file back, with the identification ``result`` it was made on;
+        :class:`~consistid.errors.ResultFileError` naming the file and the field for one that
+        is not (not JSON, beyond a result file's limits, a field missing or of another type,
+        length or sign, names not ``result``'s joints' terms in their order, an uninformed
+        term not among them, gain or delay under computed torque)."""
+        path = Path(path)
+        doc = read_document(path, path.name)
+        if not isinstance(doc, dict) or doc.get("kind") != "simulator_calibration":
+            raise ResultFileError(f"{path.name} is not a saved SimulatorCalibration (kind "
+                                  "'simulator_calibration' missing)")
+        return cls(result, *_calibration_fields(doc, path.name, result))
+
+
+def _calibration_fields(doc: dict, where: str, result: Any) -> tuple[Any, ...]:
+    """:class:`SimulatorCalibration`'s fields after ``result`` from a saved document, each
+    checked (:mod:`.fields`)."""
+    model = result.model
+    names = field(doc, "names", list, where)
+    if not all(isinstance(n, str) for n in names):
+        raise ResultFileError(f"{where}: field 'names' must list the terms' names")
+    try:
+        layout = TermLayout.of_names(names, model.joint_names)
+    except OptionError as exc:
+        raise ResultFileError(f"{where}: field 'names' {str(names)[:60]} are not the "
+                              f"'<joint>.<term>' of {model.name}'s joints in order: "
+                              f"{exc}") from exc
+    controller = field(doc, "controller", str, where)
+    if controller not in ("PD", "computed torque"):
+        raise ResultFileError(f"{where}: field 'controller' is {controller!r:.40}, not 'PD' "
+                              "or 'computed torque'")
+    if controller == "computed torque" and {"gain", "delay"} & set(layout.terms):
+        raise ResultFileError(f"{where}: field 'names' holds gain or delay, calibrated under "
+                              "the PD replay only, but field 'controller' is 'computed torque'")
+    integrator = field(doc, "integrator", str, where)
+    if integrator not in INTEGRATORS:
+        raise ResultFileError(f"{where}: field 'integrator' is {integrator!r:.40}, not one of "
+                              f"{INTEGRATORS}")
+    uninformed = field(doc, "uninformed", list, where)
+    if not all(isinstance(u, str) and u in names for u in uninformed):
+        raise ResultFileError(f"{where}: field 'uninformed' must list names of field "
+                              f"'names', got {str(uninformed):.60}")
+    p, nv, nb = layout.size, model.nv, len(result.base_parameters)
+    terms = [vector(doc, k, p, where, inf=k == "std", what="one per term")
+             for k in ("start", "values", "std")]
+    gains = [vector(doc, k, nv, where) for k in ("kp", "kd")]
+    costs = [number(doc, k, where, positive=False) for k in ("cost_start", "cost")]
+    evaluations = field(doc, "evaluations", int, where)
+    if evaluations < 0:
+        raise ResultFileError(f"{where}: field 'evaluations' is {evaluations}, expected ≥ 0")
+    inertial = vector(doc, "inertial", model.n_inertial, where, signed=True,
+                      what="10 per body")
+    base = [vector(doc, "base_parameters", nb, where, signed=True, what="one per base "
+                   "parameter"), vector(doc, "base_std", nb, where, inf=True,
+                                        what="one per base parameter")]
+    return (tuple(names), *terms, number(doc, "timestep", where), integrator, *gains, *costs,
+            evaluations, number(doc, "seconds", where, positive=False),
+            field(doc, "message", str, where), inertial, *base,
+            field(doc, "refined", bool, where), controller, tuple(uninformed))
 
 
 @dataclass(frozen=True)
