@@ -685,3 +685,29 @@ def test_a_fuzzed_calibration_file_loads_or_is_refused_by_name(saved_calibration
     n = len(back.names)
     assert back.values.shape == back.std.shape == back.start.shape == (n,)
     assert back.layout.size == n and set(back.uninformed) <= set(back.names)
+
+
+@pytest.mark.parametrize("rollout, match", [
+    ('controller = "computed_torque"\ncalibrate = true\nterms = ["damping", "gain"]',
+     r'controller = "computed_torque".*set controller = "pd" in \[rollout\]'),
+    ('terms = ["armature"]', r"\[rollout\] terms set.*add calibrate = true"),
+    ('calibrate = false\nrefine_inertia = true', r"refine_inertia set.*add calibrate = true"),
+    ('calibrate = true\nterms = ["damping", "damping"]', r"\[rollout\] terms = \['damping', "),
+])
+def test_cli_rollout_refuses_calibration_keys_before_identifying(tmp_path, capsys, monkeypatch,
+                                                                 rollout, match):
+    """Contradictory or ignored calibration keys are named in TOML terms before any work (the
+    identification is replaced by one that fails the test if reached)."""
+    import re
+
+    from consistid.cli import rollout as cli_rollout
+    from consistid.cli.commands import main
+
+    def reached(*args, **kwargs):
+        raise AssertionError("the identification ran before the keys were checked")
+
+    monkeypatch.setattr(cli_rollout, "identify", reached)
+    assert main(["rollout", _config(tmp_path, rollout)]) == 2
+    err = capsys.readouterr().err
+    assert re.search(match, err), err
+    assert "PDGains" not in err
