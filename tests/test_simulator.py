@@ -489,3 +489,226 @@ def test_a_fuzzed_rollout_file_loads_or_is_refused_by_name(key, value):
             return
         assert isinstance(back, RolloutValidation) and len(back.replays) >= 1
         assert all(r.q_error.shape == (len(back.joint_names),) for r in back.replays)
+
+
+def _short_calibration(panda, truth, monkeypatch, step: float):
+    """Calibrate on a 0.3 s log (the σ's inertia share dominates), recording whether each
+    inertia vector the simulator was given is physically consistent."""
+    from consistid.robot.inertia import is_physically_consistent
+    from consistid.simulator import calibrate as calibrate_module
+
+    _, params, names, *_ = truth
+    log = _simulated_log(panda, params, names, 0.3, seed=4, noise=0.02)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ci.PoorExcitationWarning)
+        res = ci.identify(panda, log, method="sdp", friction=("viscous",), armature=True)
+    given = []
+    write = calibrate_module.write_inertias
+
+    def spy(sim, mj, inertial):
+        given.append(is_physically_consistent(inertial, "pseudo-inertia", panda.body_names).ok)
+        return write(sim, mj, inertial)
+
+    monkeypatch.setattr(calibrate_module, "write_inertias", spy)
+    monkeypatch.setattr(calibrate_module, "INERTIA_STEP", step)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ci.PoorExcitationWarning)
+        return calibrate_simulator(res, log), given
+
+
+def test_the_inertia_share_of_sigma_is_physical_and_does_not_depend_on_the_step(
+        panda, truth, monkeypatch):
+    """The inertias' share of σ is a derivative: every perturbed body the simulator gets is
+    consistent (none clipped), and σ is the same at steps of 0.1, 0.01 and 0.001 σ. Figures
+    (panda, 0.3 s): joint-1 armature σ 0.895 / 0.895 / 0.894 kg·m², 0 of 42 perturbed
+    inertia vectors inconsistent; before (steps in π itself, negative moments clipped) 37, 28,
+    17 of 44 inconsistent and σ 5.46 / 1.03 / 0.914 with the step."""
+    stds = []
+    for step in (0.1, 0.01, 0.001):
+        cal, given = _short_calibration(panda, truth, monkeypatch, step)
+        assert given and all(given), f"{given.count(False)} of {len(given)} inconsistent"
+        stds.append(cal.std)
+    assert np.all(np.isfinite(stds))
+    np.testing.assert_allclose(stds[0], stds[2], rtol=0.02)
+    np.testing.assert_allclose(stds[1], stds[2], rtol=0.02)
+
+
+def test_an_inconsistent_body_is_not_clipped_silently(panda, truth):
+    """A perturbed candidate with a negative moment reaches the simulator only with a warning."""
+    from consistid.simulator.engine import build_simulator, write_inertias
+
+    _, params, names, *_ = truth
+    sim = build_simulator(panda, params, names, timestep=H, integrator="implicitfast")
+    bad = params[:panda.n_inertial].copy()
+    bad[4] = -1.0                                # body 1's Ixx: a negative moment
+    with pytest.warns(ci.ModelMisfitWarning, match="panda_link1.*negative"):
+        write_inertias(sim, sim.mj_model, bad)
+
+
+@pytest.mark.parametrize("term, value, std, floor, informed", [
+    ("armature", 5.0, 0.5, 0.01, True),        # an industrial arm's, to 10 %: informed
+    ("damping", 40.0, 2.0, 0.05, True),
+    ("damping", 0.01, 0.08, 0.001, False),     # a small arm's, σ 800 %: not informed
+    ("armature", 0.002, 0.004, 1e-4, False),
+    ("frictionloss", 0.0, 0.004, 0.02, True),  # ≈ 0 and known to be below the noise
+    ("frictionloss", 0.0, 0.3, 5.0, False),    # a joint that hardly moves: no floor of 5 N·m
+    ("gain", 1.0, 0.05, np.inf, True),
+    ("gain", 1.0, 0.3, np.inf, False),
+])
+def test_informed_is_relative_to_the_terms_magnitude(term, value, std, floor, informed):
+    """σ against the term's own magnitude (a large arm's terms are not held for being large,
+    a small arm's not passed for being small), a noise floor near zero."""
+    from consistid.simulator.terms import TermLayout, informed_threshold
+
+    layout = TermLayout((term,), 1)
+    threshold = informed_threshold(layout, np.array([value]), np.array([value]),
+                                   np.array([floor]))
+    assert bool(std <= threshold[0]) is informed, threshold
+
+
+def test_a_term_reported_informed_has_its_final_sigma_below_the_threshold(panda, truth,
+                                                                          monkeypatch):
+    """Which terms are informed is decided on the σ reported (the inertias' share included):
+    on a 0.3 s log that share dominates, so terms must be held, and none reported informed may
+    carry a σ above its threshold (at most half its magnitude or its typical scale,
+    :func:`~consistid.simulator.terms.informed_threshold`)."""
+    from consistid.simulator.terms import RELATIVE, TYPICAL
+
+    cal, _ = _short_calibration(panda, truth, monkeypatch, 0.01)
+    assert cal.uninformed
+    for name, std, value, start in zip(cal.names, cal.std, cal.values, cal.start):
+        if name not in cal.uninformed:
+            bound = max(RELATIVE * max(abs(value), abs(start)), TYPICAL[name.rpartition(".")[2]])
+            assert std <= bound, (name, std, bound)
+
+
+@pytest.fixture(scope="module")
+def saved_calibration(panda, truth, tmp_path_factory):
+    """An identification and the JSON document of a calibration made on it (0.3 s log)."""
+    import json
+
+    _, params, names, *_ = truth
+    log = _simulated_log(panda, params, names, 0.3, seed=4, noise=0.02)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ci.PoorExcitationWarning)
+        res = ci.identify(panda, log, method="sdp", friction=("viscous",), armature=True)
+        cal = calibrate_simulator(res, log, max_iterations=1)
+    path = cal.save(tmp_path_factory.mktemp("cal") / "calibration.json")
+    return res, cal, json.loads(path.read_text())
+
+
+def test_a_calibration_round_trips(saved_calibration, tmp_path):
+    from consistid.simulator import SimulatorCalibration
+
+    res, cal, _ = saved_calibration
+    back = SimulatorCalibration.load(cal.save(tmp_path / "c.json"), res)
+    for key in ("start", "values", "std", "kp", "kd", "inertial", "base_parameters",
+                "base_std"):
+        np.testing.assert_array_equal(getattr(back, key), getattr(cal, key))
+    assert (back.names, back.uninformed, back.controller) == (cal.names, cal.uninformed,
+                                                              cal.controller)
+
+
+@pytest.mark.parametrize("edit, match", [
+    (lambda d: d["names"].__setitem__(0, "panda_joint1.mass"), "field 'names'"),
+    (lambda d: d["names"].__setitem__(0, "panda_joint2.armature"), "field 'names'"),
+    (lambda d: d.update(values=d["values"][:-1]), "field 'values' must hold 21"),
+    (lambda d: d.update(std=[-1.0] * 21), "field 'std'"),
+    (lambda d: d.update(kind="other"), "not a saved SimulatorCalibration"),
+    (lambda d: d.pop("kp"), "field 'kp' is missing"),
+    (lambda d: d.update(controller="LQR"), "field 'controller'"),
+    (lambda d: d.update(uninformed=["panda_joint1.gain"]), "field 'uninformed'"),
+    (lambda d: d.update(integrator="semi"), "field 'integrator'"),
+    (lambda d: d.update(inertial=d["inertial"][:10]), "field 'inertial' must hold 70"),
+    (lambda d: d.update(refined="no"), "field 'refined'"),
+    (lambda d: d.update(timestep=0), "field 'timestep'"),
+])
+def test_a_tampered_calibration_file_is_refused(saved_calibration, tmp_path, edit, match):
+    import json
+
+    from consistid.simulator import SimulatorCalibration
+
+    res, _, doc = saved_calibration
+    doc = json.loads(json.dumps(doc))
+    edit(doc)
+    path = tmp_path / "c.json"
+    path.write_text(json.dumps(doc))
+    with pytest.raises(ci.ResultFileError, match=match):
+        SimulatorCalibration.load(path, res)
+
+
+def test_gain_under_computed_torque_is_refused_in_a_calibration_file(saved_calibration,
+                                                                     tmp_path):
+    import json
+
+    from consistid.simulator import SimulatorCalibration
+
+    res, _, doc = saved_calibration
+    names = doc["names"][:7] + [n.replace("armature", "gain") for n in doc["names"][:7]]
+    doc = dict(doc, names=names, start=doc["start"][:14], values=doc["values"][:14],
+               std=doc["std"][:14], uninformed=[])
+    (tmp_path / "c.json").write_text(json.dumps(doc))
+    assert SimulatorCalibration.load(tmp_path / "c.json", res).layout.terms == ("armature",
+                                                                               "gain")
+    (tmp_path / "c.json").write_text(json.dumps(dict(doc, controller="computed torque")))
+    with pytest.raises(ci.ResultFileError, match="gain or delay.*'computed torque'"):
+        SimulatorCalibration.load(tmp_path / "c.json", res)
+
+
+@settings(max_examples=60, deadline=None)
+@given(key=st.sampled_from(["kind", "names", "names.0", "names.20", "start", "values",
+                            "values.3", "std", "std.0", "timestep", "integrator", "kp", "kd.2",
+                            "cost", "evaluations", "message", "inertial", "inertial.5",
+                            "base_parameters", "base_std", "refined", "controller",
+                            "uninformed"]),
+       value=_JSON)
+def test_a_fuzzed_calibration_file_loads_or_is_refused_by_name(saved_calibration, key, value):
+    """Any JSON value in any field: a SimulatorCalibration or a ResultFileError, nothing else."""
+    import json
+    import tempfile
+
+    from consistid.simulator import SimulatorCalibration
+
+    res, _, saved = saved_calibration
+    doc = json.loads(json.dumps(saved))
+    *parents, last = key.split(".")
+    target = doc
+    for p in parents:
+        target = target[p]
+    target[int(last) if last.isdigit() else last] = value
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "c.json"
+        path.write_text(json.dumps(doc))
+        try:
+            back = SimulatorCalibration.load(path, res)
+        except ci.ResultFileError:
+            return
+    n = len(back.names)
+    assert back.values.shape == back.std.shape == back.start.shape == (n,)
+    assert back.layout.size == n and set(back.uninformed) <= set(back.names)
+
+
+@pytest.mark.parametrize("rollout, match", [
+    ('controller = "computed_torque"\ncalibrate = true\nterms = ["damping", "gain"]',
+     r'controller = "computed_torque".*set controller = "pd" in \[rollout\]'),
+    ('terms = ["armature"]', r"\[rollout\] terms set.*add calibrate = true"),
+    ('calibrate = false\nrefine_inertia = true', r"refine_inertia set.*add calibrate = true"),
+    ('calibrate = true\nterms = ["damping", "damping"]', r"\[rollout\] terms = \['damping', "),
+])
+def test_cli_rollout_refuses_calibration_keys_before_identifying(tmp_path, capsys, monkeypatch,
+                                                                 rollout, match):
+    """Contradictory or ignored calibration keys are named in TOML terms before any work (the
+    identification is replaced by one that fails the test if reached)."""
+    import re
+
+    from consistid.cli import rollout as cli_rollout
+    from consistid.cli.commands import main
+
+    def reached(*args, **kwargs):
+        raise AssertionError("the identification ran before the keys were checked")
+
+    monkeypatch.setattr(cli_rollout, "identify", reached)
+    assert main(["rollout", _config(tmp_path, rollout)]) == 2
+    err = capsys.readouterr().err
+    assert re.search(match, err), err
+    assert "PDGains" not in err

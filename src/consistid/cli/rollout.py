@@ -8,12 +8,17 @@ The ``[model]``, ``[data]`` and ``[identify]`` tables as for ``consistid identif
     integrator = "implicitfast" # "Euler", "implicit", "implicitfast", "RK4"; with mjcf, the file's
     window = 1.0                # s, open-loop replays restart from the log this often
     controller = "pd"           # "pd" (logged torque fed forward) or "computed_torque"
-    bandwidth = 20.0            # rad/s of the controller (or kp = [...], kd = [...] per joint)
+    bandwidth = 20.0            # rad/s of the controller (or kp = [...], kd = [...] per joint:
+                                # N·m/rad, N·m·s/rad under "pd"; 1/s², 1/s under
+                                # "computed_torque", where they shape the error's dynamics)
     damping_ratio = 1.0
     calibrate = true            # also calibrate_simulator on the training logs
     terms = ["armature", "damping", "frictionloss"]  # … of these ("gain", "delay" too)
     refine_inertia = false      # … and refine the inertias by output error
     output = "rollout.html"     # report (optional)
+
+``terms`` and ``refine_inertia`` need ``calibrate = true``; ``"gain"`` and ``"delay"`` need
+``controller = "pd"``. Every key is checked before the identification starts.
 
 The training logs are identified (``[identify]``), then the first held-out log (else the first
 training log) is replayed in the simulator with the nominal model, the identification and, with
@@ -27,11 +32,11 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ConfigError
+from ..errors import ConfigError, OptionError
 from ..identification.identify import identify
 from ..simulator import (ComputedTorque, PDGains, RolloutOptions, calibrate_simulator,
                          validate_rollout)
-from ..simulator.terms import ALL_TERMS, TERMS
+from ..simulator.terms import ALL_TERMS, TERMS, check_terms
 from .config import (RunConfig, config_identify, config_inputs, config_model,
                      config_recordings, load_config)
 from .files import atomic_path, check_output
@@ -68,6 +73,34 @@ def rollout_options(config: RunConfig, table: dict[str, Any]) -> RolloutOptions:
                           threads=table.get("threads", 1))
 
 
+def rollout_terms(config: RunConfig, table: dict[str, Any], options: RolloutOptions
+                  ) -> tuple[str, ...] | None:
+    """The simulator terms to calibrate (``None``: no calibration), checked before any work:
+    known and distinct (:func:`~consistid.simulator.terms.check_terms`), gain and delay only
+    under ``controller = "pd"``, and ``terms``/``refine_inertia`` only with
+    ``calibrate = true`` (else they would be ignored; ``refine_inertia = false`` is harmless)."""
+    name = config.path.name
+    if not table.get("calibrate", False):
+        given = ["terms"] * ("terms" in table) + ["refine_inertia"] * bool(
+            table.get("refine_inertia", False))
+        if given:
+            raise ConfigError(f"{name}: [rollout] {' and '.join(given)} set, but they apply "
+                              "to the calibration only: add calibrate = true to [rollout], "
+                              f"or remove {' and '.join(given)}")
+        return None
+    try:
+        terms = check_terms(table.get("terms", TERMS))
+    except OptionError:
+        raise ConfigError(f"{name}: [rollout] terms = {list(table['terms'])}; give distinct "
+                          f"terms among {list(ALL_TERMS)}") from None
+    if isinstance(options.controller, ComputedTorque) and {"gain", "delay"} & set(terms):
+        raise ConfigError(f"{name}: [rollout] terms = {list(terms)} with controller = "
+                          "\"computed_torque\": gain and delay act on the logged torque and are "
+                          "calibrated under the PD replay; set controller = \"pd\" in [rollout] "
+                          "or leave gain and delay out of terms")
+    return terms
+
+
 def run_rollout(config_path: str, *, output: str | None = None, force: bool = False,
                 log: Any = print) -> tuple[Any, Any]:
     """Run ``consistid rollout`` (module docstring); returns the validation and, when asked,
@@ -76,10 +109,7 @@ def run_rollout(config_path: str, *, output: str | None = None, force: bool = Fa
     model = config_model(config)
     table = config.table("rollout", ROLLOUT_KEYS, required=False)
     options = rollout_options(config, table)
-    terms = tuple(table.get("terms", TERMS))
-    if set(terms) - set(ALL_TERMS) or not terms or len(set(terms)) != len(terms):
-        raise ConfigError(f"{config.path.name}: [rollout] terms = {list(terms)}; give distinct "
-                          f"terms among {list(ALL_TERMS)}")
+    terms = rollout_terms(config, table, options)
     mjcf = config.resolve(table["mjcf"]) if "mjcf" in table else None
     if mjcf is not None and not mjcf.is_file():
         raise ConfigError(f"{config.path.name}: [rollout] mjcf = {table['mjcf']!r} does not "
@@ -97,7 +127,7 @@ def run_rollout(config_path: str, *, output: str | None = None, force: bool = Fa
     replay = _first_log((held or train).dataset)
     models: dict[str, Any] = {"nominal": model, "identified": res}
     cal = None
-    if table.get("calibrate", False):
+    if terms is not None:
         cal = calibrate_simulator(res, _first_log(train.dataset), mjcf=mjcf,
                                   timestep=options.timestep or 0.002,
                                   integrator=options.integrator or "implicitfast",

@@ -19,6 +19,7 @@ physics step and integrator are the user's (``RolloutOptions``; ``None`` keeps t
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Sequence
@@ -27,7 +28,7 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
-from ..errors import ModelError
+from ..errors import ModelError, ModelMisfitWarning
 from ..robot.inertia import body_slice
 from ..robot.joint_terms import joint_terms_of
 from ..robot.mjcf import mjcf_spec
@@ -233,7 +234,8 @@ def write_inertias(sim: Simulator, mj: Any, inertial: np.ndarray) -> None:
     """Put the standard parameters ``inertial`` (10 per body, joint order) into ``mj`` (this
     simulator's model or a variant): mass, CoM, and the inertia about the CoM in its principal
     axes (``body_inertia``, ``body_iquat``), the body frame being the joint frame. Call
-    ``mujoco.mj_setConst`` afterwards."""
+    ``mujoco.mj_setConst`` afterwards. A negative moment (not a physical body) is raised to 0
+    with a :class:`~consistid.errors.ModelMisfitWarning`, never silently."""
     for i, body in enumerate(mj.dof_bodyid[sim.dofs]):
         inertia = pin.Inertia.FromDynamicParameters(inertial[body_slice(i)])
         moments, axes = np.linalg.eigh(np.asarray(inertia.inertia))
@@ -242,5 +244,11 @@ def write_inertias(sim: Simulator, mj: Any, inertial: np.ndarray) -> None:
         quat = pin.Quaternion(axes)
         mj.body_mass[body] = inertia.mass
         mj.body_ipos[body] = inertia.lever
+        if moments.min() < -1e-9 * max(np.abs(moments).max(), 1e-300):
+            name = mujoco.mj_id2name(mj, mujoco.mjtObj.mjOBJ_BODY, int(body))
+            warnings.warn(f"body {name!r}: principal moments {moments} about its centre of "
+                          "mass include a negative one, not a physical body; "
+                          "the simulator gets it raised to 0 (identify with method='sdp' for "
+                          "consistent inertias)", ModelMisfitWarning, stacklevel=3)
         mj.body_inertia[body] = np.maximum(moments, 0.0)
         mj.body_iquat[body] = [quat.w, quat.x, quat.y, quat.z]

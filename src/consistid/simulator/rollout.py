@@ -32,6 +32,7 @@ from ..report.html import Page
 from ..report.result import Reported
 from ..robot.model import RobotModel
 from .engine import Simulator, build_simulator, integrator_name
+from .fields import field, number, vector
 from .options import INTEGRATORS, ComputedTorque, RolloutOptions
 from .replay import LogGrid, closed_loop_under, open_loop
 
@@ -174,65 +175,31 @@ def validation_from_document(doc: Any, where: str) -> RolloutValidation:
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         raise ResultFileError(f"{where} is not a saved rollout validation (format "
                               f"{FORMAT!r} missing)")
-    joints = _field(doc, "joint_names", list, where)
+    joints = field(doc, "joint_names", list, where)
     if not joints or not all(isinstance(j, str) and 0 < len(j) <= 1000 for j in joints):
         raise ResultFileError(f"{where}: field 'joint_names' must list the joints' names")
     nv = len(joints)
-    scalars = {k: _positive(doc, k, where) for k in ("timestep", "window", "duration")}
-    integrator = _field(doc, "integrator", str, where)
+    scalars = {k: number(doc, k, where) for k in ("timestep", "window", "duration")}
+    integrator = field(doc, "integrator", str, where)
     if integrator not in INTEGRATORS:
         raise ResultFileError(f"{where}: field 'integrator' is {integrator!r:.40}, not one of "
                               f"{INTEGRATORS}")
-    controller = _field(doc, "controller", str, where)
+    controller = field(doc, "controller", str, where)
     if controller not in ("PD", "computed torque"):
         raise ResultFileError(f"{where}: field 'controller' is {controller!r:.40}, not 'PD' "
                               "or 'computed torque'")
-    gains = [_vector(doc, k, nv, where, nan=False) for k in ("kp", "kd")]
-    replays = _field(doc, "replays", list, where)
+    gains = [vector(doc, k, nv, where, nan=False) for k in ("kp", "kd")]
+    replays = field(doc, "replays", list, where)
     if not replays:
         raise ResultFileError(f"{where}: field 'replays' is empty")
     out = []
     for k, r in enumerate(replays):
         at = f"{where}: replays[{k}]"
-        label = _field(r, "label", str, at)
-        arrays = [_vector(r, f, nv, at, nan=n) for f, n in _REPLAY_FIELDS.items()]
-        out.append(Replay(label, *arrays, _field(r, "diverged", bool, at)))
+        label = field(r, "label", str, at)
+        arrays = [vector(r, f, nv, at, nan=n) for f, n in _REPLAY_FIELDS.items()]
+        out.append(Replay(label, *arrays, field(r, "diverged", bool, at)))
     return RolloutValidation(tuple(out), tuple(joints), scalars["timestep"], integrator,
                              scalars["window"], *gains, scalars["duration"], controller)
-
-
-def _field(doc: Any, key: str, kind: type | tuple[type, ...], where: str) -> Any:
-    if not isinstance(doc, dict) or key not in doc:
-        raise ResultFileError(f"{where}: field {key!r} is missing")
-    value = doc[key]
-    kinds = kind if isinstance(kind, tuple) else (kind,)
-    if not isinstance(value, kinds) or (isinstance(value, bool) and bool not in kinds):
-        raise ResultFileError(f"{where}: field {key!r} must be "
-                              f"{' or '.join(k.__name__ for k in kinds)}, got "
-                              f"{type(value).__name__}")
-    return value
-
-
-def _positive(doc: Any, key: str, where: str) -> float:
-    value = _field(doc, key, (int, float), where)
-    if isinstance(value, bool) or not (np.isfinite(value) and value > 0):
-        raise ResultFileError(f"{where}: field {key!r} is {value!r:.40}, expected a finite "
-                              "number > 0")
-    return float(value)
-
-
-def _vector(doc: Any, key: str, n: int, where: str, *, nan: bool) -> np.ndarray:
-    """Field ``key``: ``n`` numbers ≥ 0, finite (NaN allowed when ``nan``)."""
-    value = _field(doc, key, list, where)
-    ok = len(value) == n and all(isinstance(v, (int, float)) and not isinstance(v, bool)
-                                 for v in value)
-    arr = np.asarray(value, dtype=float) if ok else np.empty(0)
-    finite = np.isfinite(arr) | (nan & np.isnan(arr))
-    if not ok or not np.all(finite) or np.any(arr[np.isfinite(arr)] < 0):
-        raise ResultFileError(f"{where}: field {key!r} must hold {n} numbers ≥ 0 (one per "
-                              f"joint{', NaN where the replay diverged' if nan else ''}), got "
-                              f"{str(value):.60}")
-    return arr
 
 
 def simulator_of(source: Any, *, mjcf: str | Path | None, options: RolloutOptions

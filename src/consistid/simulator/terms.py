@@ -26,10 +26,17 @@ from ..errors import OptionError
 TERMS = ("armature", "damping", "frictionloss")
 #: Every term a calibration may fit (``terms=``).
 ALL_TERMS = TERMS + ("gain", "delay")
-#: Typical magnitudes (kg·m², N·m·s/rad, N·m, 1, s): they set the finite-difference steps, and
-#: a term whose σ at the start exceeds its typical magnitude is not informed by the data.
+#: Typical magnitudes (kg·m², N·m·s/rad, N·m, 1, s) of a small arm's terms: they set the
+#: finite-difference steps, the thresholds of ``gain`` and ``delay`` (a relative torque error
+#: and a latency, the same on any arm) and cap the noise floor of the others
+#: (:func:`informed_threshold`).
 TYPICAL = {"armature": 0.05, "damping": 0.1, "frictionloss": 0.1, "gain": 0.1,
            "delay": 0.005}
+#: A per-joint physical term is informed when its σ is at most this fraction of its magnitude
+#: (its value ≥ 2σ from zero: the data show it is there).
+RELATIVE = 0.5
+#: The terms judged relative to their own magnitude.
+PHYSICAL = ("armature", "damping", "frictionloss")
 #: Lower bounds (a gain below 0.05 would be a dead drive, not a calibration).
 LOWER = {"armature": 0.0, "damping": 0.0, "frictionloss": 0.0, "gain": 0.05, "delay": 0.0}
 
@@ -42,6 +49,27 @@ def check_terms(terms: Sequence[str]) -> tuple[str, ...]:
     if bad or not terms or len(set(terms)) != len(terms):
         raise OptionError(f"terms={terms!r}: give distinct terms among {ALL_TERMS}")
     return tuple(t for t in ALL_TERMS if t in terms)
+
+
+def informed_threshold(layout: "TermLayout", values: np.ndarray, start: np.ndarray,
+                       noise_floor: np.ndarray) -> np.ndarray:
+    r"""(size,) the σ above which each term is *not informed* by the data (then held at its
+    start by :func:`~.calibrate.calibrate_simulator`).
+
+    ``armature``, ``damping``, ``frictionloss`` of joint ``j``:
+    ``max(RELATIVE · max(|θ̂|, |θ₀|), min(σ_noise, TYPICAL))`` — informed when the value (the
+    calibrated ``θ̂`` or the physical start ``θ₀``) is at least ``1/RELATIVE`` σ from zero, a
+    rule that is the same on an industrial arm (armature of kg·m²) and a small one; or, for a
+    term near zero, when its σ is below ``σ_noise`` (``noise_floor``: the σ whose torque equals
+    the identification's residual RMS of the joint on the log, ``s_j / RMS(∂τ_j/∂θ)``: the data
+    show the term is negligible) and below its :data:`TYPICAL` magnitude (so that a joint
+    which hardly moves, whose ``σ_noise`` is huge, does not pass). ``gain`` and ``delay``
+    (dimensionless, seconds; the same scale on any arm): their :data:`TYPICAL` value.
+    """
+    typical = layout.per_entry(TYPICAL)
+    physical = layout.per_entry({t: float(t in PHYSICAL) for t in ALL_TERMS}) > 0
+    relative = RELATIVE * np.maximum(np.abs(values), np.abs(start))
+    return np.where(physical, np.maximum(relative, np.minimum(noise_floor, typical)), typical)
 
 
 @dataclass(frozen=True)
