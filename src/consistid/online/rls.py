@@ -68,12 +68,11 @@ import scipy.stats
 from scipy.linalg.lapack import dpotrf as _potrf
 from scipy.linalg.lapack import dtrtri as _trtri
 
-from ..data.dataset import Dataset
 from ..errors import (DataQualityWarning, DatasetError, ExtrapolationWarning, IdentificationError,
                       JointCountError, OptionError, PoorExcitationWarning, check_number,
                       check_option)
 from ..identification.base import BaseParameters, compute_base_parameters, random_states
-from ..identification.envelope import TrainingEnvelope
+from ..identification.envelope import TrainingEnvelope, enough, state_bounds
 from ..identification.weak import weakly_informed
 from ..identification.regressor import (DEFAULT_FRICTION, FrictionArg, RegressorSpec,
                                         parameter_names, prior_vector, regressor)
@@ -318,6 +317,7 @@ class RecursiveEstimator:
         # q̇ > 0 and q̇ < 0, torque squares (rows), and how many samples
         self._seen = np.vstack([np.full(nv, np.inf), np.full(nv, -np.inf), np.zeros((5, nv))])
         self._n_seen = 0
+        self._bounds_at = -1        # the envelope and its bounds as of this many samples seen
         self._last_time: float | None = None
         self.last_statistic = float("nan")
         self.last_forgetting = self.forgetting
@@ -474,15 +474,22 @@ class RecursiveEstimator:
         self._n_seen += q.shape[0]
 
     def predict(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> np.ndarray:
-        """``W(q, q̇, q̈) β̂`` for one sample (vectors) or many (``(N, nv)`` arrays); on many
-        that leave the :attr:`envelope` (a velocity sign never seen, a range exceeded:
-        :meth:`~consistid.identification.envelope.TrainingEnvelope.departures`) an
-        :class:`~consistid.errors.ExtrapolationWarning` names where."""
+        """``W(q, q̇, q̈) β̂`` for one sample (vectors) or many (``(N, nv)`` arrays).
+
+        States that leave the :attr:`envelope` raise an
+        :class:`~consistid.errors.ExtrapolationWarning` naming where
+        (:meth:`~consistid.identification.envelope.TrainingEnvelope.departures`): a velocity
+        sign never seen, or a range (``q``, ``|q̇|``, ``|q̈|``) exceeded by more than 10 % of its
+        width or bound, in at least 1 % of the samples and at least 10 — or in all of them when
+        fewer than 10 are given. One sample warns when it is itself outside: beyond a range by
+        more than its 10 % margin, or moving (``|q̇| ≥ STANDSTILL_SPEED``) with a sign that
+        fewer than max(10, 1 %) of the joint's moving samples taken had (once it moved in 10).
+        The check compares the arrays with the envelope's bounds,
+        cached between updates (no :class:`~consistid.Dataset` is built).
+        """
         q, dq, ddq = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (q, dq, ddq))
-        envelope = self.envelope
-        if envelope is not None and q.shape[1] == self.model.nv:
-            away = envelope.departures(Dataset(t=np.arange(q.shape[0], dtype=float), q=q,
-                                                 dq=dq, ddq=ddq))
+        if self._n_seen and q.shape[1] == self.model.nv and self._outside(q, dq, ddq):
+            away = self.envelope.departures_of(q, dq, ddq, self._bounds)
             if away:
                 warnings.warn(f"these states go where the samples taken never went: "
                               f"{'; '.join(away[:4])}{' …' if len(away) > 4 else ''}. The "
@@ -492,6 +499,30 @@ class RecursiveEstimator:
         for k in range(q.shape[0]):
             out[k] = self.row(q[k], dq[k], ddq[k]) @ self._beta
         return out
+
+    def _outside(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> bool:
+        """Does a state leave the envelope's bounds
+        (:func:`~consistid.identification.envelope.state_bounds`, cached)? Samples taken since
+        the cache only widen the bounds, unless a velocity sign seen then is no longer
+        :func:`~consistid.identification.envelope.sign_seen`: states inside bounds cached and
+        still valid need no recomputation (the cost of a control loop's call)."""
+        s = self._seen
+        stale = 0 <= self._bounds_at != self._n_seen
+        if stale and (self._signs_seen & ~enough(s[4:6], s[4] + s[5])).any():
+            self._bounds_at = -1                                    # a sign lost: recompute
+        for _ in range(2):
+            if self._bounds_at < 0:
+                self._bounds = state_bounds(s[0], s[1], s[2:4], s[4:6])
+                self._signs_seen = enough(s[4:6], s[4] + s[5])
+                self._bounds_at = self._n_seen
+            lower, upper = self._bounds
+            states = np.concatenate([q, dq, ddq], axis=1)
+            if not ((states < lower).any() or (states > upper).any()):
+                return False
+            if self._bounds_at == self._n_seen:
+                return True
+            self._bounds_at = -1                                    # stale: decide on fresh
+        return True
 
     # ------------------------------------------------------------------------- one sample
     def row(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> np.ndarray:
