@@ -163,3 +163,28 @@ def test_a_sign_that_falls_below_its_share_warns_again():
     assert est.envelope.negative[0] == 12 and est.envelope.positive[0] == 1988
     with pytest.warns(ExtrapolationWarning, match="moves with q̇ < 0"):
         est.predict(*state)
+
+
+@pytest.mark.parametrize("given", [6, 8])
+@pytest.mark.parametrize("keyword", ["q", "dq", "ddq"])
+def test_predict_with_the_wrong_joint_count_names_the_keyword(keyword, given):
+    """A sample of 6 or 8 joints for the 7-joint Panda, in any of the three keywords, one sample
+    or a batch, before and after updates: JointCountError naming the keyword and both counts
+    (not Pinocchio's ValueError)."""
+    model = ci.RobotModel.example("panda")
+    data = samples(model, 8, one_way=None, n=50)
+    est = ci.online.RecursiveEstimator(model, FRICTION, noise_std=0.05, detector=None)
+    for k in range(2):
+        for rows in (None, 5):
+            state = {"q": data.q[:5], "dq": data.dq[:5], "ddq": data.ddq[:5]}
+            wrong = np.resize(state[keyword], (5, given))
+            state[keyword] = wrong if rows else wrong[0]
+            if rows is None:
+                state = {n: v if n == keyword else v[0] for n, v in state.items()}
+            with pytest.raises(ci.errors.JointCountError,
+                               match=rf"predict: {keyword} has shape .*\({given} joints\); "
+                                     rf"{model.name} has 7"):
+                est.predict(**state)
+        est.update_batch(data.q, data.dq, data.ddq, data.tau, record=False)
+    with pytest.raises(ci.errors.DatasetError, match="dq has 4 rows, q has 5"):
+        est.predict(data.q[:5], data.dq[:4], data.ddq[:5])

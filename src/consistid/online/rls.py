@@ -486,9 +486,25 @@ class RecursiveEstimator:
         fewer than max(10, 1 %) of the joint's moving samples taken had (once it moved in 10).
         The check compares the arrays with the envelope's bounds,
         cached between updates (no :class:`~consistid.Dataset` is built).
+
+        Raises :class:`~consistid.errors.JointCountError` when ``q``, ``dq`` or ``ddq`` does
+        not hold ``nv`` joints per sample, :class:`~consistid.errors.DatasetError` when they
+        differ in rows or are not numbers.
         """
-        q, dq, ddq = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (q, dq, ddq))
-        if self._n_seen and q.shape[1] == self.model.nv and self._outside(q, dq, ddq):
+        nv, given = self.model.nv, []
+        for name, a in (("q", q), ("dq", dq), ("ddq", ddq)):
+            a = _numbers("predict", name, a)
+            if a.ndim not in (1, 2) or a.shape[-1] != nv:
+                joints = a.shape[-1] if a.ndim else 1
+                raise JointCountError(f"predict: {name} has shape {a.shape} ({joints} joints); "
+                                      f"{self.model.name} has {nv}: give {name} as a vector of "
+                                      f"{nv} or an (N, {nv}) array")
+            given.append(np.atleast_2d(a))
+        q, dq, ddq = given
+        for name, a in (("dq", dq), ("ddq", ddq)):
+            if a.shape[0] != q.shape[0]:
+                raise DatasetError(f"predict: {name} has {a.shape[0]} rows, q has {q.shape[0]}")
+        if self._n_seen and self._outside(q, dq, ddq):
             away = self.envelope.departures_of(q, dq, ddq, self._bounds)
             if away:
                 warnings.warn(f"these states go where the samples taken never went: "
