@@ -188,3 +188,27 @@ def test_predict_with_the_wrong_joint_count_names_the_keyword(keyword, given):
         est.update_batch(data.q, data.dq, data.ddq, data.tau, record=False)
     with pytest.raises(ci.errors.DatasetError, match="dq has 4 rows, q has 5"):
         est.predict(data.q[:5], data.dq[:4], data.ddq[:5])
+
+
+def test_weak_directions_not_assessed_are_none_and_warned():
+    """A prior 10⁶ wide and 1 mN·m noise on a UR5 whose joint 0 moves one way only: P spans
+    ~10²² (computed here), beyond what the Cholesky of P⁻¹ holds, so the weak directions are
+    not assessed — None and a warning saying why, never () ("all informed") while joint 0's
+    Coulomb and offset are in fact told apart by nothing. The same motion with the default
+    prior is assessed and names joint 0 (so None is not every estimator's answer)."""
+    model = ci.RobotModel.example("ur5")
+    data = samples(model, 1, one_way=0.3, n=600)
+    est = ci.online.RecursiveEstimator(model, FRICTION, noise_std=1e-3, detector=None,
+                                       initial_std=1e6)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")             # the covariance repairs say so
+        est.update_batch(data.q, data.dq, data.ddq, data.tau, record=False)
+    assert np.linalg.cond(est.covariance) > 1e16
+    with pytest.warns(PoorExcitationWarning, match="not assessed.*not numerically positive"):
+        assert est.weakly_informed is None
+    with pytest.warns(PoorExcitationWarning, match="not assessed"):
+        assert est.check_excitation() is None
+    plain = ci.online.RecursiveEstimator(model, FRICTION, noise_std=1e-3, detector=None)
+    plain.update_batch(data.q, data.dq, data.ddq, data.tau, record=False)
+    with pytest.warns(PoorExcitationWarning, match=f"{model.joint_names[0]} moves one way"):
+        assert plain.check_excitation()[0].startswith(f"{model.joint_names[0]}'s Coulomb")

@@ -429,28 +429,44 @@ class RecursiveEstimator:
                                 self._n_seen)
 
     @property
-    def weakly_informed(self) -> tuple[str, ...]:
+    def weakly_informed(self) -> tuple[str, ...] | None:
         """The directions of the base parameters that the samples taken barely inform, in
         words (:func:`consistid.identification.weak.weakly_informed`, as
         ``res.weakly_informed``): each joint with a Coulomb column that moved one way only,
         then each direction along which one standard deviation of the current estimate
         (:attr:`covariance`, the initial spread included) changes the predicted torque on the
         envelope by more than a quarter of the torque RMS seen. Empty before the first
-        update."""
+        update.
+
+        ``None`` when not assessed — the information ``P⁻¹`` is not numerically positive
+        definite (``P`` spans more than double precision holds: an ``initial_std`` far above
+        what the data inform, next to directions they pin down), as a batch result says
+        ``details["weakly_informed"] = "not assessed (…)"``; a
+        :class:`~consistid.errors.PoorExcitationWarning` says why. Never ``()`` then: that
+        would read as "every direction informed" of a check that did not run.
+        """
         envelope = self.envelope
         if envelope is None:
             return ()
-        chol = _potrf(np.linalg.inv(self._p), lower=0)
-        if chol[1] != 0:
-            return ()
+        try:
+            chol, info = _potrf(np.linalg.inv(self._p), lower=0)
+        except np.linalg.LinAlgError:
+            info = -1
+        if info != 0:
+            warnings.warn(f"RecursiveEstimator: weakly informed directions not assessed: the "
+                          f"information P⁻¹ is not numerically positive definite (condition "
+                          f"number of P {np.linalg.cond(self._p):.3g}; initial_std far above "
+                          "what the data inform next to directions they pin down?). None is "
+                          "returned; a smaller initial_std, or more varied motion, lets it run",
+                          PoorExcitationWarning, stacklevel=2)
+            return None
         rms = np.sqrt(self._seen[6] / self._n_seen)
-        return weakly_informed(self.model, self.spec, self.base, np.triu(chol[0]), envelope,
-                               rms)
+        return weakly_informed(self.model, self.spec, self.base, np.triu(chol), envelope, rms)
 
-    def check_excitation(self) -> tuple[str, ...]:
+    def check_excitation(self) -> tuple[str, ...] | None:
         """:attr:`weakly_informed`, with a :class:`~consistid.errors.PoorExcitationWarning`
-        naming them (as ``identify`` warns) when there are any: call it after a run of
-        updates, e.g. at the end of an excitation."""
+        naming them (as ``identify`` warns) when there are any, or saying why they were not
+        assessed (``None``): call it after a run of updates, e.g. at the end of an excitation."""
         weak = self.weakly_informed
         if weak:
             warnings.warn(f"the samples taken barely inform {len(weak)} direction(s) of the "
