@@ -72,7 +72,8 @@ from ..errors import (DataQualityWarning, DatasetError, ExtrapolationWarning, Id
                       JointCountError, OptionError, PoorExcitationWarning, check_number,
                       check_option)
 from ..identification.base import BaseParameters, compute_base_parameters, random_states
-from ..identification.envelope import TrainingEnvelope, enough, state_bounds
+from ..identification.envelope import (MIN_SIGN_SHARE, TrainingEnvelope, enough,
+                                       state_bounds)
 from ..identification.weak import weakly_informed
 from ..identification.regressor import (DEFAULT_FRICTION, FrictionArg, RegressorSpec,
                                         parameter_names, prior_vector, regressor)
@@ -536,16 +537,17 @@ class RecursiveEstimator:
         """Does a state leave the envelope's bounds
         (:func:`~consistid.identification.envelope.state_bounds`, cached)? Samples taken since
         the cache only widen the bounds, unless a velocity sign seen then is no longer
-        :func:`~consistid.identification.envelope.sign_seen`: states inside bounds cached and
-        still valid need no recomputation (the cost of a control loop's call)."""
+        :func:`~consistid.identification.envelope.sign_seen` — possible only once the joint's
+        moving samples exceed that sign's count then over ``MIN_SIGN_SHARE`` (its cap): states
+        inside bounds cached and still valid need no recomputation (a control loop's call)."""
         s = self._seen
-        stale = 0 <= self._bounds_at != self._n_seen
-        if stale and (self._signs_seen & ~enough(s[4:6], s[4] + s[5])).any():
-            self._bounds_at = -1                                    # a sign lost: recompute
+        if 0 <= self._bounds_at != self._n_seen and (s[4] + s[5] > self._moving_cap).any():
+            self._bounds_at = -1                          # a sign may be lost: recompute
         for _ in range(2):
             if self._bounds_at < 0:
                 self._bounds = state_bounds(s[0], s[1], s[2:4], s[4:6])
-                self._signs_seen = enough(s[4:6], s[4] + s[5])
+                seen = enough(s[4:6], s[4] + s[5])
+                self._moving_cap = np.where(seen, s[4:6] / MIN_SIGN_SHARE, np.inf).min(axis=0)
                 self._bounds_at = self._n_seen
             lower, upper = self._bounds
             states = np.concatenate([q, dq, ddq], axis=1)
