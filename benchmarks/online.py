@@ -5,6 +5,9 @@ Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/online.py [--quick]``.
 1. Update cost of :class:`consistid.RecursiveEstimator` (Panda, Coulomb + viscous + offset, the
    regressor row included), as µs and as a ratio to ``pinocchio.rnea`` timed in the same run
    (target ≤ 50 µs); medians of repetitions.
+   The cost of ``predict`` on one sample (the training-envelope check included) as a ratio to
+   the same call without the check (an estimator with no samples yet, the same ``β̂``) timed in
+   the same run, called alone and after each update (as in a control loop).
 2. Consistent projection time (target ≤ 20 ms): the closed form when the unconstrained optimum
    is consistent, and the solver path (an estimate pushed out of the consistent set).
 3. Detection delay and payload mass versus time after a 1.5 kg payload at t = 20 s (σ = 0.1 N·m,
@@ -66,6 +69,36 @@ def update_cost(model: ci.RobotModel, n: int, repeat: int) -> None:
           f"the updates {statistics.median(growth):.2f} (independent of time: 1); CPU time "
           f"{statistics.median(cpu) * 1e6:.1f} µs vs rnea {statistics.median(cpu_rnea) * 1e6:.2f}"
           f" µs")
+
+
+def predict_cost(model: ci.RobotModel, n: int, repeat: int) -> None:
+    q, dq, ddq = random_states(model, 2 * n, np.random.default_rng(0))
+    tau = np.random.default_rng(1).normal(size=q.shape)
+    est = ci.RecursiveEstimator(model, noise_std=1.0, detector=None)
+    est.update_batch(q[:n], dq[:n], ddq[:n], tau[:n], record=False)
+    bare, alone, looped = [], [], []
+    for _ in range(repeat):
+        fresh = ci.RecursiveEstimator(model, noise_std=1.0, detector=None,
+                                      initial=est.base_parameters)     # no envelope yet
+        t0 = time.perf_counter()
+        for k in range(n):
+            fresh.predict(q[k], dq[k], ddq[k])
+        bare.append((time.perf_counter() - t0) / n)
+        t0 = time.perf_counter()
+        for k in range(n):
+            est.predict(q[k], dq[k], ddq[k])
+        alone.append((time.perf_counter() - t0) / n)
+        spent = 0.0
+        for k in range(n, 2 * n):
+            est.update(q[k], dq[k], ddq[k], tau[k])
+            t0 = time.perf_counter()
+            est.predict(q[k], dq[k], ddq[k])
+            spent += time.perf_counter() - t0
+        looped.append(spent / n)
+    b, a, lo = (statistics.median(x) for x in (bare, alone, looped))
+    print(f"predict on one sample ({model.name}, envelope check included, {n} calls × "
+          f"{repeat}): {a * 1e6:.1f} µs, {lo * 1e6:.1f} µs after each update; without the "
+          f"check {b * 1e6:.1f} µs; ratios {a / b:.2f} and {lo / b:.2f}")
 
 
 def projection_time(model: ci.RobotModel, repeat: int) -> None:
@@ -150,6 +183,7 @@ def main() -> None:
     args = ap.parse_args()
     model = ci.RobotModel.example("panda")
     update_cost(model, 2000 if args.quick else 10_000, 3 if args.quick else 5)
+    predict_cost(model, 1000 if args.quick else 5000, 3 if args.quick else 5)
     projection_time(model, 5 if args.quick else 20)
     detection(model, 2 if args.quick else 5)
     slotine_li(["panda"] if args.quick else ["panda", "ur5", "xarm7", "kinova"], 8)

@@ -8,6 +8,8 @@ import warnings
 import mujoco
 import numpy as np
 import pinocchio as pin
+import pytest
+import scipy.stats
 
 import consistid as ci
 from consistid.identification.model_error import rest_bias, rest_problem
@@ -122,31 +124,51 @@ def test_rest_bias_is_the_difference_of_two_explicit_fits(planar_2r):
     assert rest_problem(planar_2r, moving, spec, base) is None
 
 
-def test_a_joint_too_slow_to_check_its_friction_is_warned_and_covered():
-    """Kinova in MuJoCo (seed 0 of benchmarks/coverage_friction.py): joints 4 and 6 never move
-    faster than 0.3 rad/s, inside the band where MuJoCo's soft frictionloss is not
-    f_c·sign(q̇) + f_v·q̇. They are warned (PoorExcitationWarning, details['slow_joints']),
-    their rows below their fastest band count as at rest, and the 95 % intervals of their
-    Coulomb and viscous terms hold the simulated truth (three of four at least, the fourth
-    within 2.4 σ). Measured: |error|/σ 0.12, 1.90, 1.02, 1.36; with the rest speed left at
-    0.02 rad/s (before), 6.1, 4.1, 3.6 and 2.5, so this fails there."""
-    model = ci.RobotModel.example("kinova")
-    data, (effects, inertias, fc, fv) = friction_run(model, 0, duration=30.0, rate=500.0)
-    assert np.abs(data.dq[:, [3, 5]]).max() < 0.32
+#: A joint the motion never moves faster than this (rad/s) is too slow to check its friction law
+#: against the noise (the premise of the next test), as the warning's text says.
+SLOW_SPEED = 0.32
+#: Runs whose slow joints the library misses today (each case: 30 s at 500 Hz, ~2–5 s here).
+UNDETECTED = pytest.mark.xfail(
+    strict=True, raises=AssertionError,
+    reason="joints that never exceed ~0.1 rad/s are not flagged slow (no details['slow_joints'], "
+    "no PoorExcitationWarning) and their Coulomb/viscous intervals are 24–280 σ off the MuJoCo "
+    "truth: a defect of the slow-joint detection, reported; the case "
+    "passes (and this mark must go) once it is fixed")
+
+
+@pytest.mark.parametrize("arm, seed", [
+    ("kinova", 0), ("kinova", 5),
+    pytest.param("kinova", 1, marks=UNDETECTED), pytest.param("xarm7", 0, marks=UNDETECTED)])
+def test_a_joint_too_slow_to_check_its_friction_is_warned_and_covered(arm, seed):
+    """An arm in MuJoCo (benchmarks/coverage_friction.py's runs) whose slowest joints never
+    move faster than SLOW_SPEED, inside the band where MuJoCo's soft frictionloss is not
+    f_c·sign(q̇) + f_v·q̇ (Kinova seed 0: joints 4 and 6, seed 5: joint 6; found from the data,
+    not listed). They are warned (PoorExcitationWarning, details['slow_joints']), their rows
+    below their fastest band count as at rest, and the 95 % intervals of their Coulomb and
+    viscous terms hold the simulated truth as 95 % intervals do: of m terms, at least the 2 %
+    quantile of Binomial(m, 0.95) lie within 1.96 σ (3 of 4, 1 of 2: a calibrated σ fails this
+    in < 2 % of runs) and none beyond 3.29 σ (the two-sided 0.1 % point). Measured |error|/σ:
+    seed 0 0.12, 1.90, 1.02, 1.36; seed 5 1.59, 1.24; with the rest speed left at 0.02 rad/s
+    (before), seed 0 6.1, 4.1, 3.6, 2.5, so this fails there."""
+    model = ci.RobotModel.example(arm)
+    data, (effects, inertias, fc, fv) = friction_run(model, seed, duration=30.0, rate=500.0)
+    joints = np.flatnonzero(np.abs(data.dq).max(axis=0) < SLOW_SPEED)
+    assert joints.size
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         res = ci.identify(model, data, method="ols", friction=FRICTION)
     slow = [str(w.message) for w in caught if issubclass(w.category, ci.PoorExcitationWarning)
             and "never moved faster" in str(w.message)]
-    assert slow and all(model.joint_names[j] in slow[0] for j in (3, 5))
-    assert np.all(res.details["model_error_speed"][[3, 5]] > 0.02)
+    assert slow and all(model.joint_names[j] in slow[0] for j in joints), slow
+    assert np.all(res.details["model_error_speed"][joints] > 0.02)
     names = list(res.parameter_names)
     truth = res.base.project(mujoco_truth(model, effects, inertias, names, fc, fv))
     z = np.abs(res.base_parameters - truth) / np.sqrt(np.diag(res.base_covariance))
     base_names = [names[c] for c in res.base.independent]
     z = np.array([z[base_names.index(f"{model.joint_names[j]}.{term}")]
-                  for j in (3, 5) for term in ("fc", "fv")])
-    assert np.sum(z <= 1.96) >= 3 and np.all(z < 2.4), f"|error|/σ {np.round(z, 2)}"
+                  for j in joints for term in ("fc", "fv")])
+    need = scipy.stats.binom.ppf(0.02, z.size, 0.95)
+    assert np.sum(z <= 1.96) >= need and np.all(z < 3.29), f"|error|/σ {np.round(z, 2)}"
 
 
 def test_slow_joints_need_a_structured_residual():

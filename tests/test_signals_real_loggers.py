@@ -18,7 +18,8 @@ from consistid.simulate import Effects, jittered_log, record
 
 def slow_joint_log(robot: str, seed: int, noise: str):
     """A 30 s log of a 5-harmonic excitation (band ``harmonics / period``) stamped in bursts
-    (steps 0.5 to ~5 ms), the last joint moving 2 % of its range, position noise white or AR(1)
+    (steps 0.5 to ~5 ms), the last joint's motion scaled to 2 % of its own amplitude, position
+    noise white or AR(1)
     (φ = 0.95) of 2e-4 rad and 17-bit encoder counts (:func:`consistid.simulate.jittered_log`)."""
     rng = np.random.default_rng(seed)
     model = ci.RobotModel.example(robot)
@@ -192,3 +193,25 @@ def test_hampel_leaves_smooth_signals_with_steps_alone(seed, n_steps, noise):
         x = x + sigma * rng.choice([-1.0, 1.0], t.size)
     _, mask = signals.hampel(x[:, None])
     assert not mask.any()
+
+
+@pytest.mark.parametrize("slow", [0.02, 0.5])
+def test_jittered_log_scales_the_last_joint_about_its_mean(slow):
+    """As its docstring says: without noise and with fine counts, the last joint is the
+    motion's own, scaled by ``slow`` about its mean (its spread is ``slow`` × the motion's,
+    whatever the joint's range); the other joints are the motion's."""
+    model = ci.RobotModel.example("kinova")
+    traj = FourierTrajectory.random(model, 5, 4.0, seed=3)
+    t, _, q = jittered_log(traj, np.random.default_rng(0), n=4000, noise_std=0.0,
+                           counts=2 ** 40, slow=slow)
+    truth = traj.evaluate(t)[0]
+    centred = truth[:, -1] - truth[:, -1].mean()
+    np.testing.assert_allclose(q[:, -1] - truth[:, -1].mean(), slow * centred, atol=1e-10)
+    np.testing.assert_allclose(q[:, :-1], truth[:, :-1], atol=1e-10)
+
+
+@pytest.mark.parametrize("keyword, value", [("slow", -0.02), ("n", 0), ("n", -5), ("n", 2.5)])
+def test_jittered_log_refuses_a_negative_slow_or_no_samples(keyword, value):
+    traj = FourierTrajectory.random(ci.RobotModel.example("ur5"), 3, 4.0, seed=0)
+    with pytest.raises(ci.errors.OptionError, match=rf"^{keyword} must be"):
+        jittered_log(traj, np.random.default_rng(0), **{keyword: value})

@@ -9,8 +9,12 @@ prior or the solver left in ``f_c − f_o``. The envelope records, per joint, th
 the velocity signs seen with enough samples (:func:`sign_seen`), and the largest ``|q̇|`` and
 ``|q̈|``; :meth:`TrainingEnvelope.departures` names where new data leave it (a sign never seen,
 a range exceeded by more than :data:`RANGE_MARGIN` of its width, in at least
-:func:`enough` samples), which ``predict`` turns into an
-:class:`~consistid.errors.ExtrapolationWarning`.
+:func:`departing` samples: ``max(MIN_SAMPLES, MIN_SIGN_SHARE·N)`` of ``N``, or all of them when
+``N < MIN_SAMPLES`` — so one sample warns when it is itself outside: beyond a range by more than
+its margin, or moving with a sign not seen in training data that moved the joint at least
+:data:`MIN_SAMPLES` times), which ``predict`` turns into an
+:class:`~consistid.errors.ExtrapolationWarning`. :func:`state_bounds` holds the rule as two
+arrays, so that a sample inside is recognised in a few vectorised comparisons.
 """
 
 from __future__ import annotations
@@ -23,7 +27,7 @@ import numpy as np
 from ..data.dataset import Dataset
 from ..robot.joint_terms import STANDSTILL_SPEED
 
-__all__ = ["TrainingEnvelope", "enough", "sign_seen"]
+__all__ = ["TrainingEnvelope", "departing", "enough", "sign_seen", "state_bounds"]
 
 #: A velocity sign counts as seen when at least this share of the joint's moving samples have
 #: it (and at least :data:`MIN_SAMPLES`): a few samples decide nothing when the residual near a
@@ -41,12 +45,44 @@ def enough(count: np.ndarray, total: np.ndarray | int) -> np.ndarray:
     return np.asarray(count) >= np.maximum(MIN_SAMPLES, MIN_SIGN_SHARE * np.asarray(total))
 
 
+def departing(count: np.ndarray, total: np.ndarray | int) -> np.ndarray:
+    """Are ``count`` of ``total`` new samples a departure? :func:`enough` of them, but never
+    more than ``total`` (fewer than :data:`MIN_SAMPLES` new samples: all of them; one sample:
+    itself), and at least one, elementwise."""
+    count, total = np.asarray(count), np.asarray(total)
+    need = np.minimum(total, np.maximum(MIN_SAMPLES, MIN_SIGN_SHARE * total))
+    return (count > 0) & (count >= need)
+
+
 def sign_seen(positive: np.ndarray, negative: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per joint: did the data move it with ``q̇ > 0``, with ``q̇ < 0``, in enough of its moving
     samples (:func:`enough`; moving: ``|q̇| ≥ STANDSTILL_SPEED``,
     :data:`consistid.robot.joint_terms.STANDSTILL_SPEED`)?"""
     moving = np.asarray(positive) + np.asarray(negative)
     return enough(positive, moving), enough(negative, moving)
+
+
+def state_bounds(q_min: np.ndarray, q_max: np.ndarray, rates: np.ndarray, signs: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """``(lower, upper)``, each ``(3 nv,)`` over ``[q, q̇, q̈]``: what a new sample may take
+    without leaving an envelope of position range ``[q_min, q_max]``, largest ``|q̇|``, ``|q̈|``
+    (``rates``, ``(2, nv)``) and counts moving with ``q̇ > 0``, ``q̇ < 0`` (``signs``,
+    ``(2, nv)``) — the range widened by :data:`RANGE_MARGIN` of its width,
+    ``±(1 + RANGE_MARGIN)·|q̇|max`` where that sign was :func:`sign_seen` (else also below
+    ``STANDSTILL_SPEED``: moving that way leaves), ``±(1 + RANGE_MARGIN)·|q̈|max``. A sample
+    inside on every entry departs nowhere (:meth:`TrainingEnvelope.departures_of`); one outside
+    may (a sample counts with enough others, :func:`departing`)."""
+    seen = enough(signs, signs[0] + signs[1])                     # (q̇ > 0, q̇ < 0) seen
+    margin = RANGE_MARGIN * (q_max - q_min)
+    speed, accel = (1 + RANGE_MARGIN) * rates
+    slow = np.minimum(speed, _BELOW_STANDSTILL)
+    upper = np.concatenate([q_max + margin, np.where(seen[0], speed, slow), accel])
+    lower = np.concatenate([q_min - margin, np.where(seen[1], -speed, -slow), -accel])
+    return lower, upper
+
+
+#: The largest speed below STANDSTILL_SPEED (moving, as :func:`_counts` counts, is ``≥`` it).
+_BELOW_STANDSTILL = float(np.nextafter(STANDSTILL_SPEED, 0.0))
 
 
 def _counts(dq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -110,33 +146,51 @@ class TrainingEnvelope:
                 f"({'q̇ > 0' if up else 'q̇ < 0'}; {neg if up else pos} of {pos + neg} moving "
                 f"samples with {'q̇ < 0' if up else 'q̇ > 0'})")
 
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """:func:`state_bounds` of this envelope."""
+        return state_bounds(self.q_min, self.q_max, np.vstack([self.dq_max, self.ddq_max]),
+                            np.vstack([self.positive, self.negative]))
+
     def departures(self, dataset: Dataset) -> list[str]:
         """Where ``dataset`` goes that the training data never went (module docstring), one
         sentence per joint and kind; empty when it stays inside."""
+        return self.departures_of(dataset.q, dataset.dq, dataset.ddq)
+
+    def departures_of(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray,
+                      bounds: tuple[np.ndarray, np.ndarray] | None = None) -> list[str]:
+        """:meth:`departures` of ``(N, nv)`` state arrays; ``bounds`` (:meth:`bounds`, computed
+        when not given) decide first, in one vectorised pass, whether any sample leaves."""
+        lower, upper = self.bounds() if bounds is None else bounds
+        states = np.concatenate([q, dq, ddq], axis=1)                 # (N, 3 nv)
+        if not ((states < lower).any() or (states > upper).any()):
+            return []
         out = []
         seen_pos, seen_neg = sign_seen(self.positive, self.negative)
-        pos, neg = _counts(dataset.dq)
+        # a sign unseen in fewer than MIN_SAMPLES moving samples is judged as in a batch only
+        # (else a short log would leave its own envelope)
+        judged = self.positive + self.negative >= MIN_SAMPLES
+        pos, neg = _counts(dq)
         moving = pos + neg
         width = self.q_max - self.q_min
         for j, name in enumerate(self.joint_names):
+            rule = departing if judged[j] else enough
             for count, seen, sign in ((pos[j], seen_pos[j], "q̇ > 0"),
                                       (neg[j], seen_neg[j], "q̇ < 0")):
-                if not seen and enough(count, moving[j]):
+                if not seen and rule(count, moving[j]):
                     trained = self.positive[j] if sign == "q̇ > 0" else self.negative[j]
                     out.append(f"{name} moves with {sign} in {int(count)} samples; the training "
                                f"data moved it that way in {int(trained)}")
-            q = dataset.q[:, j]
-            low = q < self.q_min[j] - RANGE_MARGIN * width[j]
-            high = q > self.q_max[j] + RANGE_MARGIN * width[j]
-            if enough(np.sum(low | high), q.size):
-                out.append(f"{name} goes to q ∈ [{q.min():.3g}, {q.max():.3g}] beyond the "
+            qj = q[:, j]
+            low = qj < self.q_min[j] - RANGE_MARGIN * width[j]
+            high = qj > self.q_max[j] + RANGE_MARGIN * width[j]
+            if departing(np.sum(low | high), qj.size):
+                out.append(f"{name} goes to q ∈ [{qj.min():.3g}, {qj.max():.3g}] beyond the "
                            f"trained [{self.q_min[j]:.3g}, {self.q_max[j]:.3g}] in "
                            f"{int(np.sum(low | high))} samples")
-            for field, bound, unit in (("dq", self.dq_max[j], "|q̇|"),
-                                       ("ddq", self.ddq_max[j], "|q̈|")):
-                v = np.abs(getattr(dataset, field)[:, j])
+            for a, bound, unit in ((dq, self.dq_max[j], "|q̇|"), (ddq, self.ddq_max[j], "|q̈|")):
+                v = np.abs(a[:, j])
                 over = v > (1 + RANGE_MARGIN) * bound
-                if enough(np.sum(over), v.size):
+                if departing(np.sum(over), v.size):
                     out.append(f"{name} reaches {unit} = {v.max():.3g} beyond the trained "
                                f"{bound:.3g} in {int(np.sum(over))} samples")
         return out

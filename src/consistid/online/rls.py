@@ -68,12 +68,12 @@ import scipy.stats
 from scipy.linalg.lapack import dpotrf as _potrf
 from scipy.linalg.lapack import dtrtri as _trtri
 
-from ..data.dataset import Dataset
 from ..errors import (DataQualityWarning, DatasetError, ExtrapolationWarning, IdentificationError,
                       JointCountError, OptionError, PoorExcitationWarning, check_number,
                       check_option)
 from ..identification.base import BaseParameters, compute_base_parameters, random_states
-from ..identification.envelope import TrainingEnvelope
+from ..identification.envelope import (MIN_SIGN_SHARE, TrainingEnvelope, enough,
+                                       state_bounds)
 from ..identification.weak import weakly_informed
 from ..identification.regressor import (DEFAULT_FRICTION, FrictionArg, RegressorSpec,
                                         parameter_names, prior_vector, regressor)
@@ -318,6 +318,7 @@ class RecursiveEstimator:
         # q̇ > 0 and q̇ < 0, torque squares (rows), and how many samples
         self._seen = np.vstack([np.full(nv, np.inf), np.full(nv, -np.inf), np.zeros((5, nv))])
         self._n_seen = 0
+        self._bounds_at = -1        # the envelope and its bounds as of this many samples seen
         self._last_time: float | None = None
         self.last_statistic = float("nan")
         self.last_forgetting = self.forgetting
@@ -429,28 +430,44 @@ class RecursiveEstimator:
                                 self._n_seen)
 
     @property
-    def weakly_informed(self) -> tuple[str, ...]:
+    def weakly_informed(self) -> tuple[str, ...] | None:
         """The directions of the base parameters that the samples taken barely inform, in
         words (:func:`consistid.identification.weak.weakly_informed`, as
         ``res.weakly_informed``): each joint with a Coulomb column that moved one way only,
         then each direction along which one standard deviation of the current estimate
         (:attr:`covariance`, the initial spread included) changes the predicted torque on the
         envelope by more than a quarter of the torque RMS seen. Empty before the first
-        update."""
+        update.
+
+        ``None`` when not assessed — the information ``P⁻¹`` is not numerically positive
+        definite (``P`` spans more than double precision holds: an ``initial_std`` far above
+        what the data inform, next to directions they pin down), as a batch result says
+        ``details["weakly_informed"] = "not assessed (…)"``; a
+        :class:`~consistid.errors.PoorExcitationWarning` says why. Never ``()`` then: that
+        would read as "every direction informed" of a check that did not run.
+        """
         envelope = self.envelope
         if envelope is None:
             return ()
-        chol = _potrf(np.linalg.inv(self._p), lower=0)
-        if chol[1] != 0:
-            return ()
+        try:
+            chol, info = _potrf(np.linalg.inv(self._p), lower=0)
+        except np.linalg.LinAlgError:
+            info = -1
+        if info != 0:
+            warnings.warn(f"RecursiveEstimator: weakly informed directions not assessed: the "
+                          f"information P⁻¹ is not numerically positive definite (condition "
+                          f"number of P {np.linalg.cond(self._p):.3g}; initial_std far above "
+                          "what the data inform next to directions they pin down?). None is "
+                          "returned; a smaller initial_std, or more varied motion, lets it run",
+                          PoorExcitationWarning, stacklevel=2)
+            return None
         rms = np.sqrt(self._seen[6] / self._n_seen)
-        return weakly_informed(self.model, self.spec, self.base, np.triu(chol[0]), envelope,
-                               rms)
+        return weakly_informed(self.model, self.spec, self.base, np.triu(chol), envelope, rms)
 
-    def check_excitation(self) -> tuple[str, ...]:
+    def check_excitation(self) -> tuple[str, ...] | None:
         """:attr:`weakly_informed`, with a :class:`~consistid.errors.PoorExcitationWarning`
-        naming them (as ``identify`` warns) when there are any: call it after a run of
-        updates, e.g. at the end of an excitation."""
+        naming them (as ``identify`` warns) when there are any, or saying why they were not
+        assessed (``None``): call it after a run of updates, e.g. at the end of an excitation."""
         weak = self.weakly_informed
         if weak:
             warnings.warn(f"the samples taken barely inform {len(weak)} direction(s) of the "
@@ -474,15 +491,38 @@ class RecursiveEstimator:
         self._n_seen += q.shape[0]
 
     def predict(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> np.ndarray:
-        """``W(q, q̇, q̈) β̂`` for one sample (vectors) or many (``(N, nv)`` arrays); on many
-        that leave the :attr:`envelope` (a velocity sign never seen, a range exceeded:
-        :meth:`~consistid.identification.envelope.TrainingEnvelope.departures`) an
-        :class:`~consistid.errors.ExtrapolationWarning` names where."""
-        q, dq, ddq = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (q, dq, ddq))
-        envelope = self.envelope
-        if envelope is not None and q.shape[1] == self.model.nv:
-            away = envelope.departures(Dataset(t=np.arange(q.shape[0], dtype=float), q=q,
-                                                 dq=dq, ddq=ddq))
+        """``W(q, q̇, q̈) β̂`` for one sample (vectors) or many (``(N, nv)`` arrays).
+
+        States that leave the :attr:`envelope` raise an
+        :class:`~consistid.errors.ExtrapolationWarning` naming where
+        (:meth:`~consistid.identification.envelope.TrainingEnvelope.departures`): a velocity
+        sign never seen, or a range (``q``, ``|q̇|``, ``|q̈|``) exceeded by more than 10 % of its
+        width or bound, in at least 1 % of the samples and at least 10 — or in all of them when
+        fewer than 10 are given. One sample warns when it is itself outside: beyond a range by
+        more than its 10 % margin, or moving (``|q̇| ≥ STANDSTILL_SPEED``) with a sign that
+        fewer than max(10, 1 %) of the joint's moving samples taken had (once it moved in 10).
+        The check compares the arrays with the envelope's bounds,
+        cached between updates (no :class:`~consistid.Dataset` is built).
+
+        Raises :class:`~consistid.errors.JointCountError` when ``q``, ``dq`` or ``ddq`` does
+        not hold ``nv`` joints per sample, :class:`~consistid.errors.DatasetError` when they
+        differ in rows or are not numbers.
+        """
+        nv, given = self.model.nv, []
+        for name, a in (("q", q), ("dq", dq), ("ddq", ddq)):
+            a = _numbers("predict", name, a)
+            if a.ndim not in (1, 2) or a.shape[-1] != nv:
+                joints = a.shape[-1] if a.ndim else 1
+                raise JointCountError(f"predict: {name} has shape {a.shape} ({joints} joints); "
+                                      f"{self.model.name} has {nv}: give {name} as a vector of "
+                                      f"{nv} or an (N, {nv}) array")
+            given.append(np.atleast_2d(a))
+        q, dq, ddq = given
+        for name, a in (("dq", dq), ("ddq", ddq)):
+            if a.shape[0] != q.shape[0]:
+                raise DatasetError(f"predict: {name} has {a.shape[0]} rows, q has {q.shape[0]}")
+        if self._n_seen and self._outside(q, dq, ddq):
+            away = self.envelope.departures_of(q, dq, ddq, self._bounds)
             if away:
                 warnings.warn(f"these states go where the samples taken never went: "
                               f"{'; '.join(away[:4])}{' …' if len(away) > 4 else ''}. The "
@@ -492,6 +532,31 @@ class RecursiveEstimator:
         for k in range(q.shape[0]):
             out[k] = self.row(q[k], dq[k], ddq[k]) @ self._beta
         return out
+
+    def _outside(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> bool:
+        """Does a state leave the envelope's bounds
+        (:func:`~consistid.identification.envelope.state_bounds`, cached)? Samples taken since
+        the cache only widen the bounds, unless a velocity sign seen then is no longer
+        :func:`~consistid.identification.envelope.sign_seen` — possible only once the joint's
+        moving samples exceed that sign's count then over ``MIN_SIGN_SHARE`` (its cap): states
+        inside bounds cached and still valid need no recomputation (a control loop's call)."""
+        s = self._seen
+        if 0 <= self._bounds_at != self._n_seen and (s[4] + s[5] > self._moving_cap).any():
+            self._bounds_at = -1                          # a sign may be lost: recompute
+        for _ in range(2):
+            if self._bounds_at < 0:
+                self._bounds = state_bounds(s[0], s[1], s[2:4], s[4:6])
+                seen = enough(s[4:6], s[4] + s[5])
+                self._moving_cap = np.where(seen, s[4:6] / MIN_SIGN_SHARE, np.inf).min(axis=0)
+                self._bounds_at = self._n_seen
+            lower, upper = self._bounds
+            states = np.concatenate([q, dq, ddq], axis=1)
+            if not ((states < lower).any() or (states > upper).any()):
+                return False
+            if self._bounds_at == self._n_seen:
+                return True
+            self._bounds_at = -1                                    # stale: decide on fresh
+        return True
 
     # ------------------------------------------------------------------------- one sample
     def row(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> np.ndarray:
