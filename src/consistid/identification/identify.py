@@ -75,7 +75,7 @@ from ..robot.model import RobotModel, require_model
 from .regressor import DEFAULT_FRICTION, FrictionArg, RegressorSpec, parameter_names, prior_vector
 from .result import IdentificationResult
 from .solver import SolverReport
-from .model_error import rest_bias
+from .model_error import rest_bias, split_bias
 from .statistics import ScoreSums, coloured_covariance, hac_covariance, score_sums
 from .uninformed import uninformed_directions
 from .envelope import TrainingEnvelope
@@ -483,6 +483,7 @@ def with_covariance(result: IdentificationResult, problem: CompressedProblem,
     rest = None if stats.rest is None else restricted(stats.rest, kept)
     cov, details = with_rest_error(result, problem, rest, cov, details,
                                    (weights, tau, variances))
+    cov, details = with_split_error(result, stats, kept, cov, details)
     # the speed per joint below which its rows counted as at rest (rad/s)
     details["model_error_speed"] = stats.rest_speeds()
     note = standstill_note(stats, result.model.joint_names, kept)
@@ -539,6 +540,22 @@ def with_rest_error(result: IdentificationResult, problem: CompressedProblem,
             "without those rows)" if wide.size else
             "the rows at rest move no base parameter beyond its noise ±")
     return cov, {**details, "model_error": np.sqrt(b2), "model_error_note": note}
+
+
+def with_split_error(result: IdentificationResult, stats: ResidualStatistics, kept: np.ndarray,
+                     cov: np.ndarray, details: dict) -> tuple[np.ndarray, dict]:
+    """``cov`` with the model error of the Coulomb/viscous split that a slow joint's data
+    cannot make (:func:`~consistid.identification.model_error.split_bias`, on the joints of
+    :meth:`ResidualStatistics.slow_joints` whose fit reads a slope) added to its diagonal, and
+    to ``details["model_error"]``."""
+    steep = [j for j in stats.slow_joints() if j in kept and stats.steep_joints()[j]]
+    if not steep:
+        return cov, details
+    b2 = split_bias(list(result.base.names), list(result.parameter_names), result.parameters,
+                    list(result.model.joint_names), np.array(steep), stats.top_speed)
+    b2 = np.where(np.isfinite(np.diag(cov)), b2, 0.0)
+    return cov + np.diag(b2), {**details,
+                               "model_error": np.sqrt(details["model_error"] ** 2 + b2)}
 
 
 def slow_note(stats: ResidualStatistics, result: IdentificationResult,

@@ -42,6 +42,21 @@ the slow speed bands is larger than that of the fast ones
 compressed on their own (a few percent of the samples on an excitation trajectory; one more
 pass over those samples only): the Gram matrices of the moving rows are those of all rows less
 those of the rows at rest.
+
+A joint that never leaves the band where dry friction is smoothed (speeds below ``v_s``:
+presliding, a Stribeck band, MuJoCo's soft ``frictionloss``) has no moving rows in that sense,
+and Hausman's difference is blind to it: every row it has shows ``f ≈ f_c q̇/v_s``, a slope,
+and the fit reads ``f_c ≈ 0`` and ``f_v ≈ f_c/v_s`` with a residual that is the noise's
+everywhere (:meth:`~consistid.identification.streaming.ResidualStatistics.slow_joints`). The
+data give the friction torque at the joint's fastest speed ``v`` and not its split: with
+``v_s ≥ v`` (the joint never left the band) and ``f_c, f_v ≥ 0``, the truth has
+``f_c ≥ \hat f_v v`` less its own viscous part and ``0 ≤ f_v ≤ \hat f_v``. The split's model
+error (:func:`split_bias`) is the whole of what the other term could take,
+
+.. math::  b_{f_c}^2 = (\hat f_v v)^2, \qquad b_{f_v}^2 = \hat f_v^2,
+
+the least a Coulomb level hidden in the slope can be (``v_s = v``); it is larger when ``v_s``
+is far above ``v``, which the data cannot show, and the slow-joint warning says so.
 """
 
 from __future__ import annotations
@@ -55,6 +70,22 @@ from .base import BaseParameters
 from .compression import CompressedProblem, compress
 from .regressor import RegressorSpec
 from .statistics import coloured_covariance
+
+
+def split_bias(base_names: list[str], names: list[str], theta: np.ndarray,
+               joint_names: list[str], joints: np.ndarray, top_speed: np.ndarray
+               ) -> np.ndarray:
+    """``b²`` per base parameter (``base_names``) of the Coulomb/viscous split the data cannot
+    make (module docstring) on ``joints``, from the fitted ``theta`` (named ``names``) and
+    each joint's fastest speed; 0 elsewhere and where a term is not a base parameter."""
+    b2 = np.zeros(len(base_names))
+    for j in joints:
+        fc, fv = f"{joint_names[j]}.fc", f"{joint_names[j]}.fv"
+        if fc in base_names and fv in base_names:
+            slope = max(float(theta[names.index(fv)]), 0.0)
+            b2[base_names.index(fc)] = (slope * float(top_speed[j])) ** 2
+            b2[base_names.index(fv)] = slope ** 2
+    return b2
 
 
 def rest_problem(model: RobotModel, dataset: Dataset, spec: RegressorSpec,

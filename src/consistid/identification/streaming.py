@@ -52,7 +52,7 @@ from .base import BaseParameters
 from .compression import CompressedProblem, compress
 from .envelope import TrainingEnvelope
 from .model_error import rest_problem
-from .regressor import RegressorSpec, predict_torque
+from .regressor import RegressorSpec, parameter_names, predict_torque
 from .statistics import add_lagged, autocovariance_sum, integrated_time
 
 #: What a stream yields: a dataset, or a file holding one.
@@ -162,6 +162,11 @@ class ResidualStatistics:
     rest : the compressed problem of the rows at rest (below :meth:`rest_speeds`), every
         sample read (:func:`consistid.identification.model_error.rest_problem`), when the
         statistics were asked for with ``base``; else ``None``.
+    top_speed : (nv,) the fastest ``|q̇_j|`` (rad/s) of every sample of the datasets (not only
+        those read), or ``None`` (unknown).
+    viscous_speed : (nv,) the speed ``|f_c|/f_v`` (rad/s) at which the fitted viscous torque
+        of joint ``j`` equals its fitted Coulomb level (``inf`` where ``f_v ≤ 0`` or either term
+        is not fitted), or ``None`` (:meth:`slow_joints`).
     """
 
     autocovariance: np.ndarray | None
@@ -172,6 +177,8 @@ class ResidualStatistics:
     band_sum_squares: np.ndarray
     band_count: np.ndarray
     rest: CompressedProblem | None = None
+    top_speed: np.ndarray | None = None
+    viscous_speed: np.ndarray | None = None
 
     @classmethod
     def of(cls, model: RobotModel, spec: RegressorSpec, theta: np.ndarray,
@@ -193,6 +200,8 @@ class ResidualStatistics:
             needed = int(np.ceil(2.0 * (10.0 * tau + 1.0) / TAU_PRECISION ** 2))
             if needed > part.n_samples:
                 stats = cls._of(model, spec, theta, autocorrelation_windows(dataset, needed))
+        stats = dataclasses.replace(stats, top_speed=np.abs(dataset.dq).max(axis=0, initial=0.0),
+                                    viscous_speed=viscous_speed(model, spec, theta))
         if base is not None:
             stats = dataclasses.replace(stats, rest=rest_problem(model, dataset, spec, base,
                                                                  stats.rest_speeds()))
@@ -223,7 +232,11 @@ class ResidualStatistics:
                                   self.band_sum_squares + other.band_sum_squares,
                                   self.band_count + other.band_count,
                                   self.rest if other.rest is None else other.rest
-                                  if self.rest is None else merge(self.rest, other.rest))
+                                  if self.rest is None else merge(self.rest, other.rest),
+                                  None if self.top_speed is None or other.top_speed is None
+                                  else np.maximum(self.top_speed, other.top_speed),
+                                  self.viscous_speed if other.viscous_speed is None
+                                  else other.viscous_speed)
 
     def rest_speeds(self) -> np.ndarray:
         r"""Per joint, the speed (rad/s) below which its residual is structured: the upper edge
@@ -263,19 +276,37 @@ class ResidualStatistics:
         return out
 
     def slow_joints(self) -> np.ndarray:
-        """The joints too slow for :meth:`rest_speeds`' test whose residual is structured: their
-        fastest speed band (above ``SPEED_EDGES[-1]``) holds fewer than
-        :data:`MIN_REST_SAMPLES` effectively independent samples (``n/τ_j``), and the RMS of
-        the largest-residual band they reach (with as many) is :data:`BAND_RATIO` times that of
-        the smallest or more, beyond chance at level :data:`BAND_ALPHA` (the F-test of
-        :meth:`rest_speeds`, both bands from the data). A residual alike at every speed
-        (white noise on a well-described slow joint) does not make a joint one of them."""
+        r"""The joints too slow for :meth:`rest_speeds`' test whose friction law the data
+        cannot check: their fastest speed band (above ``SPEED_EDGES[-1]``) holds fewer than
+        :data:`MIN_REST_SAMPLES` effectively independent samples (``n/τ_j``), they reach at
+        least two bands with as many, and either
+
+        - the RMS of the largest-residual band they reach is :data:`BAND_RATIO` times that of
+          the smallest or more, beyond chance at level :data:`BAND_ALPHA` (the F-test of
+          :meth:`rest_speeds`, both bands from the data), or
+        - the fit reads a slope where a step should be: its viscous torque at the joint's
+          fastest speed is the Coulomb level or more, ``f_v \max|q̇_j| ≥ |f_c|``
+          (:attr:`viscous_speed` ``≤`` :attr:`top_speed`). Dry friction smoothed over a band
+          of slow speeds ``v_s`` (presliding, a Stribeck band, MuJoCo's soft
+          ``frictionloss``) rises about linearly there, ``f ≈ f_c q̇/v_s``: fitted on
+          ``|q̇| < v_s`` only, ``f_c sign(q̇) + f_v q̇`` takes it as ``f_v ≈ f_c/v_s`` and
+          ``f_c ≈ 0``, with a residual that is the noise's in every band (a Kinova's wrist
+          below 0.09 rad/s: ``f_c`` 0.00 for 1.67, ``f_v`` 18 for 0.25). Above that band the
+          step dominates wherever the viscous torque is below the Coulomb level.
+
+        A residual alike at every speed under a fitted step (white noise on a well-described
+        slow joint), or a joint without both terms fitted and a residual alike, does not make
+        a joint one of them."""
         tau = np.maximum(self.autocorrelation_time(), 1.0)
         effective = self.band_count / tau[:, None]
+        steep = self.steep_joints()
         out = []
         for j in np.flatnonzero(effective[:, -1] < MIN_REST_SAMPLES):
             reached = np.flatnonzero(effective[j] >= MIN_REST_SAMPLES)
             if reached.size < 2:
+                continue
+            if steep[j]:
+                out.append(j)
                 continue
             var = self.band_sum_squares[j, reached] / self.band_count[j, reached]
             hi, lo = reached[np.argmax(var)], reached[np.argmin(var)]
@@ -286,6 +317,13 @@ class ResidualStatistics:
                     and scipy.stats.f.sf(f, effective[j, hi], effective[j, lo]) < BAND_ALPHA):
                 out.append(j)
         return np.array(out, dtype=int)
+
+    def steep_joints(self) -> np.ndarray:
+        """(nv,) bool: the fitted viscous torque at the joint's fastest speed is its fitted
+        Coulomb level or more (:meth:`slow_joints`); all ``False`` when unknown."""
+        if self.top_speed is None or self.viscous_speed is None:
+            return np.zeros(self.sum_squares.size, dtype=bool)
+        return self.viscous_speed <= self.top_speed
 
     def standstill_excess(self) -> tuple[np.ndarray, np.ndarray]:
         r"""``(ratio, p)`` per joint: the residual's RMS on the samples where the joint stands
@@ -311,6 +349,18 @@ class ResidualStatistics:
     def autocorrelation_time(self) -> np.ndarray:
         """``τ_j`` per joint (:func:`consistid.identification.statistics.integrated_time`)."""
         return integrated_time(self.autocovariance, self.sum_squares.size)
+
+
+def viscous_speed(model: RobotModel, spec: RegressorSpec, theta: np.ndarray) -> np.ndarray:
+    """Per joint, ``|f_c|/f_v`` of the fitted ``theta`` (rad/s): the speed at which its
+    viscous torque reaches its Coulomb level; ``inf`` where ``f_v ≤ 0`` or a term is absent."""
+    names = parameter_names(model, spec)
+    out = np.full(model.nv, np.inf)
+    for j, joint in enumerate(model.joint_names):
+        fc, fv = f"{joint}.fc", f"{joint}.fv"
+        if fc in names and fv in names and theta[names.index(fv)] > 0:
+            out[j] = abs(theta[names.index(fc)]) / theta[names.index(fv)]
+    return out
 
 
 def _label(part: Part, k: int) -> str:
