@@ -577,7 +577,8 @@ def slow_note(stats: ResidualStatistics, result: IdentificationResult,
             "speeds (a gearbox's Stribeck band, MuJoCo's soft frictionloss) looks like a "
             "steep viscous slope there, not like f_c·sign(q̇) + f_v·q̇, and its Coulomb and "
             "viscous estimates may be far off; their intervals include the model error the "
-            "data can show (details['model_error']). Move those joints faster to identify "
+            "data can show and the Coulomb/viscous split they cannot make, at least "
+            "(details['model_error']). Move those joints faster to identify "
             "their friction")
 
 

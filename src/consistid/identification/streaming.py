@@ -248,11 +248,11 @@ class ResidualStatistics:
         a gearbox smooths over a band of speeds (MuJoCo's soft ``frictionloss`` on a light
         joint: up to ~0.1 rad/s) is not ``f_c sign(q̇)`` anywhere in that band.
 
-        A joint too slow for the test whose residual differs between the bands it reaches
-        (:meth:`slow_joints`) has no speed at which its residual is shown to be the noise's:
-        every band but the fastest it reaches counts as at rest (a Kinova's wrist in a random
-        excitation, ≤ 0.3 rad/s: its Coulomb and viscous terms 4–6 σ off with the rest speed
-        at 0.02 rad/s, ``benchmarks/coverage_friction.py``)."""
+        A joint too slow for the test whose residual differs between the bands it reaches, or
+        whose fit reads a slope (:meth:`slow_joints`), has no speed at which its residual is
+        shown to be the noise's: every band but the fastest it reaches counts as at rest (a
+        Kinova's wrist in a random excitation, ≤ 0.3 rad/s: its Coulomb and viscous terms
+        4–6 σ off with the rest speed at 0.02 rad/s, ``benchmarks/coverage_friction.py``)."""
         tau = np.maximum(self.autocorrelation_time(), 1.0)
         out = np.full(self.sum_squares.size, STANDSTILL_SPEED)
         effective = self.band_count / tau[:, None]
