@@ -113,6 +113,12 @@ SPEED_EDGES = STANDSTILL_SPEED * 2.0 ** np.arange(5)
 #: of the diagnosis' remainder test).
 BAND_RATIO = 1.5
 BAND_ALPHA = 1e-3
+#: A slow joint's fit "reads a slope" when its Coulomb level is at most this share of its
+#: viscous torque at the top speed (:meth:`ResidualStatistics.steep_joints`): smoothed dry
+#: friction fitted below its smoothing speed gives ``f_c ≈ 0`` (0.00 for a true 1.67 on a
+#: Kinova wrist), while a step the data resolve keeps its level beside a steep viscous slope
+#: (a harmonic drive's ``f_v = 5`` at 0.27 rad/s beside ``f_c = 1``: 0.74 of it, not slow).
+STEP_SHARE = 0.25
 
 
 def autocorrelation_windows(dataset: Dataset, samples: int | None = AUTOCORRELATION_SAMPLES
@@ -284,9 +290,10 @@ class ResidualStatistics:
         - the RMS of the largest-residual band they reach is :data:`BAND_RATIO` times that of
           the smallest or more, beyond chance at level :data:`BAND_ALPHA` (the F-test of
           :meth:`rest_speeds`, both bands from the data), or
-        - the fit reads a slope where a step should be: its viscous torque at the joint's
-          fastest speed is the Coulomb level or more, ``f_v \max|q̇_j| ≥ |f_c|``
-          (:attr:`viscous_speed` ``≤`` :attr:`top_speed`). Dry friction smoothed over a band
+        - the fit reads a slope where a step should be: its Coulomb level is at most
+          :data:`STEP_SHARE` of its viscous torque at the joint's fastest speed,
+          ``|f_c| ≤ STEP_SHARE · f_v \max|q̇_j|`` (:attr:`viscous_speed` ``≤ STEP_SHARE ×``
+          :attr:`top_speed`). Dry friction smoothed over a band
           of slow speeds ``v_s`` (presliding, a Stribeck band, MuJoCo's soft
           ``frictionloss``) rises about linearly there, ``f ≈ f_c q̇/v_s``: fitted on
           ``|q̇| < v_s`` only, ``f_c sign(q̇) + f_v q̇`` takes it as ``f_v ≈ f_c/v_s`` and
@@ -319,11 +326,12 @@ class ResidualStatistics:
         return np.array(out, dtype=int)
 
     def steep_joints(self) -> np.ndarray:
-        """(nv,) bool: the fitted viscous torque at the joint's fastest speed is its fitted
-        Coulomb level or more (:meth:`slow_joints`); all ``False`` when unknown."""
+        """(nv,) bool: the fitted Coulomb level is at most :data:`STEP_SHARE` of the fitted
+        viscous torque at the joint's fastest speed (:meth:`slow_joints`); all ``False`` when
+        unknown."""
         if self.top_speed is None or self.viscous_speed is None:
             return np.zeros(self.sum_squares.size, dtype=bool)
-        return self.viscous_speed <= self.top_speed
+        return self.viscous_speed <= STEP_SHARE * self.top_speed
 
     def standstill_excess(self) -> tuple[np.ndarray, np.ndarray]:
         r"""``(ratio, p)`` per joint: the residual's RMS on the samples where the joint stands
