@@ -93,15 +93,23 @@ def test_companions_are_the_friction_atoms_not_yet_chosen(chosen):
             assert got == []
 
 
+PAYLOAD_KEPT = pytest.mark.xfail(
+    strict=True, raises=AssertionError,
+    reason="the selection takes the payload; the consistent fit of every body predicts the "
+    "held-out data better on 4 joints (joint2 0.102 → 0.074 N·m) but worse on joint5 (0.117 → "
+    "0.124), so the payload is kept with a note: the same trade a payload alone beside "
+    "friction shows (test below), which these data cannot tell apart")
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", [0, 2])
+@pytest.mark.parametrize("seed", [0, pytest.param(2, marks=PAYLOAD_KEPT)])
 def test_mixed_mismatch_on_xarm7_names_inertia_and_reaches_identify(seed):
     """xArm7 in MuJoCo, every body's inertia scaled by 0.88–1.12, Coulomb 0.8–2 N·m and viscous
     0.3–1.5 N·m·s/rad on every joint, σ = 0.1 N·m, 30 s + 10 s at 500 Hz (the case where payload
     or per-joint stand-ins were named instead of inertia; more in
     benchmarks/diagnosis_mixed.py): inertia, Coulomb and viscous friction named, held-out RMS
     per joint ≤ 1.2 × identify(sdp)'s, every joint above 1.5 × its floor flagged. Seed 2 is a
-    case where the selection takes the payload and the final fit gives way to inertia."""
+    case where the selection takes the payload (kept: PAYLOAD_KEPT)."""
     from consistid.errors import TrackingWarning
     from consistid.excitation import FourierTrajectory
     from consistid.robot.inertia import perturb
@@ -132,3 +140,43 @@ def test_mixed_mismatch_on_xarm7_names_inertia_and_reaches_identify(seed):
     named = set(diag.remainder.flagged) | set(diag.remainder.undetermined)
     above = {n for n, r in zip(model.joint_names, diag.left_to_noise) if r > REMAINDER_RATIO}
     assert above <= named, (diag.verdict, diag.left_to_noise)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("arm", ["ur5", "xarm7"])
+def test_a_payload_alone_beside_friction_stays_a_payload(arm):
+    """A 1 kg payload 5 cm along the last body's z, the nominal bodies otherwise exact, Coulomb
+    0.8–2 N·m and viscous 0.3–1.5 N·m·s/rad on every joint, σ = 0.1 N·m, 30 s + 10 s at 500 Hz
+    (the review's repro): the payload is named with its mass (the simulated 1 kg within 1 %),
+    not every body's inertia, which predicts some joints' held-out data better by soaking up
+    friction's model error but one joint worse."""
+    from consistid.errors import TrackingWarning
+    from consistid.excitation import FourierTrajectory
+    from consistid.simulate import Effects, record
+
+    model = ci.RobotModel.example(arm)
+    rng = np.random.default_rng(0)
+    params = model.prior_parameters.copy()
+    mass, com = 1.0, np.array([0.0, 0.0, 0.05])
+    inertia = mass * (com @ com * np.eye(3) - np.outer(com, com)) + 1e-4 * mass * np.eye(3)
+    params[-10] += mass
+    params[-9:-6] += mass * com
+    params[-6:] += inertia[[0, 0, 1, 0, 1, 2], [0, 1, 1, 2, 2, 2]]
+    eff = Effects(coulomb=rng.uniform(0.8, 2.0, model.nv),
+                  viscous=rng.uniform(0.3, 1.5, model.nv), torque_noise=0.1)
+    logs = []
+    for k, duration in enumerate((30.0, 10.0)):
+        traj = FourierTrajectory.random(model, 5, 10.0, seed=int(rng.integers(2 ** 31)))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", TrackingWarning)
+            rec = record(model, traj, eff, true_parameters=params, duration=duration,
+                         rate=500.0, physics_rate=1000.0, seed=k)
+        logs.append(ci.Dataset.from_recording(rec.t, rec.q, rec.tau))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        diag = ci.diagnose(model, logs[0], held_out=logs[1])
+    names = [e.name for e in diag.effects]
+    assert "payload" in names and "inertia" not in names, diag.summary()
+    found = diag.effects[names.index("payload")]
+    m = next(p for p in found.parameters if p.name.endswith(".m"))
+    assert abs(m.value - mass) < 0.01 * mass, m
