@@ -93,6 +93,25 @@ def test_companions_are_the_friction_atoms_not_yet_chosen(chosen):
             assert got == []
 
 
+def _train_and_held(model: ci.RobotModel, params: np.ndarray, eff, rng: np.random.Generator,
+                    seed: int) -> tuple[ci.Dataset, ci.Dataset]:
+    """30 s of training and 10 s of held-out excitation at 500 Hz, simulated in MuJoCo (1 kHz
+    physics) with the standard parameters ``params`` and the effects ``eff``."""
+    from consistid.errors import TrackingWarning
+    from consistid.excitation import FourierTrajectory
+    from consistid.simulate import record
+
+    logs = []
+    for k, duration in enumerate((30.0, 10.0)):
+        traj = FourierTrajectory.random(model, 5, 10.0, seed=int(rng.integers(2 ** 31)))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", TrackingWarning)
+            rec = record(model, traj, eff, true_parameters=params, duration=duration,
+                         rate=500.0, physics_rate=1000.0, seed=10 * seed + k)
+        logs.append(ci.Dataset.from_recording(rec.t, rec.q, rec.tau))
+    return logs[0], logs[1]
+
+
 PAYLOAD_KEPT = pytest.mark.xfail(
     strict=True, raises=AssertionError,
     reason="the selection takes the payload; the consistent fit of every body predicts the "
@@ -110,25 +129,15 @@ def test_mixed_mismatch_on_xarm7_names_inertia_and_reaches_identify(seed):
     benchmarks/diagnosis_mixed.py): inertia, Coulomb and viscous friction named, held-out RMS
     per joint ≤ 1.2 × identify(sdp)'s, every joint above 1.5 × its floor flagged. Seed 2 is a
     case where the selection takes the payload (kept: PAYLOAD_KEPT)."""
-    from consistid.errors import TrackingWarning
-    from consistid.excitation import FourierTrajectory
     from consistid.robot.inertia import perturb
-    from consistid.simulate import Effects, record
+    from consistid.simulate import Effects
 
     model = ci.RobotModel.example("xarm7")
     rng = np.random.default_rng(seed)
     params = perturb(model.prior_parameters, 0.12, rng)
     eff = Effects(coulomb=rng.uniform(0.8, 2.0, model.nv),
                   viscous=rng.uniform(0.3, 1.5, model.nv), torque_noise=0.1)
-    logs = []
-    for k, duration in enumerate((30.0, 10.0)):
-        traj = FourierTrajectory.random(model, 5, 10.0, seed=int(rng.integers(2 ** 31)))
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", TrackingWarning)
-            rec = record(model, traj, eff, true_parameters=params, duration=duration,
-                         rate=500.0, physics_rate=1000.0, seed=10 * seed + k)
-        logs.append(ci.Dataset.from_recording(rec.t, rec.q, rec.tau))
-    train, held = logs
+    train, held = _train_and_held(model, params, eff, rng, seed)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         diag = ci.diagnose(model, train, held_out=held)
@@ -150,9 +159,7 @@ def test_a_payload_alone_beside_friction_stays_a_payload(arm):
     (the review's repro): the payload is named with its mass (the simulated 1 kg within 1 %),
     not every body's inertia, which predicts some joints' held-out data better by soaking up
     friction's model error but one joint worse."""
-    from consistid.errors import TrackingWarning
-    from consistid.excitation import FourierTrajectory
-    from consistid.simulate import Effects, record
+    from consistid.simulate import Effects
 
     model = ci.RobotModel.example(arm)
     rng = np.random.default_rng(0)
@@ -164,14 +171,7 @@ def test_a_payload_alone_beside_friction_stays_a_payload(arm):
     params[-6:] += inertia[[0, 0, 1, 0, 1, 2], [0, 1, 1, 2, 2, 2]]
     eff = Effects(coulomb=rng.uniform(0.8, 2.0, model.nv),
                   viscous=rng.uniform(0.3, 1.5, model.nv), torque_noise=0.1)
-    logs = []
-    for k, duration in enumerate((30.0, 10.0)):
-        traj = FourierTrajectory.random(model, 5, 10.0, seed=int(rng.integers(2 ** 31)))
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", TrackingWarning)
-            rec = record(model, traj, eff, true_parameters=params, duration=duration,
-                         rate=500.0, physics_rate=1000.0, seed=k)
-        logs.append(ci.Dataset.from_recording(rec.t, rec.q, rec.tau))
+    logs = _train_and_held(model, params, eff, rng, 0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         diag = ci.diagnose(model, logs[0], held_out=logs[1])
