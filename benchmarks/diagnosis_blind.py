@@ -248,7 +248,7 @@ def run_scenario(model: ci.RobotModel, library: EffectLibrary, seed: int, n_effe
                                                         f"{track:.3g} rad)")
         tau = rec.tau + ripple_torque(truths, rec.q)
         pre = preprocess(rec.t, rec.q, tau)
-        logs.append((pre.dataset, rec, pre.cutoff))
+        logs.append((pre.dataset, rec, pre.derivative_cutoff))
     (train, rec_tr, _), (held, rec_ho, cutoff_ho) = logs
     t0 = time.perf_counter()
     diag = diagnose(model, train, held_out=held, inertia_solver=inertia_solver)

@@ -3,7 +3,8 @@ import pytest
 
 import consistid as ci
 from consistid.data.signals import preprocess
-from consistid.errors import DatasetError, JointCountError, JointNameError, MissingColumnsError
+from consistid.errors import (DatasetError, JointCountError, JointNameError, MissingColumnsError,
+                             OptionError)
 
 
 def make(n=50, nv=3, seed=0, **over):
@@ -195,7 +196,8 @@ def test_the_chain_records_its_torque_filter_and_files_keep_it(tmp_path):
     t, q, tau = _logged()
     rec = preprocess(t, q, tau)
     data = rec.dataset
-    assert data.torque_filter == (rec.cutoff, rec.options.order) and rec.options.order >= 1
+    assert data.torque_filter == (rec.derivative_cutoff, rec.options.order)
+    assert rec.options.order >= 1
     assert ci.Dataset.from_recording(t, q, tau, filter_torque=False).torque_filter is None
     assert ci.Dataset.from_recording(t, q, tau, derivative="savgol").torque_filter is None
     assert ci.Dataset.from_recording(t, q, tau, decimate=4).torque_filter is None
@@ -220,3 +222,41 @@ def test_a_bad_torque_filter_is_named(value):
     t, q, tau = _logged()
     with pytest.raises(DatasetError, match="torque_filter"):
         ci.Dataset(t=t, q=q, dq=q, ddq=q, tau=tau, torque_filter=value)
+
+
+def test_the_chain_records_its_identification_filter_and_files_keep_it(tmp_path):
+    """The identification cut-off (parallel filtering) is 3 × the bandwidth, below the one q
+    and τ were filtered at; a given cutoff alone keeps its meaning (none); savgol and decimated
+    datasets keep it (identification filters both sides at their own rate); fourier, unfiltered
+    torques and parallel=False have none. select, with_torque, concatenate of equals and .npz
+    keep it; a malformed one in a file is a named error."""
+    t, q, tau = _logged()
+    rec = preprocess(t, q, tau, bandwidth=1.0)
+    data = rec.dataset
+    assert data.identification_filter == (3.0, 4) and rec.cutoff == 3.0
+    assert rec.derivative_cutoff == 10.0 and data.torque_filter == (10.0, 4)
+    assert any("τ and Y filtered alike" in s.detail for s in rec.steps)
+    assert preprocess(t, q, tau, cutoff=5.0).dataset.identification_filter is None
+    assert preprocess(t, q, tau, cutoff=5.0, parallel_cutoff=2.0).cutoff == 2.0
+    assert preprocess(t, q, tau, parallel=False).dataset.identification_filter is None
+    assert preprocess(t, q, tau, filter_torque=False).dataset.identification_filter is None
+    assert preprocess(t, q, tau, derivative="savgol", bandwidth=1.0
+                      ).dataset.identification_filter == (3.0, 4)
+    assert preprocess(t, q, tau, bandwidth=1.0, decimate=2).dataset.identification_filter \
+        == (3.0, 4)
+    with pytest.raises(OptionError, match="parallel_cutoff"):
+        preprocess(t, q, tau, cutoff=5.0, parallel_cutoff=6.0)
+    with pytest.raises(OptionError, match="parallel"):
+        preprocess(t, q, tau, parallel="yes")
+    assert data.select(slice(10, 100)).identification_filter == (3.0, 4)
+    assert data.with_torque(data.tau + 1.0).identification_filter == (3.0, 4)
+    data.save(tmp_path / "d.npz")
+    assert ci.Dataset.load(tmp_path / "d.npz").identification_filter == (3.0, 4)
+    with np.load(tmp_path / "d.npz") as f:
+        arrays = dict(f)
+    np.savez(tmp_path / "bad.npz", **{**arrays, "identification_filter": np.array([0.0, 4.0])})
+    with pytest.raises(DatasetError, match="identification_filter"):
+        ci.Dataset.load(tmp_path / "bad.npz")
+    other = preprocess(t, q, tau, bandwidth=0.8).dataset
+    assert ci.Dataset.concatenate([data, data]).identification_filter == (3.0, 4)
+    assert ci.Dataset.concatenate([data, other]).identification_filter is None

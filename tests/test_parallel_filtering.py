@@ -54,7 +54,7 @@ def test_the_chain_filters_the_coulomb_signal_like_the_torque(ur5_coulomb):
     # the same zero-phase filter applied to sign(q̇) of the chain's own q̇ (before its trim)
     rate = pre.rate
     full = preprocess(rec.t, rec.q, rec.tau, trim=0.0).dataset
-    ref = lowpass(np.sign(full.dq), pre.cutoff, rate)
+    ref = lowpass(np.sign(full.dq), pre.derivative_cutoff, rate)
     inner = np.isin(np.round(full.t, 9), np.round(ds.t, 9))
     np.testing.assert_allclose(ds.dq_sign, ref[inner], atol=1e-9)
     assert preprocess(rec.t, rec.q, rec.tau, filter_torque=False).dataset.dq_sign is None

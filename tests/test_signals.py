@@ -144,7 +144,11 @@ def test_chain_recovers_derivatives_of_a_known_trajectory(excitation, method):
     assert np.max(np.abs(d.ddq - ddq)) < 1e-3 * scale
     np.testing.assert_allclose(d.tau, np.cos(q), atol=1e-4)
     assert [s.name for s in pre.steps][:2] == ["outliers", "cut-off"]
-    assert pre.cutoff == 5.0
+    # q differentiated (and τ filtered) at 10 × the band; identification low-passes τ and Y
+    # alike at 3 × the band, except on the one averaged period of "fourier"
+    assert pre.derivative_cutoff == 5.0
+    assert pre.cutoff == (5.0 if method == "fourier" else 1.5)
+    assert d.identification_filter == (None if method == "fourier" else (1.5, 4))
 
 
 def test_chain_copes_with_jitter_duplicates_disorder_and_gaps(excitation, caplog):

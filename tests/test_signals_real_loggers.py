@@ -34,9 +34,10 @@ def slow_joint_log(robot: str, seed: int, noise: str):
     pytest.param("xarm7", 2, "white", marks=pytest.mark.slow),
     pytest.param("kinova", 3, "ar1", marks=pytest.mark.slow)])
 def test_jittered_noisy_logs_get_the_motion_band_not_the_noise(robot, seed, noise):
-    """The chain's bandwidth is the excitation's (1–1.2 × its top harmonic), so the cut-off is
-    10 × that, where the old 99.99 %-of-all-power rule read the slow joint's noise as motion
-    (95–630 Hz)."""
+    """The chain's bandwidth is the excitation's (1–1.2 × its top harmonic), where the old
+    99.99 %-of-all-power rule read the slow joint's noise as motion (95–630 Hz): positions are
+    differentiated at 10 × it, and the cut-off identification sees (τ and Y low-passed alike)
+    lies within 1–4 × the true band (issue 26's acceptance line)."""
     stamps, q, band = slow_joint_log(robot, seed, noise)
     steps = np.diff(stamps)
     assert steps.min() >= 0.5e-3 - 1e-12 and steps.max() > 3e-3
@@ -44,7 +45,9 @@ def test_jittered_noisy_logs_get_the_motion_band_not_the_noise(robot, seed, nois
         warnings.simplefilter("ignore")
         out = run_chain(stamps, q, np.zeros_like(q))
     assert band <= out.bandwidth <= 1.2 * band
-    assert out.cutoff == pytest.approx(signals.CUTOFF_FACTOR * out.bandwidth)
+    assert out.derivative_cutoff == pytest.approx(signals.CUTOFF_FACTOR * out.bandwidth)
+    assert 1.0 <= out.cutoff / band <= 4.0
+    assert out.identification_filter == (out.cutoff, 4)
 
 
 @pytest.mark.parametrize("robot", ["kinova", pytest.param("ur5", marks=pytest.mark.slow)])

@@ -19,11 +19,20 @@ chain, in order (each step appears in the record when it did something):
    before and after it is a step (Coulomb friction reversing), kept
    (:func:`~consistid.data.filters.hampel`); torque samples a logger repeated while the joint
    moved are bridged (:func:`~consistid.data.filters.stuck_samples`);
-3. **cut-off**: given, or ``min(10 × bandwidth, 0.4 × rate)`` with the bandwidth given or
+3. **cut-offs**: two. The *derivative* cut-off ``f_d``, at which ``q`` is low-passed before it
+   is differentiated and ``τ`` filtered alike: given (``cutoff``), or
+   ``min(10 × bandwidth, 0.4 × rate)`` with the bandwidth given or
    estimated from the positions of the longest stretch (on the uniform grid, linearly
    interpolated), from the part of their spectrum that stands above its noise
    (:func:`~consistid.data.filters.estimate_bandwidth`: the error of jittered stamps, sensor
-   noise and encoder counts are not motion);
+   noise and encoder counts are not motion). The *identification* cut-off ``f_p``
+   (``Dataset.identification_filter``), at which identification low-passes ``τ`` and every
+   column of ``Y`` alike (parallel filtering, :mod:`consistid.data.parallel`):
+   ``min(3 × bandwidth, f_d)`` when ``f_d`` is chosen from the bandwidth, ``parallel_cutoff``
+   when given; none with a given ``cutoff`` alone (which keeps its meaning), with
+   ``parallel=False``, ``filter_torque=False`` or ``derivative="fourier"``. The chain's
+   "cut-off" (``Preprocessed.cutoff``) is ``f_p`` when there is one, else ``f_d``; the rules
+   below that depend on a cut-off (gaps, trim, Fourier harmonics, the filters) use ``f_d``;
 4. **gaps**: a step longer than the gap limit splits the log into *segments*, which the filters
    never cross. By default the limit is the larger of ``5`` median steps and half a period of
    the cut-off (:data:`GAP_CUTOFF_PERIODS`): a shorter step is bridged by the cubic spline,
@@ -42,9 +51,9 @@ chain, in order (each step appears in the record when it did something):
 
    * ``"central"`` (default): the same zero-phase Butterworth (order 4) on ``q`` and ``τ``,
      then central differences of the filtered ``q``. It does not distort both sides of
-     ``τ = Y π`` alike: ``Y`` is nonlinear in the motion, and the cut-off must pass the torque's
+     ``τ = Y π`` alike: ``Y`` is nonlinear in the motion, and ``f_d`` must pass the torque's
      harmonics (:mod:`consistid.data.filters`); ``sign(q̇)`` is filtered like ``τ``
-     (``dq_sign``);
+     (``dq_sign``); the identification's low-pass at ``f_p`` then acts on both sides alike;
    * ``"savgol"``: Savitzky–Golay smoothing of ``q`` (value, first, second derivative) and of
      ``τ`` (value), window from the cut-off;
    * ``"fourier"``: ``q`` and ``τ`` averaged over whole periods of ``period`` and truncated to
@@ -84,6 +93,7 @@ from .filters import (
     stuck_samples,
     transposed_hint,
 )
+from .parallel import PARALLEL_FACTOR, parallel_cutoff
 from .resample import check_rate, nominal_rate, resample, supported_rate, uniform_grid
 from .timestamps import (
     DUPLICATES,
@@ -156,6 +166,13 @@ class PreprocessOptions:
     duplicates : ``None`` (average; collapsed stamps refused), ``"average"``, ``"first"``,
         ``"error"``, ``"spread"`` (:func:`consistid.data.timestamps.merge_duplicates`).
     filter_torque : low-pass the torques with the same filter as the positions.
+    parallel : choose an identification cut-off (parallel filtering,
+        :mod:`consistid.data.parallel`): ``PARALLEL_FACTOR × bandwidth`` when the cut-off is
+        chosen from the bandwidth (given or estimated), ``parallel_cutoff`` when given; never
+        with ``derivative="fourier"`` (one averaged period) nor with ``filter_torque=False``.
+    parallel_cutoff : the identification cut-off (Hz), at most ``cutoff``; default as above.
+        With ``cutoff`` given and not this, there is none: ``cutoff`` keeps its meaning (the one
+        low-pass of ``q`` and ``τ``, and least squares on those samples as they are).
     polyorder : Savitzky–Golay polynomial order.
     timestamp : how the logger stamps the torques it averaged over each interval:
         ``"centre"`` (default: no shift), ``"start"`` or ``"end"``; or a mapping per field
@@ -180,6 +197,8 @@ class PreprocessOptions:
     duplicate_tol: float = 1e-6
     duplicates: str | None = None
     filter_torque: bool = True
+    parallel: bool = True
+    parallel_cutoff: float | None = None
     polyorder: int = 5
     timestamp: str | Mapping[str, str] = "centre"
     time_unit: str | None = None
@@ -188,7 +207,8 @@ class PreprocessOptions:
         check_option("derivative", self.derivative, DERIVATIVES)
         check_option("duplicates", self.duplicates, (None, *DUPLICATES))
         check_option("time_unit", self.time_unit, (None, "auto", *TIME_UNITS))
-        for name in ("cutoff", "bandwidth", "period", "rate", "outliers", "gap"):
+        for name in ("cutoff", "bandwidth", "period", "rate", "outliers", "gap",
+                     "parallel_cutoff"):
             if getattr(self, name) is not None:
                 check_number(name, getattr(self, name), 0.0, strict=True)
         for name in ("order", "outlier_window", "polyorder"):
@@ -204,6 +224,19 @@ class PreprocessOptions:
             raise OptionError(f"trim = {self.trim} s does not apply to derivative='fourier': its "
                               "dataset is one averaged period, which has no filter edges")
         check_timestamp(self.timestamp)
+        if not isinstance(self.parallel, (bool, np.bool_)):
+            raise OptionError(f"parallel must be True or False, got {self.parallel!r}")
+        if self.parallel_cutoff is not None:
+            why = ("parallel=False" if not self.parallel else
+                   "derivative='fourier' (one averaged period)" if self.derivative == "fourier"
+                   else "filter_torque=False" if not self.filter_torque else "")
+            if why:
+                raise OptionError(f"parallel_cutoff = {self.parallel_cutoff} Hz: no "
+                                  f"identification cut-off with {why}")
+            if self.cutoff is not None and self.parallel_cutoff > self.cutoff:
+                raise OptionError(f"parallel_cutoff = {self.parallel_cutoff} Hz is above "
+                                  f"cutoff = {self.cutoff} Hz, where q and τ were already "
+                                  "filtered: it would remove nothing; give one at most cutoff")
 
     @classmethod
     def from_kwargs(cls, options: Mapping[str, Any]) -> "PreprocessOptions":
@@ -231,8 +264,12 @@ class ChainResult:
         the torques were not filtered.
     steps : the :class:`Step` s applied, in order.
     rate : sampling rate of the result (Hz), after resampling/decimation.
-    cutoff : low-pass cut-off used (Hz).
-    bandwidth : excitation bandwidth used to choose it (Hz), or ``None`` when given.
+    derivative_cutoff : cut-off (Hz) of the low-pass on ``q`` (differentiated after it) and
+        ``τ``.
+    parallel_cutoff : the identification cut-off (Hz): ``τ`` and every column of ``Y`` are
+        low-passed alike there at identification (:mod:`consistid.data.parallel`); ``None``:
+        none.
+    bandwidth : excitation bandwidth used to choose them (Hz), or ``None`` when given.
     options : the :class:`PreprocessOptions` used.
     """
 
@@ -245,9 +282,24 @@ class ChainResult:
     dq_sign: np.ndarray | None
     steps: tuple[Step, ...]
     rate: float
-    cutoff: float
+    derivative_cutoff: float
+    parallel_cutoff: float | None
     bandwidth: float | None
     options: PreprocessOptions
+
+    @property
+    def cutoff(self) -> float:
+        """The cut-off the identification sees (Hz): :attr:`parallel_cutoff`, or
+        :attr:`derivative_cutoff` when there is none."""
+        return self.derivative_cutoff if self.parallel_cutoff is None else self.parallel_cutoff
+
+    @property
+    def identification_filter(self) -> tuple[float, int] | None:
+        """``(parallel cut-off Hz, order)`` for
+        :attr:`consistid.data.dataset.Dataset.identification_filter`, or ``None``."""
+        if self.parallel_cutoff is None:
+            return None
+        return float(self.parallel_cutoff), int(self.options.order)
 
     @property
     def torque_filter(self) -> tuple[float, int] | None:
@@ -257,7 +309,7 @@ class ChainResult:
         (its response is then not that of the same filter at the result's rate)."""
         if (self.options.filter_torque and self.options.derivative == "central"
                 and self.options.decimate == 1):
-            return float(self.cutoff), int(self.options.order)
+            return float(self.derivative_cutoff), int(self.options.order)
         return None
 
     def __str__(self) -> str:
@@ -428,10 +480,19 @@ def _outliers(t: np.ndarray, x: np.ndarray, stretches: list[slice], nv: int,
 
 
 def _cutoff(t: np.ndarray, q: np.ndarray, stretches: list[slice], rate: float,
-            o: PreprocessOptions, steps: list[Step]) -> tuple[float, float | None]:
+            o: PreprocessOptions, steps: list[Step]
+            ) -> tuple[float, float | None, float | None]:
+    """``(derivative cut-off, bandwidth or None when the cut-off is given, identification
+    cut-off or None)``, and the step that says them."""
+    parallel = o.parallel and o.filter_torque and o.derivative != "fourier"
     if o.cutoff is not None:
-        steps.append(Step("cut-off", f"{o.cutoff:.4g} Hz (given)"))
-        return float(o.cutoff), None
+        if o.parallel_cutoff is None:
+            steps.append(Step("cut-off", f"{o.cutoff:.4g} Hz (given)"))
+            return float(o.cutoff), None, None
+        steps.append(Step("cut-off", f"{o.parallel_cutoff:.4g} Hz (given; τ and Y filtered "
+                                     "alike at identification); positions differentiated and "
+                                     f"torques filtered at {o.cutoff:.4g} Hz (given)"))
+        return float(o.cutoff), None, float(o.parallel_cutoff)
     if o.bandwidth is None:
         longest = max(stretches, key=lambda s: s.stop - s.start)
         ts, qs = t[longest], q[longest]
@@ -447,10 +508,24 @@ def _cutoff(t: np.ndarray, q: np.ndarray, stretches: list[slice], rate: float,
     else:
         bandwidth, origin = float(o.bandwidth), "given"
     cutoff = default_cutoff(bandwidth, rate)
-    steps.append(Step("cut-off", f"{cutoff:.4g} Hz = min({CUTOFF_FACTOR:g} × bandwidth "
-                                 f"{bandwidth:.4g} Hz ({origin}), {MAX_CUTOFF_FRACTION:g} × "
-                                 f"{rate:.6g} Hz)"))
-    return cutoff, bandwidth
+    rule = (f"min({CUTOFF_FACTOR:g} × bandwidth, {MAX_CUTOFF_FRACTION:g} × {rate:.6g} Hz)")
+    if not parallel:
+        steps.append(Step("cut-off", f"{cutoff:.4g} Hz = min({CUTOFF_FACTOR:g} × bandwidth "
+                                     f"{bandwidth:.4g} Hz ({origin}), {MAX_CUTOFF_FRACTION:g} × "
+                                     f"{rate:.6g} Hz)"))
+        return cutoff, bandwidth, None
+    chosen = (float(o.parallel_cutoff) if o.parallel_cutoff is not None
+              else parallel_cutoff(bandwidth, cutoff))
+    if chosen > cutoff:
+        raise OptionError(f"parallel_cutoff = {chosen} Hz is above the cut-off {cutoff:.4g} Hz "
+                          "chosen for q and τ, where they were already filtered: it would "
+                          "remove nothing; give one at most that, or cutoff= too")
+    how = ("given" if o.parallel_cutoff is not None else
+           f"{PARALLEL_FACTOR:g} × bandwidth {bandwidth:.4g} Hz ({origin})")
+    steps.append(Step("cut-off", f"{chosen:.4g} Hz = {how} (τ and Y filtered alike at "
+                                 f"identification); positions differentiated and torques "
+                                 f"filtered at {cutoff:.4g} Hz = {rule}"))
+    return cutoff, bandwidth, chosen
 
 
 def _segments(t: np.ndarray, h: float, cutoff: float, o: PreprocessOptions,
@@ -546,7 +621,7 @@ def run_chain(t: np.ndarray, q: np.ndarray, tau: np.ndarray,
                                       f"{np.diff(t).max() * 1e3:.4g} ms, median {h * 1e3:.4g} ms"))
     if o.outliers is not None:
         x = _outliers(t, x, stretches, nv, o, steps)
-    cutoff, bandwidth = _cutoff(t, x[:, :nv], stretches, rate, o, steps)
+    cutoff, bandwidth, chosen = _cutoff(t, x[:, :nv], stretches, rate, o, steps)
     if o.derivative == "fourier" and o.period is None:
         raise OptionError("derivative='fourier' needs the excitation period (s)")
     if o.decimate > 1 and cutoff >= 0.5 * rate / o.decimate:
@@ -681,4 +756,4 @@ def run_chain(t: np.ndarray, q: np.ndarray, tau: np.ndarray,
         LOG.info("%s", step)
     if not o.filter_torque:
         arrays[-1] = None          # unfiltered torques: the Coulomb column is sign(dq)
-    return ChainResult(*arrays, tuple(steps), float(rate), float(cutoff), bandwidth, o)
+    return ChainResult(*arrays, tuple(steps), float(rate), float(cutoff), chosen, bandwidth, o)

@@ -30,6 +30,7 @@ from ..errors import DatasetError, JointCountError, JointNameError, MissingColum
 from .chain import ChainResult, PreprocessOptions, run_chain
 from .filters import real_array
 from .npzfile import open_npz
+from .parallel import check_filter
 
 FIELDS = ("q", "dq", "ddq", "tau")
 
@@ -72,6 +73,13 @@ class Dataset:
         :meth:`select` (a selection at another spacing makes it wrong: consumers ignore a
         cut-off above 0.45 × the rate), by :meth:`concatenate` when every part has the same, and
         in ``.npz`` files (not in ``.csv``); dropped by :meth:`with_torque` unless asked.
+    identification_filter : ``(cut-off Hz, order)`` of the zero-phase Butterworth low-pass that
+        identification applies alike to ``tau`` and to every column of the regressor, per
+        segment (parallel filtering, :mod:`consistid.data.parallel`), set by the signal chain at
+        a few times the motion's band; ``None``: least squares on the samples as they are. Kept
+        by :meth:`select` (a selection that leaves holes splits the filtering there), by
+        :meth:`with_torque` (it applies to any torques), by :meth:`concatenate` when every part
+        has the same, and in ``.npz`` files (not in ``.csv``).
 
     Raises
     ------
@@ -88,6 +96,7 @@ class Dataset:
     segment: np.ndarray | None = field(default=None)
     dq_sign: np.ndarray | None = None
     torque_filter: tuple[float, int] | None = None
+    identification_filter: tuple[float, int] | None = None
 
     def __post_init__(self) -> None:
         t = real_array("dataset.t", self.t)
@@ -150,7 +159,12 @@ class Dataset:
             _check_finite("dq_sign", sign, names)
             object.__setattr__(self, "dq_sign", sign)
         if self.torque_filter is not None:
-            object.__setattr__(self, "torque_filter", _check_filter(self.torque_filter))
+            object.__setattr__(self, "torque_filter",
+                               check_filter("dataset.torque_filter", self.torque_filter))
+        if self.identification_filter is not None:
+            object.__setattr__(self, "identification_filter",
+                               check_filter("dataset.identification_filter",
+                                            self.identification_filter))
         same = seg[1:] == seg[:-1]
         bad = np.flatnonzero(same & (np.diff(t) <= 0))
         if bad.size:
@@ -266,6 +280,9 @@ class Dataset:
                 [np.sign(d.dq) if d.dq_sign is None else d.dq_sign for d in datasets]),
             torque_filter=datasets[0].torque_filter
             if all(d.torque_filter == datasets[0].torque_filter for d in datasets) else None,
+            identification_filter=datasets[0].identification_filter
+            if all(d.identification_filter == datasets[0].identification_filter
+                   for d in datasets) else None,
         )
 
     # ----------------------------------------------------------------------------- files
@@ -290,8 +307,9 @@ class Dataset:
                       if getattr(self, k) is not None}
             if self.joint_names is not None:
                 arrays["joint_names"] = np.array(self.joint_names)
-            if self.torque_filter is not None:
-                arrays["torque_filter"] = np.array(self.torque_filter, dtype=float)
+            for name in ("torque_filter", "identification_filter"):
+                if getattr(self, name) is not None:
+                    arrays[name] = np.array(getattr(self, name), dtype=float)
             np.savez(path, segment=self.segment, **arrays)
         elif path.suffix == ".csv":
             cols = self.columns()
@@ -323,7 +341,8 @@ class Dataset:
         return cls(t=result.t, q=result.q, dq=result.dq, ddq=result.ddq, tau=result.tau,
                    segment=result.segment, dq_sign=result.dq_sign,
                    joint_names=tuple(joint_names) if joint_names is not None else None,
-                   torque_filter=result.torque_filter)
+                   torque_filter=result.torque_filter,
+                   identification_filter=result.identification_filter)
 
     @classmethod
     def load(cls, path: str | Path, joint_names: Sequence[str] | None = None) -> "Dataset":
@@ -342,8 +361,9 @@ class Dataset:
                                               f"{sorted(f.files)}")
                 arrays = {k: f[k] for k in f.files if k in ("t", *FIELDS, "segment", "dq_sign")}
                 stored = array_names(f["joint_names"]) if "joint_names" in f else None
-                if "torque_filter" in f:
-                    arrays["torque_filter"] = np.atleast_1d(f["torque_filter"]).tolist()
+                for name in ("torque_filter", "identification_filter"):
+                    if name in f:
+                        arrays[name] = np.atleast_1d(f[name]).tolist()
             if joint_names is not None and stored is not None and tuple(joint_names) != stored:
                 raise JointNameError(f"{path.name} names its joints {list(stored)}, not "
                                      f"{list(joint_names)}")
@@ -411,19 +431,6 @@ def _numbered(column: str, joints: Sequence[str]) -> str:
         if column.startswith(f + "_") and joint in joints:
             return f"{f}{list(joints).index(joint) + 1}"
     return column
-
-
-def _check_filter(value: object) -> tuple[float, int]:
-    """``Dataset.torque_filter`` as ``(cut-off, order)``, or :class:`DatasetError`."""
-    try:
-        cutoff, order = (float(v) for v in value)            # type: ignore[union-attr]
-    except (TypeError, ValueError):
-        raise DatasetError(f"dataset.torque_filter = {value!r:.60} is not a (cut-off Hz, "
-                           "order) pair") from None
-    if not (np.isfinite(cutoff) and cutoff > 0 and order >= 1 and order == int(order)):
-        raise DatasetError(f"dataset.torque_filter = {value!r:.60}: the cut-off must be a "
-                           "positive number of Hz and the order a whole number ≥ 1")
-    return cutoff, int(order)
 
 
 def array_names(names: np.ndarray) -> tuple[str, ...]:

@@ -324,9 +324,11 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
         options = PreprocessOptions.from_kwargs({"timestamp": timestamp,
                                                  "duplicates": duplicates, **signal_options})
         pre = run_chain(t, arrays["q"], arrays["tau"], options)
+        cut = (f"cut-off {pre.derivative_cutoff:.4g} Hz" if pre.parallel_cutoff is None else
+               f"cut-off {pre.parallel_cutoff:.4g} Hz (τ and Y filtered alike at "
+               f"identification); positions differentiated at {pre.derivative_cutoff:.4g} Hz")
         steps.append(f"no logged velocities/accelerations: the signal chain "
-                     f"({pre.t.size} samples at {pre.rate:.6g} Hz, cut-off "
-                     f"{pre.cutoff:.4g} Hz):")
+                     f"({pre.t.size} samples at {pre.rate:.6g} Hz, {cut}):")
         steps.extend(f"  {s}" for s in pre.steps)
         dataset = Dataset.from_chain(pre, names)
         if "dq" in arrays:
@@ -383,14 +385,14 @@ def _logged_velocities(t: np.ndarray, arrays: Mapping[str, np.ndarray],
                        steps: list[str]) -> Dataset:
     """``dataset`` (the chain's, from ``q``) with ``dq`` the logged velocities through the same
     chain — same grid, same cut-off — and ``ddq`` their derivative (``velocities="logged"``)."""
-    same = replace(options, cutoff=pre.cutoff, rate=pre.rate)
+    same = replace(options, cutoff=pre.derivative_cutoff, rate=pre.rate, parallel_cutoff=None)
     vel = run_chain(t, arrays["dq"], arrays["tau"], same)
     if vel.t.shape != pre.t.shape or not np.allclose(vel.t, pre.t, rtol=0, atol=1e-9):
         raise DatasetError(f"{source}: the logged velocities came out of the signal chain on "
                            "other samples than the positions; load with velocities='auto'")
     steps.append(f"velocities='logged': dq is the logged velocity through the same chain "
-                 f"(cut-off {pre.cutoff:.4g} Hz), ddq its derivative; the derivative of q set "
-                 "aside")
+                 f"(cut-off {pre.derivative_cutoff:.4g} Hz), ddq its derivative; the derivative "
+                 "of q set aside")
     _check_logged(dataset.t, {"q": dataset.q, "dq": vel.q, "ddq": vel.dq},
                   dataset.joint_names, source, steps)
     return replace(dataset, dq=vel.q, ddq=vel.dq)

@@ -60,10 +60,14 @@ class Preprocessed:
     dataset : the :class:`Dataset` (one segment per gap-free stretch of the log).
     steps : the :class:`Step` s applied, in order.
     rate : sampling rate of the dataset (Hz), after resampling/decimation.
-    cutoff : low-pass cut-off used (Hz).
+    cutoff : the cut-off identification sees (Hz): where ``τ`` and every column of ``Y`` are
+        low-passed alike (``dataset.identification_filter``, parallel filtering), or, when
+        there is none, :attr:`derivative_cutoff`.
     bandwidth : excitation bandwidth used to choose it (Hz; given or estimated), or ``None``
         when the cut-off was given.
     options : the :class:`PreprocessOptions` used.
+    derivative_cutoff : the cut-off of the low-pass on ``q`` (then differentiated) and ``τ``
+        (Hz; ``dataset.torque_filter``); default :attr:`cutoff`.
     """
 
     dataset: Dataset
@@ -72,6 +76,11 @@ class Preprocessed:
     cutoff: float
     bandwidth: float | None
     options: PreprocessOptions
+    derivative_cutoff: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.derivative_cutoff is None:
+            object.__setattr__(self, "derivative_cutoff", self.cutoff)
 
     def __str__(self) -> str:
         return self.summary()
@@ -106,4 +115,4 @@ def preprocess(t: np.ndarray, q: np.ndarray, tau: np.ndarray, *,
     """
     res = run_chain(t, q, tau, PreprocessOptions.from_kwargs(options))
     return Preprocessed(Dataset.from_chain(res, joint_names), res.steps, res.rate, res.cutoff,
-                        res.bandwidth, res.options)
+                        res.bandwidth, res.options, res.derivative_cutoff)
