@@ -12,6 +12,14 @@ weighted problem with per-joint noise ``σ_j`` is ``qr([R̄_1/σ_1; …; R̄_nv/
 This is the "compression" that makes the SDP size independent of N (Golub & Van Loan,
 *Matrix Computations*, §6.5 on updating QR).
 
+A dataset that records an identification cut-off (``Dataset.identification_filter``, set by the
+signal chain) is compressed *parallel filtered*: every column of ``Y_j`` and ``τ_j`` go through
+the same zero-phase low-pass per run of evenly spaced samples, in padded windows
+(:mod:`consistid.data.parallel`: memory ``O(chunk + rate/f_p)``), before their rows are folded
+in; with ``H`` linear, ``Hτ = (HY)θ + He``, so the fit is that of the same ``θ``. Every
+quantity of the problem (``ρ_j``, ``tau_sum_squares``, row weights) is then that of the
+filtered rows.
+
 Weighting by ``1/σ_j`` needs ``σ_j > 0``: :func:`floor_sigma` floors every estimated ``σ_j`` at
 :data:`SIGMA_FLOOR` times joint ``j``'s torque RMS (noise-free data fit to round-off, and would
 otherwise get infinite weights). WLS, the SDP and its Huber/IRLS passes all use it.
@@ -25,6 +33,7 @@ import numpy as np
 from scipy.linalg import lapack
 
 from ..data.dataset import Dataset
+from ..data.parallel import Window, plan
 from ..errors import OptionError
 from ..robot.model import RobotModel
 from .base import BaseParameters
@@ -148,29 +157,27 @@ def compress(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
                for keep in keeps]
     compact = [np.zeros((k.size, k.size), order="F") for k in keeps]
     n_total = dataset.n_samples
-    rows = min(chunk, max(n_total, 1))
+    cutoff, order = dataset.identification_filter or (None, 4)
+    windows = [w for w in plan(dataset.t, dataset.segment, cutoff, chunk)
+               if weights is None or np.any(weights[w.kept])]    # rows of weight 0 add nothing
+    rows = max((w.rows.stop - w.rows.start for w in windows), default=1)
     rigid = np.empty((rows, model.nv, n_in))                            # one reused buffer
     # one reused column-major block per joint (a fresh one per chunk and joint page-faults a
     # megabyte each time)
     blocks = [np.empty((rows, keep.size), order="F") for keep in keeps]
-    for start in range(0, n_total, chunk):
-        s = slice(start, min(start + chunk, n_total))
+    filtered_squares = np.zeros(model.nv)
+    for w in windows:
+        s = w.rows
         q, dq, ddq = check_states(model, dataset.q[s], dataset.dq[s], dataset.ddq[s])
         y = rigid_body_regressor(model, q, dq, ddq, out=rigid[: s.stop - s.start])
         for j, keep in enumerate(keeps):
-            # joint j's rows of [Y | τ], kept columns only, column-major for LAPACK
-            block = blocks[j] if y.shape[0] == rows else np.empty((y.shape[0], keep.size),
-                                                                   order="F")
-            r = rigid_cols[j].size
-            for a in range(0, y.shape[0], GATHER_ROWS):   # gathered and transposed in cache
-                block[a:a + GATHER_ROWS, :r] = y[a:a + GATHER_ROWS, j, rigid_cols[j]]
-            for i, suffix in enumerate(signals[j]):
-                block[:, r + i] = joint_signal(
-                    suffix, q[:, j], dq[:, j], ddq[:, j],
-                    None if dataset.dq_sign is None else dataset.dq_sign[s, j])
+            block = _joint_block(y, j, rigid_cols[j], signals[j], (q, dq, ddq), dataset, s,
+                                 blocks[j] if y.shape[0] == rows else None)
             block[:, -1] = tau[s, j]
+            block = _filtered(block, w, cutoff, order)
+            filtered_squares[j] += np.sum(block[:, -1] ** 2) if w.rate is not None else 0.0
             if weights is not None:
-                block *= root[s, j][:, None]
+                block *= root[w.kept, j][:, None]
             compact[j] = update_factor(compact[j], block)
     factors = np.zeros((model.nv, p + 1, p + 1))
     for j, keep in enumerate(keeps):
@@ -178,7 +185,39 @@ def compress(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
             factors[j][np.ix_(keep, keep)] = np.triu(compact[j])
         else:
             factors[j] = expand_factor(np.triu(compact[j]), keep, base)
-    return CompressedProblem(factors, n_total, np.sum(tau ** 2, axis=0))
+    squares = np.sum(tau ** 2, axis=0)
+    if cutoff is not None:          # the filtered torques' (unfiltered windows: as they are)
+        unfiltered = [w.kept for w in windows if w.rate is None]
+        squares = filtered_squares + sum((np.sum(tau[k] ** 2, axis=0) for k in unfiltered),
+                                         np.zeros(model.nv))
+    return CompressedProblem(factors, n_total, squares)
+
+
+def _joint_block(y: np.ndarray, j: int, rigid_cols: np.ndarray, signals: list[str],
+                 states: tuple[np.ndarray, np.ndarray, np.ndarray], dataset: Dataset, s: slice,
+                 out: np.ndarray | None) -> np.ndarray:
+    """Joint ``j``'s rows of ``[Y | ·]`` over the samples ``s`` (its kept rigid-body columns,
+    then its per-joint signals; the last column left for the torque), column-major, in ``out``
+    when given."""
+    q, dq, ddq = states
+    block = out if out is not None else np.empty((y.shape[0], rigid_cols.size + len(signals) + 1),
+                                                 order="F")
+    r = rigid_cols.size
+    for a in range(0, y.shape[0], GATHER_ROWS):   # gathered and transposed in cache
+        block[a:a + GATHER_ROWS, :r] = y[a:a + GATHER_ROWS, j, rigid_cols]
+    for i, suffix in enumerate(signals):
+        block[:, r + i] = joint_signal(suffix, q[:, j], dq[:, j], ddq[:, j],
+                                       None if dataset.dq_sign is None else dataset.dq_sign[s, j])
+    return block
+
+
+def _filtered(block: np.ndarray, window: Window, cutoff: float | None, order: int
+              ) -> np.ndarray:
+    """The window's kept rows of ``block``, through the identification low-pass when the window
+    is filtered (column-major for LAPACK)."""
+    if window.rate is None:
+        return block[window.core]
+    return np.asfortranarray(window.apply(block, cutoff, order))
 
 
 def expand_factor(r: np.ndarray, keep: np.ndarray, base: BaseParameters) -> np.ndarray:

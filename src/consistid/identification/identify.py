@@ -212,6 +212,7 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
              prior: str | None = "auto",
              covariance: str = "auto",
              exclude_joints: Sequence[int | str] = (),
+             parallel_filter: bool = True,
              **options: Any) -> IdentificationResult:
     """Identify a robot's dynamic parameters from measured torques.
 
@@ -266,6 +267,14 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
         reads one constant (0) throughout while the arm moves is excluded automatically, with
         a :class:`~consistid.errors.DataQualityWarning`. ``sigma`` and ``train_rms`` are NaN
         at excluded joints (no rows); ``res.excluded_joints`` names them.
+    parallel_filter : on data that record an identification cut-off
+        (``Dataset.identification_filter``: the signal chain sets it at 3 × the motion's band),
+        low-pass the torques and every column of the regressor alike there before least
+        squares, and compute the residual statistics (σ, ``τ_j``, the sandwich, the rows at
+        rest, Huber weights) from those filtered rows (parallel filtering,
+        :mod:`consistid.data.parallel`; ``details["parallel_filter"]``). ``False``: the
+        samples as they are (the positions' derivatives and torques at the chain's derivative
+        cut-off). Not for nonlinear friction laws, whose search reads the samples as they are.
     **options : keyword options of :func:`consistid.identification.sdp.identify_sdp`, for
         ``method="sdp"`` only.
         Options that only the SDP uses are refused for OLS/WLS, never silently ignored.
@@ -305,11 +314,21 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
             raise OptionError(f"option(s) {extra} apply to method='sdp' only, not {method!r} "
                               "(OLS/WLS are unconstrained and have no prior)")
     require_model(model)
+    if not isinstance(parallel_filter, (bool, np.bool_)):
+        raise OptionError(f"parallel_filter must be True or False, got {parallel_filter!r}")
     excluded = resolve_excluded(model, exclude_joints)
     if is_stream(dataset):  # read part by part (joints checked per part)
         dataset = as_stream(dataset, covariance, options.get("loss"))
+        if not parallel_filter:
+            if not hasattr(dataset, "parallel"):
+                raise OptionError("parallel_filter=False: a Dask collection is compressed where "
+                                  "it lies; give datasets without identification_filter "
+                                  "(dataclasses.replace(d, identification_filter=None))")
+            dataset.parallel = False
     else:
         dataset = as_dataset(dataset)
+        if not parallel_filter and dataset.identification_filter is not None:
+            dataset = dataclasses.replace(dataset, identification_filter=None)
         dataset.check_joints(model.nv, model.joint_names)
         excluded = with_dead_channels(model, dataset, excluded)
         # magnitudes, motion, dead channels, glitches, positions beyond the limits
@@ -331,7 +350,9 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
         return flag_degrees(dataclasses.replace(
             result, envelope=TrainingEnvelope.of(dataset, model.joint_names),
             details={**result.details, "weakly_informed": "not assessed (nonlinear friction "
-                     "laws: the search's covariance only; res.base_std)"}), dataset)
+                     "laws: the search's covariance only; res.base_std)",
+                     "parallel_filter": "none (nonlinear friction laws: the samples as they "
+                                        "are)"}), dataset)
     spec = without_joints(RegressorSpec.make(model, friction, armature), excluded)
     kept = np.setdiff1d(np.arange(model.nv), excluded)
     base = base_parameters_of(model, spec) if not excluded else rows_base(model, spec, kept)
@@ -358,9 +379,25 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
                 prior=default_prior(model) if prior == "auto" else prior, **options)
         result = identify_sdp(model, problem, base, spec, given,
                               dataset=dataset if isinstance(dataset, Dataset) else None)
+    result = dataclasses.replace(result, details={**result.details,
+                                                  "parallel_filter": parallel_note(dataset)})
     result = flag_degrees(with_covariance(result, problem, dataset, covariance, kept), dataset)
     result = with_weak_directions(result, problem, dataset, kept)
     return with_excluded(result, excluded, kept, friction, armature) if excluded else result
+
+
+def parallel_note(dataset: Dataset | DataStream) -> str:
+    """What ``details["parallel_filter"]`` says of the data's identification low-pass."""
+    if isinstance(dataset, Dataset):
+        flt = dataset.identification_filter
+        if flt is None:
+            return "none (the samples as they are)"
+        return (f"τ and every column of Y low-passed alike at {flt[0]:.4g} Hz (zero-phase "
+                f"Butterworth, order {flt[1]}) per run of samples, before least squares; "
+                "train_rms, σ and the residual statistics are those of the filtered rows")
+    if not getattr(dataset, "parallel", True):
+        return "none (parallel_filter=False)"
+    return "per part, as each records it (Dataset.identification_filter)"
 
 
 def with_dead_channels(model: RobotModel, dataset: Dataset, excluded: tuple[int, ...]

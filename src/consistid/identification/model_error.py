@@ -98,6 +98,10 @@ def rest_problem(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
     samples = np.flatnonzero(rest.any(axis=1))
     if samples.size == 0:
         return None
+    if dataset.identification_filter is not None:
+        # the filtered rows of the whole problem at those samples (a selection would filter
+        # the rows at rest apart from their neighbours): rows elsewhere weighted 0
+        return compress(model, dataset, spec, weights=rest.astype(float), base=base)
     return compress(model, dataset.select(samples), spec, weights=rest[samples].astype(float),
                     base=base)
 

@@ -56,6 +56,7 @@ import pinocchio as pin
 
 from ..data.checks import MAX_ABS
 from ..data.dataset import Dataset
+from ..data.parallel import lowpass_runs, plan
 from ..errors import DatasetError, JointCountError, OptionError, check_option
 from ..robot.joint_terms import (DEFAULT_FRICTION, FRICTION_TERMS, JOINT_TERMS,
                                  NONNEGATIVE_TERMS, TERM_COLUMNS)
@@ -386,6 +387,38 @@ def iter_regressor(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
         fill_regressor(model, q, dq, ddq, spec, y, joint_zeroed=start > 0,
                        dq_sign=None if dataset.dq_sign is None else dataset.dq_sign[s])
         yield s, y
+
+
+def iter_filtered(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
+                  chunk: int | None = None
+                  ) -> Iterator[tuple[slice, np.ndarray, np.ndarray]]:
+    """Yield ``(samples, Y, τ)`` as least squares sees them: ``Y`` ``(n, nv, p)`` and ``τ``
+    ``(n, nv)`` of consecutive samples through the dataset's identification low-pass
+    (``Dataset.identification_filter``, parallel filtering: :mod:`consistid.data.parallel`,
+    windows padded within each run; memory ``O(chunk + rate/f_p)``), or as they are
+    (:func:`iter_regressor`'s chunks) when it records none. Fresh arrays each time."""
+    dataset.check_joints(model.nv, model.joint_names)
+    tau = dataset.require_torque()
+    chunk = default_chunk(model, spec) if chunk is None else chunk
+    cutoff, order = dataset.identification_filter or (None, 4)
+    p = model.n_inertial + spec.n_joint_columns
+    for w in plan(dataset.t, dataset.segment, cutoff, chunk):
+        s = w.rows
+        y = np.empty((s.stop - s.start, model.nv, p))
+        q, dq, ddq = check_states(model, dataset.q[s], dataset.dq[s], dataset.ddq[s])
+        fill_regressor(model, q, dq, ddq, spec, y,
+                       dq_sign=None if dataset.dq_sign is None else dataset.dq_sign[s])
+        yield w.kept, w.apply(y, cutoff, order), w.apply(tau[s], cutoff, order)
+
+
+def residual_torque(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
+                    theta: np.ndarray) -> np.ndarray:
+    """``τ − Y θ`` (N, nv) as least squares sees it: through the dataset's identification
+    low-pass ``H`` per run when it records one (``Dataset.identification_filter``), which is
+    ``Hτ − (HY) θ`` since ``H`` is linear (:mod:`consistid.data.parallel`); else as it is."""
+    residual = dataset.require_torque() - predict_torque(model, dataset, spec, theta)
+    flt = dataset.identification_filter
+    return residual if flt is None else lowpass_runs(dataset.t, dataset.segment, residual, *flt)
 
 
 def column_support(model: RobotModel, spec: RegressorSpec) -> np.ndarray:

@@ -88,7 +88,7 @@ from ..errors import (IdentificationError, InconsistentParametersError, Infeasib
                      check_number, check_option)
 from ..robot.model import RobotModel
 from ..robot.inertia import body_slice, from_pseudo_inertia, is_degenerate, pseudo_inertia
-from .regressor import RegressorSpec, parameter_names, predict_torque, prior_vector
+from .regressor import RegressorSpec, parameter_names, prior_vector, residual_torque
 from .result import IdentificationResult
 
 #: Prior weights (× the default) over which every solve of ``benchmarks/sdp_accuracy.py`` ended
@@ -675,7 +675,7 @@ def _huber_weights(model: RobotModel, dataset: Dataset, spec: RegressorSpec, the
                    c: float, problem: CompressedProblem) -> tuple[np.ndarray, np.ndarray]:
     """MAD noise scale per joint (floored as every σ, :func:`floor_sigma`: noise-free data have
     MAD = 0) and Huber IRLS weights ``min(1, c σ / |r|)`` per sample, in ``[0, 1]``."""
-    res = dataset.require_torque() - predict_torque(model, dataset, spec, theta)
+    res = residual_torque(model, dataset, spec, theta)      # the rows the fit sees
     mad = np.median(np.abs(res - np.median(res, axis=0)), axis=0)
     sig = floor_sigma(1.4826 * mad, problem)
     u = np.abs(res) / sig

@@ -26,7 +26,7 @@ import scipy.fft
 
 from ..data.dataset import Dataset
 from ..robot.model import RobotModel
-from .regressor import RegressorSpec, iter_regressor
+from .regressor import RegressorSpec, iter_filtered
 
 
 def autocorrelation_time(dataset: Dataset, residual: np.ndarray, c: float = 5.0,
@@ -205,16 +205,17 @@ class ScoreSums:
 def score_sums(model: RobotModel, spec: RegressorSpec, theta: np.ndarray, columns: np.ndarray,
                weights: np.ndarray, dataset: Dataset) -> ScoreSums:
     """:class:`ScoreSums` of one in-memory dataset (every sample; the regressor in chunks,
-    one recording's ``(n, b)`` scores held at a time)."""
+    one recording's ``(n, b)`` scores held at a time). The rows are those least squares saw:
+    through the dataset's identification low-pass when it records one
+    (:func:`~consistid.identification.regressor.iter_filtered`)."""
     b = columns.size
     out = ScoreSums(np.zeros((len(BATCH_SIZES), b, b)), np.zeros(b), np.zeros(b), 0)
-    tau = dataset.require_torque()
     w = np.asarray(weights, dtype=float)
     for idx in _recordings(np.asarray(dataset.segment)):
-        part, measured = dataset.select(idx), tau[idx]
+        part = dataset.select(idx)
         g = np.empty((part.n_samples, b))
-        for s, y in iter_regressor(model, part, spec):
-            e = measured[s] - y @ theta                                  # (n, nv)
+        for s, y, measured in iter_filtered(model, part, spec):
+            e = measured - y @ theta                                     # (n, nv)
             g[s] = np.einsum("tjp,tj->tp", y[:, :, columns], e * w)
         out = out + _recording_sums(g)
     return out

@@ -52,7 +52,7 @@ from .base import BaseParameters
 from .compression import CompressedProblem, compress
 from .envelope import TrainingEnvelope
 from .model_error import rest_problem
-from .regressor import RegressorSpec, parameter_names, predict_torque
+from .regressor import RegressorSpec, parameter_names, residual_torque
 from .statistics import add_lagged, autocovariance_sum, integrated_time
 
 #: What a stream yields: a dataset, or a file holding one.
@@ -137,16 +137,22 @@ def autocorrelation_windows(dataset: Dataset, samples: int | None = AUTOCORRELAT
     (:meth:`~consistid.identification.compression.CompressedProblem.sum_squares`). A stream
     reads this many per part.
     """
-    n = dataset.n_samples
-    if samples is None or n <= samples:
+    index = window_index(dataset.n_samples, samples)
+    if index is None:
         return dataset
-    width = max(samples // AUTOCORRELATION_WINDOWS, 1)
-    starts = np.linspace(0, n - width, AUTOCORRELATION_WINDOWS).astype(int)
-    index = (starts[:, None] + np.arange(width)).ravel()
     picked = dataset.select(index)
-    window = np.repeat(np.arange(AUTOCORRELATION_WINDOWS), width)
+    window = np.repeat(np.arange(AUTOCORRELATION_WINDOWS), index.size // AUTOCORRELATION_WINDOWS)
     segment = picked.segment - picked.segment.min()
     return dataclasses.replace(picked, segment=segment * AUTOCORRELATION_WINDOWS + window)
+
+
+def window_index(n: int, samples: int | None) -> np.ndarray | None:
+    """The samples :func:`autocorrelation_windows` reads of ``n`` (``None``: all of them)."""
+    if samples is None or n <= samples:
+        return None
+    width = max(samples // AUTOCORRELATION_WINDOWS, 1)
+    starts = np.linspace(0, n - width, AUTOCORRELATION_WINDOWS).astype(int)
+    return (starts[:, None] + np.arange(width)).ravel()
 
 
 @dataclass(frozen=True)
@@ -198,14 +204,23 @@ class ResidualStatistics:
         :data:`TAU_PRECISION` needs ``n ≥ 2(10τ + 1)/TAU_PRECISION²`` samples (2 200 for a
         white residual, 400 000 for ``τ = 200``); the residual is then read again on that
         many. The sums and the count are those of the samples read; with ``base`` (of
-        ``(model, spec)``), :attr:`rest` is compressed from all of them."""
+        ``(model, spec)``), :attr:`rest` is compressed from all of them.
+
+        The residual is the one least squares saw
+        (:func:`~consistid.identification.regressor.residual_torque`): on a dataset that
+        records an identification cut-off, ``τ − Y θ`` through that low-pass, filtered over
+        every sample once and then read at the windows (filtering a window alone would put
+        its edges' transients into ``τ_j``)."""
+        residual = (None if dataset.identification_filter is None
+                    else residual_torque(model, spec=spec, theta=theta, dataset=dataset))
         part = autocorrelation_windows(dataset, samples)
-        stats = cls._of(model, spec, theta, part)
+        stats = cls._of(model, spec, theta, part, _at(residual, dataset, samples))
         if part is not dataset:
             tau = float(np.max(stats.autocorrelation_time()))
             needed = int(np.ceil(2.0 * (10.0 * tau + 1.0) / TAU_PRECISION ** 2))
             if needed > part.n_samples:
-                stats = cls._of(model, spec, theta, autocorrelation_windows(dataset, needed))
+                stats = cls._of(model, spec, theta, autocorrelation_windows(dataset, needed),
+                                _at(residual, dataset, needed))
         stats = dataclasses.replace(stats, top_speed=np.abs(dataset.dq).max(axis=0, initial=0.0),
                                     viscous_speed=viscous_speed(model, spec, theta))
         if base is not None:
@@ -215,8 +230,9 @@ class ResidualStatistics:
 
     @classmethod
     def _of(cls, model: RobotModel, spec: RegressorSpec, theta: np.ndarray,
-            dataset: Dataset) -> "ResidualStatistics":
-        residual = dataset.require_torque() - predict_torque(model, dataset, spec, theta)
+            dataset: Dataset, residual: np.ndarray | None = None) -> "ResidualStatistics":
+        if residual is None:
+            residual = residual_torque(model, dataset, spec, theta)
         speed = np.abs(dataset.dq)
         rest = speed < STANDSTILL_SPEED
         band = np.searchsorted(SPEED_EDGES, speed, side="right")          # (N, nv)
@@ -359,6 +375,16 @@ class ResidualStatistics:
         return integrated_time(self.autocovariance, self.sum_squares.size)
 
 
+def _at(residual: np.ndarray | None, dataset: Dataset, samples: int | None
+        ) -> np.ndarray | None:
+    """``residual`` (every sample of ``dataset``) at the samples
+    :func:`autocorrelation_windows` reads, or ``None``."""
+    if residual is None:
+        return None
+    index = window_index(dataset.n_samples, samples)
+    return residual if index is None else residual[index]
+
+
 def viscous_speed(model: RobotModel, spec: RegressorSpec, theta: np.ndarray) -> np.ndarray:
     """Per joint, ``|f_c|/f_v`` of the fitted ``theta`` (rad/s): the speed at which its
     viscous torque reaches its Coulomb level; ``inf`` where ``f_v ≤ 0`` or a term is absent."""
@@ -416,6 +442,9 @@ class DataStream:
         #: The training envelope of the parts the last :meth:`compress` read (``None``
         #: before): where the data went, for ``identify``'s weak-direction check.
         self.envelope: TrainingEnvelope | None = None
+        #: ``False``: every part is read without its identification cut-off
+        #: (``identify(..., parallel_filter=False)``).
+        self.parallel = True
 
     @property
     def rereadable(self) -> bool:
@@ -468,6 +497,8 @@ class DataStream:
                     check_magnitudes(data, joint_names=model.joint_names)
                 except DatasetError as exc:
                     raise type(exc)(f"{label}: {exc}") from exc
+            if not self.parallel and data.identification_filter is not None:
+                data = dataclasses.replace(data, identification_filter=None)
             yield label, data
 
     def compress(self, model: RobotModel, spec: RegressorSpec,
