@@ -229,7 +229,8 @@ def test_the_chain_records_its_identification_filter_and_files_keep_it(tmp_path)
     and τ were filtered at; a given cutoff alone keeps its meaning (none); savgol and decimated
     datasets keep it (identification filters both sides at their own rate); fourier, unfiltered
     torques and parallel=False have none. select, with_torque, concatenate of equals and .npz
-    keep it; a malformed one in a file is a named error."""
+    keep it, a stack of parts that all have one the highest; a malformed one in a file is a named
+    error."""
     t, q, tau = _logged()
     rec = preprocess(t, q, tau, bandwidth=1.0)
     data = rec.dataset
@@ -259,4 +260,6 @@ def test_the_chain_records_its_identification_filter_and_files_keep_it(tmp_path)
         ci.Dataset.load(tmp_path / "bad.npz")
     other = preprocess(t, q, tau, bandwidth=0.8).dataset
     assert ci.Dataset.concatenate([data, data]).identification_filter == (3.0, 4)
-    assert ci.Dataset.concatenate([data, other]).identification_filter is None
+    assert ci.Dataset.concatenate([other, data]).identification_filter == (3.0, 4)  # the highest
+    unfiltered = preprocess(t, q, tau, parallel=False).dataset
+    assert ci.Dataset.concatenate([data, unfiltered]).identification_filter is None

@@ -79,7 +79,8 @@ class Dataset:
         a few times the motion's band; ``None``: least squares on the samples as they are. Kept
         by :meth:`select` (a selection that leaves holes splits the filtering there), by
         :meth:`with_torque` (it applies to any torques), by :meth:`concatenate` when every part
-        has the same, and in ``.npz`` files (not in ``.csv``).
+        has one (the highest: no part is filtered below its own), and in ``.npz`` files (not in
+        ``.csv``).
 
     Raises
     ------
@@ -280,9 +281,7 @@ class Dataset:
                 [np.sign(d.dq) if d.dq_sign is None else d.dq_sign for d in datasets]),
             torque_filter=datasets[0].torque_filter
             if all(d.torque_filter == datasets[0].torque_filter for d in datasets) else None,
-            identification_filter=datasets[0].identification_filter
-            if all(d.identification_filter == datasets[0].identification_filter
-                   for d in datasets) else None,
+            identification_filter=_widest([d.identification_filter for d in datasets]),
         )
 
     # ----------------------------------------------------------------------------- files
@@ -431,6 +430,15 @@ def _numbered(column: str, joints: Sequence[str]) -> str:
         if column.startswith(f + "_") and joint in joints:
             return f"{f}{list(joints).index(joint) + 1}"
     return column
+
+
+def _widest(filters: Sequence[tuple[float, int] | None]) -> tuple[float, int] | None:
+    """The identification filter of stacked recordings: the highest cut-off when every part has
+    one of the same order (each part is then filtered at or above its own, which loses none of
+    its motion), else ``None``."""
+    if any(f is None for f in filters) or len({f[1] for f in filters}) != 1:
+        return None
+    return max(filters)
 
 
 def array_names(names: np.ndarray) -> tuple[str, ...]:

@@ -32,16 +32,17 @@ doi:10.1109/70.631234).
 :func:`estimate_bandwidth`, :func:`default_cutoff`
     the excitation bandwidth from the part of the position spectrum that stands above its
     noise (so that sensor noise, encoder counts and the error of stamps that jitter are not read
-    as motion), and the cut-off ``f_c = 10 × bandwidth`` (Gautier's rule of thumb; with the
-    few-Hz excitations of the seeds it gives their 30 Hz at 1 kHz), at most 0.4 × the sampling
-    rate. A torque is a nonlinear function of the motion, whose harmonics reach past the
-    position's band (products of velocities, ``sin``/``cos`` of the angles), and the same filter
-    on ``τ`` must not cut what ``Y(q̂) π`` holds: ``Y`` of the filtered positions keeps them.
-    At 2–4 × the band that mismatch makes the base parameters of MuJoCo-simulated arms
-    10–100 × less accurate than at 10 × (``benchmarks/cutoff.py --factors``); filtering the
+    as motion), and the derivative cut-off ``f_d = 10 × bandwidth`` (Gautier's rule of thumb;
+    with the few-Hz excitations of the seeds it gives their 30 Hz at 1 kHz), at most 0.4 × the
+    sampling rate. A torque is a nonlinear function of the motion, whose harmonics reach past
+    the position's band (products of velocities, ``sin``/``cos`` of the angles), and the same
+    filter on ``τ`` must not cut what ``Y(q̂) π`` holds: ``Y`` of the filtered positions keeps
+    them. At 2–4 × the band that mismatch makes the base parameters of MuJoCo-simulated arms
+    10–100 × less accurate than at 10 × (``benchmarks/cutoff.py --factors``). Filtering the
     columns of ``Y`` with the same low-pass as ``τ`` (parallel filtering, Gautier 1997) removes
-    it, which needs the regressor and so is not the chain's to do. Only ``sign(q̇)``, the
-    Coulomb column, is filtered alike here (:attr:`~consistid.data.dataset.Dataset.dq_sign`).
+    it: identification does it, at the identification cut-off ``3 × bandwidth`` that the chain
+    records on the dataset (:mod:`consistid.data.parallel`). Here, ``sign(q̇)``, the Coulomb
+    column, is filtered like ``τ`` at ``f_d`` (:attr:`~consistid.data.dataset.Dataset.dq_sign`).
 
 The chain that strings them together is :mod:`consistid.data.chain`.
 """
@@ -58,7 +59,8 @@ import scipy.signal
 
 from ..errors import DatasetError, OptionError
 
-#: Cut-off = this × the excitation bandwidth (Gautier's rule of thumb; module docstring).
+#: Derivative cut-off = this × the excitation bandwidth (Gautier's rule of thumb; module
+#: docstring). Identification's cut-off is :data:`consistid.data.parallel.PARALLEL_FACTOR` × it.
 CUTOFF_FACTOR = 10.0
 #: The cut-off never exceeds this fraction of the sampling rate (0.8 × Nyquist).
 MAX_CUTOFF_FRACTION = 0.4

@@ -53,11 +53,14 @@ def _r_factor(a: np.ndarray, size: int) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class CompressedProblem:
-    """Per-joint R factors ``R̄_j`` of ``[Y_j | τ_j]``, shape ``(nv, p + 1, p + 1)``."""
+    """Per-joint R factors ``R̄_j`` of ``[Y_j | τ_j]``, shape ``(nv, p + 1, p + 1)``;
+    ``filtered``: of rows through an identification low-pass (parallel filtering, module
+    docstring), some or all."""
 
     factors: np.ndarray
     n_samples: int
     tau_sum_squares: np.ndarray
+    filtered: bool = False
 
     @property
     def nv(self) -> int:
@@ -90,7 +93,7 @@ class CompressedProblem:
         theta = np.asarray(theta, dtype=float)
         factors = self.factors.copy()
         factors[:, :-1, -1] -= self.factors[:, :-1, :-1] @ theta
-        return CompressedProblem(factors, self.n_samples, self.sum_squares(theta))
+        return CompressedProblem(factors, self.n_samples, self.sum_squares(theta), self.filtered)
 
     def sum_squares(self, theta: np.ndarray, columns: np.ndarray | None = None) -> np.ndarray:
         """Per-joint residual sum of squares ``‖Y_j[:, columns] θ − τ_j‖²``, shape (nv,)."""
@@ -190,7 +193,7 @@ def compress(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
         unfiltered = [w.kept for w in windows if w.rate is None]
         squares = filtered_squares + sum((np.sum(tau[k] ** 2, axis=0) for k in unfiltered),
                                          np.zeros(model.nv))
-    return CompressedProblem(factors, n_total, squares)
+    return CompressedProblem(factors, n_total, squares, cutoff is not None)
 
 
 def _joint_block(y: np.ndarray, j: int, rigid_cols: np.ndarray, signals: list[str],

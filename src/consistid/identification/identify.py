@@ -501,6 +501,8 @@ def with_covariance(result: IdentificationResult, problem: CompressedProblem,
     # every sample's residual, exact from the factors (the autocorrelation may read fewer)
     variances = joint_sigma(problem.sum_squares(result.parameters), problem.n_samples,
                             result.base.n_base, tau) ** 2
+    if problem.filtered:
+        variances = long_run_variances(stats, problem.n_samples, result.base.n_base, kept, tau)
     variances = np.where(variances > 0, variances, 1.0 / weights)
     shown = ", ".join(f"{result.model.joint_names[j]} {t:.3g}" for j, t in zip(kept, tau))
     details = {**result.details, "autocorrelation_time": tau}
@@ -532,6 +534,21 @@ def with_covariance(result: IdentificationResult, problem: CompressedProblem,
         warnings.warn(note, PoorExcitationWarning, stacklevel=3)
         details["slow_joints"] = note
     return dataclasses.replace(result, base_covariance=cov, details=details)
+
+
+def long_run_variances(stats: ResidualStatistics, n_samples: int, n_base: int,
+                       kept: np.ndarray, tau: np.ndarray) -> np.ndarray:
+    r"""Per kept joint, the variance ``v_j`` of the residual of the samples as they are (read by
+    ``stats``, :func:`~consistid.identification.compression.joint_sigma`'s degrees of freedom
+    scaled to the samples read), for the sandwich of parallel-filtered rows: with ``τ_j`` from
+    the same residual, ``τ_j v_j`` is its long-run variance (spectral density at zero), which
+    the identification low-pass ``H`` (unit gain at DC) leaves unchanged, and the meat
+    ``Σ_j τ_j w_j² v_j (HΦ_j)ᵀ(HΦ_j)`` is that of the filtered rows for columns slow against
+    the correlation (:func:`~consistid.identification.statistics.coloured_covariance`; columns
+    near the cut-off see less noise than that: conservative)."""
+    read = max(stats.n_samples, 1)
+    dof = np.maximum(read - tau * n_base / max(kept.size, 1) * read / max(n_samples, 1), 1.0)
+    return stats.sum_squares[kept] / dof
 
 
 def score_sums_of(result: IdentificationResult, weights: np.ndarray,

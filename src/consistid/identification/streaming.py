@@ -52,7 +52,7 @@ from .base import BaseParameters
 from .compression import CompressedProblem, compress
 from .envelope import TrainingEnvelope
 from .model_error import rest_problem
-from .regressor import RegressorSpec, parameter_names, residual_torque
+from .regressor import RegressorSpec, parameter_names, predict_torque
 from .statistics import add_lagged, autocovariance_sum, integrated_time
 
 #: What a stream yields: a dataset, or a file holding one.
@@ -78,7 +78,7 @@ def merge(a: CompressedProblem, b: CompressedProblem) -> CompressedProblem:
         factors[j] = r[:size] if r.shape[0] >= size else np.vstack(
             [r, np.zeros((size - r.shape[0], size))])
     return CompressedProblem(factors, a.n_samples + b.n_samples,
-                             a.tau_sum_squares + b.tau_sum_squares)
+                             a.tau_sum_squares + b.tau_sum_squares, a.filtered or b.filtered)
 
 
 def merge_all(problems: Iterable[CompressedProblem]) -> CompressedProblem:
@@ -137,27 +137,31 @@ def autocorrelation_windows(dataset: Dataset, samples: int | None = AUTOCORRELAT
     (:meth:`~consistid.identification.compression.CompressedProblem.sum_squares`). A stream
     reads this many per part.
     """
-    index = window_index(dataset.n_samples, samples)
-    if index is None:
-        return dataset
-    picked = dataset.select(index)
-    window = np.repeat(np.arange(AUTOCORRELATION_WINDOWS), index.size // AUTOCORRELATION_WINDOWS)
-    segment = picked.segment - picked.segment.min()
-    return dataclasses.replace(picked, segment=segment * AUTOCORRELATION_WINDOWS + window)
-
-
-def window_index(n: int, samples: int | None) -> np.ndarray | None:
-    """The samples :func:`autocorrelation_windows` reads of ``n`` (``None``: all of them)."""
+    n = dataset.n_samples
     if samples is None or n <= samples:
-        return None
+        return dataset
     width = max(samples // AUTOCORRELATION_WINDOWS, 1)
     starts = np.linspace(0, n - width, AUTOCORRELATION_WINDOWS).astype(int)
-    return (starts[:, None] + np.arange(width)).ravel()
+    index = (starts[:, None] + np.arange(width)).ravel()
+    picked = dataset.select(index)
+    window = np.repeat(np.arange(AUTOCORRELATION_WINDOWS), width)
+    segment = picked.segment - picked.segment.min()
+    return dataclasses.replace(picked, segment=segment * AUTOCORRELATION_WINDOWS + window)
 
 
 @dataclass(frozen=True)
 class ResidualStatistics:
     """What the coloured covariance needs from the residual ``τ − Y θ`` of the fitted model.
+
+    The residual is that of the samples as they are, also on a dataset that records an
+    identification cut-off (parallel filtering): its long-run variance ``τ_j v_j`` (the
+    spectral density at zero frequency) is that of the filtered residual, a low-pass of unit
+    DC gain leaving it unchanged, and is estimated far better from it (the filtered residual is
+    correlated over ``f_d / f_p`` times as many samples: on 30 s of a 0.5 Hz band at 500 Hz,
+    ``τ_j`` ≈ 350 samples, 43 effectively independent ones, against ≈ 45); its speed bands and
+    rows at rest are not smeared over the filter's response. ``identify`` uses them with the
+    Gram matrices of the filtered rows (:func:`~consistid.identification.identify.
+    with_covariance`).
 
     Attributes
     ----------
@@ -204,23 +208,14 @@ class ResidualStatistics:
         :data:`TAU_PRECISION` needs ``n ≥ 2(10τ + 1)/TAU_PRECISION²`` samples (2 200 for a
         white residual, 400 000 for ``τ = 200``); the residual is then read again on that
         many. The sums and the count are those of the samples read; with ``base`` (of
-        ``(model, spec)``), :attr:`rest` is compressed from all of them.
-
-        The residual is the one least squares saw
-        (:func:`~consistid.identification.regressor.residual_torque`): on a dataset that
-        records an identification cut-off, ``τ − Y θ`` through that low-pass, filtered over
-        every sample once and then read at the windows (filtering a window alone would put
-        its edges' transients into ``τ_j``)."""
-        residual = (None if dataset.identification_filter is None
-                    else residual_torque(model, spec=spec, theta=theta, dataset=dataset))
+        ``(model, spec)``), :attr:`rest` is compressed from all of them."""
         part = autocorrelation_windows(dataset, samples)
-        stats = cls._of(model, spec, theta, part, _at(residual, dataset, samples))
+        stats = cls._of(model, spec, theta, part)
         if part is not dataset:
             tau = float(np.max(stats.autocorrelation_time()))
             needed = int(np.ceil(2.0 * (10.0 * tau + 1.0) / TAU_PRECISION ** 2))
             if needed > part.n_samples:
-                stats = cls._of(model, spec, theta, autocorrelation_windows(dataset, needed),
-                                _at(residual, dataset, needed))
+                stats = cls._of(model, spec, theta, autocorrelation_windows(dataset, needed))
         stats = dataclasses.replace(stats, top_speed=np.abs(dataset.dq).max(axis=0, initial=0.0),
                                     viscous_speed=viscous_speed(model, spec, theta))
         if base is not None:
@@ -230,9 +225,8 @@ class ResidualStatistics:
 
     @classmethod
     def _of(cls, model: RobotModel, spec: RegressorSpec, theta: np.ndarray,
-            dataset: Dataset, residual: np.ndarray | None = None) -> "ResidualStatistics":
-        if residual is None:
-            residual = residual_torque(model, dataset, spec, theta)
+            dataset: Dataset) -> "ResidualStatistics":
+        residual = dataset.require_torque() - predict_torque(model, dataset, spec, theta)
         speed = np.abs(dataset.dq)
         rest = speed < STANDSTILL_SPEED
         band = np.searchsorted(SPEED_EDGES, speed, side="right")          # (N, nv)
@@ -373,16 +367,6 @@ class ResidualStatistics:
     def autocorrelation_time(self) -> np.ndarray:
         """``τ_j`` per joint (:func:`consistid.identification.statistics.integrated_time`)."""
         return integrated_time(self.autocovariance, self.sum_squares.size)
-
-
-def _at(residual: np.ndarray | None, dataset: Dataset, samples: int | None
-        ) -> np.ndarray | None:
-    """``residual`` (every sample of ``dataset``) at the samples
-    :func:`autocorrelation_windows` reads, or ``None``."""
-    if residual is None:
-        return None
-    index = window_index(dataset.n_samples, samples)
-    return residual if index is None else residual[index]
 
 
 def viscous_speed(model: RobotModel, spec: RegressorSpec, theta: np.ndarray) -> np.ndarray:

@@ -91,7 +91,7 @@ def restricted(problem: CompressedProblem, kept: Sequence[int]) -> CompressedPro
     """The compressed problem of the kept joints' rows only (their per-joint factors)."""
     kept = list(kept)
     return CompressedProblem(problem.factors[kept], problem.n_samples,
-                             problem.tau_sum_squares[kept])
+                             problem.tau_sum_squares[kept], problem.filtered)
 
 
 def lost_parameters(full: BaseParameters, reduced: BaseParameters) -> list[str]:
