@@ -1045,8 +1045,9 @@ def _sdp_inertia(model: RobotModel, train: GapData, nominal: np.ndarray, others:
         # the refit's torques have the other effects (dry friction among them) taken out; what
         # it leaves at standstill is judged by the remainder, not by identify's own note
         warnings.simplefilter("ignore", ModelMisfitWarning)
+        # at the chain's torque filter, as every other effect's columns are judged
         res = identify(model.with_parameters(nominal), corrected, method="sdp", friction=None,
-                       prior=prior)
+                       prior=prior, parallel_filter=False)
     if bad:
         how = (f"without a prior (the nominal {', '.join(bad)} "
                f"{'is' if len(bad) == 1 else 'are'} not realisable to working precision: no prior "

@@ -278,6 +278,10 @@ def estimate_mounting(model: RobotModel, dataset: Dataset | DataStream,
                       armature: bool = False) -> MountingEstimate:
     """Estimate the tilt of the robot's base (the direction of gravity) from measured torques.
 
+    The samples are used as they are: a dataset's identification cut-off (parallel filtering in
+    ``consistid.identify``) is not applied here, whose least squares reads the samples at the
+    chain's derivative cut-off.
+
     Parameters
     ----------
     model : the robot; its gravity ``g₀`` is the level mounting the tilt is measured from.

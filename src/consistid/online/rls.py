@@ -195,6 +195,11 @@ def _plausible(what: str, name: str, a: np.ndarray, start: int,
 class RecursiveEstimator:
     r"""Recursive least squares on the base parameters (module docstring).
 
+    Samples are used as they come: not parallel filtered (a dataset's identification cut-off,
+    ``Dataset.identification_filter``, needs the zero-phase low-pass of ``consistid.identify``,
+    which sees samples after each one; a causal low-pass would delay ``τ`` and ``Y`` alike but
+    lag every estimate by its group delay).
+
     Parameters
     ----------
     model : the robot.
