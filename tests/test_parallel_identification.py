@@ -14,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import consistid as ci
-from consistid.data.filters import lowpass
+from consistid.data.filters import lowpass, lowpass_columns
 from consistid.data.parallel import plan, runs
 from consistid.data.signals import preprocess
 from consistid.identification.compression import compress
@@ -53,6 +53,18 @@ def test_windows_give_the_whole_run_filter(seed, cutoff, chunk, hole):
         want[r] = lowpass(x[r], cutoff, 500.0)
     assert len(runs(t, segment)) == 3
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-8 * np.abs(x).max())
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2 ** 16), n=st.integers(2, 3000), m=st.integers(1, 6),
+       cutoff=st.floats(0.5, 200.0))
+def test_lowpass_columns_is_lowpass(seed, n, m, cutoff):
+    """The column-major filter gives :func:`lowpass`'s numbers, short signals included."""
+    x = np.random.default_rng(seed).standard_normal((n, m)).cumsum(axis=0)
+    got = lowpass_columns(x, cutoff, 500.0)
+    assert got.flags.f_contiguous and got.shape == x.shape
+    np.testing.assert_allclose(got, lowpass(x, cutoff, 500.0), rtol=0, atol=1e-12 * (
+        1 + np.abs(x).max()))
 
 
 @pytest.fixture(scope="module")

@@ -31,8 +31,8 @@ How. :func:`plan` cuts a dataset into *runs* (samples of one recording segment, 
 a step more than :data:`RUN_STEP` × the segment's median step, where a selection left a hole,
 starts a new run) and each run into *windows*: a core of at least ``chunk`` samples read with
 :func:`pad_samples` more on each side within the run. A window filtered alone
-(:func:`~consistid.data.filters.lowpass`) gives its core the numbers of the whole run filtered
-at once to ``10⁻⁸`` of the signal (the zero-phase impulse response's tail beyond
+(:func:`~consistid.data.filters.lowpass_columns`) gives its core the numbers of the whole run
+filtered at once to ``10⁻⁸`` of the signal (the zero-phase impulse response's tail beyond
 :data:`PAD_PERIODS` periods of the cut-off holds less than ``10⁻⁸`` of its absolute sum:
 7.4 periods measured for order 4), so memory is ``O(max(chunk, rate / f_p))`` rows whatever the
 length of the log (a 1.6 Hz cut-off at 2 kHz: windows of 40 000 samples, 160 MB of Panda
@@ -49,7 +49,7 @@ from typing import Iterator
 import numpy as np
 
 from ..errors import DatasetError, OptionError
-from .filters import lowpass
+from .filters import lowpass_columns
 
 #: Identification cut-off = this × the excitation bandwidth (module docstring).
 PARALLEL_FACTOR = 3.0
@@ -131,7 +131,7 @@ class Window:
         if self.rate is None or cutoff is None:
             return x[self.core]
         flat = x.reshape(x.shape[0], -1)
-        return lowpass(flat, cutoff, self.rate, order)[self.core].reshape(
+        return lowpass_columns(flat, cutoff, self.rate, order)[self.core].reshape(
             (self.core.stop - self.core.start,) + x.shape[1:])
 
 

@@ -220,7 +220,7 @@ def _filtered(block: np.ndarray, window: Window, cutoff: float | None, order: in
     is filtered (column-major for LAPACK)."""
     if window.rate is None:
         return block[window.core]
-    return np.asfortranarray(window.apply(block, cutoff, order))
+    return np.asfortranarray(window.apply(block, cutoff, order))    # a copy only if not F
 
 
 def expand_factor(r: np.ndarray, keep: np.ndarray, base: BaseParameters) -> np.ndarray:
