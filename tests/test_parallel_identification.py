@@ -159,3 +159,20 @@ def test_parallel_filtering_recovers_base_parameters_better_on_a_jittered_log(ar
                               parallel_filter=on)
             err[on] = np.linalg.norm(res.base_parameters - beta) / np.linalg.norm(beta)
     assert err[True] <= err[False]
+
+
+def test_a_stream_of_recordings_is_filtered_as_the_stack(short_log):
+    """Recordings read one at a time (a stream) are filtered per recording like their stack:
+    the same estimate and σ to round-off, with the option on and off, and with the coloured
+    sandwich (a re-readable stream)."""
+    model, data = short_log
+    parts = list(data.split_segments([1]))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for on in (True, False):
+            stacked = ci.identify(model, data, method="ols", parallel_filter=on)
+            streamed = ci.identify(model, ci.DataStream(lambda: iter(parts)), method="ols",
+                                   parallel_filter=on)
+            np.testing.assert_allclose(streamed.base_parameters, stacked.base_parameters,
+                                       rtol=1e-8, atol=1e-10)
+            np.testing.assert_allclose(streamed.base_std, stacked.base_std, rtol=1e-6)
