@@ -482,7 +482,7 @@ def with_covariance(result: IdentificationResult, problem: CompressedProblem,
                                  f"{shown})")
     rest = None if stats.rest is None else restricted(stats.rest, kept)
     cov, details = with_rest_error(result, problem, rest, cov, details,
-                                   (weights, tau, variances))
+                                   (weights, tau, variances), rest_suspected(stats, kept))
     cov, details = with_split_error(result, stats, kept, cov, details)
     # the speed per joint below which its rows counted as at rest (rad/s)
     details["model_error_speed"] = stats.rest_speeds()
@@ -514,9 +514,19 @@ def score_sums_of(result: IdentificationResult, weights: np.ndarray,
     return total
 
 
+def rest_suspected(stats: ResidualStatistics, kept: np.ndarray) -> bool:
+    """Whether the residual shows the model wrong at rest on a joint of ``kept``: larger where
+    it stands still (the test of :func:`standstill_note`) or in slow bands above standstill
+    (:meth:`ResidualStatistics.rest_speeds` raised, slow joints included)."""
+    ratio, p = stats.standstill_excess()
+    bad = (p < STANDSTILL_ALPHA) & (ratio >= STANDSTILL_RATIO)
+    raised = stats.rest_speeds() > STANDSTILL_SPEED
+    return bool(np.any((bad | raised)[kept]))
+
+
 def with_rest_error(result: IdentificationResult, problem: CompressedProblem,
                     rest: CompressedProblem | None, cov: np.ndarray, details: dict,
-                    noise: tuple[np.ndarray, np.ndarray, np.ndarray]
+                    noise: tuple[np.ndarray, np.ndarray, np.ndarray], suspected: bool = False
                     ) -> tuple[np.ndarray, dict]:
     """``cov`` with the model-error term of the rows at rest added to its diagonal
     (:mod:`consistid.identification.model_error`; ``noise`` = ``(w_j, τ_j, v_j)`` of the
@@ -524,12 +534,13 @@ def with_rest_error(result: IdentificationResult, problem: CompressedProblem,
     N·m-consistent units of the parameter) with ``details["model_error_note"]`` saying what was
     done (``details["model_error_speed"]``, set by the caller: the speed per joint below which
     its rows counted as at rest). ``rest`` is the compressed problem of the rows at rest
-    (``None``: there are none)."""
+    (``None``: there are none); ``suspected``: the residual shows the model wrong at rest
+    (:func:`rest_suspected`); otherwise the term is added only when Hausman's test finds a bias."""
     cols = result.base.independent
     if rest is None:
         return cov, {**details, "model_error": np.zeros(cols.size),
                      "model_error_note": "none: no joint stands still in the data"}
-    b2, _ = rest_bias(problem, rest, cols, *noise)
+    b2, _ = rest_bias(problem, rest, cols, *noise, suspected=suspected)
     finite = np.isfinite(np.diag(cov))
     cov = cov + np.diag(np.where(finite, b2, 0.0))
     wide = np.flatnonzero(b2 > np.where(finite, np.diag(cov) - b2, np.inf))
