@@ -453,7 +453,7 @@ def with_covariance(result: IdentificationResult, problem: CompressedProblem,
                 "; a one-pass stream: the coloured sandwich needs a second reading)" if once
                 else ")")})
     stats = residual_statistics(result.model, result.spec, result.parameters, dataset,
-                                result.base)
+                                result.base, viscous_std(result))
     tau = stats.autocorrelation_time()[kept]
     cols = result.base.independent
     r_b = problem.factors[:, :-1, :-1][:, :, cols]
@@ -495,6 +495,17 @@ def with_covariance(result: IdentificationResult, problem: CompressedProblem,
         warnings.warn(note, PoorExcitationWarning, stacklevel=3)
         details["slow_joints"] = note
     return dataclasses.replace(result, base_covariance=cov, details=details)
+
+
+def viscous_std(result: IdentificationResult) -> np.ndarray:
+    """Per joint, the standard deviation of the fitted ``f_v`` with rows counted as independent
+    (``result.base_covariance`` before the sandwich), ``inf`` where ``f_v`` is not a base
+    parameter: whether a slow joint's fit reads a slope the noise could not make
+    (:meth:`ResidualStatistics.steep_joints`)."""
+    names = list(result.base.names)
+    var = np.diag(result.base_covariance)
+    return np.array([np.sqrt(max(var[names.index(f"{joint}.fv")], 0.0))
+                     if f"{joint}.fv" in names else np.inf for joint in result.model.joint_names])
 
 
 def score_sums_of(result: IdentificationResult, weights: np.ndarray,
