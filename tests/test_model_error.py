@@ -5,53 +5,16 @@ from __future__ import annotations
 
 import warnings
 
-import mujoco
 import numpy as np
-import pinocchio as pin
 import pytest
 import scipy.stats
 
 import consistid as ci
 from consistid.identification.model_error import rest_bias, rest_problem
 from consistid.identification.regressor import RegressorSpec, dataset_regressor
-from consistid.robot.inertia import perturb
-from consistid.simulate import Effects, record
-from consistid.simulate.mujoco_robot import MujocoRobot
+from consistid.simulate.mujoco_logs import friction_run
 
 FRICTION = ("coulomb", "viscous", "offset")
-
-
-def mujoco_truth(model, effects, inertias, names, fc, fv):
-    """The standard vector of the simulated robot: its bodies read back from the compiled MuJoCo
-    model (body frame = joint frame), its friction as simulated, offsets 0."""
-    mj = MujocoRobot(model, effects, inertias, timestep=1e-3).mj_model
-    bodies = []
-    for b in range(1, mj.nbody):
-        rot = np.zeros(9)
-        mujoco.mju_quat2Mat(rot, mj.body_iquat[b])
-        rot = rot.reshape(3, 3)
-        bodies.append(pin.Inertia(float(mj.body_mass[b]), mj.body_ipos[b].copy(),
-                                  rot @ np.diag(mj.body_inertia[b]) @ rot.T
-                                  ).toDynamicParameters())
-    theta = np.zeros(len(names))
-    theta[:model.n_inertial] = np.concatenate(bodies)
-    for j, joint in enumerate(model.joint_names):
-        theta[names.index(f"{joint}.fc")] = fc[j]
-        theta[names.index(f"{joint}.fv")] = fv[j]
-    return theta
-
-
-def friction_run(model, seed, duration=10.0, rate=200.0):
-    rng = np.random.default_rng(seed)
-    inertias = perturb(model.prior_parameters, 0.12, rng)
-    fc, fv = rng.uniform(0.5, 2.0, model.nv), rng.uniform(0.2, 1.0, model.nv)
-    effects = Effects(viscous=fv, coulomb=fc, torque_noise=0.1)
-    traj = ci.FourierTrajectory.random(model, 5, 10.0, rng, amplitude=0.8)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", ci.TrackingWarning)
-        rec = record(model, traj, effects, inertias, duration=duration, rate=rate,
-                     seed=int(rng.integers(2**31)))
-    return rec.true_dataset(), (effects, inertias, fc, fv)
 
 
 def test_intervals_cover_the_mujoco_truth_with_dry_friction():
@@ -64,13 +27,13 @@ def test_intervals_cover_the_mujoco_truth_with_dry_friction():
     z = {"ols": [], "sdp": []}
     friction = {"ols": [], "sdp": []}
     for seed in (3, 8):
-        data, (effects, inertias, fc, fv) = friction_run(model, seed)
+        run = friction_run(model, seed)
+        data = run.dataset
         for method in z:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 res = ci.identify(model, data, method=method, friction=FRICTION)
-            truth = res.base.project(mujoco_truth(model, effects, inertias,
-                                                  list(res.parameter_names), fc, fv))
+            truth = res.base.project(run.truth(model, list(res.parameter_names)))
             std = np.sqrt(np.diag(res.base_covariance))
             z[method].append(np.abs(res.base_parameters - truth) / std)
             friction[method].append([res.parameter_names[c].endswith((".fc", ".fv"))
@@ -148,7 +111,8 @@ def test_a_joint_too_slow_to_check_its_friction_is_warned_and_covered(arm, seed)
     xArm7 seed 0 1.29, 0.98 (before the split's error: Kinova seed 1 0.00, 3.32, 10.7, 3.62,
     xArm7 30.8, 18.6; before the slope test, unwarned and 24–280 σ off)."""
     model = ci.RobotModel.example(arm)
-    data, (effects, inertias, fc, fv) = friction_run(model, seed, duration=30.0, rate=500.0)
+    run = friction_run(model, seed, duration=30.0, rate=500.0)
+    data = run.dataset
     joints = np.flatnonzero(np.abs(data.dq).max(axis=0) < SLOW_SPEED)
     assert joints.size
     with warnings.catch_warnings(record=True) as caught:
@@ -159,7 +123,7 @@ def test_a_joint_too_slow_to_check_its_friction_is_warned_and_covered(arm, seed)
     assert slow and all(model.joint_names[j] in slow[0] for j in joints), slow
     assert np.all(res.details["model_error_speed"][joints] > 0.02)
     names = list(res.parameter_names)
-    truth = res.base.project(mujoco_truth(model, effects, inertias, names, fc, fv))
+    truth = res.base.project(run.truth(model, names))
     z = np.abs(res.base_parameters - truth) / np.sqrt(np.diag(res.base_covariance))
     base_names = [names[c] for c in res.base.independent]
     z = np.array([z[base_names.index(f"{model.joint_names[j]}.{term}")]
