@@ -29,48 +29,15 @@ import warnings
 import numpy as np
 
 import consistid as ci
-from consistid.robot.inertia import perturb
-from consistid.simulate import Effects, record
+from consistid.simulate.mujoco_logs import friction_run
 
 GROUPS = ("rigid body", "viscous", "Coulomb", "offset")
 
 
-def mujoco_inertias(rec_model) -> np.ndarray:
-    """Stacked 10-vectors (Pinocchio's order) of the bodies of a compiled MuJoCo model, body
-    ``i + 1`` carrying joint ``i`` (its frame is the joint frame)."""
-    import mujoco
-    import pinocchio as pin
-
-    out = []
-    for body in range(1, rec_model.nbody):
-        if rec_model.body_jntnum[body] == 0:     # rotor / payload bodies: not a link
-            continue
-        rot = np.zeros(9)
-        mujoco.mju_quat2Mat(rot, rec_model.body_iquat[body])
-        rot = rot.reshape(3, 3)
-        inertia = rot @ np.diag(rec_model.body_inertia[body]) @ rot.T
-        out.append(pin.Inertia(float(rec_model.body_mass[body]), rec_model.body_ipos[body].copy(),
-                               inertia).toDynamicParameters())
-    return np.concatenate(out)
-
-
 def one_run(name: str, seed: int, duration: float, rate: float, covariances: list[str],
             methods: list[str], chain: bool = False) -> list[dict]:
-    from consistid.simulate.mujoco_robot import MujocoRobot
-
     model = ci.RobotModel.example(name)
-    rng = np.random.default_rng(seed)
-    truth = perturb(model.prior_parameters, 0.12, rng)
-    fc = rng.uniform(0.5, 2.0, model.nv)
-    fv = rng.uniform(0.2, 1.0, model.nv)
-    effects = Effects(viscous=fv, coulomb=fc, torque_noise=0.1)
-    traj = ci.FourierTrajectory.random(model, 5, 10.0, rng, amplitude=0.8)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", ci.TrackingWarning)
-        rec = record(model, traj, effects, truth, duration=duration, rate=rate,
-                     seed=int(rng.integers(2**31)))
-    # the model record() compiled (same arguments): its inertias are the truth
-    inertial = mujoco_inertias(MujocoRobot(model, effects, truth, timestep=1e-3).mj_model)
+    run = friction_run(model, seed, duration, rate)
     friction = ("coulomb", "viscous", "offset")
     rows = []
     if chain:       # the measured log through the signal chain, parallel filtering on and off
@@ -78,10 +45,10 @@ def one_run(name: str, seed: int, duration: float, rate: float, covariances: lis
 
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            data = preprocess(rec.t, rec.q, rec.tau).dataset
+            data = preprocess(run.dataset.t, run.dataset.q, run.dataset.tau).dataset
         variants = [(data, True, "+parallel"), (data, False, "+10×")]
     else:
-        variants = [(rec.true_dataset(), True, "")]
+        variants = [(run.dataset, True, "")]
     for method in methods:
         for cov, (dataset, parallel, label) in ((c, v) for c in covariances for v in variants):
             with warnings.catch_warnings():
@@ -89,13 +56,7 @@ def one_run(name: str, seed: int, duration: float, rate: float, covariances: lis
                 res = ci.identify(model, dataset, method=method, friction=friction,
                                   covariance=cov, parallel_filter=parallel)
             cov = cov + label
-            names = res.parameter_names
-            theta = np.zeros(len(names))
-            theta[:inertial.size] = inertial
-            for j, joint in enumerate(model.joint_names):
-                theta[names.index(f"{joint}.fc")] = fc[j]
-                theta[names.index(f"{joint}.fv")] = fv[j]
-            beta = res.base.project(theta)
+            beta = res.base.project(run.truth(model, list(res.parameter_names)))
             var = np.clip(np.diag(res.base_covariance), 0, None)
             error = np.abs(res.base_parameters - beta)
             rows.append(dict(robot=name, seed=seed, method=method, covariance=cov,

@@ -18,41 +18,13 @@ from __future__ import annotations
 import argparse
 import warnings
 
-import mujoco
 import numpy as np
 
 import consistid as ci
-from consistid.robot.mjcf import mjcf_spec
+from consistid.simulate.mujoco_logs import PD_STEP as H
+from consistid.simulate.mujoco_logs import pd_log
 from consistid.simulator import calibrate_simulator
 from consistid.simulator import calibrate as calibrate_module
-
-H = 0.002
-
-
-def simulated_log(model, parameters, names, duration, seed, noise, gain=None, lag=0,
-                  kp=400.0, kd=40.0):
-    """MuJoCo at step H: a PD + gravity compensation; the joint receives gain·u(k − lag)."""
-    spec = mjcf_spec(model, parameters, names)
-    spec.option.timestep = H
-    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
-    mj = spec.compile()
-    data = mujoco.MjData(mj)
-    rng = np.random.default_rng(seed)
-    des = ci.FourierTrajectory.random(model, 4, 4.0, rng).sample(1.0 / H, duration + 2 * H)
-    steps = int(round(duration / H))
-    data.qpos[:], data.qvel[:] = des.q[0], des.dq[0]
-    q, dq, u = (np.empty((steps + 1, model.nv)) for _ in range(3))
-    g = np.ones(model.nv) if gain is None else gain
-    for k in range(steps + 1):
-        mujoco.mj_forward(mj, data)
-        u[k] = data.qfrc_bias + kp * (des.q[k] - data.qpos) + kd * (des.dq[k] - data.qvel)
-        q[k], dq[k] = data.qpos, data.qvel
-        data.qfrc_applied[:] = g * u[max(k - lag, 0)]
-        mujoco.mj_step(mj, data)
-    tau = u + noise * rng.standard_normal(u.shape)
-    return ci.Dataset(t=H * np.arange(steps), q=q[:-1], dq=dq[:-1],
-                      ddq=np.diff(dq, axis=0) / H, tau=tau[:-1],
-                      joint_names=tuple(model.joint_names))
 
 
 def one(model, seed, actuation):
@@ -70,11 +42,11 @@ def one(model, seed, actuation):
         gain, lag, kp, kd = rng.uniform(0.85, 1.15, model.nv), 2, 100.0, 10.0
         truth["gain"], truth["delay"] = gain, np.array([lag * H])
         terms += ("gain", "delay")
-    log = simulated_log(model, params, names, 4.0, seed, 0.05, gain, lag, kp, kd)
+    log = pd_log(model, params, names, 4.0, seed, 0.05, gain, lag, (kp, kd))
     # the physical parameters from a log of the drives as calibrated (gain 1, no delay): on the
     # gained log itself the identification would absorb a common gain into the inertias (only
     # a known mass separates them, ci.identify_drive_gains)
-    ident = simulated_log(model, params, names, 4.0, 1000 + seed, 0.05) if actuation else log
+    ident = pd_log(model, params, names, 4.0, 1000 + seed, 0.05) if actuation else log
     res = ci.identify(model, ident, method="sdp", friction=("viscous",), armature=True)
     cal = calibrate_simulator(res, log, terms=terms)
     rows = {}

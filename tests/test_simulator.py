@@ -20,44 +20,16 @@ from hypothesis import strategies as st
 
 import consistid as ci
 from consistid.robot.mjcf import mjcf_spec, write_mjcf
+from consistid.simulate.mujoco_logs import PD_STEP as H
+from consistid.simulate.mujoco_logs import pd_log
 from consistid.simulator import (ComputedTorque, PDGains, RolloutOptions, calibrate_simulator,
                                  validate_rollout)
 
-H = 0.002
 
 
 def _terms(model: ci.RobotModel, armature: np.ndarray, damping: np.ndarray):
     names = [f"{j}.{s}" for s in ("Ia", "fv") for j in model.joint_names]
     return np.concatenate([armature, damping]), names
-
-
-def _simulated_log(model: ci.RobotModel, parameters: np.ndarray, names, duration: float,
-                   seed: int, noise: float = 0.0, gain: np.ndarray | None = None,
-                   lag: int = 0, gains: tuple[float, float] = (400.0, 40.0)) -> ci.Dataset:
-    """A log of MuJoCo itself at step H, implicitfast: (t, q, q̇, q̈ = Δq̇/h, τ + noise); the
-    joints receive ``gain · τ`` of ``lag`` steps before (the drive), τ is logged."""
-    spec = mjcf_spec(model, parameters, names)
-    spec.option.timestep = H
-    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
-    mj = spec.compile()
-    data = mujoco.MjData(mj)
-    rng = np.random.default_rng(seed)
-    traj = ci.FourierTrajectory.random(model, 4, 4.0, rng)
-    t = H * np.arange(int(round(duration / H)) + 1)
-    des = traj.sample(1.0 / H, t[-1] + 2 * H)
-    data.qpos[:], data.qvel[:] = des.q[0], des.dq[0]
-    q, dq, tau = (np.empty((t.size, model.nv)) for _ in range(3))
-    kp, kd = gains
-    for k in range(t.size):
-        mujoco.mj_forward(mj, data)
-        u = data.qfrc_bias + kp * (des.q[k] - data.qpos) + kd * (des.dq[k] - data.qvel)
-        q[k], dq[k], tau[k] = data.qpos, data.qvel, u
-        data.qfrc_applied[:] = (1.0 if gain is None else gain) * tau[max(k - lag, 0)]
-        mujoco.mj_step(mj, data)
-    ddq = np.vstack([np.diff(dq, axis=0) / H, np.zeros((1, model.nv))])
-    tau = tau + noise * rng.standard_normal(tau.shape)
-    return ci.Dataset(t=t[:-1], q=q[:-1], dq=dq[:-1], ddq=ddq[:-1], tau=tau[:-1],
-                      joint_names=tuple(model.joint_names))
 
 
 def _computed_torque_log(model: ci.RobotModel, parameters: np.ndarray, names, duration: float,
@@ -109,7 +81,7 @@ class _Fixed:
 
 def test_the_true_model_replays_its_own_log(panda, truth):
     true_model, params, names, *_ = truth
-    log = _simulated_log(panda, params, names, 2.0, seed=0)
+    log = pd_log(panda, params, names, 2.0, seed=0)
     v = validate_rollout(log, {"nominal": panda, "truth": _Fixed(panda, params, names)})
     nominal, exact = v.replays
     assert np.all(exact.q_error < 1e-9) and np.all(exact.tau_error < 1e-6)
@@ -121,7 +93,7 @@ def test_the_true_model_replays_its_own_log(panda, truth):
 def test_the_true_model_replays_through_the_users_mjcf(panda, truth, tmp_path):
     """The user's MJCF (written with the nominal inertias) gets the true ones in memory."""
     _, params, names, *_ = truth
-    log = _simulated_log(panda, params, names, 1.0, seed=1)
+    log = pd_log(panda, params, names, 1.0, seed=1)
     path = write_mjcf(panda, tmp_path / "robot.xml")
     before = path.read_bytes()
     v = validate_rollout(log, {"nominal": panda, "truth": _Fixed(panda, params, names)},
@@ -133,7 +105,7 @@ def test_the_true_model_replays_through_the_users_mjcf(panda, truth, tmp_path):
 
 def test_noise_only_leaves_a_small_closed_loop_error(panda, truth):
     _, params, names, *_ = truth
-    log = _simulated_log(panda, params, names, 2.0, seed=2, noise=0.1)
+    log = pd_log(panda, params, names, 2.0, seed=2, noise=0.1)
     v = validate_rollout(log, {"truth": _Fixed(panda, params, names)},
                          options=RolloutOptions(controller=PDGains(bandwidth=30.0)))
     r = v.replays[0]
@@ -144,7 +116,7 @@ def test_noise_only_leaves_a_small_closed_loop_error(panda, truth):
 
 def test_calibration_recovers_armature_and_damping(panda, truth):
     _, params, names, armature, damping = truth
-    log = _simulated_log(panda, params, names, 4.0, seed=4, noise=0.02)
+    log = pd_log(panda, params, names, 4.0, seed=4, noise=0.02)
     res = ci.identify(panda, log, method="sdp", friction=("viscous",), armature=True)
     start = res.parameters.copy()
     for k, n in enumerate(res.parameter_names):
@@ -166,7 +138,7 @@ def test_calibration_recovers_armature_and_damping(panda, truth):
 
 def test_results_save_and_report(panda, truth, tmp_path):
     _, params, names, *_ = truth
-    log = _simulated_log(panda, params, names, 1.0, seed=5)
+    log = pd_log(panda, params, names, 1.0, seed=5)
     v = validate_rollout(log, {"nominal": panda, "truth": _Fixed(panda, params, names)})
     back = type(v).load(v.save(tmp_path / "rollout.json"))
     assert np.array_equal(back.replays[0].q_error, v.replays[0].q_error)
@@ -190,7 +162,7 @@ def test_a_tampered_rollout_file_is_refused(panda, truth, tmp_path, edit, match)
     import json
 
     _, params, names, *_ = truth
-    log = _simulated_log(panda, params, names, 0.5, seed=8)
+    log = pd_log(panda, params, names, 0.5, seed=8)
     path = validate_rollout(log, {"nominal": panda, "truth": _Fixed(panda, params, names)}
                             ).save(tmp_path / "rollout.json")
     doc = json.loads(path.read_text())
@@ -211,7 +183,7 @@ def test_a_rollout_file_that_is_not_json_is_refused(tmp_path):
 
 def test_a_failed_save_leaves_the_old_file(panda, truth, tmp_path, monkeypatch):
     _, params, names, *_ = truth
-    log = _simulated_log(panda, params, names, 0.5, seed=9)
+    log = pd_log(panda, params, names, 0.5, seed=9)
     v = validate_rollout(log, {"truth": _Fixed(panda, params, names)})
     path = v.save(tmp_path / "rollout.json")
     before = path.read_bytes()
@@ -311,7 +283,7 @@ def test_every_log_cholesky_vector_is_a_consistent_body_and_round_trips(u):
 
 def test_a_calibration_warns_in_another_simulator(panda, truth):
     _, params, names, *_ = truth
-    log = _simulated_log(panda, params, names, 1.0, seed=6)
+    log = pd_log(panda, params, names, 1.0, seed=6)
     res = ci.identify(panda, log, method="sdp", friction=("viscous",), armature=True)
     cal = calibrate_simulator(res, log, max_iterations=1)
     with pytest.warns(ci.ModelMisfitWarning, match="calibrated at 0.002 s implicitfast"):
@@ -321,7 +293,7 @@ def test_a_calibration_warns_in_another_simulator(panda, truth):
 
 def test_a_diagnosis_carries_the_rollout(panda, truth, tmp_path):
     _, params, names, *_ = truth
-    log = _simulated_log(panda, params, names, 4.0, seed=7, noise=0.05)
+    log = pd_log(panda, params, names, 4.0, seed=7, noise=0.05)
     diag = ci.diagnose(panda, log, effects=("inertia", "viscous", "armature"))
     v = validate_rollout(log, {"nominal": panda, "truth": _Fixed(panda, params, names)})
     carried = diag.with_rollout(v)
@@ -396,10 +368,10 @@ def test_calibration_recovers_a_planted_gain_and_delay(panda, truth):
     _, params, names, armature, damping = truth
     gain = np.array([1.1, 0.9, 1.15, 0.85, 1.05, 0.95, 1.1])
     # the physical parameters from the drives as they were (no gain error, no delay)
-    res = ci.identify(panda, _simulated_log(panda, params, names, 3.0, seed=20, noise=0.02),
+    res = ci.identify(panda, pd_log(panda, params, names, 3.0, seed=20, noise=0.02),
                       method="sdp", friction=("viscous",), armature=True)
-    log = _simulated_log(panda, params, names, 3.0, seed=21, noise=0.02, gain=gain, lag=2,
-                         gains=(100.0, 10.0))
+    log = pd_log(panda, params, names, 3.0, seed=21, noise=0.02, gain=gain, lag=2,
+                 gains=(100.0, 10.0))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         cal = calibrate_simulator(res, log, terms=("armature", "damping", "gain", "delay"))
@@ -419,7 +391,7 @@ def test_calibration_recovers_a_planted_gain_and_delay(panda, truth):
 
 def test_gain_and_delay_are_refused_under_computed_torque(panda, truth):
     _, params, names, *_ = truth
-    log = _simulated_log(panda, params, names, 0.5, seed=22)
+    log = pd_log(panda, params, names, 0.5, seed=22)
     res = ci.identify(panda, log, method="sdp", friction=("viscous",), armature=True)
     with pytest.raises(ci.OptionError, match="PD replay"):
         calibrate_simulator(res, log, controller=ComputedTorque(), terms=("armature", "gain"))
@@ -498,7 +470,7 @@ def _short_calibration(panda, truth, monkeypatch, step: float):
     from consistid.simulator import calibrate as calibrate_module
 
     _, params, names, *_ = truth
-    log = _simulated_log(panda, params, names, 0.3, seed=4, noise=0.02)
+    log = pd_log(panda, params, names, 0.3, seed=4, noise=0.02)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ci.PoorExcitationWarning)
         res = ci.identify(panda, log, method="sdp", friction=("viscous",), armature=True)
@@ -588,7 +560,7 @@ def saved_calibration(panda, truth, tmp_path_factory):
     import json
 
     _, params, names, *_ = truth
-    log = _simulated_log(panda, params, names, 0.3, seed=4, noise=0.02)
+    log = pd_log(panda, params, names, 0.3, seed=4, noise=0.02)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ci.PoorExcitationWarning)
         res = ci.identify(panda, log, method="sdp", friction=("viscous",), armature=True)

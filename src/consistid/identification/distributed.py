@@ -80,12 +80,15 @@ def merge_partials(partials: Iterable[CompressedProblem | None]) -> CompressedPr
 
 def residual_partition(items: Iterable[Part], model: RobotModel, spec: RegressorSpec,
                        theta: np.ndarray, loader: Callable[[Path], Dataset],
-                       base: BaseParameters | None = None) -> ResidualStatistics | None:
+                       base: BaseParameters | None = None,
+                       viscous_std: np.ndarray | None = None) -> ResidualStatistics | None:
     """:class:`ResidualStatistics` of ``τ − Y θ`` on one partition (``None`` if empty;
-    ``base``: also its rows at rest, :meth:`ResidualStatistics.of`)."""
+    ``base``: also its rows at rest, ``viscous_std``: σ of the fitted ``f_v``;
+    :meth:`ResidualStatistics.of`)."""
     out = None
     for k, p in enumerate(items):
-        stats = ResidualStatistics.of(model, spec, theta, _load(p, k, model, loader), base=base)
+        stats = ResidualStatistics.of(model, spec, theta, _load(p, k, model, loader), base=base,
+                                      viscous_std=viscous_std)
         out = stats if out is None else out + stats
     return out
 
@@ -190,10 +193,11 @@ class DaskData(DataStream):
         return problem
 
     def residual_statistics(self, model: RobotModel, spec: RegressorSpec,
-                            theta: np.ndarray, base: BaseParameters | None = None
-                            ) -> ResidualStatistics:
+                            theta: np.ndarray, base: BaseParameters | None = None,
+                            viscous_std: np.ndarray | None = None) -> ResidualStatistics:
         per = partial(residual_partition, model=model, spec=spec,
-                      theta=np.asarray(theta, dtype=float), loader=self.loader, base=base)
+                      theta=np.asarray(theta, dtype=float), loader=self.loader, base=base,
+                      viscous_std=viscous_std)
         stats = self._compute(self.bag.reduction(per, add_partials,
                                                  split_every=self.split_every))
         if stats is None:

@@ -490,7 +490,7 @@ def with_covariance(result: IdentificationResult, problem: CompressedProblem,
                 "; a one-pass stream: the coloured sandwich needs a second reading)" if once
                 else ")")})
     stats = residual_statistics(result.model, result.spec, result.parameters, dataset,
-                                result.base)
+                                result.base, viscous_std(result))
     tau = stats.autocorrelation_time()[kept]
     cols = result.base.independent
     r_b = problem.factors[:, :-1, :-1][:, :, cols]
@@ -503,6 +503,7 @@ def with_covariance(result: IdentificationResult, problem: CompressedProblem,
                             result.base.n_base, tau) ** 2
     if problem.filtered:
         variances = long_run_variances(stats, problem.n_samples, result.base.n_base, kept, tau)
+        stats = unfiltered_slope_noise(stats, kept, variances, weights)
     variances = np.where(variances > 0, variances, 1.0 / weights)
     shown = ", ".join(f"{result.model.joint_names[j]} {t:.3g}" for j, t in zip(kept, tau))
     details = {**result.details, "autocorrelation_time": tau}
@@ -521,7 +522,7 @@ def with_covariance(result: IdentificationResult, problem: CompressedProblem,
                                  f"{shown})")
     rest = None if stats.rest is None else restricted(stats.rest, kept)
     cov, details = with_rest_error(result, problem, rest, cov, details,
-                                   (weights, tau, variances))
+                                   (weights, tau, variances), rest_suspected(stats, kept))
     cov, details = with_split_error(result, stats, kept, cov, details)
     # the speed per joint below which its rows counted as at rest (rad/s)
     details["model_error_speed"] = stats.rest_speeds()
@@ -551,6 +552,31 @@ def long_run_variances(stats: ResidualStatistics, n_samples: int, n_base: int,
     return stats.sum_squares[kept] / dof
 
 
+def unfiltered_slope_noise(stats: ResidualStatistics, kept: np.ndarray, variances: np.ndarray,
+                           weights: np.ndarray) -> ResidualStatistics:
+    """``stats`` with its :attr:`~ResidualStatistics.viscous_noise` read at the noise of the
+    samples as they are: :func:`viscous_std` of parallel-filtered rows counts the filtered
+    residual's variance ``1/w_j``, a fraction ``≈ 2 f_p / rate`` of the variance ``v_j`` that
+    ``√τ_j`` (from the unfiltered residual) then scales, so each kept joint's ``σ(f̂_v)`` is
+    scaled by ``√(v_j w_j)`` (its column lies in its own joint's rows only)."""
+    if stats.viscous_noise is None:
+        return stats
+    noise = stats.viscous_noise.copy()
+    noise[kept] *= np.sqrt(np.maximum(variances * weights[kept], 0.0))
+    return dataclasses.replace(stats, viscous_noise=noise)
+
+
+def viscous_std(result: IdentificationResult) -> np.ndarray:
+    """Per joint, the standard deviation of the fitted ``f_v`` with rows counted as independent
+    (``result.base_covariance`` before the sandwich), ``inf`` where ``f_v`` is not a base
+    parameter: whether a slow joint's fit reads a slope the noise could not make
+    (:meth:`ResidualStatistics.steep_joints`)."""
+    names = list(result.base.names)
+    var = np.diag(result.base_covariance)
+    return np.array([np.sqrt(max(var[names.index(f"{joint}.fv")], 0.0))
+                     if f"{joint}.fv" in names else np.inf for joint in result.model.joint_names])
+
+
 def score_sums_of(result: IdentificationResult, weights: np.ndarray,
                   dataset: Dataset | DataStream) -> ScoreSums:
     """:class:`~consistid.identification.statistics.ScoreSums` of the fitted model on an
@@ -568,9 +594,19 @@ def score_sums_of(result: IdentificationResult, weights: np.ndarray,
     return total
 
 
+def rest_suspected(stats: ResidualStatistics, kept: np.ndarray) -> bool:
+    """Whether the residual shows the model wrong at rest on a joint of ``kept``: larger where
+    it stands still (the test of :func:`standstill_note`) or in slow bands above standstill
+    (:meth:`ResidualStatistics.rest_speeds` raised, slow joints included)."""
+    ratio, p = stats.standstill_excess()
+    bad = (p < STANDSTILL_ALPHA) & (ratio >= STANDSTILL_RATIO)
+    raised = stats.rest_speeds() > STANDSTILL_SPEED
+    return bool(np.any((bad | raised)[kept]))
+
+
 def with_rest_error(result: IdentificationResult, problem: CompressedProblem,
                     rest: CompressedProblem | None, cov: np.ndarray, details: dict,
-                    noise: tuple[np.ndarray, np.ndarray, np.ndarray]
+                    noise: tuple[np.ndarray, np.ndarray, np.ndarray], suspected: bool = False
                     ) -> tuple[np.ndarray, dict]:
     """``cov`` with the model-error term of the rows at rest added to its diagonal
     (:mod:`consistid.identification.model_error`; ``noise`` = ``(w_j, τ_j, v_j)`` of the
@@ -578,12 +614,13 @@ def with_rest_error(result: IdentificationResult, problem: CompressedProblem,
     N·m-consistent units of the parameter) with ``details["model_error_note"]`` saying what was
     done (``details["model_error_speed"]``, set by the caller: the speed per joint below which
     its rows counted as at rest). ``rest`` is the compressed problem of the rows at rest
-    (``None``: there are none)."""
+    (``None``: there are none); ``suspected``: the residual shows the model wrong at rest
+    (:func:`rest_suspected`); otherwise the term is added only when Hausman's test finds a bias."""
     cols = result.base.independent
     if rest is None:
         return cov, {**details, "model_error": np.zeros(cols.size),
                      "model_error_note": "none: no joint stands still in the data"}
-    b2, _ = rest_bias(problem, rest, cols, *noise)
+    b2, _ = rest_bias(problem, rest, cols, *noise, suspected=suspected)
     finite = np.isfinite(np.diag(cov))
     cov = cov + np.diag(np.where(finite, b2, 0.0))
     wide = np.flatnonzero(b2 > np.where(finite, np.diag(cov) - b2, np.inf))

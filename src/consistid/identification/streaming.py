@@ -119,6 +119,12 @@ BAND_ALPHA = 1e-3
 #: Kinova wrist), while a step the data resolve keeps its level beside a steep viscous slope
 #: (a harmonic drive's ``f_v = 5`` at 0.27 rad/s beside ``f_c = 1``: 0.74 of it, not slow).
 STEP_SHARE = 0.25
+#: ... and only when that viscous slope is one the data read: ``f̂_v`` beyond this many of its
+#: standard deviations (those of rows counted as independent, times ``√τ_j``) from 0, its 95 %
+#: interval clear of 0 (:meth:`ResidualStatistics.steep_joints`). A noise slope on poor data
+#: (``f̂_v`` 11.6 ± 84 beside ``f̂_c ≈ 0``; 0.12 ± 8.5·10⁵ on a UR5 shoulder moved 2 s below
+#: 0.16 rad/s) is not the mark of smoothed dry friction.
+SLOPE_Z = 1.96
 
 
 def autocorrelation_windows(dataset: Dataset, samples: int | None = AUTOCORRELATION_SAMPLES
@@ -183,6 +189,10 @@ class ResidualStatistics:
     viscous_speed : (nv,) the speed ``|f_c|/f_v`` (rad/s) at which the fitted viscous torque
         of joint ``j`` equals its fitted Coulomb level (``inf`` where ``f_v ≤ 0`` or either term
         is not fitted), or ``None`` (:meth:`slow_joints`).
+    viscous_noise : (nv,) ``σ(f̂_v)/f̂_v``, the fitted viscous term's relative standard
+        deviation with rows counted as independent (``inf`` where ``f_v ≤ 0`` or it is not a
+        base parameter), or ``None``: unknown, every fitted slope is read
+        (:meth:`steep_joints`).
     """
 
     autocovariance: np.ndarray | None
@@ -195,11 +205,13 @@ class ResidualStatistics:
     rest: CompressedProblem | None = None
     top_speed: np.ndarray | None = None
     viscous_speed: np.ndarray | None = None
+    viscous_noise: np.ndarray | None = None
 
     @classmethod
     def of(cls, model: RobotModel, spec: RegressorSpec, theta: np.ndarray,
            dataset: Dataset, samples: int | None = AUTOCORRELATION_SAMPLES,
-           base: BaseParameters | None = None) -> "ResidualStatistics":
+           base: BaseParameters | None = None, viscous_std: np.ndarray | None = None
+           ) -> "ResidualStatistics":
         """The statistics of one in-memory dataset (by
         :func:`~consistid.identification.regressor.predict_torque`) over ``samples`` of its
         samples (:func:`autocorrelation_windows`; ``None``: all of them), or more when the
@@ -208,7 +220,9 @@ class ResidualStatistics:
         :data:`TAU_PRECISION` needs ``n ≥ 2(10τ + 1)/TAU_PRECISION²`` samples (2 200 for a
         white residual, 400 000 for ``τ = 200``); the residual is then read again on that
         many. The sums and the count are those of the samples read; with ``base`` (of
-        ``(model, spec)``), :attr:`rest` is compressed from all of them."""
+        ``(model, spec)``), :attr:`rest` is compressed from all of them. ``viscous_std``: per
+        joint, the standard deviation of the fitted ``f_v`` (rows counted as independent;
+        :attr:`viscous_noise`)."""
         part = autocorrelation_windows(dataset, samples)
         stats = cls._of(model, spec, theta, part)
         if part is not dataset:
@@ -217,7 +231,8 @@ class ResidualStatistics:
             if needed > part.n_samples:
                 stats = cls._of(model, spec, theta, autocorrelation_windows(dataset, needed))
         stats = dataclasses.replace(stats, top_speed=np.abs(dataset.dq).max(axis=0, initial=0.0),
-                                    viscous_speed=viscous_speed(model, spec, theta))
+                                    viscous_speed=viscous_speed(model, spec, theta),
+                                    viscous_noise=viscous_noise(model, spec, theta, viscous_std))
         if base is not None:
             stats = dataclasses.replace(stats, rest=rest_problem(model, dataset, spec, base,
                                                                  stats.rest_speeds()))
@@ -252,7 +267,9 @@ class ResidualStatistics:
                                   None if self.top_speed is None or other.top_speed is None
                                   else np.maximum(self.top_speed, other.top_speed),
                                   self.viscous_speed if other.viscous_speed is None
-                                  else other.viscous_speed)
+                                  else other.viscous_speed,
+                                  self.viscous_noise if other.viscous_noise is None
+                                  else other.viscous_noise)
 
     def rest_speeds(self) -> np.ndarray:
         r"""Per joint, the speed (rad/s) below which its residual is structured: the upper edge
@@ -299,11 +316,16 @@ class ResidualStatistics:
 
         - the RMS of the largest-residual band they reach is :data:`BAND_RATIO` times that of
           the smallest or more, beyond chance at level :data:`BAND_ALPHA` (the F-test of
-          :meth:`rest_speeds`, both bands from the data), or
+          :meth:`rest_speeds`, both bands from the data; its p-value times the ``m(m − 1)``
+          ordered pairs of the ``m`` bands reached, of which the extreme one is tested:
+          Bonferroni. Without it white noise on a joint moved 2 s below 0.16 rad/s, bands of
+          ~25 samples, was flagged in 2 of 50 UR5 and Panda runs), or
         - the fit reads a slope where a step should be: its Coulomb level is at most
           :data:`STEP_SHARE` of its viscous torque at the joint's fastest speed,
           ``|f_c| ≤ STEP_SHARE · f_v \max|q̇_j|`` (:attr:`viscous_speed` ``≤ STEP_SHARE ×``
-          :attr:`top_speed`). Dry friction smoothed over a band
+          :attr:`top_speed`), with ``f̂_v`` itself clear of 0 (beyond :data:`SLOPE_Z` of its
+          standard deviation, :attr:`viscous_noise`: a slope the noise makes is no
+          evidence). Dry friction smoothed over a band
           of slow speeds ``v_s`` (presliding, a Stribeck band, MuJoCo's soft
           ``frictionloss``) rises about linearly there, ``f ≈ f_c q̇/v_s``: fitted on
           ``|q̇| < v_s`` only, ``f_c sign(q̇) + f_v q̇`` takes it as ``f_v ≈ f_c/v_s`` and
@@ -330,18 +352,25 @@ class ResidualStatistics:
             if not var.min() > 0:
                 continue
             f = var.max() / var.min()
-            if (f >= BAND_RATIO ** 2
-                    and scipy.stats.f.sf(f, effective[j, hi], effective[j, lo]) < BAND_ALPHA):
+            pairs = reached.size * (reached.size - 1)
+            if (f >= BAND_RATIO ** 2 and pairs * scipy.stats.f.sf(
+                    f, effective[j, hi], effective[j, lo]) < BAND_ALPHA):
                 out.append(j)
         return np.array(out, dtype=int)
 
     def steep_joints(self) -> np.ndarray:
         """(nv,) bool: the fitted Coulomb level is at most :data:`STEP_SHARE` of the fitted
-        viscous torque at the joint's fastest speed (:meth:`slow_joints`); all ``False`` when
-        unknown."""
+        viscous torque at the joint's fastest speed and the viscous term is clear of 0 by
+        :data:`SLOPE_Z` standard deviations (:attr:`viscous_noise` × ``√τ_j``, the residual's
+        autocorrelation time) when that is known (:meth:`slow_joints`); all ``False`` when the
+        speeds are unknown."""
         if self.top_speed is None or self.viscous_speed is None:
             return np.zeros(self.sum_squares.size, dtype=bool)
-        return self.viscous_speed <= STEP_SHARE * self.top_speed
+        steep = self.viscous_speed <= STEP_SHARE * self.top_speed
+        if self.viscous_noise is None:
+            return steep
+        tau = np.maximum(self.autocorrelation_time(), 1.0)
+        return steep & (SLOPE_Z * self.viscous_noise * np.sqrt(tau) < 1.0)
 
     def standstill_excess(self) -> tuple[np.ndarray, np.ndarray]:
         r"""``(ratio, p)`` per joint: the residual's RMS on the samples where the joint stands
@@ -378,6 +407,21 @@ def viscous_speed(model: RobotModel, spec: RegressorSpec, theta: np.ndarray) -> 
         fc, fv = f"{joint}.fc", f"{joint}.fv"
         if fc in names and fv in names and theta[names.index(fv)] > 0:
             out[j] = abs(theta[names.index(fc)]) / theta[names.index(fv)]
+    return out
+
+
+def viscous_noise(model: RobotModel, spec: RegressorSpec, theta: np.ndarray,
+                  std: np.ndarray | None) -> np.ndarray | None:
+    """Per joint, ``std_j / f̂_v`` of the fitted ``theta`` (``inf`` where ``f̂_v ≤ 0`` or the
+    term is absent; :attr:`ResidualStatistics.viscous_noise`), or ``None`` without ``std``."""
+    if std is None:
+        return None
+    names = parameter_names(model, spec)
+    out = np.full(model.nv, np.inf)
+    for j, joint in enumerate(model.joint_names):
+        fv = f"{joint}.fv"
+        if fv in names and theta[names.index(fv)] > 0 and np.isfinite(std[j]):
+            out[j] = std[j] / theta[names.index(fv)]
     return out
 
 
@@ -503,14 +547,15 @@ class DataStream:
         return problem
 
     def residual_statistics(self, model: RobotModel, spec: RegressorSpec,
-                            theta: np.ndarray, base: BaseParameters | None = None
-                            ) -> ResidualStatistics:
+                            theta: np.ndarray, base: BaseParameters | None = None,
+                            viscous_std: np.ndarray | None = None) -> ResidualStatistics:
         """:class:`ResidualStatistics` of ``τ − Y θ`` over every part (a second pass; each part
-        counts as its own recordings for the autocorrelation; ``base``: see
+        counts as its own recordings for the autocorrelation; ``base``, ``viscous_std``: see
         :meth:`ResidualStatistics.of`)."""
         total = None
         for _, data in self.parts(model):
-            stats = ResidualStatistics.of(model, spec, theta, data, base=base)
+            stats = ResidualStatistics.of(model, spec, theta, data, base=base,
+                                          viscous_std=viscous_std)
             total = stats if total is None else total + stats
         if total is None:
             raise DatasetError("the data stream is empty on its second reading: a function "
@@ -569,13 +614,14 @@ def compress_data(model: RobotModel, data: Dataset | DataStream, spec: Regressor
 
 
 def residual_statistics(model: RobotModel, spec: RegressorSpec, theta: np.ndarray,
-                        data: Dataset | DataStream, base: BaseParameters | None = None
-                        ) -> ResidualStatistics:
+                        data: Dataset | DataStream, base: BaseParameters | None = None,
+                        viscous_std: np.ndarray | None = None) -> ResidualStatistics:
     """:class:`ResidualStatistics` of ``τ − Y θ`` on an in-memory dataset or a stream
-    (``base``: also the rows at rest, :meth:`ResidualStatistics.of`)."""
+    (``base``: also the rows at rest; ``viscous_std``: σ of the fitted ``f_v`` per joint;
+    :meth:`ResidualStatistics.of`)."""
     if isinstance(data, DataStream):
-        return data.residual_statistics(model, spec, theta, base)
-    return ResidualStatistics.of(model, spec, theta, data, base=base)
+        return data.residual_statistics(model, spec, theta, base, viscous_std)
+    return ResidualStatistics.of(model, spec, theta, data, base=base, viscous_std=viscous_std)
 
 
 __all__ = ["DataStream", "ResidualStatistics", "as_stream", "compress_data", "is_one_pass",

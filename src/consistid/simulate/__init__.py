@@ -4,7 +4,9 @@
 noise, delay …), :mod:`~consistid.simulate.mujoco_robot` builds the MuJoCo model with
 ``MjSpec``, and :mod:`~consistid.simulate.experiments` runs excitation experiments with a known
 ground truth (regressor-only runs and MuJoCo recordings); :mod:`~consistid.simulate.loggers`
-makes logs as real loggers write them (stamps in bursts, coloured noise, encoder counts).
+makes logs as real loggers write them (stamps in bursts, coloured noise, encoder counts);
+:mod:`~consistid.simulate.mujoco_logs` holds the MuJoCo logs with a known truth that tests and
+benchmarks share (a PD-tracked log of the MJCF itself, an arm with dry and viscous friction).
 """
 
 from .effects import Effects, MountedPayload
