@@ -5,6 +5,8 @@ sample by sample and filtered with the chain's own low-pass."""
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -14,6 +16,7 @@ from consistid.data.signals import lowpass
 from consistid.diagnosis.candidates import GapData
 from consistid.diagnosis.friction_law import friction_law
 from consistid.diagnosis.remainder import set_valued_refit, standstill_mask
+from consistid.errors import TrackingWarning
 from consistid.robot.inertia import perturb
 from consistid.simulate import Effects, record
 
@@ -73,37 +76,47 @@ def test_the_model_error_never_narrows_the_interval(planar_2r):
     assert found.viscous_std[0] >= clear.viscous_std[0] * (1 - 1e-9)
 
 
-def _panda_logs(seed: int):
+def _logs(arm: str, seed: int):
     """The Panda example's simulated robot (``examples/panda/make_example_data.py``: inertias
-    10 % off, Coulomb 1.2–0.6 N·m and viscous 0.8–0.3 N·m·s/rad, 0.3 N·m offset on joint 2,
-    σ = 0.05 N·m, 19-bit encoders, 100 Hz) on new trajectories: 20 s to train, 10 s held out."""
-    model = ci.RobotModel.example("panda")
+    10 % off, Coulomb 1.2–0.6 N·m and viscous 0.8–0.3 N·m·s/rad over the joints, 0.3 N·m offset
+    on the second joint, σ = 0.05 N·m, 19-bit encoders, 100 Hz), or the same effects on another
+    arm, on new trajectories: 20 s to train, 10 s held out (as
+    ``benchmarks/diagnosis_friction_coverage.py`` makes them)."""
+    model = ci.RobotModel.example(arm)
     truth = perturb(model.prior_parameters, 0.1, np.random.default_rng(7))
-    truth_friction = {"coulomb": np.linspace(1.2, 0.6, model.nv),
-                      "viscous": np.linspace(0.8, 0.3, model.nv)}
-    effects = Effects(coulomb=truth_friction["coulomb"], viscous=truth_friction["viscous"],
-                      torque_offset={"panda_joint2": 0.3}, torque_noise=0.05,
+    friction = {"coulomb": np.linspace(1.2, 0.6, model.nv),
+                "viscous": np.linspace(0.8, 0.3, model.nv)}
+    effects = Effects(coulomb=friction["coulomb"], viscous=friction["viscous"],
+                      torque_offset={model.joint_names[1]: 0.3}, torque_noise=0.05,
                       quantisation=2 * np.pi / 2 ** 19)
     logs = []
     for k, duration in ((1, 20.0), (2, 10.0)):
         traj = ci.FourierTrajectory.random(model, harmonics=5, period=10.0, seed=10 * seed + k,
                                            amplitude=0.6)
-        rec = record(model, traj, effects, true_parameters=truth, duration=duration,
-                     rate=100.0, seed=10 * seed + k)
+        with warnings.catch_warnings():
+            # the xArm7's joint 7 does not follow: friction holds the wrist below 0.04 rad/s,
+            # the slow joint one test is about
+            warnings.simplefilter("ignore", TrackingWarning)
+            rec = record(model, traj, effects, true_parameters=truth, duration=duration,
+                         rate=100.0, seed=10 * seed + k)
         logs.append(ci.Dataset.from_recording(rec.t, rec.q, rec.tau))
-    return model, truth_friction, logs
+    return model, friction, logs
 
 
-def test_panda_friction_the_diagnosis_reports_covers_mujoco():
-    """Seed 2 of ``benchmarks/diagnosis_friction_coverage.py``: joint 7's viscous friction fell
-    below the selection's relevance floor, and its Coulomb step (tuned to a 1.8 Hz cut-off by
-    the held torques at rest) was reported point-valued at 0.827 ± 0.007 N·m against
-    MuJoCo's 0.6 (35 σ). Every friction parameter the diagnosis reports is now within 4 σ of
-    the simulator's."""
-    model, truth, (train, held) = _panda_logs(2)
+@pytest.mark.parametrize("arm, joint", [("panda", "panda_joint7"), ("xarm7", "joint7")])
+def test_the_friction_the_diagnosis_reports_covers_mujoco(arm, joint):
+    """Seed 2 of ``benchmarks/diagnosis_friction_coverage.py``. Panda: joint 7's viscous
+    friction fell below the selection's relevance floor, and its Coulomb step (tuned to a
+    1.8 Hz cut-off by the held torques at rest) was reported point-valued at 0.827 ± 0.007 N·m
+    against MuJoCo's 0.6 (35 σ). xArm7: joint 7 never leaves 0.04 rad/s, where MuJoCo's soft
+    friction loss rises linearly; viscous friction alone was selected there and reported
+    point-valued at 14.4 ± 0.18 N·m·s/rad against 0.3 (79 σ). Every friction parameter the
+    diagnosis reports is now within 4 σ of the simulator's (the xArm7's with the split the data
+    cannot make, as identify's slow-joint warning)."""
+    model, truth, (train, held) = _logs(arm, 2)
     diag = ci.diagnose(model, train, held_out=held)
     reported = [(e.name, p) for e in diag.effects if e.name in truth for p in e.parameters]
-    assert any(p.joint == "panda_joint7" and name == "coulomb" for name, p in reported)
+    assert any(p.joint == joint for _, p in reported)
     for name, p in reported:
         true = truth[name][model.joint_names.index(p.joint)]
         assert abs(p.value - true) <= 4 * p.std, (name, p.joint, p.value, p.std, true)

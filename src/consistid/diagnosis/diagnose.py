@@ -1626,17 +1626,18 @@ def _set_valued_friction(fit: GapModel, data: GapData, residual: np.ndarray,
     if chain is None or chain[1] != LOWPASS_ORDER or chain[0] >= 0.45 * rate:
         return left, cone, refitted
     # the friction reported: each joint's whole law, fitted set-valued, with its model error
-    for j in np.flatnonzero(static > 0):
-        law = friction_law(data, int(j), residual[:, j], dry[:, j] + damped[:, j], laws[int(j)],
-                           slopes.get(int(j), []), float(static[j]), float(chain[0]),
+    for j in sorted(set(np.flatnonzero(static > 0)) | set(slopes)):
+        law = friction_law(data, int(j), residual[:, j], dry[:, j] + damped[:, j],
+                           laws.get(int(j), []), slopes.get(int(j), []), float(static[j]),
+                           float(chain[0]),
                            known[:, j], ~_near_rest(data, int(j), float(chain[0]), rate),
                            judged_on.get(int(j)))
         if law is None:
             continue
         dry_atoms, viscous_atoms = owners[int(j)]
         for i, v, sd in zip(dry_atoms + viscous_atoms,
-                            np.concatenate([law.dry, law.viscous]),
-                            np.concatenate([law.dry_std, law.viscous_std])):
+                            np.concatenate([law.dry[:len(dry_atoms)], law.viscous]),
+                            np.concatenate([law.dry_std[:len(dry_atoms)], law.viscous_std])):
             refitted[i] = (float(v), float(sd), law.note, int(j) in judged_on)
     return left, cone, refitted
 
