@@ -64,7 +64,10 @@ Method
    from the joint least-squares fit) and scored per joint on the held-out data: RMS before →
    after, shrink, parameters ± standard deviation (each joint's rows counted as ``N / τ_j``
    independent ones, as in the tests: :func:`_coloured_covariance`). A group that no longer
-   reduces the held-out residual in this final fit is left out, with a note.
+   reduces the held-out residual in this final fit is left out, with a note. The friction
+   parameters reported are one set-valued fit of each joint's whole friction law with the
+   model error of the rows near rest (:mod:`consistid.diagnosis.friction_law`), where the
+   torques went through a recorded low-pass.
 """
 
 from __future__ import annotations

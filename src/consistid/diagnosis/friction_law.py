@@ -31,6 +31,10 @@ held torque reaches, is the alternative of Hausman's test (Hausman 1978, Econome
 added to each variance. Without it the refit's σ were 1.45 × too small over eight Panda seeds
 (z RMS 1.47 and 1.45 for ``f_c`` and ``f_v``); with it 0.99 and 1.09.
 
+Where the dataset records no low-pass of the chain's kind (``Dataset.torque_filter``), the
+held torques cannot be placed, and the point-valued fit of the selection is reported as before
+(its σ without this model error).
+
 **A slow joint.** A joint that never leaves the band where dry friction is smoothed gives its
 friction torque, not the split into ``f_c`` and ``f_v``: where ``identify`` would call it slow
 and reading a slope (:func:`_reads_a_slope`), the split's model error of
