@@ -64,7 +64,10 @@ Method
    from the joint least-squares fit) and scored per joint on the held-out data: RMS before →
    after, shrink, parameters ± standard deviation (each joint's rows counted as ``N / τ_j``
    independent ones, as in the tests: :func:`_coloured_covariance`). A group that no longer
-   reduces the held-out residual in this final fit is left out, with a note.
+   reduces the held-out residual in this final fit is left out, with a note. The friction
+   parameters reported are one set-valued fit of each joint's whole friction law with the
+   model error of the rows near rest (:mod:`consistid.diagnosis.friction_law`), where the
+   torques went through a recorded low-pass.
 """
 
 from __future__ import annotations
@@ -95,10 +98,12 @@ from .interaction import companions
 from .rigid_prior import evidence_prior_weight, prior_curvature
 from .noise import NoiseFloor, estimate_noise_floor, spectral_estimate
 from .persistence import read_diagnosis, write_diagnosis
+from .friction_law import FAR_SAMPLES, friction_law
 from .remainder import (
     LOWPASS_ORDER,
     REMAINDER_RATIO,
     Remainder,
+    SetValuedFit,
     analyse_remainder,
     dry_friction_at_rest,
     set_valued_refit,
@@ -110,9 +115,6 @@ from .verdict import verdict_head
 #: Two candidates are not indistinguishable when one leaves a joint above the flag's ratio with
 #: more than this × the other's held-out sum of squares there (twice its RMS).
 DISTINCT_LEFT = 4.0
-#: Fewest samples clear of standstill on which a remainder is judged point-valued before the
-#: set-valued friction through a filter is tried (:func:`_set_valued_friction`).
-FAR_SAMPLES = 200
 #: A held-out shrink below this fraction does not list a joint under an arm-wide effect.
 JOINT_SHRINK_FLOOR = 0.05
 #: An effect raising a joint's held-out RMS above this factor (and above the remainder's flag)
@@ -1369,7 +1371,7 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
     unknown = _unpredictable(fit, held)
     left, cone, refitted = _set_valued_friction(fit, held, held.residual - fit.correction(held),
                                                 unknown, held_floor)
-    findings = _with_parameters(findings, fit, final_stds, refitted, names, False)
+    findings = _with_parameters(findings, fit, final_stds, refitted, names)
     if refitted:
         notes.append(_identify_friction_note(fit, refitted, names))
     rms_left = _known_rms(left, unknown)
@@ -1398,25 +1400,28 @@ def diagnose(model: RobotModel, dataset: Dataset | Sequence[Dataset], nominal=No
 
 
 def _with_parameters(findings: list[EffectFinding], fit: GapModel, stds: list[np.ndarray],
-                     refitted: dict[int, tuple[float, float]], names: list[str], training: bool
+                     refitted: dict[int, tuple[float, float, str, bool]], names: list[str]
                      ) -> list[EffectFinding]:
     """``findings`` with their parameters from the final fit (all effects together); a friction
-    atom the verdict judged through the set-valued refit (``refitted``: atom index → value, std)
-    reports that refit's value and σ, the point-valued fit's beside it in its note: the verdict
-    and the table then tell one story."""
+    atom whose joint's friction law was refitted set-valued on the held-out data (``refitted``:
+    atom index → value, std, how, whether the verdict judges that fit;
+    :mod:`consistid.diagnosis.friction_law`) reports that refit's value and σ, the
+    point-valued fit's beside it in its note: one friction fit per joint, the one the verdict
+    judges where it judges one."""
     by_effect: dict[str, list[EffectParameter]] = {}
     for i, (atom, th, sd) in enumerate(zip(fit.atoms, fit.theta, stds)):
         joint = names[atom.joint] if atom.joint is not None else None
         effect = REGISTRY[atom.effect]
         if i in refitted:
             point = effect.parameters(fit.library, atom, th, sd, joint, fit)[0]
-            value, std = refitted[i]
-            param = effect.parameters(fit.library, atom, np.array([value]), np.array([std]),
-                                      joint, fit)[0]
-            note = (f"set-valued refit on the {'training' if training else 'held-out'} data "
-                    f"(held torques within the friction cone at rest, seen through the signal "
-                    f"chain's low-pass), as the verdict judges; point-valued fit "
-                    f"{point.value:.4g} ± {point.std:.2g}")
+            value, std, how, verdict = refitted[i]
+            # the law as refitted: through the chain's own low-pass (``how`` says which)
+            param = effect.parameters(fit.library, replace(atom, cutoff=np.inf),
+                                      np.array([value]), np.array([std]), joint, fit)[0]
+            note = ("set-valued refit of the joint's friction law on the held-out data (held "
+                    "torques within the friction cone at rest)"
+                    f"{', as the verdict judges' if verdict else ''}; {how}; "
+                    f"point-valued fit {point.value:.4g} ± {point.std:.2g}")
             params = [replace(param, note="; ".join(x for x in (param.note, note) if x))]
         else:
             params = effect.parameters(fit.library, atom, th, sd, joint, fit)
@@ -1424,16 +1429,18 @@ def _with_parameters(findings: list[EffectFinding], fit: GapModel, stds: list[np
     return [replace(f, parameters=tuple(by_effect.get(f.name, ()))) for f in findings]
 
 
-def _identify_friction_note(fit: GapModel, refitted: dict[int, tuple[float, float]],
+def _identify_friction_note(fit: GapModel, refitted: dict[int, tuple[float, float, str, bool]],
                             names: list[str]) -> str:
     """One line on why ``identify``'s friction differs from the set-valued refit reported."""
     joints = ", ".join(dict.fromkeys(names[fit.atoms[i].joint] for i in sorted(refitted)))
-    return (f"friction on {joints} is the set-valued refit the verdict uses (a held joint's "
-            "torque within its friction cone is no error): identify's point-valued fit of "
-            "f_c sign(q̇) and f_v q̇ differs from it, as the point-valued fit here does, because "
-            "it fits sign(q̇) on samples at rest and through the torque filter, which biases "
-            "f_c and f_v in opposite directions; identify says so in details['standstill'] and "
-            "its model-error warning")
+    return (f"friction on {joints} is the set-valued refit of each joint's friction law "
+            "(f_c and f_v together, a held joint's torque within its friction cone is no "
+            "error), its σ with the model error of the rows near rest: identify's point-valued "
+            "fit of f_c sign(q̇) and f_v q̇ differs from it, as the point-valued fit here does, "
+            "because it fits sign(q̇) on samples at rest and through the torque filter, which "
+            "biases f_c and f_v in opposite directions; identify widens its σ by that bias "
+            "(details['standstill'] and its model-error warning), so the two agree within "
+            "their σ while the refit's are narrower")
 
 
 def _worse_in_full(prob: _Problem, chosen: Sequence[int], i: int, floor: np.ndarray
@@ -1549,12 +1556,16 @@ def _unpredictable(fit: GapModel, data: GapData) -> np.ndarray:
 
 def _set_valued_friction(fit: GapModel, data: GapData, residual: np.ndarray,
                          unknown: np.ndarray, floor: np.ndarray
-                         ) -> tuple[np.ndarray, np.ndarray, dict[int, tuple[float, float]]]:
+                         ) -> tuple[np.ndarray, np.ndarray,
+                                    dict[int, tuple[float, float, str, bool]]]:
     """``residual`` (N, nv), what every selected effect leaves on ``data``, with the selected
     dry friction (its Coulomb and Stribeck atoms) taken as set-valued at rest, the cone
     half-width each joint was judged against (nv,; 0: none), and, by index into ``fit.atoms``,
-    the ``(value, std)`` of each friction atom the set-valued fit refitted (where it was made
-    through a filter: :func:`~consistid.diagnosis.remainder.set_valued_refit`). Atoms seen
+    the ``(value, std, how, judged)`` of each friction atom as reported: on every joint with
+    dry friction where the dataset records the chain's low-pass, the set-valued refit of the
+    joint's whole friction law with its model error
+    (:func:`~consistid.diagnosis.friction_law.friction_law`; ``judged``: the verdict judges
+    the joint by that fit). Atoms seen
     without a filter:
     :func:`~consistid.diagnosis.remainder.dry_friction_at_rest`, against the fitted static
     friction ``f_c + Δf``; seen through a low-pass, where the dataset says which one the signal
@@ -1574,7 +1585,7 @@ def _set_valued_friction(fit: GapModel, data: GapData, residual: np.ndarray,
     laws: dict[int, list[np.ndarray]] = {}
     slopes: dict[int, list[np.ndarray]] = {}
     owners: dict[int, tuple[list[int], list[int]]] = {}    # atoms of the laws, of the slopes
-    refitted: dict[int, tuple[float, float]] = {}
+    refitted: dict[int, tuple[float, float, str, bool]] = {}
     for i, (atom, th) in enumerate(zip(fit.atoms, fit.theta)):
         if atom.effect in DRY_FRICTION and atom.joint is not None:
             dry += fit.library.columns(atom, data) @ th
@@ -1593,6 +1604,8 @@ def _set_valued_friction(fit: GapModel, data: GapData, residual: np.ndarray,
     chain = data.dataset.torque_filter       # (cut-off Hz, order) of the chain's low-pass
     known = ~unknown
     rate = 1.0 / min((seg.step for seg in data.segments if seg.size > 1), default=np.inf)
+    static = cone.copy()
+    judged_on: dict[int, SetValuedFit] = {}
     for j in np.flatnonzero(filtered & (cone > 0)):
         rms = float(np.sqrt(np.mean(left[known[:, j], j] ** 2))) if known[:, j].any() else 0.0
         if (chain is None or chain[1] != LOWPASS_ORDER or chain[0] >= 0.45 * rate
@@ -1613,11 +1626,23 @@ def _set_valued_friction(fit: GapModel, data: GapData, residual: np.ndarray,
             cone[j] = 0.0
         else:
             left[:, j], cone[j] = judged.remainder, judged.cone
-            dry_atoms, viscous_atoms = owners[int(j)]
-            for i, v, sd in zip(dry_atoms + viscous_atoms,
-                                np.concatenate([judged.dry, judged.viscous]),
-                                np.concatenate([judged.dry_std, judged.viscous_std])):
-                refitted[i] = (float(v), float(sd))
+            judged_on[int(j)] = judged
+    if chain is None or chain[1] != LOWPASS_ORDER or chain[0] >= 0.45 * rate:
+        return left, cone, refitted
+    # the friction reported: each joint's whole law, fitted set-valued, with its model error
+    for j in sorted(set(np.flatnonzero(static > 0)) | set(slopes)):
+        law = friction_law(data, int(j), residual[:, j], dry[:, j] + damped[:, j],
+                           laws.get(int(j), []), slopes.get(int(j), []), float(static[j]),
+                           float(chain[0]),
+                           known[:, j], ~_near_rest(data, int(j), float(chain[0]), rate),
+                           judged_on.get(int(j)))
+        if law is None:
+            continue
+        dry_atoms, viscous_atoms = owners[int(j)]
+        for i, v, sd in zip(dry_atoms + viscous_atoms,
+                            np.concatenate([law.dry[:len(dry_atoms)], law.viscous]),
+                            np.concatenate([law.dry_std[:len(dry_atoms)], law.viscous_std])):
+            refitted[i] = (float(v), float(sd), law.note, int(j) in judged_on)
     return left, cone, refitted
 
 
