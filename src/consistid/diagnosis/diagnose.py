@@ -41,7 +41,10 @@ Method
    names *companions* (inertia and payload: Coulomb and viscous friction) is scored against
    the chosen atoms plus its companions not yet chosen, the partial test of a block beside
    nuisance columns (:mod:`consistid.diagnosis.interaction`): friction still missing on
-   some joint is not taken up by the inertia, which would then fail on held-out data. Where
+   some joint is not taken up by the inertia, which would then fail on held-out data; it is
+   fitted and tested with each joint weighted by the variance the fit leaves there, not by its
+   floor (feasible generalised least squares), so that a joint's model error (a wrist held in
+   its friction cone at rest) does not steer the fit of every body. Where
    the floor is read from the residual spectrum, it is read again without the tails of every
    candidate fitted at once before the selection (an unexplained Coulomb step's ``1/f²`` tail
    raises it several-fold and would weigh that joint down in every test).
@@ -91,7 +94,7 @@ from ..robot.model import RobotModel, require_model
 from .candidates import EFFECT_NAMES, SIGNATURES, Atom, EffectLibrary, GapData
 from .effects import REGISTRY, EffectParameter
 from .gap import GapBreakdown, gap_breakdown, residual_spectra
-from .interaction import companions
+from .interaction import companions, residual_scale
 from .rigid_prior import evidence_prior_weight, prior_curvature
 from .noise import NoiseFloor, estimate_noise_floor, spectral_estimate
 from .persistence import read_diagnosis, write_diagnosis
@@ -556,20 +559,27 @@ class _Problem:
     #: (P, P) weighted prior curvature ``γS`` on the rigid-body atoms' columns
     #: (:mod:`consistid.diagnosis.rigid_prior`), or ``None``
     prior: np.ndarray | None = None
+    #: (nv,) per-joint weights of the fits once an atom scored by feasible generalised least
+    #: squares is chosen (:func:`consistid.diagnosis.interaction.residual_scale`), else ``None``
+    #: (``w``)
+    fit_w: np.ndarray | None = None
 
     def cols(self, chosen: Sequence[int]) -> np.ndarray:
         if not chosen:
             return np.zeros(0, dtype=int)
         return np.concatenate([self.slices[i] for i in chosen])
 
-    def fit(self, chosen: Sequence[int]) -> tuple[np.ndarray, np.ndarray, int]:
+    def fit(self, chosen: Sequence[int], w: np.ndarray | None = None
+            ) -> tuple[np.ndarray, np.ndarray, int]:
         """``(columns, θ, rank)`` of the chosen atoms' weighted least-squares fit on the
-        training data, with the rigid-body prior where they hold its columns; ``rank`` counts
-        the directions the data determine (the prior's are not counted)."""
+        training data (weights ``w``, default :attr:`fit_w` or :attr:`w`), with the rigid-body
+        prior where they hold its columns; ``rank`` counts the directions the data determine
+        (the prior's are not counted)."""
         cols = self.cols(chosen)
         if cols.size == 0:
             return cols, np.zeros(0), 0
-        g, c = self.train.weighted(self.w, cols)
+        w = w if w is not None else self.fit_w if self.fit_w is not None else self.w
+        g, c = self.train.weighted(w, cols)
         theta, rank, _ = _solve(g, c)
         prior = None if self.prior is None else self.prior[np.ix_(cols, cols)]
         if prior is not None and prior.any():
@@ -601,7 +611,8 @@ def _nested_by_final_fit(prob: _Problem, nuisance: list[int], chosen: list[int],
     ``−(N/2) Σ_j log SSE_j`` (the floors, which may be unreliable where the noise cannot be
     seen, do not weigh the joints); a note says so. The selection scores both by regularised
     least squares, where the ten payload columns can edge out the full rigid body on held-out
-    data (xArm7 mixed case, seed 2: 6 % more held-out gain) although the consistent fit of
+    data (xArm7 mixed case, seed 2, while that fit was weighted by the floors: 6 % more
+    held-out gain) although the consistent fit of
     every body, the one the user gets, predicts it better (worst joint 0.92 × ``identify``'s
     against 1.27 × with the payload): the held-out data, with the final fit, decide — by a
     likelihood-ratio test at level ``alpha`` for the extra parameters, and only if no joint's
@@ -713,6 +724,14 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
             c0, th0, r0, tr0, ho0 = (references[tuple(ref)] if ref
                                      else (cols, theta, rank, sse_tr, sse_ho))
             c2, th2, r2 = prob.fit(chosen + ref + [i])
+            scale = np.ones(nv)
+            if ref:
+                # beside its companions, weighted by what each joint has left
+                # (:func:`~consistid.diagnosis.interaction.residual_scale`), the reference too
+                scale = residual_scale(prob.w * prob.train.sse(c2, th2), prob.train.n)
+                c0, th0, r0 = prob.fit(chosen + ref, prob.w * scale)
+                tr0, ho0 = prob.w * prob.train.sse(c0, th0), prob.w * prob.held.sse(c0, th0)
+                c2, th2, r2 = prob.fit(chosen + ref + [i], prob.w * scale)
             k = r2 - r0
             if k <= 0:
                 continue
@@ -722,8 +741,8 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
             u[c2] = th2
             u[c0] -= th0
             own = th2[-atom.n_parameters:]
-            scores.append((i, float(ho0.sum() - ho2.sum()), k, tr2, ho2, u, own,
-                           (c2, th2, r2), tr0, ho0, bool(ref)))
+            scores.append((i, float(scale @ (ho0 - ho2)), k, tr2, ho2, u, own,
+                           (c2, th2, r2), tr0, ho0, bool(ref), scale))
         if not scores:
             break
         scores.sort(key=lambda s: -s[1])
@@ -733,13 +752,14 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
             # says nothing about this atom's significance.
             i, gain, k, tr2, ho2 = s[:5]
             tr0, ho0 = s[8], s[9]        # the fit it is compared with (companions included)
+            scale = s[11][_rows_of(prob.atoms[i], nv)]     # its rows' weights (1: the floor's)
             atom = prob.atoms[i]
             rows = _rows_of(atom, nv)
             n_tr, n_ho = float(n_tr_j[rows].sum()), float(n_ho_j[rows].sum())
-            before_tr, after_tr = float(tr0[rows].sum()), float(tr2[rows].sum())
+            before_tr, after_tr = float(scale @ tr0[rows]), float(scale @ tr2[rows])
             dbic = n_tr * np.log(after_tr / before_tr) + k * np.log(n_tr)
-            gain_rows = float(ho0[rows].sum() - ho2[rows].sum())
-            f = (gain_rows / k) / (float(ho2[rows].sum()) / n_ho)
+            gain_rows = float(scale @ (ho0[rows] - ho2[rows]))
+            f = (gain_rows / k) / (float(scale @ ho2[rows]) / n_ho)
             p = float(scipy.stats.f.sf(f, k, n_ho)) if gain_rows > 0 else 1.0
             # relevance: the atom's joint, or (arm-wide atoms) the joint it helps most, must
             # lose min_gain of its nominal held-out sum of squares, or min_excess of what is
@@ -855,8 +875,10 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
                 rival = (prob.atoms[sc[0]].label(joint_names), 1.0 - sc[1] / gain)
                 break
         rivals.append(rival)
-        # The fit of chosen + [i] was made when scoring it (with its companions: made anew).
+        # The fit of chosen + [i] was made when scoring it (with its companions: made anew,
+        # and every later fit weighted as it was scored).
         if pick[10]:
+            prob.fit_w = prob.w * pick[11]
             cols, theta, rank = prob.fit(chosen)
             sse_tr = prob.w * prob.train.sse(cols, theta)
             sse_ho = prob.w * prob.held.sse(cols, theta)
