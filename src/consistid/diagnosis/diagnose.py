@@ -860,21 +860,27 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
         pvals.append(p)
         # Its rival: the best other candidate whose own correction (its columns times its
         # parameters, on the held-out data) points the same way — it explains the same residual.
+        # Gains compared with the pick's joint weights (the floors', or the residual's for an
+        # atom scored by them): in its own weights a rigid body's gain is smaller, and a
+        # per-joint stand-in's margin over it read wide.
         def own(sc: tuple) -> np.ndarray:
             u = np.zeros(full_p)
             u[prob.slices[sc[0]]] = sc[6]
             return u
 
+        def gain_as_pick(sc: tuple) -> float:
+            return float(pick[11] @ (sc[9] - sc[4]))
+
         up = own(pick)
         nu = float(up @ g_ho @ up)
         rival = ("", 1.0)
-        for sc in scores:
-            if sc[0] == i or sc[0] in [g[0] for g in group] or sc[1] <= 0:
+        for sc in sorted(scores, key=lambda sc: -gain_as_pick(sc)):
+            if sc[0] == i or sc[0] in [g[0] for g in group] or gain_as_pick(sc) <= 0:
                 continue
             us = own(sc)
             ns = float(us @ g_ho @ us)
             if nu > 0 and ns > 0 and abs(us @ g_ho @ up) / np.sqrt(nu * ns) >= RIVAL_COSINE:
-                rival = (prob.atoms[sc[0]].label(joint_names), 1.0 - sc[1] / gain)
+                rival = (prob.atoms[sc[0]].label(joint_names), 1.0 - gain_as_pick(sc) / gain)
                 break
         rivals.append(rival)
         # The fit of chosen + [i] was made when scoring it (with its companions: made anew,
