@@ -44,6 +44,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from ..identification.compression import SIGMA_FLOOR
 from .effects import REGISTRY, Atom
 
 
@@ -65,7 +66,5 @@ def residual_scale(sse: np.ndarray, n: int) -> np.ndarray:
     gets ``1/k`` of it, and one below it (a floor read too high) more. Kept finite as
     ``identify`` keeps its σ (:data:`~consistid.identification.compression.SIGMA_FLOOR`, here
     of the largest variance)."""
-    from ..identification.compression import SIGMA_FLOOR
-
     var = np.asarray(sse, dtype=float) / max(n, 1)
     return 1.0 / np.maximum(var, SIGMA_FLOOR ** 2 * max(float(var.max(initial=0.0)), 1e-300))
