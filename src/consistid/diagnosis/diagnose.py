@@ -611,8 +611,7 @@ def _nested_by_final_fit(prob: _Problem, nuisance: list[int], chosen: list[int],
     ``−(N/2) Σ_j log SSE_j`` (the floors, which may be unreliable where the noise cannot be
     seen, do not weigh the joints); a note says so. The selection scores both by regularised
     least squares, where the ten payload columns can edge out the full rigid body on held-out
-    data (xArm7 mixed case, seed 2, while that fit was weighted by the floors: 6 % more
-    held-out gain) although the consistent fit of
+    data (xArm7 mixed case, seed 2: 6 % more held-out gain) although the consistent fit of
     every body, the one the user gets, predicts it better (worst joint 0.92 × ``identify``'s
     against 1.27 × with the payload): the held-out data, with the final fit, decide — by a
     likelihood-ratio test at level ``alpha`` for the extra parameters, and only if no joint's
@@ -741,7 +740,9 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
             u[c2] = th2
             u[c0] -= th0
             own = th2[-atom.n_parameters:]
-            scores.append((i, float(scale @ (ho0 - ho2)), k, tr2, ho2, u, own,
+            # ranked by the held-out gain in the floors' units, one unit for every candidate
+            # (each rigid atom's weights are its own); tested in its weights (verdict below)
+            scores.append((i, float(ho0.sum() - ho2.sum()), k, tr2, ho2, u, own,
                            (c2, th2, r2), tr0, ho0, bool(ref), scale))
         if not scores:
             break
@@ -860,27 +861,23 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
         pvals.append(p)
         # Its rival: the best other candidate whose own correction (its columns times its
         # parameters, on the held-out data) points the same way — it explains the same residual.
-        # Gains compared with the pick's joint weights (the floors', or the residual's for an
-        # atom scored by them): in its own weights a rigid body's gain is smaller, and a
-        # per-joint stand-in's margin over it read wide.
+        # (Gains in the floors' units for every candidate: a rigid body's in its residual
+        # weights is smaller, and a per-joint stand-in's margin over it read wide.)
         def own(sc: tuple) -> np.ndarray:
             u = np.zeros(full_p)
             u[prob.slices[sc[0]]] = sc[6]
             return u
 
-        def gain_as_pick(sc: tuple) -> float:
-            return float(pick[11] @ (sc[9] - sc[4]))
-
         up = own(pick)
         nu = float(up @ g_ho @ up)
         rival = ("", 1.0)
-        for sc in sorted(scores, key=lambda sc: -gain_as_pick(sc)):
-            if sc[0] == i or sc[0] in [g[0] for g in group] or gain_as_pick(sc) <= 0:
+        for sc in scores:
+            if sc[0] == i or sc[0] in [g[0] for g in group] or sc[1] <= 0:
                 continue
             us = own(sc)
             ns = float(us @ g_ho @ us)
             if nu > 0 and ns > 0 and abs(us @ g_ho @ up) / np.sqrt(nu * ns) >= RIVAL_COSINE:
-                rival = (prob.atoms[sc[0]].label(joint_names), 1.0 - gain_as_pick(sc) / gain)
+                rival = (prob.atoms[sc[0]].label(joint_names), 1.0 - sc[1] / gain)
                 break
         rivals.append(rival)
         # The fit of chosen + [i] was made when scoring it (with its companions: made anew,
