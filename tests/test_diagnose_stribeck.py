@@ -66,3 +66,19 @@ def test_plain_coulomb_gets_no_hump(robot):
     diag = _hump(robot, 0.0, 3)
     names = [e.name for e in diag.effects]
     assert "coulomb" in names and "stribeck" not in names, names
+
+
+def test_a_hump_is_judged_where_it_acts_not_on_all_of_its_joints_rows():
+    """UR5 seed 6, Δf = 5 × the noise on shoulder_lift: before, the joint's held-out residual
+    over all its rows was 1.27 × its floor, below the flag's ratio, so ``min_excess`` did not
+    apply and the hump (0.09 % of the nominal residual) was refused, though it left twice the
+    floor's variance on the rows where its column acts. Named now, at the simulated speed and
+    within 10 % of the simulated Δf (whether its σ covers the truth is the friction fit's
+    matter); the same trajectory with plain Coulomb friction still gets no hump."""
+    diag = _hump("ur5", 5 * NOISE, 6)
+    humps = [p for e in diag.effects if e.name == "stribeck" for p in e.parameters]
+    assert [p.joint for p in humps] == ["shoulder_lift_joint"], diag.summary()
+    assert abs(humps[0].value - 5 * NOISE) <= 0.1 * 5 * NOISE, humps[0]
+    assert re.search(rf"v_s = {SPEED:g} rad/s", humps[0].note), humps[0].note
+    plain = _hump("ur5", 0.0, 6)
+    assert "stribeck" not in [e.name for e in plain.effects], plain.summary()

@@ -5,7 +5,8 @@ A finding (:class:`~consistid.diagnosis.diagnose.EffectFinding`) is labelled ``"
 the final fit (:class:`Evidence`):
 
 * ``margin`` — ``1 − gain_runner_up / gain``: how much more of the held-out residual it explains
-  than the best other candidate explaining the same residual (1: no rival);
+  than the best other candidate explaining the same residual (1: no rival), both gains in the
+  floors' units (``Σ_j ΔSSE_j / σ_j²``, whatever weights a rigid body was fitted with);
 * ``p_value`` — the held-out F-test when it entered the selection;
 * ``z_min`` — its smallest per-joint parameter in standard deviations from zero (``inf`` for
   an arm-wide effect, whose base parameters are not judged one by one);

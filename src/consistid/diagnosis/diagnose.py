@@ -41,7 +41,10 @@ Method
    names *companions* (inertia and payload: Coulomb and viscous friction) is scored against
    the chosen atoms plus its companions not yet chosen, the partial test of a block beside
    nuisance columns (:mod:`consistid.diagnosis.interaction`): friction still missing on
-   some joint is not taken up by the inertia, which would then fail on held-out data. Where
+   some joint is not taken up by the inertia, which would then fail on held-out data; it is
+   fitted and tested with each joint weighted by the variance the fit leaves there, not by its
+   floor (feasible generalised least squares), so that a joint's model error (a wrist held in
+   its friction cone at rest) does not steer the fit of every body. Where
    the floor is read from the residual spectrum, it is read again without the tails of every
    candidate fitted at once before the selection (an unexplained Coulomb step's ``1/f²`` tail
    raises it several-fold and would weigh that joint down in every test).
@@ -94,7 +97,7 @@ from ..robot.model import RobotModel, require_model
 from .candidates import EFFECT_NAMES, SIGNATURES, Atom, EffectLibrary, GapData
 from .effects import REGISTRY, EffectParameter
 from .gap import GapBreakdown, gap_breakdown, residual_spectra
-from .interaction import companions
+from .interaction import companions, residual_scale
 from .rigid_prior import evidence_prior_weight, prior_curvature
 from .noise import NoiseFloor, estimate_noise_floor, spectral_estimate
 from .persistence import read_diagnosis, write_diagnosis
@@ -558,20 +561,27 @@ class _Problem:
     #: (P, P) weighted prior curvature ``γS`` on the rigid-body atoms' columns
     #: (:mod:`consistid.diagnosis.rigid_prior`), or ``None``
     prior: np.ndarray | None = None
+    #: (nv,) per-joint weights of the fits once an atom scored by feasible generalised least
+    #: squares is chosen (:func:`consistid.diagnosis.interaction.residual_scale`), else ``None``
+    #: (``w``)
+    fit_w: np.ndarray | None = None
 
     def cols(self, chosen: Sequence[int]) -> np.ndarray:
         if not chosen:
             return np.zeros(0, dtype=int)
         return np.concatenate([self.slices[i] for i in chosen])
 
-    def fit(self, chosen: Sequence[int]) -> tuple[np.ndarray, np.ndarray, int]:
+    def fit(self, chosen: Sequence[int], w: np.ndarray | None = None
+            ) -> tuple[np.ndarray, np.ndarray, int]:
         """``(columns, θ, rank)`` of the chosen atoms' weighted least-squares fit on the
-        training data, with the rigid-body prior where they hold its columns; ``rank`` counts
-        the directions the data determine (the prior's are not counted)."""
+        training data (weights ``w``, default :attr:`fit_w` or :attr:`w`), with the rigid-body
+        prior where they hold its columns; ``rank`` counts the directions the data determine
+        (the prior's are not counted)."""
         cols = self.cols(chosen)
         if cols.size == 0:
             return cols, np.zeros(0), 0
-        g, c = self.train.weighted(self.w, cols)
+        w = w if w is not None else self.fit_w if self.fit_w is not None else self.w
+        g, c = self.train.weighted(w, cols)
         theta, rank, _ = _solve(g, c)
         prior = None if self.prior is None else self.prior[np.ix_(cols, cols)]
         if prior is not None and prior.any():
@@ -715,6 +725,14 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
             c0, th0, r0, tr0, ho0 = (references[tuple(ref)] if ref
                                      else (cols, theta, rank, sse_tr, sse_ho))
             c2, th2, r2 = prob.fit(chosen + ref + [i])
+            scale = np.ones(nv)
+            if ref:
+                # beside its companions, weighted by what each joint has left
+                # (:func:`~consistid.diagnosis.interaction.residual_scale`), the reference too
+                scale = residual_scale(prob.w * prob.train.sse(c2, th2), prob.train.n)
+                c0, th0, r0 = prob.fit(chosen + ref, prob.w * scale)
+                tr0, ho0 = prob.w * prob.train.sse(c0, th0), prob.w * prob.held.sse(c0, th0)
+                c2, th2, r2 = prob.fit(chosen + ref + [i], prob.w * scale)
             k = r2 - r0
             if k <= 0:
                 continue
@@ -724,8 +742,10 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
             u[c2] = th2
             u[c0] -= th0
             own = th2[-atom.n_parameters:]
+            # ranked by the held-out gain in the floors' units, one unit for every candidate
+            # (each rigid atom's weights are its own); tested in its weights (verdict below)
             scores.append((i, float(ho0.sum() - ho2.sum()), k, tr2, ho2, u, own,
-                           (c2, th2, r2), tr0, ho0, bool(ref)))
+                           (c2, th2, r2), tr0, ho0, bool(ref), scale))
         if not scores:
             break
         scores.sort(key=lambda s: -s[1])
@@ -735,13 +755,14 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
             # says nothing about this atom's significance.
             i, gain, k, tr2, ho2 = s[:5]
             tr0, ho0 = s[8], s[9]        # the fit it is compared with (companions included)
+            scale = s[11][_rows_of(prob.atoms[i], nv)]     # its rows' weights (1: the floor's)
             atom = prob.atoms[i]
             rows = _rows_of(atom, nv)
             n_tr, n_ho = float(n_tr_j[rows].sum()), float(n_ho_j[rows].sum())
-            before_tr, after_tr = float(tr0[rows].sum()), float(tr2[rows].sum())
+            before_tr, after_tr = float(scale @ tr0[rows]), float(scale @ tr2[rows])
             dbic = n_tr * np.log(after_tr / before_tr) + k * np.log(n_tr)
-            gain_rows = float(ho0[rows].sum() - ho2[rows].sum())
-            f = (gain_rows / k) / (float(ho2[rows].sum()) / n_ho)
+            gain_rows = float(scale @ (ho0[rows] - ho2[rows]))
+            f = (gain_rows / k) / (float(scale @ ho2[rows]) / n_ho)
             p = float(scipy.stats.f.sf(f, k, n_ho)) if gain_rows > 0 else 1.0
             # relevance: the atom's joint, or (arm-wide atoms) the joint it helps most, must
             # lose min_gain of its nominal held-out sum of squares, or min_excess of what is
@@ -750,10 +771,12 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
             per_joint = reduced / np.maximum(nominal_ho[rows], 1e-300)
             relevance = float(per_joint.max())
             excess = ho0[rows] - prob.held.n
+            above = ho0[rows] > REMAINDER_RATIO ** 2 * prob.held.n
             if i in prob.moving:           # a hump: what is left where it can explain it
                 grams, n_moving = prob.moving[i]      # (no companions: c0 is the chosen fit)
-                excess = prob.w[rows] * grams.sse(cols, theta) - n_moving
-            above = ho0[rows] > REMAINDER_RATIO ** 2 * prob.held.n
+                left = prob.w[rows] * grams.sse(cols, theta)
+                excess = left - n_moving
+                above = left > REMAINDER_RATIO ** 2 * n_moving
             of_excess = float(np.max(np.where(above & (excess > 0),
                                               reduced / np.maximum(excess, 1e-300), 0.0)))
             if gain <= 0:
@@ -840,6 +863,8 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
         pvals.append(p)
         # Its rival: the best other candidate whose own correction (its columns times its
         # parameters, on the held-out data) points the same way — it explains the same residual.
+        # (Gains in the floors' units for every candidate: a rigid body's in its residual
+        # weights is smaller, and a per-joint stand-in's margin over it read wide.)
         def own(sc: tuple) -> np.ndarray:
             u = np.zeros(full_p)
             u[prob.slices[sc[0]]] = sc[6]
@@ -857,8 +882,10 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
                 rival = (prob.atoms[sc[0]].label(joint_names), 1.0 - sc[1] / gain)
                 break
         rivals.append(rival)
-        # The fit of chosen + [i] was made when scoring it (with its companions: made anew).
+        # The fit of chosen + [i] was made when scoring it (with its companions: made anew,
+        # and every later fit weighted as it was scored).
         if pick[10]:
+            prob.fit_w = prob.w * pick[11]
             cols, theta, rank = prob.fit(chosen)
             sse_tr = prob.w * prob.train.sse(cols, theta)
             sse_ho = prob.w * prob.held.sse(cols, theta)
@@ -870,22 +897,31 @@ def _select(prob: _Problem, joint_names: list[str], alpha: float, min_gain: floa
 
 def _clear_of_rest(atoms: Sequence[Atom], phi_ho: np.ndarray, held: GapData
                    ) -> dict[int, tuple[_Grams, int]]:
-    r"""Per Stribeck atom, the held-out Grams of its joint on the rows clear of rest,
+    r"""Per Stribeck atom, the held-out Grams of its joint on the rows where it acts clear of
+    rest, and their count: ``min_excess`` weighs a hump against what is left there, and the
+    joint counts as above its floor when that is. Clear of rest,
     ``|q̇_j| ≥ min(v_s / 2, REST_SPEED)`` with ``sign(q̇_j)`` resolved
-    (:attr:`GapData.sign_unresolved`), and their count: ``min_excess`` weighs a hump against
-    what is left there. Nearer rest the torque is set-valued (any torque within the friction
-    cone; a simulator's soft friction constraint, presliding on a real joint): no law of
-    ``q̇`` predicts it, and the verdict judges those samples against the cone too. Weighed
-    against the whole excess, most of it the error at rest, a hump 5 × the noise on the UR5
-    or xArm7 explained 18–21 % of it and was refused; where the plain Coulomb step leaves
-    nothing clear of rest, no hump passes."""
+    (:attr:`GapData.sign_unresolved`): nearer rest the torque is set-valued (any torque within
+    the friction cone; a simulator's soft friction constraint, presliding on a real joint): no
+    law of ``q̇`` predicts it, and the verdict judges those samples against the cone too.
+    Weighed against the whole excess, most of it the error at rest, a hump 5 × the noise on the
+    UR5 or xArm7 explained 18–21 % of it and was refused. Where it acts: the rows where its
+    held-out column is at least ``e⁻⁹`` of its largest (``|q̇_j| ≲ 3 v_s`` unfiltered), as an
+    atom's tests are made on its joint's rows and not the arm's: a hump is a few zero
+    crossings of a joint that moves fast elsewhere, and judged on all of the joint's rows
+    (1.27 × its floor on the UR5, seed 6) it was refused as within the floor although it left
+    twice the floor's variance where it acts. Where the plain Coulomb step leaves nothing
+    there, no hump passes."""
     out = {}
+    offsets = np.cumsum([0] + [a.n_parameters for a in atoms])
     for i, atom in enumerate(atoms):
         if atom.effect != "stribeck" or atom.joint is None:
             continue
         j = atom.joint
         rest = min(0.5 * (atom.setting or 0.0), REST_SPEED)
-        keep = (np.abs(held.dataset.dq[:, j]) >= rest) & ~held.sign_unresolved[:, j]
+        column = np.abs(phi_ho[:, j, offsets[i]:offsets[i + 1]]).max(axis=1)
+        keep = ((np.abs(held.dataset.dq[:, j]) >= rest) & ~held.sign_unresolved[:, j]
+                & (column >= np.exp(-9.0) * column.max(initial=0.0)))
         g = _Grams.build(phi_ho[keep][:, [j], :], held.residual[keep][:, [j]])
         out[i] = (g, int(keep.sum()))
     return out
