@@ -76,6 +76,7 @@ from .regressor import DEFAULT_FRICTION, FrictionArg, RegressorSpec, parameter_n
 from .result import IdentificationResult
 from .solver import SolverReport
 from .model_error import rest_bias, split_bias
+from .weighting_error import weighting_bias
 from .statistics import ScoreSums, coloured_covariance, hac_covariance, score_sums
 from .uninformed import uninformed_directions
 from .envelope import TrainingEnvelope
@@ -523,6 +524,7 @@ def with_covariance(result: IdentificationResult, problem: CompressedProblem,
     cov, details = with_rest_error(result, problem, rest, cov, details,
                                    (weights, tau, variances))
     cov, details = with_split_error(result, stats, kept, cov, details)
+    cov, details = with_weighting_error(result, problem, cov, details, (weights, tau, variances))
     # the speed per joint below which its rows counted as at rest (rad/s)
     details["model_error_speed"] = stats.rest_speeds()
     note = standstill_note(stats, result.model.joint_names, kept)
@@ -594,6 +596,33 @@ def with_rest_error(result: IdentificationResult, problem: CompressedProblem,
             "without those rows)" if wide.size else
             "the rows at rest move no base parameter beyond its noise ±")
     return cov, {**details, "model_error": np.sqrt(b2), "model_error_note": note}
+
+
+def with_weighting_error(result: IdentificationResult, problem: CompressedProblem,
+                         cov: np.ndarray, details: dict,
+                         noise: tuple[np.ndarray, np.ndarray, np.ndarray]
+                         ) -> tuple[np.ndarray, dict]:
+    """``cov`` with the model error that the fit's per-joint weights put into it added to its
+    diagonal (:func:`~consistid.identification.weighting_error.weighting_bias`: Hausman's test
+    of the weights against equal ones; ``noise`` = ``(w_j, τ_j, v_j)`` of the sandwich), and to
+    ``details["model_error"]``; ``details["weighting_error"]`` is that term alone (per base
+    parameter, its standard deviation) and ``details["weighting_error_note"]`` says what was
+    done."""
+    b2, z, rejected = weighting_bias(problem, result.base.independent, *noise)
+    if not rejected:
+        return cov, {**details, "weighting_error": np.zeros(b2.size), "weighting_error_note": (
+            "none: equal weights" if not np.any(z) else
+            f"none: the per-joint weights move no base parameter beyond chance (largest "
+            f"|δ|/σ {np.max(np.abs(z)):.3g})")}
+    b2 = np.where(np.isfinite(np.diag(cov)), b2, 0.0)
+    worst = int(np.argmax(np.abs(z)))
+    note = (f"the per-joint weights move {int(np.sum(b2 > 0))} base parameter(s) beyond their "
+            f"noise (e.g. {result.base.names[worst]} by {abs(z[worst]):.3g} σ from the equal-"
+            "weight fit): the residual is model error more than noise, and their intervals "
+            "include that difference")
+    return cov + np.diag(b2), {**details, "weighting_error": np.sqrt(b2),
+                               "weighting_error_note": note,
+                               "model_error": np.sqrt(details["model_error"] ** 2 + b2)}
 
 
 def with_split_error(result: IdentificationResult, stats: ResidualStatistics, kept: np.ndarray,
