@@ -139,8 +139,8 @@ def simulated(model, effects, inertias, names, fc, fv) -> np.ndarray:
 def test_sdp_intervals_cover_a_ur5_log_through_the_signal_chain():
     """UR5 in MuJoCo (inertias ±12 %, frictionloss + damping), the measured log through the
     default signal chain, parallel filtering on: the SDP's 95 % intervals hold the simulated
-    truth for ≥ 90 % of the base parameters over two seeds, where without the weighting term
-    (``details["weighting_error"]`` taken out) they held it for fewer than 90 %."""
+    truth for ≥ 90 % of the base parameters over six seeds (0.92), where without the weighting
+    term (``details["weighting_error"]`` taken out) they held it for fewer than 90 % (0.86)."""
     import consistid as ci
     from consistid.data.signals import preprocess
     from consistid.robot.inertia import perturb
@@ -148,7 +148,7 @@ def test_sdp_intervals_cover_a_ur5_log_through_the_signal_chain():
 
     model = ci.RobotModel.example("ur5")
     covered, before, total = 0, 0, 0
-    for seed in (7000, 9000):
+    for seed in (4000, 5000, 6000, 7000, 8000, 9000):
         rng = np.random.default_rng(seed)
         inertias = perturb(model.prior_parameters, 0.12, rng)
         fc, fv = rng.uniform(0.5, 2.0, model.nv), rng.uniform(0.2, 1.0, model.nv)

@@ -36,7 +36,11 @@ The estimate itself is unchanged. On white noise ``τ_j ≈ 1`` and the two agre
 friction takes any torque up to its break-away, which ``f_c sign(q̇)`` does not describe, and
 those rows bias the fit beyond any noise ± (:mod:`consistid.identification.model_error`: the
 Hausman difference of the least-squares fits with and without them, less its noise;
-``details["model_error"]``, ``details["model_error_note"]``).
+``details["model_error"]``, ``details["model_error_note"]``). A fit weighted per joint (WLS, the
+SDP) also gets the excess of its difference from the equal-weight fit over that difference's
+noise, when Hausman's test of the weights rejects (:mod:`consistid.identification.weighting_error`:
+through the signal chain the residual is mostly model error, which the weights ``1/σ_j²``
+follow; ``details["weighting_error"]``, ``details["weighting_error_note"]``).
 
 ``covariance="hac"`` replaces the per-joint ``τ_j`` by the heteroskedasticity- and
 autocorrelation-consistent sandwich of the least-squares scores
