@@ -616,8 +616,8 @@ def with_weighting_error(result: IdentificationResult, problem: CompressedProble
     if not rejected:
         return cov, {**details, "weighting_error": np.zeros(b2.size), "weighting_error_note": (
             "none: equal weights" if not np.any(z) else
-            f"none: the per-joint weights move no base parameter beyond chance (largest "
-            f"|δ|/σ {np.max(np.abs(z)):.3g})")}
+            f"none: the per-joint weights do not move the estimate beyond chance (Hausman's "
+            f"test against equal weights; largest |δ_i|/σ {np.max(np.abs(z)):.3g})")}
     b2 = np.where(np.isfinite(np.diag(cov)), b2, 0.0)
     worst = int(np.argmax(np.abs(z)))
     note = (f"the per-joint weights move {int(np.sum(b2 > 0))} base parameter(s) beyond their "
