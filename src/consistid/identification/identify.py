@@ -36,7 +36,11 @@ The estimate itself is unchanged. On white noise ``τ_j ≈ 1`` and the two agre
 friction takes any torque up to its break-away, which ``f_c sign(q̇)`` does not describe, and
 those rows bias the fit beyond any noise ± (:mod:`consistid.identification.model_error`: the
 Hausman difference of the least-squares fits with and without them, less its noise;
-``details["model_error"]``, ``details["model_error_note"]``).
+``details["model_error"]``, ``details["model_error_note"]``). A fit weighted per joint (WLS, the
+SDP) also gets the excess of its difference from the equal-weight fit over that difference's
+noise, when Hausman's test of the weights rejects (:mod:`consistid.identification.weighting_error`:
+through the signal chain the residual is mostly model error, which the weights ``1/σ_j²``
+follow; ``details["weighting_error"]``, ``details["weighting_error_note"]``).
 
 ``covariance="hac"`` replaces the per-joint ``τ_j`` by the heteroskedasticity- and
 autocorrelation-consistent sandwich of the least-squares scores
@@ -76,6 +80,7 @@ from .regressor import DEFAULT_FRICTION, FrictionArg, RegressorSpec, parameter_n
 from .result import IdentificationResult
 from .solver import SolverReport
 from .model_error import rest_bias, split_bias
+from .weighting_error import weighting_bias
 from .statistics import ScoreSums, coloured_covariance, hac_covariance, score_sums
 from .uninformed import uninformed_directions
 from .envelope import TrainingEnvelope
@@ -524,6 +529,7 @@ def with_covariance(result: IdentificationResult, problem: CompressedProblem,
     cov, details = with_rest_error(result, problem, rest, cov, details,
                                    (weights, tau, variances), rest_suspected(stats, kept))
     cov, details = with_split_error(result, stats, kept, cov, details)
+    cov, details = with_weighting_error(result, problem, cov, details, (weights, tau, variances))
     # the speed per joint below which its rows counted as at rest (rad/s)
     details["model_error_speed"] = stats.rest_speeds()
     note = standstill_note(stats, result.model.joint_names, kept)
@@ -631,6 +637,33 @@ def with_rest_error(result: IdentificationResult, problem: CompressedProblem,
             "without those rows)" if wide.size else
             "the rows at rest move no base parameter beyond its noise ±")
     return cov, {**details, "model_error": np.sqrt(b2), "model_error_note": note}
+
+
+def with_weighting_error(result: IdentificationResult, problem: CompressedProblem,
+                         cov: np.ndarray, details: dict,
+                         noise: tuple[np.ndarray, np.ndarray, np.ndarray]
+                         ) -> tuple[np.ndarray, dict]:
+    """``cov`` with the model error that the fit's per-joint weights put into it added to its
+    diagonal (:func:`~consistid.identification.weighting_error.weighting_bias`: Hausman's test
+    of the weights against equal ones; ``noise`` = ``(w_j, τ_j, v_j)`` of the sandwich), and to
+    ``details["model_error"]``; ``details["weighting_error"]`` is that term alone (per base
+    parameter, its standard deviation) and ``details["weighting_error_note"]`` says what was
+    done."""
+    b2, z, rejected = weighting_bias(problem, result.base.independent, *noise)
+    if not rejected:
+        return cov, {**details, "weighting_error": np.zeros(b2.size), "weighting_error_note": (
+            "none: equal weights" if not np.any(z) else
+            f"none: the per-joint weights do not move the estimate beyond chance (Hausman's "
+            f"test against equal weights; largest |δ_i|/σ {np.max(np.abs(z)):.3g})")}
+    b2 = np.where(np.isfinite(np.diag(cov)), b2, 0.0)
+    worst = int(np.argmax(np.abs(z)))
+    note = (f"the per-joint weights move {int(np.sum(b2 > 0))} base parameter(s) beyond their "
+            f"noise (e.g. {result.base.names[worst]} by {abs(z[worst]):.3g} σ from the equal-"
+            "weight fit): the residual is model error more than noise, and their intervals "
+            "include that difference")
+    return cov + np.diag(b2), {**details, "weighting_error": np.sqrt(b2),
+                               "weighting_error_note": note,
+                               "model_error": np.sqrt(details["model_error"] ** 2 + b2)}
 
 
 def with_split_error(result: IdentificationResult, stats: ResidualStatistics, kept: np.ndarray,
