@@ -28,32 +28,9 @@ import warnings
 import numpy as np
 
 import consistid as ci
-from consistid.robot.inertia import perturb
-from consistid.simulate import Effects, record
+from consistid.simulate.mujoco_logs import friction_run
 
 FRICTION = ("coulomb", "viscous", "offset")
-
-
-def compiled_inertias(model, effects: Effects, truth: np.ndarray) -> np.ndarray:
-    """Stacked 10-vectors (Pinocchio's order) of the links of the MuJoCo model ``record``
-    compiles (body frame = joint frame; rotor and payload bodies skipped)."""
-    import mujoco
-    import pinocchio as pin
-
-    from consistid.simulate.mujoco_robot import MujocoRobot
-
-    mj = MujocoRobot(model, effects, truth, timestep=1e-3).mj_model
-    out = []
-    for body in range(1, mj.nbody):
-        if mj.body_jntnum[body] == 0:
-            continue
-        rot = np.zeros(9)
-        mujoco.mju_quat2Mat(rot, mj.body_iquat[body])
-        rot = rot.reshape(3, 3)
-        out.append(pin.Inertia(float(mj.body_mass[body]), mj.body_ipos[body].copy(),
-                               rot @ np.diag(mj.body_inertia[body]) @ rot.T
-                               ).toDynamicParameters())
-    return np.concatenate(out)
 
 
 def one_run(name: str, seed: int, duration: float, rate: float,
@@ -63,18 +40,10 @@ def one_run(name: str, seed: int, duration: float, rate: float,
     from consistid.data.signals import preprocess
 
     model = ci.RobotModel.example(name)
-    rng = np.random.default_rng(seed)
-    truth = perturb(model.prior_parameters, 0.12, rng)
-    fc = rng.uniform(0.5, 2.0, model.nv)
-    fv = rng.uniform(0.2, 1.0, model.nv)
-    effects = Effects(viscous=fv, coulomb=fc, torque_noise=0.1)
-    traj = ci.FourierTrajectory.random(model, 5, 10.0, rng, amplitude=0.8)
+    run = friction_run(model, seed, duration, rate)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        rec = record(model, traj, effects, truth, duration=duration, rate=rate,
-                     seed=int(rng.integers(2**31)))
-        data = preprocess(rec.t, rec.q, rec.tau).dataset
-    inertial = compiled_inertias(model, effects, truth)
+        data = preprocess(run.dataset.t, run.dataset.q, run.dataset.tau).dataset
     rows = []
     for method in methods:
         for parallel in (True, False):
@@ -82,12 +51,7 @@ def one_run(name: str, seed: int, duration: float, rate: float,
                 warnings.simplefilter("ignore")
                 res = ci.identify(model, data, method=method, friction=FRICTION,
                                   parallel_filter=parallel)
-            names = res.parameter_names
-            theta = np.zeros(len(names))
-            theta[:inertial.size] = inertial
-            for j, joint in enumerate(model.joint_names):
-                theta[names.index(f"{joint}.fc")] = fc[j]
-                theta[names.index(f"{joint}.fv")] = fv[j]
+            theta = run.truth(model, list(res.parameter_names))
             var = np.clip(np.diag(res.base_covariance), 0, None)
             extra = res.details["weighting_error"] ** 2
             rows.append(dict(robot=name, method=method, parallel=parallel,

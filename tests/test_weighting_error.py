@@ -108,33 +108,6 @@ def test_hausman_statistic_on_a_singular_covariance():
     assert not hausman_rejects(np.array([0.0, 0.0, 10.0]), cov)
 
 
-def simulated(model, effects, inertias, names, fc, fv) -> np.ndarray:
-    """The simulated robot as a vector of ``names``: its link bodies read back from the
-    compiled MuJoCo model (body frame = joint frame), its friction as simulated, offsets 0."""
-    import mujoco
-    import pinocchio as pin
-
-    from consistid.simulate.mujoco_robot import MujocoRobot
-
-    mj = MujocoRobot(model, effects, inertias, timestep=1e-3).mj_model
-    bodies = []
-    for b in range(1, mj.nbody):
-        if mj.body_jntnum[b] == 0:
-            continue
-        rot = np.zeros(9)
-        mujoco.mju_quat2Mat(rot, mj.body_iquat[b])
-        rot = rot.reshape(3, 3)
-        bodies.append(pin.Inertia(float(mj.body_mass[b]), mj.body_ipos[b].copy(),
-                                  rot @ np.diag(mj.body_inertia[b]) @ rot.T
-                                  ).toDynamicParameters())
-    theta = np.zeros(len(names))
-    theta[:model.n_inertial] = np.concatenate(bodies)
-    for j, joint in enumerate(model.joint_names):
-        theta[names.index(f"{joint}.fc")] = fc[j]
-        theta[names.index(f"{joint}.fv")] = fv[j]
-    return theta
-
-
 @pytest.mark.slow
 def test_sdp_intervals_cover_a_ur5_log_through_the_signal_chain():
     """UR5 in MuJoCo (inertias ±12 %, frictionloss + damping), the measured log through the
@@ -143,25 +116,17 @@ def test_sdp_intervals_cover_a_ur5_log_through_the_signal_chain():
     term (``details["weighting_error"]`` taken out) they held it for fewer than 90 % (0.86)."""
     import consistid as ci
     from consistid.data.signals import preprocess
-    from consistid.robot.inertia import perturb
-    from consistid.simulate import Effects, record
+    from consistid.simulate.mujoco_logs import friction_run
 
     model = ci.RobotModel.example("ur5")
     covered, before, total = 0, 0, 0
     for seed in (4000, 5000, 6000, 7000, 8000, 9000):
-        rng = np.random.default_rng(seed)
-        inertias = perturb(model.prior_parameters, 0.12, rng)
-        fc, fv = rng.uniform(0.5, 2.0, model.nv), rng.uniform(0.2, 1.0, model.nv)
-        effects = Effects(viscous=fv, coulomb=fc, torque_noise=0.1)
-        traj = ci.FourierTrajectory.random(model, 5, 10.0, rng, amplitude=0.8)
+        run = friction_run(model, seed, duration=30.0, rate=500.0)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            rec = record(model, traj, effects, inertias, duration=30.0, rate=500.0,
-                         seed=int(rng.integers(2**31)))
-            data = preprocess(rec.t, rec.q, rec.tau).dataset
+            data = preprocess(run.dataset.t, run.dataset.q, run.dataset.tau).dataset
             res = ci.identify(model, data, friction=("coulomb", "viscous", "offset"))
-        truth = res.base.project(simulated(model, effects, inertias,
-                                           list(res.parameter_names), fc, fv))
+        truth = res.base.project(run.truth(model, list(res.parameter_names)))
         err = np.abs(res.base_parameters - truth)
         var = np.diag(res.base_covariance)
         covered += int(np.sum(err <= 1.96 * np.sqrt(var)))
