@@ -164,7 +164,8 @@ def _reads_a_slope(data: GapData, joint: int, fit: SetValuedFit, known: np.ndarr
     (``Σ a_k ≤ STEP_SHARE · f_v \max|q̇|``): MuJoCo's soft ``frictionloss`` on a wrist that
     never leaves its smoothing band rises linearly there, and the law takes it as viscous
     (the xArm7's joint 7 below 0.04 rad/s: ``f_c`` 0.000 ± 0.02 for 0.6, ``f_v``
-    14.3 ± 0.7 for 0.3)."""
+    14.3 ± 0.7 for 0.3). Unlike ``identify`` it does not also ask the slope to be clear of 0
+    (``SLOPE_Z``) nor apply the band test: it only widens σ, so it errs on the wide side."""
     if fit.viscous.size == 0:
         return False
     left = np.where(known, fit.remainder, 0.0)[:, None]

@@ -667,7 +667,8 @@ def with_rest_error(result: IdentificationResult, problem: CompressedProblem,
     done (``details["model_error_speed"]``, set by the caller: the speed per joint below which
     its rows counted as at rest). ``rest`` is the compressed problem of the rows at rest
     (``None``: there are none); ``suspected``: the residual shows the model wrong at rest
-    (:func:`rest_suspected`); otherwise the term is added only when Hausman's test finds a bias."""
+    (:func:`rest_suspected`) or dry friction makes it a set there (:func:`dry_friction_at_rest`);
+    otherwise the term is added only when Hausman's test finds a bias."""
     cols = result.base.independent
     if rest is None:
         return cov, {**details, "model_error": np.zeros(cols.size),

@@ -31,8 +31,9 @@ on (``V_all + b² ≥ V_moving``),
 That is the term *when the model is suspected at rest*: when Hausman's test finds the rows at
 rest moving some base parameter beyond chance (:func:`moved_beyond_chance`: the largest
 ``δ_i²/ΔV_ii`` against χ²₁ at the familywise level :data:`REST_ALPHA`, Bonferroni over the
-parameters), or the residual says so (the caller's ``suspected``: a joint's residual larger at
-rest or in its slow bands, a slow joint). Otherwise ``δ`` is the noise that ``V_all`` already
+parameters), or the caller suspects it (``suspected``: a Coulomb column on a joint with rows
+at rest, where ``f_c sign(q̇)`` is a set and not a value; a joint's residual larger at rest or in
+its slow bands; a slow joint). Otherwise ``δ`` is the noise that ``V_all`` already
 counts, the fit on all rows is the efficient one, and the term is 0: the floor ``ΔV_ii`` on
 white noise, where nothing is wrong at rest, only widens intervals — on 2 s of small motion
 (the rows at rest a large share) by 10–20 % of their variance, coverage of the 95 % intervals
