@@ -57,7 +57,7 @@ def test_iid_on_filtered_rows_is_warned(panda_chain):
 def test_rest_error_survives_the_identification_low_pass(panda_chain):
     """Panda, MuJoCo frictionloss, noise 1 N·m, through the chain: with parallel filtering the
     Coulomb and viscous intervals hold the simulated friction (before the rows at rest were
-    widened by the filter's response: joint 5's f_c 3.4 σ off, its model error 0.08 against
+    judged on the samples as they are: joint 5's f_c 3.4 σ off, its model error 0.08 against
     0.35 without the filter)."""
     model, run, data = panda_chain
     with warnings.catch_warnings():

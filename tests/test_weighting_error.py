@@ -112,14 +112,15 @@ def test_hausman_statistic_on_a_singular_covariance():
 def test_sdp_intervals_cover_a_ur5_log_through_the_signal_chain():
     """UR5 in MuJoCo (inertias ±12 %, frictionloss + damping), the measured log through the
     default signal chain, parallel filtering on: the SDP's 95 % intervals hold the simulated
-    truth for ≥ 90 % of the base parameters over six seeds (0.92), where without the weighting
-    term (``details["weighting_error"]`` taken out) they held it for fewer than 90 % (0.86)."""
+    truth for ≥ 90 % of the base parameters over six seeds, and the test of the weights opens
+    on some of them. (Without the weighting term they held it for 0.86 while the rows at rest
+    were judged on filtered rows; since they are judged on the samples, for 0.94.)"""
     import consistid as ci
     from consistid.data.signals import preprocess
     from consistid.simulate.mujoco_logs import friction_run
 
     model = ci.RobotModel.example("ur5")
-    covered, before, total = 0, 0, 0
+    covered, opened, total = 0, 0, 0
     for seed in (4000, 5000, 6000, 7000, 8000, 9000):
         run = friction_run(model, seed, duration=30.0, rate=500.0)
         with warnings.catch_warnings():
@@ -130,7 +131,7 @@ def test_sdp_intervals_cover_a_ur5_log_through_the_signal_chain():
         err = np.abs(res.base_parameters - truth)
         var = np.diag(res.base_covariance)
         covered += int(np.sum(err <= 1.96 * np.sqrt(var)))
-        before += int(np.sum(err <= 1.96 * np.sqrt(var - res.details["weighting_error"] ** 2)))
+        opened += int(np.any(res.details["weighting_error"] > 0))
         total += err.size
     assert covered / total >= 0.90
-    assert before / total < 0.90
+    assert opened >= 1

@@ -556,7 +556,13 @@ def with_covariance(result: IdentificationResult, problem: CompressedProblem,
         details["covariance"] = (f"coloured (sandwich, N/τ_j effective rows; τ_j in samples: "
                                  f"{shown})")
     rest = None if stats.rest is None else restricted(stats.rest, kept)
-    cov, details = with_rest_error(result, problem, rest, cov, details,
+    # the rows at rest are judged on the samples as they are (parallel filtering: against
+    # the reference problem of every sample; without one, a stream of filtered and unfiltered
+    # parts, they cannot be)
+    reference: CompressedProblem | None = problem
+    if problem.filtered:
+        reference = None if stats.reference is None else restricted(stats.reference, kept)
+    cov, details = with_rest_error(result, reference, rest, cov, details,
                                    (weights, tau, variances),
                                    rest_suspected(stats, kept)
                                    or dry_friction_at_rest(result.spec, stats, kept))
@@ -656,7 +662,7 @@ def dry_friction_at_rest(spec: RegressorSpec, stats: ResidualStatistics, kept: n
     return bool(np.any((coulomb & (stats.rest_count > 0))[kept]))
 
 
-def with_rest_error(result: IdentificationResult, problem: CompressedProblem,
+def with_rest_error(result: IdentificationResult, problem: CompressedProblem | None,
                     rest: CompressedProblem | None, cov: np.ndarray, details: dict,
                     noise: tuple[np.ndarray, np.ndarray, np.ndarray], suspected: bool = False
                     ) -> tuple[np.ndarray, dict]:
@@ -670,6 +676,13 @@ def with_rest_error(result: IdentificationResult, problem: CompressedProblem,
     (:func:`rest_suspected`) or dry friction makes it a set there (:func:`dry_friction_at_rest`);
     otherwise the term is added only when Hausman's test finds a bias."""
     cols = result.base.independent
+    if problem is None:
+        note = ("not assessed: a stream of parallel-filtered and unfiltered parts has no "
+                "reference of its samples as they are; give parts filtered alike "
+                "(or parallel_filter=False)")
+        warnings.warn(f"the model error of the rows at rest is {note}", ModelWarning,
+                      stacklevel=4)
+        return cov, {**details, "model_error": np.zeros(cols.size), "model_error_note": note}
     if rest is None:
         return cov, {**details, "model_error": np.zeros(cols.size),
                      "model_error_note": "none: no joint stands still in the data"}

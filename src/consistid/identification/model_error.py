@@ -74,13 +74,12 @@ is far above ``v``, which the data cannot show, and the slow-joint warning says 
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
-import scipy.ndimage
 import scipy.stats
 
 from ..data.dataset import Dataset
-from ..data.filters import settling_time
-from ..data.parallel import runs
 from ..robot.joint_terms import STANDSTILL_SPEED
 from ..robot.model import RobotModel
 from .base import BaseParameters
@@ -119,37 +118,32 @@ def rest_problem(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
                  ) -> CompressedProblem | None:
     """The compressed problem of the rows where a joint stands still (joint ``j``'s rows with
     ``|q̇_j| < speeds[j]``, the other joints' rows of those samples weighted 0), or ``None``
-    when no joint ever does."""
+    when no joint ever does. The samples as they are, also on parallel-filtered data
+    (:func:`rest_reference`)."""
     rest = np.abs(dataset.dq) < np.asarray(speeds, dtype=float)
     samples = np.flatnonzero(rest.any(axis=1))
     if samples.size == 0:
         return None
-    if dataset.identification_filter is not None:
-        # the filtered rows of the whole problem at those samples (a selection would filter
-        # the rows at rest apart from their neighbours): rows elsewhere weighted 0
-        return compress(model, dataset, spec, weights=smeared(rest, dataset).astype(float),
-                        base=base)
-    return compress(model, dataset.select(samples), spec, weights=rest[samples].astype(float),
+    data = dataclasses.replace(dataset, identification_filter=None)
+    return compress(model, data.select(samples), spec, weights=rest[samples].astype(float),
                     base=base)
 
 
-def smeared(rest: np.ndarray, dataset: Dataset) -> np.ndarray:
-    """``rest`` (samples × joints) widened, within each run of evenly spaced samples, by the
-    half-width of the identification low-pass's impulse response (:func:`settling_time`, 99 %
-    of its energy): the filtered rows a torque error at rest reaches. Rows at rest alone would
-    leave that error, smeared over their moving neighbours, in the fit without them, and
-    Hausman's ``δ`` would miss it (Panda, MuJoCo dry friction, noise 1 N·m: ``b`` 0.08 against
-    0.35 unfiltered, Coulomb/viscous coverage 0.86 against 0.99)."""
-    cutoff, order = dataset.identification_filter
-    out = rest.copy()
-    for r in runs(dataset.t, dataset.segment):
-        t = dataset.t[r]
-        if t.size < 2:
-            continue
-        rate = 1.0 / float(np.median(np.diff(t)))
-        half = int(np.ceil(settling_time(cutoff, rate, order) * rate))
-        out[r] = scipy.ndimage.binary_dilation(rest[r], np.ones((2 * half + 1, 1), dtype=bool))
-    return out
+def rest_reference(model: RobotModel, dataset: Dataset, spec: RegressorSpec,
+                   base: BaseParameters | None = None) -> CompressedProblem | None:
+    """On parallel-filtered data (``Dataset.identification_filter``), the compressed problem of
+    all its samples as they are, which :func:`rest_bias` compares with :func:`rest_problem`'s;
+    ``None`` otherwise (the fit's own problem serves). The identification low-pass smears a
+    torque error at rest over its moving neighbours, so that filtered rows without those at
+    rest keep it and Hausman's ``δ`` misses it (Panda, MuJoCo dry friction, noise 1 N·m: ``b``
+    0.08 against 0.35 on the samples, Coulomb/viscous coverage 0.86 against 0.99); widening the
+    rows at rest by the filter's response instead left too few moving rows (σ of the shipped
+    Panda example's friction up to 24 × wider). The bias the rows at rest put into the fit is
+    estimated on the samples and added to the filtered fit's covariance."""
+    if dataset.identification_filter is None:
+        return None
+    return compress(model, dataclasses.replace(dataset, identification_filter=None), spec,
+                    base=base)
 
 
 def joint_grams(problem: CompressedProblem, columns: np.ndarray

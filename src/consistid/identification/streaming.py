@@ -51,7 +51,7 @@ from ..robot.model import RobotModel
 from .base import BaseParameters
 from .compression import CompressedProblem, compress
 from .envelope import TrainingEnvelope
-from .model_error import rest_problem
+from .model_error import rest_problem, rest_reference
 from .regressor import RegressorSpec, parameter_names, predict_torque
 from .statistics import add_lagged, autocovariance_sum, integrated_time
 
@@ -193,6 +193,10 @@ class ResidualStatistics:
         deviation with rows counted as independent (``inf`` where ``f_v ≤ 0`` or it is not a
         base parameter), or ``None``: unknown, every fitted slope is read
         (:meth:`steep_joints`).
+    reference : on parallel-filtered data, the compressed problem of every sample as it is,
+        against which :attr:`rest` (always of the samples as they are) is judged
+        (:func:`~consistid.identification.model_error.rest_reference`); ``None`` otherwise,
+        and on a stream whose parts are not all filtered.
     """
 
     autocovariance: np.ndarray | None
@@ -206,6 +210,7 @@ class ResidualStatistics:
     top_speed: np.ndarray | None = None
     viscous_speed: np.ndarray | None = None
     viscous_noise: np.ndarray | None = None
+    reference: CompressedProblem | None = None
 
     @classmethod
     def of(cls, model: RobotModel, spec: RegressorSpec, theta: np.ndarray,
@@ -235,7 +240,8 @@ class ResidualStatistics:
                                     viscous_noise=viscous_noise(model, spec, theta, viscous_std))
         if base is not None:
             stats = dataclasses.replace(stats, rest=rest_problem(model, dataset, spec, base,
-                                                                 stats.rest_speeds()))
+                                                                 stats.rest_speeds()),
+                                        reference=rest_reference(model, dataset, spec, base))
         return stats
 
     @classmethod
@@ -269,7 +275,9 @@ class ResidualStatistics:
                                   self.viscous_speed if other.viscous_speed is None
                                   else other.viscous_speed,
                                   self.viscous_noise if other.viscous_noise is None
-                                  else other.viscous_noise)
+                                  else other.viscous_noise,
+                                  None if self.reference is None or other.reference is None
+                                  else merge(self.reference, other.reference))
 
     def rest_speeds(self) -> np.ndarray:
         r"""Per joint, the speed (rad/s) below which its residual is structured: the upper edge
