@@ -275,9 +275,11 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
     parallel_filter : on data that record an identification cut-off
         (``Dataset.identification_filter``: the signal chain sets it at 3 × the motion's band),
         low-pass the torques and every column of the regressor alike there before least
-        squares, and compute the residual statistics (σ, ``τ_j``, the sandwich, the rows at
-        rest, Huber weights) from those filtered rows (parallel filtering,
-        :mod:`consistid.data.parallel`; ``details["parallel_filter"]``). ``False``: the
+        squares (parallel filtering, :mod:`consistid.data.parallel`;
+        ``details["parallel_filter"]``): the estimate, its Gram matrices and Huber's weights
+        come from those filtered rows; ``sigma``, ``train_rms``, ``τ_j`` and the long-run
+        variances of the sandwich, and the rows at rest, from the samples as they are (the
+        filtered rows' σ in ``details["filtered_sigma"]``). ``False``: the
         samples as they are (the positions' derivatives and torques at the chain's derivative
         cut-off). Not for nonlinear friction laws, whose search reads the samples as they are.
     **options : keyword options of :func:`consistid.identification.sdp.identify_sdp`, for
