@@ -88,3 +88,16 @@ def test_dry_friction_rows_at_rest_always_get_the_model_error():
     names = [res.parameter_names[c] for c in res.base.independent]
     b = np.asarray(res.details["model_error"])
     assert b[names.index("panda_joint7.fc")] > 0
+
+
+def test_excluded_joints_on_filtered_rows(panda_chain):
+    """A joint left out of a parallel-filtered fit: the kept joints' σ are those of the full
+    fit's samples (the slope test's σ indexed by kept joint: it raised IndexError)."""
+    model, _, data = panda_chain
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        full = ci.identify(model, data, method="wls", friction=FRICTION)
+        part = ci.identify(model, data, method="wls", friction=FRICTION, exclude_joints=[2])
+    assert np.isnan(part.sigma[2]) and np.isnan(part.train_rms[2])
+    kept = [j for j in range(model.nv) if j != 2]
+    np.testing.assert_allclose(part.sigma[kept], full.sigma[kept], rtol=0.1)

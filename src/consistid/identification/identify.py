@@ -604,11 +604,12 @@ def unfiltered_slope_noise(stats: ResidualStatistics, kept: np.ndarray, variance
     samples as they are: :func:`viscous_std` of parallel-filtered rows counts the filtered
     residual's variance ``1/w_j``, a fraction ``≈ 2 f_p / rate`` of the variance ``v_j`` that
     ``√τ_j`` (from the unfiltered residual) then scales, so each kept joint's ``σ(f̂_v)`` is
-    scaled by ``√(v_j w_j)`` (its column lies in its own joint's rows only)."""
+    scaled by ``√(v_j w_j)`` (its column lies in its own joint's rows only; ``variances`` and
+    ``weights`` of the kept joints, in their order)."""
     if stats.viscous_noise is None:
         return stats
     noise = stats.viscous_noise.copy()
-    noise[kept] *= np.sqrt(np.maximum(variances * weights[kept], 0.0))
+    noise[kept] *= np.sqrt(np.maximum(variances * weights, 0.0))
     return dataclasses.replace(stats, viscous_noise=noise)
 
 
