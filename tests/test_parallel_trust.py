@@ -99,5 +99,7 @@ def test_excluded_joints_on_filtered_rows(panda_chain):
         full = ci.identify(model, data, method="wls", friction=FRICTION)
         part = ci.identify(model, data, method="wls", friction=FRICTION, exclude_joints=[2])
     assert np.isnan(part.sigma[2]) and np.isnan(part.train_rms[2])
+    for key in ("filtered_sigma", "sample_sigma", "sample_rms", "filtered_train_rms"):
+        assert part.details[key].shape == (model.nv,) and np.isnan(part.details[key][2]), key
     kept = [j for j in range(model.nv) if j != 2]
     np.testing.assert_allclose(part.sigma[kept], full.sigma[kept], rtol=0.1)

@@ -454,9 +454,10 @@ def with_excluded(result: IdentificationResult, excluded: Sequence[int], kept: n
     details = {**result.details, "excluded_joints": (
         f"{', '.join(names)}: torque rows left out; not identifiable then: "
         f"{', '.join(lost) if lost else 'nothing beyond their rows'}")}
-    if "autocorrelation_time" in details:
-        details["autocorrelation_time"] = expand(details["autocorrelation_time"], kept,
-                                                 model.nv)
+    for key in ("autocorrelation_time", "filtered_sigma", "filtered_train_rms",
+                "sample_sigma", "sample_rms"):
+        if key in details:
+            details[key] = expand(details[key], kept, model.nv)
     return dataclasses.replace(
         result, sigma=expand(result.sigma, kept, model.nv),
         train_rms=expand(result.train_rms, kept, model.nv), details=details,
@@ -511,7 +512,8 @@ def with_covariance(result: IdentificationResult, problem: CompressedProblem,
                           "rows were low-passed at identification (parallel filtering: "
                           "details['parallel_filter']) and are correlated over about "
                           "rate / (2 × cut-off) samples: the σ are too narrow by about the root "
-                          "of that. Use covariance='coloured' (squared loss), or "
+                          "of that. Use covariance='coloured' (squared loss, on data that can be "
+                          "read twice: a Dataset, a list, or a re-readable DataStream), or "
                           "parallel_filter=False", DataQualityWarning, stacklevel=3)
         once = isinstance(dataset, DataStream) and not dataset.rereadable
         return dataclasses.replace(result, details={
