@@ -138,6 +138,22 @@ def _train_and_held(model: ci.RobotModel, params: np.ndarray, eff, rng: np.rando
     return logs[0], logs[1]
 
 
+def _mixed_case(arm: str, seed: int, spread: float = 0.12
+                ) -> tuple[ci.RobotModel, ci.Dataset, ci.Dataset]:
+    """The mixed mismatch of ``benchmarks/diagnosis_mixed.py``: every body perturbed by
+    ``±spread`` (0: the nominal bodies, the same draws scaled by 0), Coulomb 0.8–2 N·m and
+    viscous 0.3–1.5 N·m·s/rad on every joint, σ = 0.1 N·m; ``(model, train, held)``."""
+    from consistid.robot.inertia import perturb
+    from consistid.simulate import Effects
+
+    model = ci.RobotModel.example(arm)
+    rng = np.random.default_rng(seed)
+    params = perturb(model.prior_parameters, spread, rng)
+    eff = Effects(coulomb=rng.uniform(0.8, 2.0, model.nv),
+                  viscous=rng.uniform(0.3, 1.5, model.nv), torque_noise=0.1)
+    return (model, *_train_and_held(model, params, eff, rng, seed))
+
+
 PAYLOAD_KEPT = pytest.mark.xfail(
     strict=True, raises=AssertionError,
     reason="the selection takes the payload; the consistent fit of every body predicts the "
@@ -157,15 +173,7 @@ def test_mixed_mismatch_names_inertia_and_reaches_identify(arm, seed):
     benchmarks/diagnosis_mixed.py): inertia, Coulomb and viscous friction named, held-out RMS
     per joint ≤ 1.2 × identify(sdp)'s, every joint above 1.5 × its floor flagged. xArm7 seed 2
     is a case where the selection takes the payload (kept: PAYLOAD_KEPT)."""
-    from consistid.robot.inertia import perturb
-    from consistid.simulate import Effects
-
-    model = ci.RobotModel.example(arm)
-    rng = np.random.default_rng(seed)
-    params = perturb(model.prior_parameters, 0.12, rng)
-    eff = Effects(coulomb=rng.uniform(0.8, 2.0, model.nv),
-                  viscous=rng.uniform(0.3, 1.5, model.nv), torque_noise=0.1)
-    train, held = _train_and_held(model, params, eff, rng, seed)
+    model, train, held = _mixed_case(arm, seed)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         diag = ci.diagnose(model, train, held_out=held)
@@ -218,15 +226,11 @@ def test_friction_alone_on_exact_bodies_names_no_rigid_body(arm, seed):
     a payload is named (Kinova seed 1: wrists left 5–7 × their floor by the friction at rest,
     the model error that the inertia, weighted by each joint's residual, must not fit)."""
     from consistid.robot.inertia import perturb
-    from consistid.simulate import Effects
 
-    model = ci.RobotModel.example(arm)
-    rng = np.random.default_rng(seed)
-    params = perturb(model.prior_parameters, 0.0, rng)   # the mixed cases' draws, scaled by 1
-    np.testing.assert_allclose(params, model.prior_parameters)
-    eff = Effects(coulomb=rng.uniform(0.8, 2.0, model.nv),
-                  viscous=rng.uniform(0.3, 1.5, model.nv), torque_noise=0.1)
-    train, held = _train_and_held(model, params, eff, rng, seed)
+    model, train, held = _mixed_case(arm, seed, spread=0.0)
+    # the mixed cases' draws, scaled by 0: the nominal bodies exactly
+    np.testing.assert_allclose(perturb(model.prior_parameters, 0.0, np.random.default_rng(seed)),
+                               model.prior_parameters)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         diag = ci.diagnose(model, train, held_out=held)
@@ -243,15 +247,7 @@ def test_a_stand_in_for_part_of_the_inertia_is_not_labelled_high():
     (the inertia, 36 base parameters, makes joints 3–4 worse on held-out data). Whatever stands
     in, no finding other than inertia, Coulomb or viscous friction (what the simulation has)
     is "high"."""
-    from consistid.robot.inertia import perturb
-    from consistid.simulate import Effects
-
-    model = ci.RobotModel.example("kinova")
-    rng = np.random.default_rng(1)
-    params = perturb(model.prior_parameters, 0.12, rng)
-    eff = Effects(coulomb=rng.uniform(0.8, 2.0, model.nv),
-                  viscous=rng.uniform(0.3, 1.5, model.nv), torque_noise=0.1)
-    train, held = _train_and_held(model, params, eff, rng, 1)
+    model, train, held = _mixed_case("kinova", 1)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         diag = ci.diagnose(model, train, held_out=held)
