@@ -516,6 +516,14 @@ def with_covariance(result: IdentificationResult, problem: CompressedProblem,
                           "read twice: a Dataset, a list, or a re-readable DataStream), or "
                           "parallel_filter=False", DataQualityWarning, stacklevel=3)
         once = isinstance(dataset, DataStream) and not dataset.rereadable
+        if once and not problem.filtered:
+            warnings.warn("a one-pass stream (an iterator or generator) cannot be read again for "
+                          "the residual's correlation, so σ count every row as an independent "
+                          "sample: rows through a signal chain (derivatives, low-passes) or with "
+                          "friction at rest are correlated, and σ may then be several times too "
+                          "narrow. Give a re-readable stream (a list, or a function returning a "
+                          "fresh iterator) for covariance='coloured'", DataQualityWarning,
+                          stacklevel=3)
         return dataclasses.replace(result, details={
             **result.details, "covariance": "iid (every row an independent sample" + (
                 "; a one-pass stream: the coloured sandwich needs a second reading)" if once
