@@ -56,6 +56,12 @@ def test_identification_summary_lists_each_warning_once_under_the_header(panda):
     at = [k for k, line in enumerate(lines) if "training data never went" in line]
     table_at = next(k for k, line in enumerate(lines) if line.startswith("base parameter"))
     assert len(at) == 1 and at[0] < table_at, lines[:table_at + 1]
+    from consistid.identification.report import identification_page
+
+    page = identification_page(res, figures=False).render()     # the HTML's first box too
+    box = page.split('<div class="verdict ', 1)[1].split("</div>", 1)[0]
+    assert box.count("training data never went") == 1
+    assert page.count("training data never went") == 1
 
 
 def test_cli_identify_shows_each_warning_once_before_the_summary(capsys, tmp_path):
