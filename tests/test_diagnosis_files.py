@@ -67,14 +67,18 @@ def test_text_summary_lists_each_warning_once_under_the_header(diagnosed):
     the bottom), and a note repeated is printed once."""
     diag, _ = diagnosed
     warned = "DataQualityWarning: train.csv: a torque channel reads 0"
-    noted = dataclasses.replace(diag, notes=(*diag.notes, "a note", "a  note",
-                                             f"warning: {warned}", f"warning:  {warned}"))
+    said = "the noise floor cannot be seen on joint 3"        # noted, then warned in full
+    noted = dataclasses.replace(diag, notes=(*diag.notes, "a note", "a  note", said,
+                                             f"warning: {warned}", f"warning:  {warned}",
+                                             f"warning: UserWarning: diagnose: {said}; so"))
     lines = noted.summary().splitlines()
     at = [k for k, line in enumerate(lines) if warned in line]
     assert len(at) == 1 and at[0] < 8, lines[:10]
     assert sum("a note" in line for line in lines) == 1
-    assert "Warnings (1, each once):" in lines
+    assert sum(said in line for line in lines) == 1               # in the warning only
+    assert "Warnings (2, each once):" in lines
     page = diagnosis_page(noted, figures=False).render()
     box = page.split('<div class="verdict ', 1)[1].split("</div>", 1)[0]
     assert box.count(warned) == 1 and page.count(warned) == 1
+    assert page.count(said) == 1
     assert box.startswith("warn") or box.startswith("bad")     # a warning is no "ok" box
