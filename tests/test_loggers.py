@@ -212,6 +212,7 @@ def test_logged_velocities_are_used_when_asked(tmp_path, ur5):
     np.testing.assert_allclose(logged.dataset.ddq[mid], auto.ddq[mid], atol=0.05)
     np.testing.assert_array_equal(logged.dataset.q, auto.q)
     assert any("velocities='logged'" in s for s in logged.steps)
+    assert not any("no logged velocities" in s for s in logged.steps)   # the record agrees
     from consistid.cli.config import config_recordings, load_config
 
     config = tmp_path / "run.toml"

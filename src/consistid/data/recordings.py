@@ -327,8 +327,10 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
         cut = (f"cut-off {pre.derivative_cutoff:.4g} Hz" if pre.parallel_cutoff is None else
                f"cut-off {pre.parallel_cutoff:.4g} Hz (τ and Y filtered alike at "
                f"identification); positions differentiated at {pre.derivative_cutoff:.4g} Hz")
-        steps.append(f"no logged velocities/accelerations: the signal chain "
-                     f"({pre.t.size} samples at {pre.rate:.6g} Hz, {cut}):")
+        why = ("logged velocities, no logged accelerations" if "dq" in arrays
+               else "no logged velocities/accelerations")
+        steps.append(f"{why}: the signal chain ({pre.t.size} samples at {pre.rate:.6g} Hz, "
+                     f"{cut}):")
         steps.extend(f"  {s}" for s in pre.steps)
         dataset = Dataset.from_chain(pre, names)
         if "dq" in arrays:
