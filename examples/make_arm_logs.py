@@ -1,7 +1,7 @@
-"""Write the small simulated logs of the UR5, xArm7 and Kinova examples, each in the layout its
-robot's own logger writes (examples/<arm>/data/).
+"""Write the small simulated logs of the UR5, UR10, xArm7 and Kinova examples, each in the layout
+its robot's own logger writes (examples/<arm>/data/).
 
-    python examples/make_arm_logs.py            # writes examples/{ur5,xarm7,kinova}/data/
+    python examples/make_arm_logs.py            # writes examples/{ur5,ur10,xarm7,kinova}/data/
     python examples/make_arm_logs.py OUT_DIR    # writes OUT_DIR/<arm>/ instead
 
 Each "real" arm is MuJoCo (:func:`consistid.simulate.record`) with its URDF's inertias scaled by
@@ -9,8 +9,8 @@ factors drawn from [0.9, 1.1] (:func:`consistid.robot.inertia.perturb`, seed 7),
 viscous friction, white torque noise σ = 0.05 N·m and 19-bit encoders, following a random
 Fourier trajectory (5 harmonics, 8 s period; a stiff tracking controller, 100 rad/s) at
 100 Hz: 6 s to train on (seed 1), 3 s held out (seed 2). The arms are example-robot-data's:
-``ur5`` (the CB-series UR5 — example-robot-data has no UR5e/UR10e), ``xarm7``, and
-``kinova`` (a Kinova Jaco2 j2s6s200 — it has no Gen3; no KUKA iiwa either). The layouts:
+``ur5`` and ``ur10`` (the CB-series arms — example-robot-data has no UR5e/UR10e), ``xarm7``,
+and ``kinova`` (a Kinova Jaco2 j2s6s200 — it has no Gen3; no KUKA iiwa either). The layouts:
 
 ========  ===================================================  ==========================
 arm       file layout (what consistid recognises without a      time
@@ -19,6 +19,10 @@ arm       file layout (what consistid recognises without a      time
 ur5       RTDE recorder: space-separated ``timestamp``,         s since the controller
           ``actual_q_0..5``, ``actual_qd_0..5``,                 started
           ``actual_current_0..5`` (A), ``target_moment_0..5``
+ur10      ur_rtde's recorder: comma-separated ``timestamp``,    s since the controller
+          ``target_q_0..5``, ``actual_q_0..5``,                  started
+          ``actual_qd_0..5``, ``target_moment_0..5``,
+          ``actual_current_as_torque_0..5``
 xarm7     ``rostopic echo -p /joint_states``: ``%time``,        ns (Unix)
           ``field.header.stamp``, ``field.name0..6``,
           ``field.position0..``, ``field.velocity0..``,
@@ -81,6 +85,19 @@ def rtde(rec) -> dict:
     return cols
 
 
+def ur_rtde(rec) -> dict:
+    """The ur_rtde library's recorder (``RTDEReceiveInterface.startFileRecording``): comma
+    separated, with ``actual_current_as_torque`` (PolyScope ≥ 5.23) beside the commanded
+    ``target_moment`` (here the measured torque one 2 ms controller step earlier)."""
+    cols = {"timestamp": 871.25 + rec.t}
+    dq = np.gradient(rec.q, rec.t, axis=0)
+    commanded = np.vstack([rec.tau[:1], rec.tau[:-1]])
+    for name, a in (("target_q", rec.q), ("actual_q", rec.q), ("actual_qd", dq),
+                    ("target_moment", commanded), ("actual_current_as_torque", rec.tau)):
+        cols.update({f"{name}_{j}": a[:, j] for j in range(rec.q.shape[1])})
+    return cols
+
+
 def joint_states(rec, names: list[str], order: np.ndarray, extra: int = 0) -> dict:
     """A JointState export: the joints in ``order``, then ``extra`` finger joints."""
     n = rec.t.size
@@ -100,7 +117,8 @@ def joint_states(rec, names: list[str], order: np.ndarray, extra: int = 0) -> di
 
 
 def main(out: Path) -> None:
-    for arm, layout in (("ur5", "rtde"), ("xarm7", "joint_states"), ("kinova", "shuffled")):
+    for arm, layout in (("ur5", "rtde"), ("ur10", "ur_rtde"), ("xarm7", "joint_states"),
+                        ("kinova", "shuffled")):
         model = ci.RobotModel.example(arm)
         truth = perturb(model.prior_parameters, 0.1, np.random.default_rng(7))
         folder = out / arm / "data" if out == EXAMPLES else out / arm
@@ -110,6 +128,8 @@ def main(out: Path) -> None:
             rec = simulate(model, truth, seed, duration)
             if layout == "rtde":
                 write(folder / f"robot_data_{part}.csv", rtde(rec), sep=" ")
+            elif layout == "ur_rtde":
+                write(folder / f"robot_data_{part}.csv", ur_rtde(rec))
             else:
                 order = (np.arange(model.nv) if layout == "joint_states"
                          else np.random.default_rng(seed).permutation(model.nv))

@@ -9,6 +9,8 @@ Rewrites each docstring before it is parsed (nothing in ``src`` changes):
 * ``:math:`x``` → ``$x$`` and a ``.. math::`` block → a ``$$ … $$`` block (``pymdownx.arithmatex``,
   rendered by MathJax in the browser);
 * ``:cite:`key``` → ``[key]``;
+* a reST simple table (``=====  =====`` borders above, below the header and at the end; a row
+  whose first cell is blank continues the row above) → a Markdown table;
 * an item ``name : text`` of a Parameters/Attributes/Returns/Raises… section whose ``text`` is
   prose (the project's short form) → ``name`` with ``text`` as its description, so that the
   "Type" column holds only types; a wrapped line at the item's indentation joins the item
@@ -28,6 +30,7 @@ ROLE = re.compile(r":(?:py:)?(mod|func|class|meth|data|attr|exc|obj|const):`(~?)
 MATH_ROLE = re.compile(r":math:`([^`]+)`")
 CITE = re.compile(r":cite(?:[pt])?:`([^`]+)`")
 DIRECTIVE = re.compile(r"^(\s*)\.\. math::[ \t]*(.*)$")
+BORDER = re.compile(r"^(\s*)=+(?: +=+)+\s*$")
 ITEM = re.compile(r"^(\s*)([\w\*][\w\*, ]*?) : (.+)$")
 SECTIONS = ("Parameters", "Other Parameters", "Attributes", "Keyword Arguments", "Returns",
             "Yields", "Raises", "Warns")
@@ -62,6 +65,57 @@ def convert_math(text: str) -> str:
             body.pop()
         out += ["", f"{indent}$$", *[f"{indent}{b.strip()}" for b in body if b.strip()],
                 f"{indent}$$", ""]
+    return "\n".join(out)
+
+
+def _cells(line: str, spans: list[tuple[int, int]]) -> list[str]:
+    """The cells of a table row cut at the border's column ``spans`` (the last one open)."""
+    return [line[a:b if k + 1 < len(spans) else None].strip()
+            for k, (a, b) in enumerate(spans)]
+
+
+def _table(lines: list[str], spans: list[tuple[int, int]]) -> list[list[str]]:
+    """Rows of a simple table's body; a line whose first cell is blank continues the row
+    above."""
+    rows: list[list[str]] = []
+    for line in lines:
+        if not line.strip():
+            continue
+        cells = _cells(line, spans)
+        if rows and not cells[0]:
+            rows[-1] = [f"{a} {b}".strip() for a, b in zip(rows[-1], cells)]
+        else:
+            rows.append(cells)
+    return rows
+
+
+def _row(indent: str, cells: list[str]) -> str:
+    """One Markdown table row (a ``|`` inside a cell escaped)."""
+    return indent + "| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |"
+
+
+def convert_tables(text: str) -> str:
+    """reST simple tables (three borders: top, under the header, bottom) → Markdown tables;
+    anything else is left as it is."""
+    lines, out, k = text.split("\n"), [], 0
+    while k < len(lines):
+        top = BORDER.match(lines[k])
+        borders = [j for j in range(k + 1, len(lines)) if BORDER.match(lines[j])][:2] \
+            if top else []
+        if len(borders) < 2 or lines[borders[0]] != lines[k] or lines[borders[1]] != lines[k]:
+            out.append(lines[k])
+            k += 1
+            continue
+        indent = top.group(1)
+        spans = [(m.start(), m.end()) for m in re.finditer(r"=+", lines[k])]
+        spans = [(a, spans[n + 1][0] if n + 1 < len(spans) else b)
+                 for n, (a, b) in enumerate(spans)]
+        header = _table(lines[k + 1:borders[0]], spans)
+        body = _table(lines[borders[0] + 1:borders[1]], spans)
+        out += ["", *(_row(indent, h) for h in header[:1]),
+                indent + "|" + "|".join(" --- " for _ in spans) + "|",
+                *(_row(indent, r) for r in body), ""]
+        k = borders[1] + 1
     return "\n".join(out)
 
 
@@ -139,7 +193,7 @@ def convert_items(text: str) -> str:
 
 def convert(text: str) -> str:
     """The whole rewrite (module docstring)."""
-    text = convert_items(convert_math(text))
+    text = convert_items(convert_math(convert_tables(text)))
     text = MATH_ROLE.sub(lambda m: f"${m.group(1)}$", text)
     text = CITE.sub(lambda m: f"[{m.group(1)}]", text)
     return ROLE.sub(_role, text)

@@ -1,4 +1,4 @@
-"""The UR5, xArm7 and Kinova example configurations (``examples/<arm>/identify.toml``) run on
+"""The UR5, UR10, xArm7 and Kinova example configurations (``examples/<arm>/identify.toml``) run on
 their committed logs, each written in its robot's own logger layout, and the generator
 reproduces those logs (issue 31)."""
 
@@ -17,6 +17,7 @@ from consistid.cli.commands import IDENTIFY_OUTPUTS
 from .test_examples import EXAMPLES, checkout  # noqa: F401  (the fixture)
 
 ARMS = {"ur5": ("robot_data", "Universal Robots RTDE"),
+        "ur10": ("robot_data", "Universal Robots RTDE"),
         "xarm7": ("joint_states", "ROS JointState"),
         "kinova": ("joint_states", "ROS JointState")}
 
@@ -33,6 +34,8 @@ def test_arm_example_identifies(checkout, arm, capsys):  # noqa: F811
     stem, logger = ARMS[arm]
     rec = ci.load_recording(EXAMPLES / arm / "data" / f"{stem}_train.csv", model=model)
     assert logger in rec.steps[0]
+    if arm == "ur10":          # the measured torque, not the commanded target_moment beside it
+        assert "tau←'actual_current_as_torque_0'" in rec.steps[0]
     # on the held-out log the identified model predicts every joint's torque better than the
     # URDF does (its RNEA torque, no friction: the model a user starts from)
     held = ci.load_recording(EXAMPLES / arm / "data" / f"{stem}_held_out.csv",

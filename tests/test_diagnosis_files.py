@@ -11,6 +11,7 @@ import pytest
 
 import consistid as ci
 from consistid.data.dataset import Dataset
+from consistid.diagnosis.report import diagnosis_page
 from consistid.errors import ResultFileError
 from consistid.excitation import FourierTrajectory
 from consistid.simulate import record
@@ -58,3 +59,26 @@ def test_a_file_that_is_not_a_diagnosis_is_named(tmp_path):
                    '{"__dataclass__": "os:system"}}')
     with pytest.raises(ResultFileError, match="not a consistid.diagnosis class"):
         ci.Diagnosis.load(bad)
+
+
+def test_text_summary_lists_each_warning_once_under_the_header(diagnosed):
+    """The command line appends the warnings it caught as ``warning: …`` notes; the text
+    summary, as the HTML's first box, shows each once near the top (not among the notes at
+    the bottom), and a note repeated is printed once."""
+    diag, _ = diagnosed
+    warned = "DataQualityWarning: train.csv: a torque channel reads 0"
+    said = "the noise floor cannot be seen on joint 3"        # noted, then warned in full
+    noted = dataclasses.replace(diag, notes=(*diag.notes, "a note", "a  note", said,
+                                             f"warning: {warned}", f"warning:  {warned}",
+                                             f"warning: UserWarning: diagnose: {said}; so"))
+    lines = noted.summary().splitlines()
+    at = [k for k, line in enumerate(lines) if warned in line]
+    assert len(at) == 1 and at[0] < 8, lines[:10]
+    assert sum("a note" in line for line in lines) == 1
+    assert sum(said in line for line in lines) == 1               # in the warning only
+    assert "Warnings (2, each once):" in lines
+    page = diagnosis_page(noted, figures=False).render()
+    box = page.split('<div class="verdict ', 1)[1].split("</div>", 1)[0]
+    assert box.count(warned) == 1 and page.count(warned) == 1
+    assert page.count(said) == 1
+    assert box.startswith("warn") or box.startswith("bad")     # a warning is no "ok" box

@@ -90,6 +90,18 @@ def test_no_raw_rest_markup(site):
     assert not found, "\n".join(found[:20])
 
 
+def test_no_raw_rest_table(site):
+    """A reST simple table in a docstring (``consistid.data``'s module map, the logger presets)
+    becomes an HTML table, not lines of ``=====`` borders."""
+    border = re.compile(r"={5,}[ \t]+={5,}")
+    found = [str(page.relative_to(site)) for page in _pages(site)
+             if border.search(page.read_text(encoding="utf-8"))]
+    assert not found, found
+    data = Tables()
+    data.feed((site / "api" / "data" / "index.html").read_text(encoding="utf-8"))
+    assert any(t and t[0][:2] == ["module", "holds"] and len(t) >= 10 for t in data.tables)
+
+
 def test_math_is_marked_for_mathjax(site):
     page = (site / "api" / "identification" / "index.html").read_text(encoding="utf-8")
     assert page.count('class="arithmatex"') >= 5      # from the docstrings' .. math:: blocks

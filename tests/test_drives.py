@@ -133,6 +133,13 @@ def test_drive_gains_from_currents_and_a_known_load(ur5, current_runs, method, t
     np.testing.assert_allclose(saved.details["drive_gain_values"], found.gains)
     lo, hi = found.conf_int().T
     assert np.all(lo < found.gains) and np.all(found.gains < hi)
+    if method == "sdp":     # the report: its first box names the least certain gain
+        page = found.report(tmp_path / "gains.html", held_out=held_out).read_text()
+        box = page.split('<div class="verdict ', 1)[1].split("</div>", 1)[0]
+        worst = found.joint_names[int(np.argmax(found.std / np.abs(found.gains)))]
+        assert f"Least certain gain: {worst}," in box and "consistent" in box
+        assert page.count('<div class="verdict ') == 1       # one first box, not one per part
+        assert "Measured vs predicted torque" in page and "data:image/png;base64" in page
 
 
 def test_currents_without_a_loaded_run_are_refused(ur5, current_runs):

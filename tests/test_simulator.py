@@ -684,3 +684,32 @@ def test_cli_rollout_refuses_calibration_keys_before_identifying(tmp_path, capsy
     err = capsys.readouterr().err
     assert re.search(match, err), err
     assert "PDGains" not in err
+
+
+@pytest.mark.parametrize("case", ["better", "worse on j2", "diverged"])
+def test_rollout_report_opens_with_its_worst_finding(case):
+    """The rollout page's first box (issue 31): "ok" when the last model replays closer on
+    every joint, "warn" naming a joint it replays worse, "bad" headed by a diverged replay."""
+    from consistid.simulator.rollout import Replay, RolloutValidation
+
+    before = Replay("nominal", np.array([4e-3, 2e-3]), np.array([1.0, 0.5]),
+                    np.array([0.1, 0.05]), np.array([0.2, 0.1]), False)
+    q_after = np.array([1e-3, 3e-3 if case == "worse on j2" else 1e-3])
+    after = Replay("identified", np.full(2, np.nan) if case == "diverged" else q_after,
+                   np.full(2, np.nan) if case == "diverged" else np.array([0.1, 0.1]),
+                   np.full(2, np.nan) if case == "diverged" else np.array([0.01, 0.02]),
+                   np.full(2, np.nan) if case == "diverged" else np.array([0.02, 0.03]),
+                   case == "diverged")
+    v = RolloutValidation((before, after), ("j1", "j2"), 0.002, "implicitfast", 1.0,
+                          np.ones(2), np.ones(2), 2.0)
+    page = v.page().render()
+    box = page.split('<div class="verdict ', 1)[1].split("</div>", 1)[0]
+    level, headline = box.split('"', 1)[0], box.split('<p class="headline">', 1)[1]
+    if case == "better":
+        ratio = np.sqrt(np.mean(q_after ** 2) / np.mean(before.q_error ** 2))   # RMS over joints
+        assert level == "ok" and f"closed-loop q error ×{ratio:.3g}" in headline
+        assert "j2, 20 mrad RMS" in box                 # the joint drifting most, named
+    elif case == "worse on j2":
+        assert level == "warn" and "worse than nominal on j2" in headline
+    else:
+        assert level == "bad" and headline.startswith("identified diverged")

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
+import sys
 from typing import TYPE_CHECKING, Any
 
 from . import errors
@@ -97,6 +98,9 @@ def __getattr__(name: str) -> Any:
     else:
         raise AttributeError(f"module 'consistid' has no attribute {name!r}")
     globals()[name] = value
+    for sub in _SUBPACKAGES:   # imported on the way (ci.data by ci.Dataset): ci.data.recordings
+        if f"{__name__}.{sub}" in sys.modules:
+            _load_submodules_on_use(sys.modules[f"{__name__}.{sub}"])
     return value
 
 

@@ -132,18 +132,21 @@ def _demo(args: argparse.Namespace, model: "ci.RobotModel", folder: Path | None)
     from consistid.identification.summary import table
 
     results, rows, held_rms = {}, [], {}
-    for step, method, what in ((2, "ols", "ordinary least squares on base parameters"),
-                               (3, "sdp", "consistent SDP: pseudo-inertia LMIs, log-det prior")):
-        _log(f"[{step}/4] identifying ({what})")
-        t0 = time.perf_counter()
-        res = results[method] = ci.identify(model, run.dataset, method=method, friction=None)
-        elapsed = time.perf_counter() - t0
-        _log(f"      done in {elapsed:.2f} s")
-        err = (res.base_parameters - res.base.project(truth)) / res.base_std
-        held_rms[method] = res.rms(held.dataset) / args.noise
-        rows.append((method.upper(), f"{np.sqrt(np.mean(held_rms[method] ** 2)):.4f}",
-                     f"{sum(b.ok for b in res.consistency.bodies)}/{model.n_bodies}",
-                     f"{np.mean(np.abs(err) < 3) * 100:.0f} %", f"{elapsed:.2f}"))
+    with _kept_warnings() as found:        # the two fits warn alike on the held-out run: once
+        for step, method, what in (
+                (2, "ols", "ordinary least squares on base parameters"),
+                (3, "sdp", "consistent SDP: pseudo-inertia LMIs, log-det prior")):
+            _log(f"[{step}/4] identifying ({what})")
+            t0 = time.perf_counter()
+            res = results[method] = ci.identify(model, run.dataset, method=method,
+                                                friction=None)
+            elapsed = time.perf_counter() - t0
+            _log(f"      done in {elapsed:.2f} s")
+            err = (res.base_parameters - res.base.project(truth)) / res.base_std
+            held_rms[method] = res.rms(held.dataset) / args.noise
+            rows.append((method.upper(), f"{np.sqrt(np.mean(held_rms[method] ** 2)):.4f}",
+                         f"{sum(b.ok for b in res.consistency.bodies)}/{model.n_bodies}",
+                         f"{np.mean(np.abs(err) < 3) * 100:.0f} %", f"{elapsed:.2f}"))
     _log("[4/4] report")
     print(results["sdp"].summary())
     print("\nheld-out RMS / σ per joint (SDP): "
@@ -157,7 +160,7 @@ def _demo(args: argparse.Namespace, model: "ci.RobotModel", folder: Path | None)
         return 0
     sdp = results["sdp"].with_provenance(config={"command": "demo", **{
         k: v for k, v in vars(args).items() if k != "func"}})
-    with atomic_dir(folder) as tmp:
+    with atomic_dir(folder) as tmp, _kept_warnings(already=found):
         sdp.report(tmp / "report.html", data=run.dataset, held_out=held.dataset)
         sdp.save(tmp / "result.json")
         sdp.to_csv(tmp / "parameters.csv")
@@ -195,30 +198,32 @@ def identify(args: argparse.Namespace) -> int:
         t0 = time.perf_counter()
         res = ci.identify(model, train.dataset, **options)
         _log(f"      done in {time.perf_counter() - t0:.2f} s")
+        scored = [score(res, train.dataset, "train")]    # its warnings (extrapolation) too
+        if held is not None:
+            scored.append(score(res, held.dataset, "held-out"))
     if found:
         res = dataclasses.replace(res, details={
             **res.details, **{f"warning {k + 1}": text for k, text in enumerate(found)}})
     print(cli_text(res.summary(max_rows=None if args.all else 20)))
-    scored = [score(res, train.dataset, "train")]
-    if held is not None:
-        scored.append(score(res, held.dataset, "held-out"))
     print("\nTorque fit: relative error per joint and total (%), RMS (N·m)")
     print(scores_table(scored))
     if folder is not None:
         res = res.with_provenance(inputs, config={"root": str(config.root), **config.tables})
-        _write_identification(res, folder, train.dataset,
-                              None if held is None else held.dataset)
+        with _kept_warnings(already=found):           # the report's predictions warn again
+            _write_identification(res, folder, train.dataset,
+                                  None if held is None else held.dataset)
     return 0
 
 
 @contextlib.contextmanager
-def _kept_warnings() -> Iterator[list[str]]:
+def _kept_warnings(already: Sequence[str] = ()) -> Iterator[list[str]]:
     """Record the warnings raised in the block (a result's data read, the result computed:
     degrees beyond the joint limits, a flipped torque sign, a gravity in mm/s², poor excitation
     …); when it ends, show each once that the filters in force let through (not a library's
     DeprecationWarning that Python ignores by default) and append its ``"Category: message"``
     text to the yielded list — for the result, so that its summary and the files written from
-    it carry them, not only the terminal."""
+    it carry them, not only the terminal. A text in ``already`` (shown before) is not
+    shown again."""
     found: list[str] = []
     caught: list[warnings.WarningMessage] = []
     try:
@@ -234,7 +239,7 @@ def _kept_warnings() -> Iterator[list[str]]:
                 warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
         for w in shown:
             text = f"{w.category.__name__}: {w.message}"
-            if text not in found:
+            if text not in found and text not in already:
                 found.append(text)
                 warnings.showwarning(w.message, w.category, w.filename, w.lineno)
 

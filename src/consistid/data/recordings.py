@@ -67,7 +67,7 @@ from .filters import held_still, real_array, transposed_hint
 from .formats import Log, format_of, read_frame, read_log, read_split
 from .resample import resample
 from .units import (check_angle_unit, convert_angles, degree_message, degree_suspects,
-                    model_limits, revolute_joints)
+                    degree_torque_evidence, model_limits, revolute_joints)
 from .timestamps import (
     DUPLICATES,
     check_stamps,
@@ -327,8 +327,10 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
         cut = (f"cut-off {pre.derivative_cutoff:.4g} Hz" if pre.parallel_cutoff is None else
                f"cut-off {pre.parallel_cutoff:.4g} Hz (τ and Y filtered alike at "
                f"identification); positions differentiated at {pre.derivative_cutoff:.4g} Hz")
-        steps.append(f"no logged velocities/accelerations: the signal chain "
-                     f"({pre.t.size} samples at {pre.rate:.6g} Hz, {cut}):")
+        why = ("logged velocities, no logged accelerations" if "dq" in arrays
+               else "no logged velocities/accelerations")
+        steps.append(f"{why}: the signal chain ({pre.t.size} samples at {pre.rate:.6g} Hz, "
+                     f"{cut}):")
         steps.extend(f"  {s}" for s in pre.steps)
         dataset = Dataset.from_chain(pre, names)
         if "dq" in arrays:
@@ -401,9 +403,13 @@ def _logged_velocities(t: np.ndarray, arrays: Mapping[str, np.ndarray],
 def _check_degrees(dataset: Dataset, model: RobotModel | None, revolute: np.ndarray,
                    source: str, steps: list[str]) -> None:
     """Warn (:class:`DataQualityWarning`) and record the joints whose positions look like
-    degrees read as radians (:func:`consistid.data.units.degree_suspects`)."""
+    degrees read as radians (:func:`consistid.data.units.degree_suspects`), or whose torque
+    the model explains as degrees (:func:`consistid.data.units.degree_torque_evidence`)."""
     found = degree_suspects(dataset.q, dataset.dq, dataset.joint_names, revolute,
                             model_limits(model) if model is not None else None)
+    torque = (degree_torque_evidence(model, dataset.q, dataset.dq, dataset.ddq, dataset.tau)
+              if model is not None and dataset.tau is not None else None)
+    found += [torque] if torque else []
     if found:
         text = degree_message(found, source)
         steps.append(text)

@@ -18,8 +18,18 @@ logs degrees then gives positions 57.3 × too large, and identification fits tho
   - its positions leave the URDF limits by more than a tenth of their range while the same
     numbers read as degrees lie within them.
 
-  A log in degrees of small motions (a joint moving ±5°) passes all three; naming the unit is
-  the one sure way.
+  A log in degrees of small motions (a joint moving ±5°) passes all three.
+* **Torque** (:func:`degree_torque_evidence`, with a model and torques, whatever the motion):
+  the URDF's RNEA torque ``τ̂(q, q̇, q̈)`` is compared with the logged ``τ`` twice, the angles
+  read as radians and as degrees (``q, q̇, q̈`` of the revolute joints × π/180). Gravity alone
+  makes the two readings differ by the pose: a log whose torque the degrees reading explains
+  with less than :data:`DEGREE_FIT` of the residual RMS of the radians reading is in degrees.
+  A radians log is not flagged: read as degrees its pose collapses to about zero, whose gravity
+  torque differs from the logged one unless the arm stays near zero — and there the two
+  readings give about the same residual (ratio ≈ 1). Tested both ways on the example arms,
+  with inertias ±20 % off the URDF and friction the URDF lacks.
+
+Naming the unit is still the one sure way.
 """
 
 from __future__ import annotations
@@ -42,6 +52,11 @@ SPEED_FACTOR = 2.0
 #: Slack beyond the limits, as a fraction of their range (at least :data:`LIMIT_FLOOR` rad).
 LIMIT_SLACK = 0.1
 LIMIT_FLOOR = 0.1
+#: Read as degrees, the URDF's torque leaves less than this fraction of the residual RMS it
+#: leaves read as radians: the log is in degrees (:func:`degree_torque_evidence`).
+DEGREE_FIT = 0.5
+#: Samples at most (evenly spaced) for that comparison.
+DEGREE_SAMPLES = 2000
 
 
 def check_angle_unit(angle_unit: str | None) -> float | None:
@@ -123,6 +138,27 @@ def degree_suspects(q: np.ndarray, dq: np.ndarray, names: Sequence[str] | None =
         if why:
             found.append(f"{name} {' and '.join(why)}")
     return found
+
+
+def degree_torque_evidence(model: RobotModel, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray,
+                           tau: np.ndarray) -> str | None:
+    """A sentence when the logged torque ``tau`` (N, nv) is the model's RNEA torque of the
+    angles read as degrees rather than as radians (module docstring: the residual RMS over all
+    joints ``‖τ − τ̂(q·π/180, …)‖ < DEGREE_FIT · ‖τ − τ̂(q, …)‖``); ``None`` otherwise."""
+    n = q.shape[0]
+    if n < 10 or q.shape[1] != model.nv or tau.shape != q.shape:
+        return None
+    pick = np.unique(np.linspace(0, n - 1, min(n, DEGREE_SAMPLES)).astype(int))
+    arrays = {"q": q[pick], "dq": dq[pick], "ddq": ddq[pick]}
+    factor = ANGLE_UNITS["deg"]
+    as_deg = convert_angles(arrays, factor, revolute_joints(model))
+    y = np.asarray(tau, dtype=float)[pick]
+    rad = float(np.sqrt(np.mean((y - model.rnea(arrays["q"], arrays["dq"], arrays["ddq"])) ** 2)))
+    deg = float(np.sqrt(np.mean((y - model.rnea(as_deg["q"], as_deg["dq"], as_deg["ddq"])) ** 2)))
+    if not (np.isfinite(rad) and np.isfinite(deg)) or deg >= DEGREE_FIT * rad:
+        return None
+    return (f"the logged torque is {model.name}'s RNEA torque of these angles read as degrees "
+            f"(residual RMS {deg:.3g} N·m, against {rad:.3g} N·m read as radians)")
 
 
 def degree_message(found: Sequence[str], source: str) -> str:

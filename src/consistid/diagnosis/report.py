@@ -22,9 +22,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..identification.summary import table
+from ..identification.summary import table, warning_lines
 from ..report import plots
-from ..report.html import Page, findings_html
+from ..report.html import Page, findings_html, unique
 from .remainder import REMAINDER_RATIO
 
 if TYPE_CHECKING:
@@ -43,13 +43,22 @@ def _pct(x: float) -> str:
     return f"{100 * x:.1f} %"
 
 
+def _notes_not_warned(diag: "Diagnosis") -> list[str]:
+    """The notes that are not warnings (``warning: …``, the command line's), each once, and
+    without those a warning already says word for word (the diagnosis notes what it warns)."""
+    warned = [n for n in diag.notes if n.startswith("warning: ")]
+    return [n for n in unique(n for n in diag.notes if not n.startswith("warning: "))
+            if not any(" ".join(n.split()) in " ".join(w.split()) for w in warned)]
+
+
 def diagnosis_text(diag: "Diagnosis") -> str:
     """The report as plain text: verdict, ranking, per-effect details, where the gap lies."""
     names = diag.joint_names
     w = diag.where
+    warned = [n.split(": ", 1)[1] for n in diag.notes if n.startswith("warning: ")]
     lines = [f"consistid diagnosis of {diag.model_name!r} (nominal model vs measured torques)",
              f"held-out data   {diag.held_out_source}",
-             f"noise floor     {diag.noise_source}", ""]
+             f"noise floor     {diag.noise_source}", *warning_lines(warned, numbered=False), ""]
     if diag.effects:
         lines.append(f"Effects found ({len(diag.effects)}), ranked by how much the held-out "
                      "residual grows without each; held-out shrink: what each removes of the "
@@ -110,8 +119,9 @@ def diagnosis_text(diag: "Diagnosis") -> str:
                   if not last.accepted else "", ]
     if diag.rollout is not None:
         lines += ["", "How far the gap shrinks in your simulator:", diag.rollout.summary()]
-    if diag.notes:
-        lines += ["Notes:"] + [f"  - {n}" for n in diag.notes]
+    notes = _notes_not_warned(diag)
+    if notes:
+        lines += ["Notes:"] + [f"  - {n}" for n in notes]
     return "\n".join(line for line in lines).rstrip() + "\n"
 
 
@@ -208,7 +218,8 @@ def diagnosis_page(diag: "Diagnosis", figures: bool = True) -> Page:
         j = int(np.nanargmax(ratio))
         findings.append((level, f"Largest gap left: {names[j]}, {ratio[j]:.3g} × its noise "
                                 f"floor (held-out RMS {diag.rms_final[j]:.3g} N·m)."))
-    findings += [("ok", note) for note in diag.notes]   # notes: near the top, once
+    findings += [("warn", n) for n in diag.notes if n.startswith("warning: ")]  # near the top
+    findings += [("ok", n) for n in _notes_not_warned(diag)]                  # … each once
     page.raw(findings_html(findings))
     page.key_values([("held-out data", diag.held_out_source),
                      ("noise floor", diag.noise_source)])

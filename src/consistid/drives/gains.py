@@ -47,6 +47,7 @@ from __future__ import annotations
 import dataclasses
 import warnings
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
@@ -58,9 +59,11 @@ from ..errors import (InaccurateSolutionWarning, InfeasibleError, OptionError,
                       check_number, check_option)
 from ..identification.base import RANK_RTOL, BaseParameters
 from ..identification.identify import base_parameters_of, identify
+from ..identification.report import identification_page
 from ..identification.regressor import DEFAULT_FRICTION, FrictionArg, RegressorSpec, regressor
 from ..identification.result import IdentificationResult
 from ..identification.statistics import autocorrelation_time
+from ..report.html import Page
 from ..robot.model import RobotModel, require_model
 from .coupled import CoupledResult, identify_coupled
 from .motor_terms import motor_column_names, motor_columns
@@ -130,16 +133,49 @@ class DriveGains:
         shown = ", ".join(f"{g:.4g}±{s:.2g}" for g, s in zip(self.gains, self.std))
         return f"DriveGains({self.method}: [{shown}] N·m/A)"
 
-    def _repr_html_(self) -> str:
-        import html
+    def findings(self) -> list[tuple[str, str]]:
+        """The gains' line of the report's first box: the least certain gain."""
+        rel = self.std / np.abs(self.gains)
+        j = int(np.nanargmax(rel)) if np.isfinite(rel).any() else 0
+        return [("warn" if not np.isfinite(rel[j]) else "ok",
+                 f"Least certain gain: {self.joint_names[j]}, {self.gains[j]:.5g} ± "
+                 f"{self.std[j]:.2g} N·m/A (σ/|gain| {rel[j]:.2%}); every gain's σ is in the "
+                 "table below.")]
 
-        rows = "".join(f"<tr><td>{html.escape(n)}</td><td>{g:.6g}</td><td>{s:.3g}</td>"
-                       f"<td>{s / abs(g):.2%}</td></tr>"
-                       for n, g, s in zip(self.joint_names, self.gains, self.std))
-        return (f"<p><b>drive gains</b> (N·m/A, joint side; {self.method}, load on "
-                f"{html.escape(self.payload_body)})</p><table><tr><th>joint</th><th>gain</th>"
-                f"<th>σ</th><th>σ/|gain|</th></tr>{rows}</table>"
-                + self.result._repr_html_())
+    def page(self, data: Dataset | None = None, held_out: Dataset | None = None) -> Page:
+        """The HTML report: one first box (the robot's findings in N·m —
+        :func:`~consistid.identification.report.identification_page` — with :meth:`findings`),
+        the gains ± σ, then the rest of the robot's page (``data``/``held_out`` in amperes add
+        its measured-vs-predicted plots)."""
+        robot = identification_page(self.result,
+                                    None if data is None else self.to_torque(data),
+                                    None if held_out is None else self.to_torque(held_out),
+                                    figures=data is not None or held_out is not None,
+                                    extra=self.findings())
+        box = next(k for k, part in enumerate(robot.parts)
+                   if part.startswith('<div class="verdict '))
+        page = Page(f"consistid drive gains: {self.result.model.name}",
+                    f"N·m/A, joint side; {self.method}, load on {self.payload_body!r}")
+        page.raw(robot.parts[box])
+        page.table(["joint", "gain [N·m/A]", "σ [N·m/A]", "σ / |gain|"],
+                   [(n, g, s, f"{s / abs(g):.2%}")
+                    for n, g, s in zip(self.joint_names, self.gains, self.std)],
+                   caption="Drive gains")
+        page.heading("The robot in N·m (the unloaded run's currents × the gains)")
+        page.parts += robot.parts[box + 1:]
+        page.figures.update(robot.figures)
+        return page
+
+    def report(self, path: str | Path, *, data: Dataset | None = None,
+               held_out: Dataset | None = None) -> Path:
+        """Write the HTML report (``*.html``: one self-contained page, :meth:`page`)."""
+        path = Path(path)
+        if path.suffix.lower() not in (".html", ".htm"):
+            raise OptionError(f"report path {str(path)!r}: give an .html file")
+        return self.page(data, held_out).write(path)
+
+    def _repr_html_(self) -> str:
+        return self.page().fragment()
 
 
 @dataclass(frozen=True, eq=False)

@@ -276,8 +276,10 @@ def _notes(res: "IdentificationResult") -> list[str]:
 
 def identification_page(res: "IdentificationResult", data: Dataset | None = None,
                         held_out: Dataset | None = None, figures: bool = True,
-                        max_rows: int | None = None) -> Page:
-    """The report as a :class:`~consistid.report.html.Page` (module docstring).
+                        max_rows: int | None = None,
+                        extra: Sequence[tuple[str, str]] = ()) -> Page:
+    """The report as a :class:`~consistid.report.html.Page` (module docstring); ``extra``
+    ``(level, text)`` findings of a caller's result join the first box (drive gains).
 
     Parameters
     ----------
@@ -301,8 +303,11 @@ def identification_page(res: "IdentificationResult", data: Dataset | None = None
     for text in raised:                      # each once, for the caller too
         warnings.warn(text.split(": ", 1)[1], _category(caught, text), stacklevel=3)
     facts = verdict_findings(res)
+    # those recorded with the result (details['warning k']: the command line's, at load time)
+    recorded = [str(v) for k, v in res.details.items() if str(k).startswith("warning")]
     # the solver failing outranks everything; then the fit, the warnings, the other facts
-    findings = facts[:1] + findings + [("warn", text) for text in raised] + facts[1:]
+    findings = (facts[:1] + findings + [("warn", text) for text in unique([*recorded, *raised])]
+                + facts[1:] + list(extra))
     page.raw(findings_html(findings))
     page.key_values([
         ("solver", str(res.solver)),

@@ -6,6 +6,7 @@ from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
+from ..report.html import unique
 from .base import COND_WARN
 from .weak import WEAK_RATIO
 
@@ -39,8 +40,21 @@ def _relative_cell(res: "IdentificationResult", i: int) -> str:
     return f"{rel:.1f}" if np.isfinite(rel) else "inf"
 
 
+def warning_lines(texts: Sequence[str], numbered: bool = True) -> list[str]:
+    """A text summary's warnings block, as the HTML report's first box has them: each text
+    once (:func:`consistid.report.html.unique`), right under the summary's header, as
+    ``warning k: …`` (``numbered``) or ``warning: …``."""
+    texts = unique(texts)
+    label = [f"warning {k + 1}" if numbered else "warning" for k in range(len(texts))]
+    return ["", f"Warnings ({len(texts)}, each once):",
+            *(f"  - {a}: {t}" for a, t in zip(label, texts))] if texts else []
+
+
 def identification_summary(res: "IdentificationResult", max_rows: int | None = None) -> str:
-    """Base parameters (prior, estimate, ±σ, %σ), per-joint fit, consistency and notes."""
+    """Base parameters (prior, estimate, ±σ, %σ), per-joint fit, consistency and notes; the
+    warnings recorded with the result (``details['warning …']``, e.g. by the command line)
+    each once under the header."""
+    warned = [str(v) for k, v in res.details.items() if str(k).startswith("warning")]
     prior_beta = res.base.project(res.prior)
     rows = [(res.base.names[i], prior_beta[i], res.base_parameters[i], res.base_std[i],
              _relative_cell(res, i)) for i in range(res.base.n_base)]
@@ -49,7 +63,7 @@ def identification_summary(res: "IdentificationResult", max_rows: int | None = N
              f"{res.n_samples} samples × {res.model.nv} joints, {res.spec.describe()}",
              f"solver        {res.solver}",
              f"base params   {res.base.n_base} of {res.base.n_standard} "
-             f"(cond(W_b) = {res.condition_number:.4g})", "",
+             f"(cond(W_b) = {res.condition_number:.4g})", *warning_lines(warned), "",
              table(["base parameter", "prior", "estimate", "± std", "std %"], shown)]
     if len(shown) < len(rows):
         lines.append(f"… {len(rows) - len(shown)} more rows (summary(max_rows=None) shows all)")
@@ -70,13 +84,15 @@ def identification_summary(res: "IdentificationResult", max_rows: int | None = N
         notes.append(f"gravity in the base frame ({', '.join(f'{v:+.4f}' for v in g)}) m/s²: "
                      "these parameters hold with it (a URDF does not carry gravity)")
     for key, value in res.details.items():
+        if str(key).startswith("warning"):
+            continue                                  # under the header, once
         if isinstance(value, (float, np.floating)):
             notes.append(f"{key}: {value:.6g}")
         elif np.isscalar(value):
             notes.append(f"{key}: {value}")
     if res.condition_number > COND_WARN:
         notes.append("the condition number is large: some base parameters are poorly excited")
-    lines += ["", "Notes:"] + [f"  - {n}" for n in notes]
+    lines += ["", "Notes:"] + [f"  - {n}" for n in unique(notes)]
     uninformed = getattr(res, "uninformed", ())
     if uninformed:
         source = ("the prior alone" if res.details.get("prior") not in (None, "None")

@@ -28,7 +28,7 @@ from ..errors import OptionError, ResultFileError
 from ..filesafety import replacing
 from ..identification.persistence import decode, encode
 from ..identification.resultschema import read_document
-from ..report.html import Page
+from ..report.html import Page, findings_html
 from ..report.result import Reported
 from ..robot.model import RobotModel
 from .engine import Simulator, build_simulator, integrator_name
@@ -122,8 +122,37 @@ class RolloutValidation(Reported):
     def __str__(self) -> str:
         return self.summary()
 
+    def findings(self) -> list[tuple[str, str]]:
+        """The report's first box as ``(level, text)`` pairs
+        (:func:`consistid.report.html.findings_html`): a diverged replay ("bad"); the last model
+        replaying worse than the first overall ("bad") or on some joints ("warn"); else how far
+        the closed-loop q error and open-loop drift shrink, and the joint drifting most."""
+        found = [("bad", f"{r.label} diverged in closed loop (its figures are NaN): the "
+                         "simulated robot left the log; check its gains and step")
+                 for r in self.replays if r.diverged]
+        first, last = self.replays[0], self.replays[-1]
+        if len(self.replays) > 1 and not (first.diverged or last.diverged):
+            s = self.shrink
+            worse = [j for k, j in enumerate(self.joint_names)
+                     if last.q_error[k] > first.q_error[k] or last.drift[k] > first.drift[k]]
+            level = "bad" if s["q_error_mrad"] > 1 or s["open_loop_mrad"] > 1 else \
+                "warn" if worse else "ok"
+            found.append((level, f"{last.label} vs {first.label}: closed-loop q error "
+                                 f"×{s['q_error_mrad']:.3g}, open-loop drift "
+                                 f"×{s['open_loop_mrad']:.3g}, correction torque "
+                                 f"×{s['tau_error_Nm']:.3g}"
+                                 + (f"; worse than {first.label} on {', '.join(worse)}"
+                                    if worse else "")))
+        if np.isfinite(last.drift).any():
+            k = int(np.nanargmax(last.drift))
+            found.append(("ok", f"Largest open-loop drift left ({last.label}): "
+                                f"{self.joint_names[k]}, {1e3 * last.drift[k]:.4g} mrad RMS per "
+                                f"{self.window:g} s window."))
+        return found
+
     def page(self) -> Page:
         page = Page("consistid rollout validation", self.summary().splitlines()[0])
+        page.raw(findings_html(self.findings()))
         page.table(["model", "q error (mrad)", "τ error (N·m)", "open loop (mrad)", "diverged"],
                    [tuple(r.values()) for r in self.table()])
         page.table(["model", "joint", "q error (mrad)", "τ error (N·m)", "open loop (mrad)"],
