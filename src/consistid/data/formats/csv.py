@@ -60,7 +60,7 @@ def _locate(path: Path, start: int, delimiter: str, names: list[str], decimal_co
     its column (a column empty in every row is a signal the logger did not record)."""
     empty: tuple[int, int] | None = None              # (line, column) of the first empty cell
     rows = blanks = 0
-    with open(path, newline="", encoding="utf-8-sig") as fh:
+    with io.StringIO(decode_text(path.read_bytes(), source)[0], newline="") as fh:
         for lineno, line in enumerate(fh):
             if lineno < start or not line.strip() or line.lstrip().startswith("#"):
                 continue
@@ -226,19 +226,33 @@ def reads_decimal_comma(delimiter: str, first_row: str) -> bool:
 
 
 def read_text(path: Path, source: str) -> str:
-    """The file's text decoded as UTF-8 (a byte-order mark dropped, line breaks as written);
-    :class:`DatasetError` naming the line of the first byte that is not UTF-8 (a Latin-1 ``°``
-    or ``µ`` in a header or a comment)."""
-    raw = path.read_bytes()
+    """The file's text decoded as UTF-8 (a byte-order mark dropped, line breaks as written).
+    A file that is not UTF-8 but holds no NUL byte (a Latin-1 ``°`` or ``µ`` in a header or a
+    comment, written by an older Windows tool) is read as Latin-1 with a
+    :class:`~consistid.errors.DataQualityWarning` naming the line; one with NUL bytes (UTF-16,
+    binary) is refused (:class:`DatasetError`)."""
+    text, latin1 = decode_text(path.read_bytes(), source)
+    if latin1:
+        warnings.warn(latin1, DataQualityWarning, stacklevel=3)
+    return text
+
+
+def decode_text(raw: bytes, source: str) -> tuple[str, str | None]:
+    """``raw`` as text (:func:`read_text`) and, when it was read as Latin-1, what to say."""
     body = raw[3:] if raw.startswith(b"\xef\xbb\xbf") else raw
     try:
-        return body.decode("utf-8")
+        return body.decode("utf-8"), None
     except UnicodeDecodeError as exc:
         line = body[:exc.start].count(b"\n") + 1
-        text = body.splitlines()[line - 1][:60].decode("utf-8", "replace")
-        raise DatasetError(f"{source}, line {line}: byte {body[exc.start:exc.start + 1]!r} is "
-                           f"not UTF-8 text ({text!r}); save the log as UTF-8 (e.g. iconv -f "
-                           "latin1 -t utf-8), or remove that character") from None
+        shown = body.splitlines()[line - 1][:60].decode("latin-1")
+        byte = body[exc.start:exc.start + 1]
+        if b"\x00" in body:
+            raise DatasetError(f"{source}, line {line}: byte {byte!r} is not UTF-8 text and the "
+                               "file holds NUL bytes (UTF-16 or binary?); save the log as "
+                               "UTF-8 text") from None
+        return body.decode("latin-1"), (
+            f"{source}, line {line}: byte {byte!r} is not UTF-8; the file was read as Latin-1 "
+            f"(ISO 8859-1), which gives {shown!r}; save it as UTF-8 if that is not what it says")
 
 
 def _drop_cut_last_line(text: str, header: int, delimiter: str, n_names: int,
