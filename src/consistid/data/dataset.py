@@ -29,6 +29,7 @@ import numpy as np
 from ..errors import DatasetError, JointCountError, JointNameError, MissingColumnsError
 from .chain import ChainResult, PreprocessOptions, run_chain
 from .filters import real_array
+from ..filesafety import replacing
 from .npzfile import open_npz
 from .parallel import check_filter
 from .timestamps import check_resolution
@@ -329,11 +330,13 @@ class Dataset:
             for name in ("torque_filter", "identification_filter"):
                 if getattr(self, name) is not None:
                     arrays[name] = np.array(getattr(self, name), dtype=float)
-            np.savez(path, segment=self.segment, **arrays)
+            with replacing(path) as tmp:        # never a half-written archive
+                np.savez(tmp, segment=self.segment, **arrays)
         elif path.suffix == ".csv":
             cols = self.columns()
-            np.savetxt(path, np.column_stack(list(cols.values())), delimiter=",",
-                       header=",".join(cols), comments="", fmt="%.17g")
+            with replacing(path) as tmp:
+                np.savetxt(tmp, np.column_stack(list(cols.values())), delimiter=",",
+                           header=",".join(cols), comments="", fmt="%.17g")
         else:
             raise DatasetError(f"unknown dataset format {path.suffix!r}; use .npz or .csv")
 

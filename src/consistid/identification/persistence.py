@@ -68,6 +68,7 @@ import numpy as np
 from ..errors import ModelError, ResultFileError
 from ..filesafety import interrupted_files, replacing
 from ..textsafety import spreadsheet_cell
+from ..robot.export import check_not_source
 from ..robot.inertia import is_physically_consistent
 from ..robot.model import RobotModel, model_without_dynamics
 from .base import BaseParameters
@@ -376,7 +377,7 @@ def result_dict(res: "IdentificationResult") -> dict[str, Any]:
 
 def write_result(res: "IdentificationResult", path: str | Path) -> Path:
     """Write ``res`` as JSON to ``path`` (module docstring); returns the path."""
-    path = Path(path)
+    path = check_not_source(res.model, path, "save")
     text = json.dumps(result_dict(res), indent=1, allow_nan=False, ensure_ascii=False)
     with replacing(path) as tmp:                # never a half-written result file
         tmp.write_text(text + "\n", encoding="utf-8")
@@ -550,7 +551,7 @@ def write_csv(res: "IdentificationResult", path: str | Path) -> Path:
     parameter of a nonlinear friction law (``kind = shape``: value ± std, its unit as
     ``definition``). Numbers carry 17 significant digits; a text cell that a spreadsheet would
     read as a formula is written with a leading ``'`` (:mod:`consistid.textsafety`)."""
-    path = Path(path)
+    path = check_not_source(res.model, path, "to_csv")
     prior_beta = res.base.project(res.prior)
 
     def num(x: float) -> str:

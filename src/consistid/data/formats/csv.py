@@ -5,7 +5,9 @@ The delimiter is sniffed from the first lines (``,``, ``;``, tab, ``|`` or space
 spreadsheet's export in a European locale) a decimal comma (``1,25``) is read as ``1.25``.
 Lines starting with ``#`` are comments (before the header too). A time column written as ISO
 8601 date-times (``2025-11-24 16:00:00.002``, pandas' ``to_csv`` of a datetime column) or as
-times of day (``16:00:00.002``) is parsed. A last line cut short by a logger
+times of day (``16:00:00.002``) is parsed. Text is UTF-8 (a byte-order mark dropped); a file
+that is not, but holds no NUL byte (an older Windows tool's Latin-1 ``°`` or ``é``), is read as
+Latin-1 with a warning naming the line. A last line cut short by a logger
 stopped mid-write (no line break after it; too few fields, or a last field under half its
 usual length) is dropped with a warning. The columns are
 matched by name (:mod:`consistid.data.formats.columns`). Numbers are parsed by ``numpy.loadtxt``;
@@ -244,7 +246,9 @@ def decode_text(raw: bytes, source: str) -> tuple[str, str | None]:
         return body.decode("utf-8"), None
     except UnicodeDecodeError as exc:
         line = body[:exc.start].count(b"\n") + 1
-        shown = body.splitlines()[line - 1][:60].decode("latin-1")
+        start = body.rfind(b"\n", 0, exc.start) + 1
+        around = body[max(start, exc.start - 30):exc.start + 30].split(b"\n")[0]
+        shown = around.decode("latin-1").rstrip("\r")
         byte = body[exc.start:exc.start + 1]
         if b"\x00" in body:
             raise DatasetError(f"{source}, line {line}: byte {byte!r} is not UTF-8 text and the "
