@@ -522,8 +522,13 @@ def _check_restated(doc: Mapping[str, Any], where: str, robot: RobotModel,
     said = doc.get("consistency", {}).get("ok") if isinstance(doc.get("consistency"), dict) \
         else None
     if isinstance(said, bool):
-        found = is_physically_consistent(pi[:robot.n_inertial], "pseudo-inertia",
-                                         robot.body_names).ok
+        try:
+            found = is_physically_consistent(pi[:robot.n_inertial], "pseudo-inertia",
+                                             robot.body_names).ok
+        except np.linalg.LinAlgError as exc:    # numbers no body has (1e300 …)
+            raise ResultFileError(f"{where}: field 'parameters' holds values whose inertia "
+                                  f"has no eigenvalues ({exc}); the file was edited or "
+                                  "corrupted") from exc
         if found != said:
             raise ResultFileError(f"{where}: field 'consistency.ok' is {said} but the standard "
                                   f"parameters are {'' if found else 'not '}physically "
