@@ -436,3 +436,26 @@ def test_no_writer_replaces_the_urdf_it_was_read_from(arm, diagnosed, tmp_path, 
     with pytest.raises(ModelError, match="would write over"):
         write(source)
     assert source.read_bytes() == before
+
+
+def test_a_zip_bomb_member_is_refused_before_it_inflates(arm, tmp_path):
+    """A deflated member of zeros whose header claims 80 MB: refused from its sizes, before
+    numpy would inflate it (the claim is honest, so the header check alone admits it)."""
+    import io
+    import zipfile
+
+    data = arm[1]
+    path = tmp_path / "bomb.npz"
+    with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+        for key in ("t", "dq", "ddq", "tau"):
+            buf = io.BytesIO()
+            np.save(buf, getattr(data, key))
+            zf.writestr(f"{key}.npy", buf.getvalue())
+        buf = io.BytesIO()
+        np.save(buf, np.zeros((5_000_000, 2)))
+        zf.writestr("q.npy", buf.getvalue())
+    with pytest.raises(DatasetError, match="array 'q' inflates .*fold.: a zip bomb"):
+        ci.Dataset.load(path)
+    np.savez_compressed(tmp_path / "real.npz", t=data.t, q=data.q, dq=data.dq, ddq=data.ddq,
+                        tau=data.tau)
+    assert ci.Dataset.load(tmp_path / "real.npz").q.shape == data.q.shape
