@@ -198,10 +198,12 @@ def test_a_missing_parquet_time_stamp_is_named_not_read_as_minus_292_years(tmp_p
 
 
 def test_a_csv_that_is_not_utf8_names_its_line(tmp_path, csv_log):
-    """A Latin-1 '°' in a comment: before, a bare UnicodeDecodeError (no file, no line)."""
+    """A Latin-1 '°' in a comment: before, a bare UnicodeDecodeError (no file, no line); now
+    read as Latin-1 with a warning naming the line (issue 30: Latin-1 headers accepted)."""
     path = tmp_path / "latin1.csv"
     path.write_bytes("# Temperatur 25 °C\n".encode("latin-1") + csv_log.read_bytes())
-    with pytest.raises(DatasetError, match=r"latin1.csv, line 1: byte b'\\xb0' is not UTF-8"):
+    with pytest.warns(ci.DataQualityWarning, match=r"latin1.csv, line 1: byte b'\\xb0' is not "
+                      "UTF-8.*Latin-1.*25 °C"):
         ci.load_recording(path)
 
 
@@ -352,8 +354,9 @@ def test_a_header_only_calibration_csv_is_named_without_numpys_warning(tmp_path)
 def test_a_latin1_calibration_csv_names_its_line(tmp_path):
     path = tmp_path / "poses.csv"
     path.write_bytes("j1,j2,x [m],y,z,qx,qy,qz,qw  # °\n".encode("latin-1"))
-    with pytest.raises(ci.errors.ConfigError, match=r"poses.csv, line 1: byte b'\\xb0' is not "
-                                                     r"UTF-8"):
+    with pytest.warns(ci.DataQualityWarning, match=r"poses.csv, line 1: byte b'\\xb0' is not "
+                                                   r"UTF-8.*Latin-1"), \
+            pytest.raises(ci.errors.ConfigError, match="a header but no rows"):
         read_calibration_data(path, ci.RobotModel.example("panda"))
 
 

@@ -180,11 +180,14 @@ def test_a_bom_and_1200_columns_are_accepted(log, tmp_path, planar_2r):
                           ci.Dataset.load(tmp_path / "ds.csv").q)
 
 
-def test_a_latin1_header_is_named_with_what_to_do(log, tmp_path, planar_2r):
+def test_a_latin1_header_is_read_with_a_warning(log, tmp_path, planar_2r):
     text = "# Messung über Gelänk\n" + _robot_csv(log)
     (tmp_path / "latin1.csv").write_bytes(text.encode("latin-1"))
-    with pytest.raises(DatasetError, match="latin1.csv.*UTF-8"):
-        load_recording(tmp_path / "latin1.csv", model=planar_2r)
+    with pytest.warns(ci.DataQualityWarning, match="latin1.csv, line 1.*Latin-1.*über"):
+        rec = load_recording(tmp_path / "latin1.csv", model=planar_2r)
+    (tmp_path / "utf8.csv").write_text(text, encoding="utf-8")
+    np.testing.assert_array_equal(rec.dataset.q,
+                                  load_recording(tmp_path / "utf8.csv", model=planar_2r).dataset.q)
     log.save(tmp_path / "ds.csv")
     raw = (tmp_path / "ds.csv").read_bytes().replace(b"t,", "tä,".encode("latin-1"), 1)
     (tmp_path / "ds_latin1.csv").write_bytes(raw)

@@ -156,7 +156,8 @@ TAMPERED = [
     (_set(("details",), _deep(200)), "nested deeper"),
     (_set(("details",), "x"), "'details' must be dict"),
     (_set(("uninformed",), [1]), "'uninformed' must list strings"),
-    (_set(("parameter_names",), lambda v: ["=1+1"] * len(v)), None),   # legal, written defused
+    # the names restate the robot's bodies and the spec's terms: other names are an edit
+    (_set(("parameter_names",), lambda v: ["=1+1"] * len(v)), "'parameter_names' is not the"),
 ]
 
 

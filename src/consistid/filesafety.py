@@ -39,7 +39,8 @@ from .errors import OutputPathError
 
 __all__ = ["JOURNAL", "Terminated", "lock_output", "lock_output_file", "release_output_locks",
            "interrupted_files",
-           "commit_folder", "replacing", "signals_deferred", "sigterm_interrupts"]
+           "check_destination", "commit_folder", "replacing", "signals_deferred",
+           "sigterm_interrupts"]
 
 #: The file an output folder holds while a set of files is renamed into it (one name a line).
 JOURNAL = ".consistid-incomplete"
@@ -240,13 +241,34 @@ def commit_folder(staging: Path, out: Path) -> list[str]:
     return names
 
 
+def check_destination(path: str | os.PathLike) -> Path:
+    """``path`` (absolute) if a file can be written there, else
+    :class:`~consistid.errors.OutputPathError` naming it: a NUL character, an existing folder,
+    a folder that does not exist or is not writable."""
+    text = os.fspath(path)
+    if not text or "\0" in str(text):
+        raise OutputPathError(f"output path {str(text)[:120]!r} is empty or holds a NUL "
+                              "character; give a file path")
+    out = Path(text).expanduser().resolve()
+    if out.is_dir():
+        raise OutputPathError(f"output {str(out)!r} is an existing folder; name a file")
+    if not out.parent.is_dir():
+        raise OutputPathError(f"output {str(out)!r}: folder {str(out.parent)!r} does not "
+                              "exist; create it first or choose another path")
+    if not os.access(out.parent, os.W_OK | os.X_OK):
+        raise OutputPathError(f"output {str(out)!r}: folder {str(out.parent)!r} is not "
+                              "writable")
+    return out
+
+
 @contextlib.contextmanager
 def replacing(path: str | os.PathLike) -> Iterator[Path]:
     """A fresh temporary path beside ``path`` (same suffix, so writers that choose the format
     by suffix still work) for a writer of one file; renamed over ``path`` when the block ends
     without an exception (``os.replace``: atomic within one filesystem), removed otherwise, so
-    ``path`` is never half-written."""
-    out = Path(path).expanduser().resolve()
+    ``path`` is never half-written. The destination is checked first
+    (:func:`check_destination`)."""
+    out = check_destination(path)
     tmp = out.parent / f".{out.stem}.{uuid.uuid4().hex[:12]}.part{out.suffix}"
     try:
         yield tmp

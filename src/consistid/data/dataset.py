@@ -29,10 +29,26 @@ import numpy as np
 from ..errors import DatasetError, JointCountError, JointNameError, MissingColumnsError
 from .chain import ChainResult, PreprocessOptions, run_chain
 from .filters import real_array
+from ..filesafety import replacing
 from .npzfile import open_npz
 from .parallel import check_filter
+from .timestamps import check_resolution
 
 FIELDS = ("q", "dq", "ddq", "tau")
+
+
+def _check_below_nyquist(data: "Dataset", source: str) -> None:
+    """A saved ``identification_filter`` (applied to these samples' regressor rows later, so
+    its cut-off must lie below the Nyquist frequency ``1 / (2 Δt)`` of their median step); a
+    file that says otherwise was edited or corrupted (:class:`DatasetError`)."""
+    flt = data.identification_filter
+    if flt is None or data.t.size < 2:
+        return
+    step = float(np.median(np.diff(data.t)))
+    if step > 0 and flt[0] >= 0.5 / step:
+        raise DatasetError(f"{source}: identification_filter = {flt}: its cut-off {flt[0]:g} Hz "
+                           f"is not below the Nyquist frequency {0.5 / step:g} Hz of the "
+                           f"samples (step {step:g} s); the file is corrupt: drop that array")
 
 
 def _check_finite(name: str, a: np.ndarray, joint_names: Sequence[str] | None) -> None:
@@ -100,6 +116,8 @@ class Dataset:
     identification_filter: tuple[float, int] | None = None
 
     def __post_init__(self) -> None:
+        if self.t is not None and np.asarray(self.t).dtype.kind == "f":
+            check_resolution(np.asarray(self.t), "dataset.t")     # float16 stamps
         t = real_array("dataset.t", self.t)
         if t.ndim != 1:
             raise DatasetError(f"dataset.t must be 1-D (N,), got shape {t.shape}")
@@ -141,6 +159,9 @@ class Dataset:
             object.__setattr__(self, name, a)
         _check_finite("t", t, None)
         seg = np.zeros(n, dtype=int) if self.segment is None else np.asarray(self.segment)
+        if seg.dtype.kind not in "biuf":
+            raise DatasetError(f"dataset.segment holds {seg.dtype} values, not integer "
+                               "recording indices")
         if seg.shape != (n,):
             raise DatasetError(f"dataset.segment has shape {seg.shape}; expected ({n},)")
         if seg.dtype.kind not in "iu":
@@ -309,11 +330,13 @@ class Dataset:
             for name in ("torque_filter", "identification_filter"):
                 if getattr(self, name) is not None:
                     arrays[name] = np.array(getattr(self, name), dtype=float)
-            np.savez(path, segment=self.segment, **arrays)
+            with replacing(path) as tmp:        # never a half-written archive
+                np.savez(tmp, segment=self.segment, **arrays)
         elif path.suffix == ".csv":
             cols = self.columns()
-            np.savetxt(path, np.column_stack(list(cols.values())), delimiter=",",
-                       header=",".join(cols), comments="", fmt="%.17g")
+            with replacing(path) as tmp:
+                np.savetxt(tmp, np.column_stack(list(cols.values())), delimiter=",",
+                           header=",".join(cols), comments="", fmt="%.17g")
         else:
             raise DatasetError(f"unknown dataset format {path.suffix!r}; use .npz or .csv")
 
@@ -366,7 +389,9 @@ class Dataset:
             if joint_names is not None and stored is not None and tuple(joint_names) != stored:
                 raise JointNameError(f"{path.name} names its joints {list(stored)}, not "
                                      f"{list(joint_names)}")
-            return cls(joint_names=joint_names if joint_names is not None else stored, **arrays)
+            out = cls(joint_names=joint_names if joint_names is not None else stored, **arrays)
+            _check_below_nyquist(out, path.name)
+            return out
         if path.suffix == ".csv":
             try:                        # a UTF-8 byte-order mark (Excel) is not a name
                 with open(path, encoding="utf-8-sig") as fh:

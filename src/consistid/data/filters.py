@@ -100,6 +100,9 @@ def real_array(name: str, x: object) -> np.ndarray:
                            "real: pass their real part (np.real) if the imaginary part is 0")
     if a.dtype.kind == "b":
         raise DatasetError(f"{name} holds booleans, not numbers; pass the logged values")
+    if a.dtype.kind in "mM":
+        raise DatasetError(f"{name} holds {a.dtype} date-times, whose unit float() drops; pass "
+                           "seconds (e.g. (t - t[0]) / np.timedelta64(1, 's'))")
     try:
         return a.astype(float, copy=False)
     except (TypeError, ValueError) as exc:      # text, objects

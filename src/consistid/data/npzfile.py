@@ -8,7 +8,8 @@ the array:
 
 * an object dtype (a pickle can run code; consistid reads numbers and names only);
 * a shape whose bytes exceed what the member holds (a corrupt or forged header);
-* arrays whose total size exceeds :data:`BUDGET_BYTES` (memory checked before allocating).
+* arrays whose total size exceeds :data:`BUDGET_BYTES` (memory checked before allocating);
+* a large member that inflates more than :data:`BOMB_RATIO`-fold (a zip bomb).
 
 Indexing the returned archive turns a decompression failure (bad CRC, truncation) into
 :class:`~consistid.errors.DatasetError` naming the array.
@@ -31,6 +32,11 @@ __all__ = ["BUDGET_BYTES", "NpzArchive", "open_npz"]
 #: The most bytes the arrays of one ``.npz`` log may take once loaded (8 GiB: an hour of a
 #: 7-joint arm at 1 kHz takes about 1 GB).
 BUDGET_BYTES = 8 * 2**30
+#: A member larger than :data:`BOMB_BYTES` that inflates more than :data:`BOMB_RATIO`-fold is
+#: refused before it is decompressed: measured signals (float64 with noise in their low bits)
+#: deflate by less than 2×; only a forged member or a huge constant array inflates 100×.
+BOMB_BYTES = 64 * 2**20
+BOMB_RATIO = 100
 
 
 def _header(zf: zipfile.ZipFile, info: zipfile.ZipInfo) -> tuple[tuple[int, ...], np.dtype, int]:
@@ -115,6 +121,13 @@ def open_npz(path: str | Path) -> NpzArchive:
                                        f"({size / 2**20:.6g} MiB) but holds "
                                        f"{(info.file_size - offset) / 2**20:.6g} MiB: the "
                                        "file is corrupt or forged")
+                packed = max(info.compress_size, 1)
+                if size > BOMB_BYTES and size > BOMB_RATIO * packed:
+                    raise DatasetError(f"{path.name}: array {name!r} inflates "
+                                       f"{packed / 2**20:.3g} MiB into {size / 2**20:.6g} MiB "
+                                       f"({size / packed:.0f}-fold): a zip bomb, or an array "
+                                       "of one repeated value no log holds; save the arrays "
+                                       "again (np.savez)")
                 total += size
     except DatasetError:
         raise

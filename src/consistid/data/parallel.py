@@ -75,15 +75,22 @@ def parallel_cutoff(bandwidth: float, derivative_cutoff: float) -> float:
     return float(min(PARALLEL_FACTOR * bandwidth, derivative_cutoff))
 
 
+#: The highest Butterworth order a recorded filter may claim (a zero-phase filter of this order
+#: already rolls off at 2·MAX_ORDER·20 dB/decade; a higher one is a corrupt file, and scipy
+#: would build it for minutes).
+MAX_ORDER = 32
+
+
 def check_filter(name: str, value: object) -> tuple[float, int]:
     """A ``(cut-off Hz, order)`` pair as floats/int, or :class:`DatasetError` naming ``name``."""
     try:
         cutoff, order = (float(v) for v in value)            # type: ignore[union-attr]
     except (TypeError, ValueError):
         raise DatasetError(f"{name} = {value!r:.60} is not a (cut-off Hz, order) pair") from None
-    if not (np.isfinite(cutoff) and cutoff > 0 and order >= 1 and order == int(order)):
+    if not (np.isfinite(cutoff) and cutoff > 0 and 1 <= order <= MAX_ORDER
+            and order == int(order)):
         raise DatasetError(f"{name} = {value!r:.60}: the cut-off must be a positive number of "
-                           "Hz and the order a whole number ≥ 1")
+                           f"Hz and the order a whole number from 1 to {MAX_ORDER}")
     return cutoff, int(order)
 
 

@@ -90,6 +90,8 @@ NPZ_LAYOUTS: dict[str, dict[str, str]] = {
 JOINT_NAMES_KEY = "joint_names"
 #: Stamps later than this (s) are read as Unix time (after 2001-09-09).
 UNIX_TIME_MIN = 1.0e9
+#: Stamps beyond this (s; the year 9999) are not dated (nanoseconds read as seconds).
+UNIX_TIME_MAX = 2.5e11
 #: A time step longer than this many median steps is reported as a gap.
 GAP_FACTOR = 5.0
 REQUIRED = ("t", "q", "tau")
@@ -142,7 +144,7 @@ class Recording:
 
 
 def _describe_origin(t0: float) -> str:
-    if t0 >= UNIX_TIME_MIN:
+    if UNIX_TIME_MIN <= t0 < UNIX_TIME_MAX:
         stamp = datetime.fromtimestamp(t0, tz=timezone.utc).isoformat(timespec="milliseconds")
         return f"Unix time stamps: origin {t0:.6f} s ({stamp}) subtracted, time starts at 0 s"
     return f"time origin {t0:.6g} s subtracted, time starts at 0 s"

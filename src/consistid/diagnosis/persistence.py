@@ -25,8 +25,9 @@ import numpy as np
 
 from ..errors import ResultFileError
 from ..filesafety import replacing
+from ..textsafety import check_writable_name
 from ..identification.persistence import decode, encode, model_dict, model_from_dict
-from ..identification.resultschema import read_document
+from ..identification.resultschema import check_model, read_document
 from ..robot.model import RobotModel
 from .candidates import EffectLibrary
 
@@ -66,7 +67,11 @@ def _class(path: str, where: str) -> type:
     if not module.startswith(REBUILT):
         raise ResultFileError(f"{where}: class {path!r} is not a consistid.diagnosis class (nor "
                               "a rollout validation it carries)")
-    cls = importlib.import_module(module)
+    try:
+        cls = importlib.import_module(module)
+    except ImportError:
+        raise ResultFileError(f"{where}: class {path!r:.80} names no module of consistid's "
+                              "diagnosis") from None
     for part in name.split("."):
         cls = getattr(cls, part, None)
     if not (isinstance(cls, type) and dataclasses.is_dataclass(cls)):
@@ -81,6 +86,7 @@ def from_plain(value: Any, where: str, models: dict[str, RobotModel]) -> Any:
         if _MODEL in value:
             key = json.dumps(value[_MODEL], sort_keys=True, default=str)
             if key not in models:
+                check_model(value[_MODEL], f"{where} [robot]")
                 models[key] = model_from_dict(value[_MODEL], where)
             return models[key]
         if _LIBRARY in value:
@@ -130,6 +136,13 @@ def read_diagnosis(path: str | Path, cls: type | None = None) -> Any:
                               f"malformed ({type(exc).__name__}: {exc})") from exc
     if cls is not None:
         _check_diagnosis(out, cls, where)
+        _check_fit(out.fit, where)
+        _check_breakdown(out.where, len(out.joint_names), where)
+        try:
+            out.summary()
+        except (TypeError, ValueError, KeyError, IndexError, AttributeError) as exc:
+            raise ResultFileError(f"{where}: the diagnosis' tables do not fit together "
+                                  f"({type(exc).__name__}: {exc})") from exc
     return out
 
 
@@ -145,6 +158,8 @@ def _check_diagnosis(out: Any, cls: type, where: str) -> None:
         raise ResultFileError(f"{where}: field 'diagnosis' holds a {type(out).__name__}, not "
                               f"a {cls.__name__}")
     nv = len(out.joint_names) if isinstance(out.joint_names, (tuple, list)) else -1
+    for k, name in enumerate(out.joint_names if nv > 0 else ()):
+        check_writable_name(name, f"{where}: field 'joint_names'[{k}]", ResultFileError)
     for name in JOINT_ARRAYS:
         value = getattr(out, name)
         if value is None and name in ("rms_left", "held_floor"):
@@ -153,3 +168,71 @@ def _check_diagnosis(out: Any, cls: type, where: str) -> None:
         if a.dtype.kind not in "biuf" or a.shape != (nv,):
             raise ResultFileError(f"{where}: field {name!r} must hold one number per joint "
                                   f"({nv}), got {a.dtype} of shape {a.shape}")
+        if not np.all(a >= 0):                  # an RMS or a floor: NaN and < 0 refused
+            j = int(np.flatnonzero(~(a >= 0))[0])
+            raise ResultFileError(f"{where}: field {name!r}[{j}] is {a[j]:g}; an RMS or noise "
+                                  "floor is a number ≥ 0")
+
+
+#: The per-joint tables of the gap breakdown (``Diagnosis.where``): field → the field whose
+#: length gives its rows (``None``: one row per joint only).
+BREAKDOWN = {"rms": None, "share": None, "relative": None, "drift": None, "drift_std": None,
+             "noise_floor": None, "regime_fraction": "regimes", "regime_rms": "regimes",
+             "regime_mean": "regimes", "band_rms": "band_edges", "psd": "freqs",
+             "window_mean": "window_t", "residual_sample": "velocity"}
+
+
+def _check_breakdown(where_: Any, nv: int, where: str) -> None:
+    """Every table of the gap breakdown has one column per joint and the rows its axis gives
+    (one band fewer than ``band_edges``), as the report and plots read them."""
+    for name, axis in BREAKDOWN.items():
+        a = np.asarray(getattr(where_, name, None))
+        if axis is None:
+            expected: tuple[int, ...] = (nv,)
+        else:
+            rows = len(np.atleast_1d(np.asarray(getattr(where_, axis, ()), dtype=object)))
+            expected = (rows - (axis == "band_edges"), nv)
+        if a.dtype.kind not in "biuf" or a.shape != expected:
+            raise ResultFileError(f"{where}: field 'where.{name}' must be numbers of shape "
+                                  f"{expected}, got {a.dtype} of shape {a.shape}")
+
+
+def _check_fit(fit: Any, where: str) -> None:
+    """The corrected model: a 10-per-body finite nominal vector, one finite parameter array
+    per selected atom (``theta``), delays on atoms that exist, and a prediction of finite
+    torques at rest (every array's shape exercised)."""
+    from ..data.dataset import Dataset
+
+    model = getattr(fit, "model", None)
+    if not isinstance(model, RobotModel) or not isinstance(fit.atoms, tuple) \
+            or not isinstance(fit.theta, tuple) or not isinstance(fit.delays, dict):
+        raise ResultFileError(f"{where}: field 'fit' is not a corrected model (robot, atoms, "
+                              "theta, delays)")
+    nominal = np.asarray(fit.nominal)
+    if nominal.dtype.kind not in "biuf" or nominal.shape != (10 * len(model.body_names),) \
+            or not np.all(np.isfinite(nominal)):
+        raise ResultFileError(f"{where}: field 'fit.nominal' must hold 10 finite numbers per "
+                              f"body ({10 * len(model.body_names)}), got shape {nominal.shape}")
+    if len(fit.theta) != len(fit.atoms) or not all(
+            np.asarray(th).dtype.kind in "biuf" and np.all(np.isfinite(th)) for th in fit.theta):
+        raise ResultFileError(f"{where}: field 'fit.theta' must hold one finite parameter "
+                              f"array per atom ({len(fit.atoms)})")
+    inertial = fit.inertial
+    if inertial is not None and (np.shape(inertial) != nominal.shape
+                                 or not np.all(np.isfinite(np.asarray(inertial, dtype=float)))):
+        raise ResultFileError(f"{where}: field 'fit.inertial' must be None or 10 finite numbers "
+                              f"per body ({nominal.size})")
+    orders = fit.library.ripple_orders
+    if not all(isinstance(k, int) and not isinstance(k, bool) and k >= 1 for k in orders):
+        raise ResultFileError(f"{where}: field 'ripple_orders' {list(orders)!r:.80} must list "
+                              "whole numbers ≥ 1")
+    if any(not isinstance(i, int) or not 0 <= i < len(fit.atoms) for i in fit.delays):
+        raise ResultFileError(f"{where}: field 'fit.delays' names atoms that do not exist")
+    z = np.zeros((3, model.nv))
+    try:
+        tau = fit.predict(Dataset(t=np.arange(3.0), q=z, dq=z, ddq=z, tau=z))
+    except (TypeError, ValueError, KeyError, IndexError, AttributeError) as exc:
+        raise ResultFileError(f"{where}: the corrected model's fields do not fit together "
+                              f"({type(exc).__name__}: {exc})") from exc
+    if np.shape(tau) != z.shape or not np.all(np.isfinite(tau)):
+        raise ResultFileError(f"{where}: the corrected model predicts non-finite torques")

@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..filesafety import replacing
 from ..identification.summary import table, warning_lines
 from ..report import plots
 from ..report.html import Page, findings_html, unique
@@ -299,7 +300,8 @@ def write_report(diag: "Diagnosis", path: str | Path) -> Path:
     ``report.html``, ``report.txt`` and the plots as PNG files. Returns ``path``."""
     path = Path(path)
     if path.suffix == ".txt":
-        path.write_text(diagnosis_text(diag), encoding="utf-8")
+        with replacing(path) as tmp:
+            tmp.write_text(diagnosis_text(diag), encoding="utf-8")
         return path
     diagnosis_page(diag).write(path, diagnosis_text(diag))
     return path

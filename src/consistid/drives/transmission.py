@@ -28,8 +28,16 @@ from ..errors import JointCountError, OptionError
 MAX_COUPLING_CONDITION = 1e8
 
 
+def _floats(name: str, values: object) -> np.ndarray:
+    """``values`` as a float array, else :class:`OptionError` naming the keyword."""
+    try:
+        return np.asarray(values, dtype=float)
+    except (TypeError, ValueError) as exc:     # text, a dict, ragged rows
+        raise OptionError(f"{name} must hold numbers, got {values!r:.80} ({exc})") from None
+
+
 def _vector(name: str, values: Sequence[float] | np.ndarray, nonzero: bool) -> np.ndarray:
-    a = np.atleast_1d(np.asarray(values, dtype=float))
+    a = np.atleast_1d(_floats(name, values))
     if a.ndim != 1 or a.size == 0:
         raise OptionError(f"{name} must be a list of numbers, one per motor, got {values!r}")
     bad = np.flatnonzero(~np.isfinite(a) | ((a == 0) if nonzero else False))
@@ -68,7 +76,7 @@ class Transmission:
         if self.coupling is None:
             coupling = np.eye(n)
         else:
-            coupling = np.asarray(self.coupling, dtype=float)
+            coupling = _floats("coupling", self.coupling)
             if coupling.shape != (n, n) or not np.isfinite(coupling).all():
                 raise OptionError(f"coupling must be a finite {n}×{n} matrix (one row per motor, "
                                   f"one column per joint), got shape {coupling.shape}")

@@ -68,11 +68,13 @@ import numpy as np
 from ..errors import ModelError, ResultFileError
 from ..filesafety import interrupted_files, replacing
 from ..textsafety import spreadsheet_cell
+from ..robot.export import check_not_source
+from ..robot.inertia import is_physically_consistent
 from ..robot.model import RobotModel, model_without_dynamics
 from .base import BaseParameters
 from ..robot.mjcf_in import is_mjcf
 from .envelope import TrainingEnvelope
-from .regressor import RegressorSpec
+from .regressor import RegressorSpec, parameter_names
 from .resultschema import check_document, check_dtype, read_document
 from .solver import SolverReport
 
@@ -375,7 +377,7 @@ def result_dict(res: "IdentificationResult") -> dict[str, Any]:
 
 def write_result(res: "IdentificationResult", path: str | Path) -> Path:
     """Write ``res`` as JSON to ``path`` (module docstring); returns the path."""
-    path = Path(path)
+    path = check_not_source(res.model, path, "save")
     text = json.dumps(result_dict(res), indent=1, allow_nan=False, ensure_ascii=False)
     with replacing(path) as tmp:                # never a half-written result file
         tmp.write_text(text + "\n", encoding="utf-8")
@@ -450,6 +452,7 @@ def read_result_fields(path: str | Path, model: RobotModel | None = None,
     b = _field(doc, "base", where)
     base = base_from_dict(b, names)
     nb, nv = base.n_base, robot.nv
+    _check_agreement(doc, where, robot, spec, base)
     s = _field(doc, "solver", where)
     return dict(
         method=_field(doc, "method", where), model=robot, spec=spec, base=base,
@@ -469,6 +472,67 @@ def read_result_fields(path: str | Path, model: RobotModel | None = None,
         envelope=_envelope(doc.get("envelope"), where),
         provenance=_decoded(doc, "provenance", where),
         kind=str(doc.get("kind", "identification")), extra=_decoded(doc, "extra", where))
+
+
+def _check_agreement(doc: Mapping[str, Any], where: str, robot: RobotModel,
+                     spec: RegressorSpec, base: Any) -> None:
+    """The fields that restate each other agree: the parameter names are the robot's and the
+    spec's (an identification result), and the base values are the base map of the standard
+    parameters, ``β = π_I + K π_D`` (to rounding); else :class:`ResultFileError`."""
+    names = list(doc["parameter_names"])
+    if doc.get("kind", "identification") == "identification" \
+            and names != parameter_names(robot, spec):
+        raise ResultFileError(f"{where}: field 'parameter_names' is not the list the robot's "
+                              f"bodies and the spec's terms give ({len(names)} names)")
+    pi = np.array([float(decode(v)) for v in doc["parameters"]])
+    beta = np.array([float(decode(v)) for v in doc["base"]["values"]])
+    with np.errstate(over="ignore", invalid="ignore"):
+        mapped = pi[base.independent] + base.K @ pi[base.dependent]
+        gap = np.abs(mapped - beta)
+        tol = 1e-6 * max(1.0, float(np.max(np.abs(beta), initial=0.0)))
+    bad = np.flatnonzero(~(gap <= tol))
+    if bad.size:
+        k = int(bad[0])
+        raise ResultFileError(f"{where}: fields 'parameters' and 'base.values' disagree: base "
+                              f"parameter {base.names[k]!r} is {beta[k]:.6g} in the file but "
+                              f"{mapped[k]:.6g} from the standard parameters; the file was "
+                              "edited or corrupted")
+    _check_restated(doc, where, robot, pi)
+
+
+def _check_restated(doc: Mapping[str, Any], where: str, robot: RobotModel,
+                    pi: np.ndarray) -> None:
+    """The figures a result file restates for readers agree with those it is rebuilt from:
+    ``base.std`` with the covariance's diagonal (``σ = √C_ii``) and ``consistency.ok`` with
+    the consistency of the standard parameters (both optional: older files lack them)."""
+    b = doc["base"]
+    if isinstance(b.get("std"), list):
+        cov = np.array([[float(decode(v)) for v in row] for row in b["covariance"]])
+        try:
+            std = np.array([float(decode(v)) for v in b["std"]])
+        except (TypeError, ValueError):
+            std = np.array([np.nan])
+        with np.errstate(invalid="ignore", over="ignore"):
+            ok = std.shape == (len(cov),) and bool(np.all(
+                np.isclose(std, np.sqrt(np.diag(cov)), rtol=1e-9, atol=0)
+                | (np.isinf(std) & np.isinf(np.diag(cov)))))
+        if not ok:
+            raise ResultFileError(f"{where}: field 'base.std' is not the square root of the "
+                                  "covariance's diagonal; the file was edited or corrupted")
+    said = doc.get("consistency", {}).get("ok") if isinstance(doc.get("consistency"), dict) \
+        else None
+    if isinstance(said, bool):
+        try:
+            found = is_physically_consistent(pi[:robot.n_inertial], "pseudo-inertia",
+                                             robot.body_names).ok
+        except np.linalg.LinAlgError as exc:    # numbers no body has (1e300 …)
+            raise ResultFileError(f"{where}: field 'parameters' holds values whose inertia "
+                                  f"has no eigenvalues ({exc}); the file was edited or "
+                                  "corrupted") from exc
+        if found != said:
+            raise ResultFileError(f"{where}: field 'consistency.ok' is {said} but the standard "
+                                  f"parameters are {'' if found else 'not '}physically "
+                                  "consistent; the file was edited or corrupted")
 
 
 def _decoded(doc: Mapping[str, Any], key: str, where: str) -> Any:
@@ -492,7 +556,7 @@ def write_csv(res: "IdentificationResult", path: str | Path) -> Path:
     parameter of a nonlinear friction law (``kind = shape``: value ± std, its unit as
     ``definition``). Numbers carry 17 significant digits; a text cell that a spreadsheet would
     read as a formula is written with a leading ``'`` (:mod:`consistid.textsafety`)."""
-    path = Path(path)
+    path = check_not_source(res.model, path, "to_csv")
     prior_beta = res.base.project(res.prior)
 
     def num(x: float) -> str:

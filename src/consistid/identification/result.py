@@ -20,7 +20,8 @@ from ..data.checks import check_magnitudes
 from ..data.dataset import Dataset, as_dataset
 from ..errors import ExtrapolationWarning, ResultFileError, check_number, check_option
 from ..report.result import normal_intervals
-from ..robot.export import write_urdf
+from ..filesafety import replacing
+from ..robot.export import check_not_source, write_urdf
 from ..robot.mjcf import write_mjcf
 from ..robot.mjcf_edit import write_mjcf_into
 from ..robot.model import RobotModel
@@ -343,9 +344,10 @@ class IdentificationResult(StandardParameterSet):
         text = self.summary(max_rows=max_rows)
         if path is None:
             return text
-        path = Path(path)
+        path = check_not_source(self.model, path, "report")
         if path.suffix.lower() == ".txt":
-            path.write_text(text + "\n", encoding="utf-8")
+            with replacing(path) as tmp:
+                tmp.write_text(text + "\n", encoding="utf-8")
             return path
         page = identification_page(self, data, held_out, max_rows=max_rows)
         out = page.write(path, text + "\n")

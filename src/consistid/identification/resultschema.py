@@ -22,14 +22,22 @@ from typing import Any, Mapping
 import numpy as np
 
 from ..errors import ResultFileError
+from ..robot.joint_terms import JOINT_TERMS
 
 __all__ = ["MAX_BYTES", "MAX_DEPTH", "MAX_TEXT", "MAX_NAME", "read_document",
-           "check_document", "check_dtype"]
+           "check_document", "check_dtype", "check_model"]
 
 MAX_BYTES = 256 * 2**20
 MAX_DEPTH = 64
 MAX_TEXT = 64 * 2**20
 MAX_NAME = 1000
+#: The largest gravity a saved robot may have (m/s²): beyond any unit slip (mm/s² gives
+#: 9 810, which a model warns about but builds), far below what overflows a torque.
+MAX_GRAVITY = 1e6
+#: Fields every result has, which a kind's ``extra`` fields may not replace.
+CORE_FIELDS = frozenset({"method", "model", "spec", "base", "parameters", "parameter_names",
+                         "prior", "base_parameters", "base_covariance", "sigma",
+                         "condition_number", "train_rms", "n_samples", "solver"})
 #: numpy kinds an ``__ndarray__`` may have: bool, integers, floats (no strings, objects, voids).
 DTYPE_KINDS = "biuf"
 
@@ -174,7 +182,7 @@ def check_document(doc: Mapping[str, Any], where: str) -> None:
     _get(doc, "method", where, str)
     for key in ("parameters", "prior"):
         _numbers(doc, key, where, (p,))
-    _check_model(_get(doc, "model", where, dict), f"{where} [model]")
+    check_model(_get(doc, "model", where, dict), f"{where} [model]")
     model = doc["model"]
     nv = len(model["joint_names"])
     spec = _get(doc, "spec", where, dict)
@@ -182,6 +190,9 @@ def check_document(doc: Mapping[str, Any], where: str) -> None:
         raise ResultFileError(f"{where} [spec]: field 'nv' is {spec['nv']}, but the model has "
                               f"{nv} joints")
     for term, mask in _get(spec, "masks", f"{where} [spec]", dict).items():
+        if term not in JOINT_TERMS:
+            raise ResultFileError(f"{where} [spec]: masks[{term!r:.60}] is not a joint term "
+                                  f"(known: {', '.join(JOINT_TERMS)})")
         if not isinstance(mask, list) or len(mask) != nv \
                 or not all(isinstance(v, bool) for v in mask):
             raise ResultFileError(f"{where} [spec]: masks[{term!r}] must be {nv} booleans")
@@ -219,6 +230,10 @@ def check_document(doc: Mapping[str, Any], where: str) -> None:
     for key, kind in (("details", dict), ("provenance", dict), ("extra", dict), ("kind", str)):
         if key in doc:
             _get(doc, key, where, kind)
+    shadowed = sorted(set(doc.get("extra", {})) & CORE_FIELDS)
+    if shadowed:
+        raise ResultFileError(f"{where}: field 'extra' holds {shadowed}, fields of every result "
+                              "that it may not replace")
 
 
 def _excluded(doc: Mapping[str, Any], where: str, joints: list[str]) -> set[str]:
@@ -246,7 +261,9 @@ def _check_envelope(e: Mapping[str, Any], where: str, joints: list[str]) -> None
         _numbers(e, key, where, (len(joints),), minimum=0.0)
 
 
-def _check_model(m: Mapping[str, Any], where: str) -> None:
+def check_model(m: Mapping[str, Any], where: str) -> None:
+    """A saved robot (:func:`~consistid.identification.persistence.model_dict`): names, the
+    stored URDF as text, finite inertias, gravity within :data:`MAX_GRAVITY`, armature ≥ 0."""
     _get(m, "name", where, str)
     joints = _names(m, "joint_names", where)
     bodies = _names(m, "body_names", where)
@@ -260,6 +277,9 @@ def _check_model(m: Mapping[str, Any], where: str) -> None:
             raise ResultFileError(f"{where}: locked_configuration[{k!r}] must be a finite "
                                   "number")
     _numbers(m, "gravity", where, (3,))
+    if math.hypot(*(_number(g) for g in m["gravity"])) > MAX_GRAVITY:
+        raise ResultFileError(f"{where}: field 'gravity' {m['gravity']} is beyond "
+                              f"{MAX_GRAVITY:g} m/s² (the Earth's is 9.81): not a robot's")
     _numbers(m, "inertias", where, (10 * len(bodies),))
     _numbers(m, "armature", where, (len(joints),), minimum=0.0)
 
@@ -279,3 +299,24 @@ def _check_base(b: Mapping[str, Any], where: str, p: int) -> None:
     _numbers(b, "values", where, (ni,))
     # unidentified directions may carry an infinite variance, never a NaN
     _numbers(b, "covariance", where, (ni, ni), inf=True)
+    _check_covariance(np.array([[_number(v) for v in row] for row in b["covariance"]]), where)
+
+
+def _check_covariance(cov: np.ndarray, where: str) -> None:
+    """A covariance: symmetric (to rounding), non-negative variances, and no correlation beyond
+    ±1 (``|C_ij| ≤ √(C_ii C_jj)``, a necessary condition of positive semi-definiteness)."""
+    with np.errstate(invalid="ignore", over="ignore"):
+        var = np.diag(cov)
+        bad = np.flatnonzero(var < 0)
+        if bad.size:
+            raise ResultFileError(f"{where}: field 'covariance'[{bad[0]}][{bad[0]}] is "
+                                  f"{var[bad[0]]:g}: a variance must be ≥ 0")
+        finite = np.isfinite(cov)
+        scale = np.sqrt(np.outer(var, var))
+        asym = finite & finite.T & (np.abs(cov - cov.T) > 1e-9 * np.maximum(scale, 1e-300))
+        corr = finite & np.isfinite(scale) & (np.abs(cov) > (1 + 1e-9) * scale + 1e-300)
+    for what, mask in (("is not symmetric", asym), ("holds a correlation beyond ±1 (not a "
+                                                    "covariance)", corr)):
+        if mask.any():
+            i, j = (int(k) for k in np.argwhere(mask)[0])
+            raise ResultFileError(f"{where}: field 'covariance' {what} at [{i}][{j}]")

@@ -31,6 +31,9 @@ from typing import Any, Iterable, Sequence
 
 import numpy as np
 
+from ..errors import OutputPathError
+from ..filesafety import replacing
+
 #: The inline style sheet (module docstring for the layout rules).
 STYLE = """
 body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,sans-serif;max-width:1100px;
@@ -232,13 +235,21 @@ class Page:
         the HTML file."""
         path = Path(path)
         if path.suffix.lower() in (".html", ".htm"):
-            path.write_text(self.render(), encoding="utf-8")
+            with replacing(path) as tmp:        # never a half-written page
+                tmp.write_text(self.render(), encoding="utf-8")
             return path
+        if "\0" in str(path):
+            raise OutputPathError(f"report path {str(path)[:120]!r} holds a NUL character")
+        if path.exists() and not path.is_dir():
+            raise OutputPathError(f"report {str(path)!r} is an existing file and not .html: a "
+                                  "report that is not one .html file is a folder of files; "
+                                  "give a .html path or a folder")
         path.mkdir(parents=True, exist_ok=True)
         for name, png in self.figures.items():
             (path / f"{name}.png").write_bytes(png)
         if text is not None:
             (path / "report.txt").write_text(text, encoding="utf-8")
         out = path / "report.html"
-        out.write_text(self.render(), encoding="utf-8")
+        with replacing(out) as tmp:
+            tmp.write_text(self.render(), encoding="utf-8")
         return out

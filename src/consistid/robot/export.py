@@ -53,6 +53,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import ExportWarning, InconsistentParametersError, ModelError, check_option
+from ..filesafety import check_destination, replacing
 from .inertia import InertialParameters, writable_bodies
 from .joint_terms import URDF_ATTRIBUTES, check_nonnegative, export_parameters
 from .urdf import parse_urdf, remove_dynamics, robot_joints, robot_links
@@ -164,7 +165,9 @@ def _set_inertial(link: ET.Element, inertia: pin.Inertia | None) -> None:
 
 def check_not_source(model: "RobotModel", path: str | Path, what: str) -> Path:
     """``path`` as a :class:`~pathlib.Path`, unless it names the URDF ``model`` was read from
-    (:class:`ModelError`: a writer never replaces its input)."""
+    (:class:`ModelError`: a writer never replaces its input) or a file cannot be written there
+    (:func:`consistid.filesafety.check_destination`)."""
+    check_destination(path)
     out = Path(path)
     source = None if model.source is None else Path(model.source)
     if source is not None and source.exists() and out.exists() \
@@ -280,7 +283,8 @@ def write_urdf(model: RobotModel, path: str | Path, parameters: np.ndarray | Non
     out = Path(path)
     if out.resolve().parent != source.resolve().parent:
         _absolute_mesh_paths(root, source.resolve().parent)
-    tree.write(out, encoding="utf-8", xml_declaration=True)
+    with replacing(out) as tmp:                 # never a half-written URDF
+        tree.write(tmp, encoding="utf-8", xml_declaration=True)
     return out
 
 

@@ -33,6 +33,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import ExportWarning, ModelError
+from ..filesafety import replacing
 from .export import check_not_source
 from .inertia import body_slice, writable_bodies
 from .joint_terms import MJCF_ATTRIBUTES, check_nonnegative, export_parameters
@@ -149,7 +150,8 @@ def write_mjcf(model: "RobotModel", path: str | Path, parameters: np.ndarray | N
         spec.compile()
     except ValueError as exc:
         raise ModelError(f"MuJoCo could not compile the MJCF of {model.name!r}: {exc}") from exc
-    out.write_text(_exact_numbers(spec, spec.to_xml()), encoding="utf-8")
+    with replacing(out) as tmp:                 # never a half-written MJCF
+        tmp.write_text(_exact_numbers(spec, spec.to_xml()), encoding="utf-8")
     return out
 
 

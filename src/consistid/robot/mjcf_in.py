@@ -38,6 +38,7 @@ import pinocchio as pin
 from defusedxml import DefusedXmlException
 
 from ..errors import ModelError
+from ..textsafety import check_writable_name
 
 #: MuJoCo joint types (``mjtJoint``) consistid models: hinge (3) and slide (2).
 HINGE, SLIDE, BALL, FREE = 3, 2, 1, 0
@@ -46,9 +47,11 @@ HINGE, SLIDE, BALL, FREE = 3, 2, 1, 0
 def check_safe_xml(path: Path) -> str:
     """The file's text after ``defusedxml`` found it well-formed with no DTD or entity
     declaration (:class:`ModelError` otherwise, naming the file)."""
+    if path.is_dir():
+        raise ModelError(f"MJCF file {str(path)!r} is a folder; name the .xml file in it")
     if not path.is_file():
         raise ModelError(f"MJCF file {str(path)!r} does not exist")
-    text = path.read_text(encoding="utf-8")
+    text = _utf8(path)
     try:
         root = SafeET.fromstring(text, forbid_dtd=True)
     except DefusedXmlException as exc:
@@ -59,13 +62,56 @@ def check_safe_xml(path: Path) -> str:
     if root.tag != "mujoco":
         raise ModelError(f"{path.name}: the root element is <{root.tag}>, not <mujoco>: not an "
                          "MJCF (a URDF? RobotModel.from_urdf)")
+    _check_numbers(root, path.name)
     return text
+
+
+#: MJCF attributes that hold names or paths, never numbers (``joint="inf"`` names a joint).
+NAMING = frozenset({"name", "class", "childclass", "file", "model", "mesh", "material",
+                    "texture", "hfield", "joint", "joint1", "joint2", "body", "body1", "body2",
+                    "site", "tendon", "geom", "geom1", "geom2", "target", "objname", "refname",
+                    "prefix", "content_type", "meshdir", "texturedir", "assetdir", "actuator",
+                    "key", "skin", "flex", "camera", "light", "plugin", "instance"})
+
+
+def _check_numbers(root: Any, source: str) -> None:
+    """:class:`ModelError` for a NaN or infinity written in a numeric attribute: MuJoCo's
+    compiler replaces it by 0 and only prints a warning, so the model would load with a
+    number the file does not hold."""
+    for element in root.iter():
+        for key, value in element.attrib.items():
+            if key in NAMING:
+                continue
+            for token in value.split():
+                try:
+                    bad = not np.isfinite(float(token))
+                except ValueError:
+                    continue
+                if bad:
+                    raise ModelError(f"{source}: <{element.tag} {key}=\"{value[:60]}\"> holds "
+                                     f"{token!r}; MuJoCo would compile it as 0: write the "
+                                     "number meant")
+
+
+def _utf8(path: Path) -> str:
+    """The file's text; :class:`ModelError` for bytes that are not UTF-8 (MuJoCo's XML parser
+    reads UTF-8 only)."""
+    try:
+        return path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ModelError(f"{path.name}: byte {exc.object[exc.start:exc.start + 1]!r} at offset "
+                         f"{exc.start} is not UTF-8; MuJoCo reads UTF-8 XML only: convert the "
+                         "file (e.g. iconv -f latin1 -t utf-8) and drop its encoding=\"…\"") \
+            from None
 
 
 def is_mjcf(path: str | Path) -> bool:
     """The file's first element is ``<mujoco>`` (comments and the XML declaration skipped)."""
-    text = re.sub(r"<!--.*?-->|<\?.*?\?>", "", Path(path).read_text(encoding="utf-8"),
-                  flags=re.S)
+    try:
+        raw = Path(path).read_bytes().decode("utf-8")
+    except UnicodeDecodeError:
+        return False
+    text = re.sub(r"<!--.*?-->|<\?.*?\?>", "", raw, flags=re.S)
     found = re.search(r"<([A-Za-z_][\w.-]*)", text)
     return bool(found and found.group(1) == "mujoco")
 
@@ -157,13 +203,44 @@ def effort_limits(mj: Any) -> np.ndarray:
     return out
 
 
+#: Compiled MuJoCo arrays a consistid model is built from (a NaN in the XML compiles, with a
+#: warning printed, into them).
+COMPILED = ("body_pos", "body_quat", "body_ipos", "body_iquat", "body_mass", "body_inertia",
+            "jnt_pos", "jnt_axis", "jnt_range", "qpos0", "dof_armature", "dof_damping",
+            "dof_frictionloss")
+
+
+def _check_finite(mj: Any, source: str) -> None:
+    """:class:`ModelError` naming the array and body/joint of a non-finite compiled number."""
+    import mujoco
+
+    for name in COMPILED:
+        a = np.asarray(getattr(mj, name), dtype=float)
+        if a.size == 0:
+            continue
+        bad = np.argwhere(~np.isfinite(a.reshape(a.shape[0], -1)))
+        if bad.size:
+            k = int(bad[0][0])
+            kind = mujoco.mjtObj.mjOBJ_BODY if name.startswith("body") else None
+            who = (f"body {body_label(mj, k)!r}" if kind is not None
+                   else f"{name.split('_')[0]} {k}")
+            raise ModelError(f"{source}: {who} compiles to a non-finite {name} "
+                             f"({a.reshape(a.shape[0], -1)[k].tolist()}); fix the NaN or inf "
+                             "in the XML")
+
+
 def _check_joints(mj: Any, source: str) -> None:
     """Refuse what consistid cannot model, naming the joint and body."""
     import mujoco
 
+    _check_finite(mj, source)
+    for b in range(mj.nbody):
+        check_writable_name(body_label(mj, b), f"{source}: body")
     for j in range(mj.njnt):
         body = body_label(mj, int(mj.jnt_bodyid[j]))
         name = _name(mj, mujoco.mjtObj.mjOBJ_JOINT, j)
+        if name:
+            check_writable_name(name, f"{source}: joint")
         kind = int(mj.jnt_type[j])
         if kind == FREE:
             raise ModelError(f"{source}: body {body!r} has a free joint {name or '(unnamed)'!r}: "

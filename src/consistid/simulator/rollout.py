@@ -205,8 +205,10 @@ def validation_from_document(doc: Any, where: str) -> RolloutValidation:
         raise ResultFileError(f"{where} is not a saved rollout validation (format "
                               f"{FORMAT!r} missing)")
     joints = field(doc, "joint_names", list, where)
-    if not joints or not all(isinstance(j, str) and 0 < len(j) <= 1000 for j in joints):
-        raise ResultFileError(f"{where}: field 'joint_names' must list the joints' names")
+    if not joints or not all(isinstance(j, str) and 0 < len(j) <= 1000 for j in joints) \
+            or len(set(joints)) != len(joints):
+        raise ResultFileError(f"{where}: field 'joint_names' must list the joints' names, each "
+                              "once")
     nv = len(joints)
     scalars = {k: number(doc, k, where) for k in ("timestep", "window", "duration")}
     integrator = field(doc, "integrator", str, where)

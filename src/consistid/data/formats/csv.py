@@ -5,7 +5,9 @@ The delimiter is sniffed from the first lines (``,``, ``;``, tab, ``|`` or space
 spreadsheet's export in a European locale) a decimal comma (``1,25``) is read as ``1.25``.
 Lines starting with ``#`` are comments (before the header too). A time column written as ISO
 8601 date-times (``2025-11-24 16:00:00.002``, pandas' ``to_csv`` of a datetime column) or as
-times of day (``16:00:00.002``) is parsed. A last line cut short by a logger
+times of day (``16:00:00.002``) is parsed. Text is UTF-8 (a byte-order mark dropped); a file
+that is not, but holds no NUL byte (an older Windows tool's Latin-1 ``°`` or ``é``), is read as
+Latin-1 with a warning naming the line. A last line cut short by a logger
 stopped mid-write (no line break after it; too few fields, or a last field under half its
 usual length) is dropped with a warning. The columns are
 matched by name (:mod:`consistid.data.formats.columns`). Numbers are parsed by ``numpy.loadtxt``;
@@ -60,7 +62,7 @@ def _locate(path: Path, start: int, delimiter: str, names: list[str], decimal_co
     its column (a column empty in every row is a signal the logger did not record)."""
     empty: tuple[int, int] | None = None              # (line, column) of the first empty cell
     rows = blanks = 0
-    with open(path, newline="", encoding="utf-8-sig") as fh:
+    with io.StringIO(decode_text(path.read_bytes(), source)[0], newline="") as fh:
         for lineno, line in enumerate(fh):
             if lineno < start or not line.strip() or line.lstrip().startswith("#"):
                 continue
@@ -226,19 +228,35 @@ def reads_decimal_comma(delimiter: str, first_row: str) -> bool:
 
 
 def read_text(path: Path, source: str) -> str:
-    """The file's text decoded as UTF-8 (a byte-order mark dropped, line breaks as written);
-    :class:`DatasetError` naming the line of the first byte that is not UTF-8 (a Latin-1 ``°``
-    or ``µ`` in a header or a comment)."""
-    raw = path.read_bytes()
+    """The file's text decoded as UTF-8 (a byte-order mark dropped, line breaks as written).
+    A file that is not UTF-8 but holds no NUL byte (a Latin-1 ``°`` or ``µ`` in a header or a
+    comment, written by an older Windows tool) is read as Latin-1 with a
+    :class:`~consistid.errors.DataQualityWarning` naming the line; one with NUL bytes (UTF-16,
+    binary) is refused (:class:`DatasetError`)."""
+    text, latin1 = decode_text(path.read_bytes(), source)
+    if latin1:
+        warnings.warn(latin1, DataQualityWarning, stacklevel=3)
+    return text
+
+
+def decode_text(raw: bytes, source: str) -> tuple[str, str | None]:
+    """``raw`` as text (:func:`read_text`) and, when it was read as Latin-1, what to say."""
     body = raw[3:] if raw.startswith(b"\xef\xbb\xbf") else raw
     try:
-        return body.decode("utf-8")
+        return body.decode("utf-8"), None
     except UnicodeDecodeError as exc:
         line = body[:exc.start].count(b"\n") + 1
-        text = body.splitlines()[line - 1][:60].decode("utf-8", "replace")
-        raise DatasetError(f"{source}, line {line}: byte {body[exc.start:exc.start + 1]!r} is "
-                           f"not UTF-8 text ({text!r}); save the log as UTF-8 (e.g. iconv -f "
-                           "latin1 -t utf-8), or remove that character") from None
+        start = body.rfind(b"\n", 0, exc.start) + 1
+        around = body[max(start, exc.start - 30):exc.start + 30].split(b"\n")[0]
+        shown = around.decode("latin-1").rstrip("\r")
+        byte = body[exc.start:exc.start + 1]
+        if b"\x00" in body:
+            raise DatasetError(f"{source}, line {line}: byte {byte!r} is not UTF-8 text and the "
+                               "file holds NUL bytes (UTF-16 or binary?); save the log as "
+                               "UTF-8 text") from None
+        return body.decode("latin-1"), (
+            f"{source}, line {line}: byte {byte!r} is not UTF-8; the file was read as Latin-1 "
+            f"(ISO 8859-1), which gives {shown!r}; save it as UTF-8 if that is not what it says")
 
 
 def _drop_cut_last_line(text: str, header: int, delimiter: str, n_names: int,

@@ -21,6 +21,7 @@ import numpy as np
 
 from ...errors import DatasetError, MissingColumnsError
 from ..resample import resample
+from ..timestamps import check_stamps
 from .columns import Log, column_unit, parse_candidates, time_unit_of, unit_factor
 from .csv import read_table
 
@@ -63,7 +64,8 @@ def _columns(path: Path, joints: Sequence[str] | None, delimiter: str | None
     read = ", ".join(f"{f} of {len(cols)} joints" for f, cols in fields.items())
     notes = [f"read {path.name} ({note}): t←{names[times[0]]!r}, {read or 'nothing'}"
              + (f"; ignored columns {ignored}" if ignored else ""), *converted]
-    return table[:, times[0]], time_unit_of(clean[times[0]])[1], fields, notes, named
+    stamps = check_stamps(table[:, times[0]], f"{path.name}, column {names[times[0]]!r}")
+    return stamps, time_unit_of(clean[times[0]])[1], fields, notes, named
 
 
 def read_split(paths: Sequence[str | Path], *, joints: Sequence[str] | None = None,
