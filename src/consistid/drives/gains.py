@@ -39,7 +39,8 @@ a UR5 wrist at 0.01 A of noise). Two estimates that are not:
 The gains' standard deviations are those of the maximum-likelihood fit (the inverse Gauss–Newton
 information, each motor's rows counted as ``N/τ_m`` independent samples, ``τ_m`` the residual's
 integrated autocorrelation time, :func:`consistid.identification.statistics.autocorrelation_time`;
-``κ = 1/c`` by the delta method); the consistent estimate reports the same σ.
+``κ = 1/c`` by the delta method); the consistent estimate reports them widened by its shift
+from the maximum-likelihood gains where that exceeds them (:func:`_constrained_std`).
 """
 
 from __future__ import annotations
@@ -50,11 +51,12 @@ from dataclasses import dataclass, field
 from typing import Any, Sequence
 
 import numpy as np
+import scipy.linalg
 
 from ..data.checks import check_for_identification
 from ..data.dataset import Dataset, as_dataset
-from ..errors import (InaccurateSolutionWarning, InfeasibleError, OptionError,
-                      PoorExcitationError, PoorExcitationWarning, UninformedGainError,
+from ..errors import (BoundActiveWarning, InaccurateSolutionWarning, InfeasibleError,
+                      OptionError, PoorExcitationError, PoorExcitationWarning, UninformedGainError,
                       check_number, check_option)
 from ..identification.base import RANK_RTOL, BaseParameters
 from ..identification.identify import base_parameters_of, identify
@@ -79,7 +81,8 @@ class DriveGains:
     Attributes
     ----------
     gains : (n,) N·m per A, joint side (``τ = Gᵀ diag(gains) i``).
-    std : (n,) their standard deviations (WLS, coloured rows; module docstring).
+    std : (n,) their standard deviations (maximum likelihood, coloured rows; for ``"sdp"``
+        widened by the constraints' shift; module docstring).
     joint_names : the joints (one motor per joint).
     result : the :class:`~consistid.identification.result.IdentificationResult` of the unloaded
         run's currents converted with ``gains`` (N·m; same ``method``).
@@ -335,6 +338,7 @@ def identify_drive_gains(model: RobotModel, unloaded: Dataset, loaded: Dataset |
     if method == "sdp":
         gains, load, status = _consistent(model, problem, spec, fit, g, body)
         details["solver_status"] = status
+        std = _constrained_std(gains, fit.x[n_theta:], std, model.joint_names)
     torque = runs[0].with_torque((runs[0].require_torque() * gains) @ g, keep_filter=True)
     coupled = None
     if problem.n_motor:
@@ -349,6 +353,35 @@ def identify_drive_gains(model: RobotModel, unloaded: Dataset, loaded: Dataset |
         coupled = dataclasses.replace(coupled, result=result)
     return DriveGains(gains, std, tuple(model.joint_names), result, load, body_name, method, g,
                       details, coupled)
+
+
+#: A consistent gain this many maximum-likelihood σ from the unconstrained one is reported
+#: (:class:`~consistid.errors.BoundActiveWarning`).
+SHIFT_WARNING = 2.0
+
+
+def _constrained_std(gains: np.ndarray, ml_gains: np.ndarray, std: np.ndarray,
+                     joint_names: Sequence[str]) -> np.ndarray:
+    r"""The σ of the consistent gains: ``σ² + max(δ² − σ², 0)``, ``δ = κ_{SDP} − κ_{ML}``.
+
+    The maximum-likelihood σ covers the unconstrained gains. An inequality at or near its
+    bound (a Coulomb coefficient ``≥ 0`` on a joint without dry friction, a body at the edge of
+    ``J ⪰ 0``) can move the consistent gains by several of those σ through their correlation
+    with it (UR5, κ from 0.08 to 13 N·m/A: 5.5 σ on one gain, 0.44 %): the excess of the shift
+    over the noise is added to the variance, as the weighting term of
+    :mod:`consistid.identification.identify` adds its bias, and a shift beyond
+    :data:`SHIFT_WARNING` σ is named."""
+    shift = (gains - ml_gains) / std
+    far = np.flatnonzero(np.abs(shift) > SHIFT_WARNING)
+    if far.size:
+        shown = ", ".join(f"{joint_names[j]!r} {shift[j]:+.1f} σ" for j in far)
+        warnings.warn(
+            f"the consistency constraints move the drive gains of {shown} away from the "
+            "unconstrained maximum-likelihood estimate (an inequality at its bound, e.g. a "
+            "Coulomb coefficient ≥ 0 on a joint without dry friction): their std is widened by "
+            "the shift; method='wls' gives the unconstrained gains, and a friction= without "
+            "that joint's term may remove the bound", BoundActiveWarning, stacklevel=3)
+    return np.sqrt(std ** 2 + np.maximum((gains - ml_gains) ** 2 - std ** 2, 0.0))
 
 
 def _with_gains(result: IdentificationResult, gains: np.ndarray, std: np.ndarray,
@@ -451,8 +484,9 @@ def _maximum_likelihood(blocks: list, runs: list[Dataset], coupling: np.ndarray,
                     float(sv[0] / max(sv[-1], 1e-300)), iteration)
 
 
-#: Weight of the Euclidean pull towards the URDF prior in the consistent program, relative to
-#: the mean diagonal of the data's information: it decides only directions the data do not see.
+#: Weight of the Euclidean pull towards the URDF prior in the consistent program (on the null
+#: space of the base map only), relative to the mean diagonal of the data's information: it
+#: decides only directions the data do not see.
 PRIOR_NUDGE = 1e-8
 
 
@@ -482,29 +516,25 @@ def _consistent(model: RobotModel, problem: GainProblem, spec: RegressorSpec,
                 ) -> tuple[np.ndarray, np.ndarray, str]:
     """The consistent estimate (module docstring): ``(gains, load 10-vector, solver status)``.
 
-    Variables: the standard parameters ``π`` (``β = Bπ``), the load's nine ``φ`` (its mass
-    fixed) and ``κ``; cost the bias-compensated weighted residual (:func:`_compensated_cost`);
-    constraints ``J(π_k) ⪰ 0`` for every body (scaled by its URDF body when that one is
-    realisable), ``J(m_L, φ) ⪰ 0``, the non-negative friction and armature coefficients
-    ``≥ 0``."""
+    Variables ``v = [π, φ, κ, ζ]``: the standard parameters ``π`` (``β = Bπ``), the load's nine
+    ``φ`` (its mass fixed), the gains ``κ`` and the coupled motors' terms ``ζ``; cost the
+    bias-compensated weighted residual (:func:`_compensated_cost`) plus a small pull of the
+    unseen part of ``π`` towards the URDF (:data:`PRIOR_NUDGE`); constraints ``J(π_k) ⪰ 0``
+    for every body (scaled by its URDF body when that one is realisable), ``J(m_L, φ) ⪰ 0``,
+    the non-negative friction, armature and motor coefficients ``≥ 0``. Solved in whitened
+    coordinates ``v = v_c + Φ w`` (:func:`_whitened_cost`), where the cost is ``‖w‖²``."""
     import cvxpy as cp
 
     from ..identification.constraints import BodyScaling, pseudo_inertia_lmi
     from ..robot.inertia import is_degenerate
 
-    nv, n_motor = model.nv, problem.n_motor
-    factor = _compensated_cost(problem, fit, coupling)
-    rx, rz = factor[:, :-1], factor[:, -1]
-    scale = float(np.mean(np.sum(rx ** 2, axis=0)))
+    nv, n_motor, n_pi = model.nv, problem.n_motor, model.n_inertial + spec.n_joint_columns
     prior = np.concatenate([model.prior_parameters, np.zeros(spec.n_joint_columns)])
-    pi = cp.Variable(prior.size)
-    phi = cp.Variable(9)
-    kappa = cp.Variable(nv)
-    zeta = cp.Variable(n_motor, nonneg=True) if n_motor else None   # inertia, friction ≥ 0
-    x = cp.hstack([problem.base.matrix @ pi, *([zeta] if n_motor else []),
-                   problem.basis.T @ phi, kappa])
-    cost = cp.sum_squares(rx @ x - rz) / scale
-    nudge = PRIOR_NUDGE * cp.sum_squares(pi - prior)
+    centre, phi_map = _whitened_cost(problem, fit, coupling, prior)
+    w = cp.Variable(centre.size)
+    v = centre + phi_map @ w
+    pi, phi = v[:n_pi], v[n_pi:n_pi + 9]
+    zeta = v[n_pi + 9 + nv:]
     constraints = []
     for k in range(model.n_inertial // 10):
         ref = model.prior_parameters[10 * k:10 * k + 10]
@@ -515,13 +545,59 @@ def _consistent(model: RobotModel, problem: GainProblem, spec: RegressorSpec,
     nonneg = spec.nonnegative_columns
     if nonneg.size:
         constraints.append(pi[model.n_inertial + nonneg] >= 0)
-    program = cp.Problem(cp.Minimize(cost + nudge), constraints)
+    if n_motor:
+        constraints.append(zeta >= 0)                    # rotor inertia, friction ≥ 0
+    program = cp.Problem(cp.Minimize(cp.sum_squares(w)), constraints)
     program.solve(solver=cp.CLARABEL)
-    if program.status not in ("optimal", "optimal_inaccurate") or kappa.value is None:
+    if program.status not in ("optimal", "optimal_inaccurate") or w.value is None:
         raise InfeasibleError(f"the consistent drive-gain program ended {program.status!r} "
                               "(Clarabel); method='wls' gives the unconstrained estimate")
     if program.status != "optimal":
         warnings.warn(f"the consistent drive-gain program ended {program.status!r}",
                       InaccurateSolutionWarning, stacklevel=3)
-    load = np.concatenate([[mass], phi.value])
-    return np.asarray(kappa.value, dtype=float), load, str(program.status)
+    value = centre + phi_map @ np.asarray(w.value, dtype=float)
+    load = np.concatenate([[mass], value[n_pi:n_pi + 9]])
+    return value[n_pi + 9:n_pi + 9 + nv], load, str(program.status)
+
+
+def _whitened_cost(problem: GainProblem, fit: MotorFit, coupling: np.ndarray,
+                   prior: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    r"""``(v_c, Φ)`` with the consistent program's cost
+    ``‖L_x M v − l‖² / s + ν ‖N^\top(π − π_0)‖² = ‖w‖² + const`` for ``v = v_c + Φ w``.
+
+    ``[L_x | l]`` the bias-compensated factor (:func:`_compensated_cost`), ``M`` the map from
+    ``v = [π, φ, κ, ζ]`` to the linear system's unknowns ``[Bπ, ζ, Vᵀφ, κ]``, ``s`` the mean
+    squared column norm, ``ν`` = :data:`PRIOR_NUDGE`, ``N`` a basis of the null space of
+    ``B``: the pull towards the URDF acts only on what the data do not see (on all of ``π``,
+    scaled by ``s``, it had moved a 13 N·m/A gain by 0.84 % when another was 0.08 N·m/A). From
+    one QR factorisation of the stacked, column-normalised system (a tiny ridge keeps the
+    unseen load directions bounded), as the rigid-body SDP whitens its own
+    (:mod:`consistid.identification.sdp`). Without it, gains of 0.05 and 20 N·m/A on one robot
+    put the κ columns 10⁶ apart in scale and Clarabel stopped 'optimal' at gains 30–46 % off
+    (UR5, κ log-uniform in [0.05, 20])."""
+    factor = _compensated_cost(problem, fit, coupling)
+    nv, n_motor, n_pi = coupling.shape[0], problem.n_motor, prior.size
+    n_base, r = problem.base.n_base, problem.basis.shape[1]
+    size = n_pi + 9 + nv + n_motor
+    m = np.zeros((problem.n_columns, size))
+    m[:n_base, :n_pi] = problem.base.matrix
+    m[n_base:n_base + n_motor, n_pi + 9 + nv:] = np.eye(n_motor)
+    m[n_base + n_motor:n_base + n_motor + r, n_pi:n_pi + 9] = problem.basis.T
+    m[-nv:, n_pi + 9:n_pi + 9 + nv] = np.eye(nv)
+    rx = factor[:, :-1] @ m
+    scale = float(np.mean(np.sum(factor[:, :-1] ** 2, axis=0)))
+    _, sv, vt = np.linalg.svd(problem.base.matrix)
+    unseen = vt[int(np.sum(sv > RANK_RTOL * sv[0])):]      # null(B): π the data do not see
+    nudge = np.zeros((unseen.shape[0], size))
+    nudge[:, :n_pi] = np.sqrt(PRIOR_NUDGE) * unseen
+    a = np.vstack([rx / np.sqrt(scale), nudge])
+    z = np.concatenate([factor[:, -1] / np.sqrt(scale),
+                        np.sqrt(PRIOR_NUDGE) * unseen @ prior])
+    norms = np.sqrt(np.sum(a ** 2, axis=0))
+    t = 1.0 / np.where(norms > 0, norms, 1.0)
+    ridge = np.where(norms > 0, 1e-10, 1e-6)             # the unseen load directions: 1e-6
+    a = np.vstack([a * t, np.diag(ridge)])
+    q_aug, r_aug = np.linalg.qr(a)
+    r_inv = scipy.linalg.solve_triangular(r_aug, np.eye(size))
+    y_c = r_inv @ (q_aug.T @ np.concatenate([z, np.zeros(size)]))
+    return t * y_c, t[:, None] * r_inv
