@@ -290,8 +290,8 @@ def _check_offset(model: RobotModel, spec: RegressorSpec, blocks: list, runs: li
     z = mean / np.maximum(sd * np.sqrt(tau / n), 1e-300)
     bad = np.flatnonzero(missing & (np.abs(z) > OFFSET_Z))
     if bad.size:
-        gains = np.abs(x[-model.nv:])
-        shown = ", ".join(f"{model.joint_names[j]!r} (≈ {mean[j] / gains[j]:.3g} A, "
+        gains = x[-model.nv:]                  # the rows hold −κ i: the mean is −κ b
+        shown = ", ".join(f"{model.joint_names[j]!r} (≈ {-mean[j] / gains[j]:.3g} A, "
                           f"{abs(z[j]):.0f} standard errors)" for j in bad)
         raise OptionError(
             f"the currents of {shown} carry a constant offset that friction= leaves out (it "
