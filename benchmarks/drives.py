@@ -225,7 +225,7 @@ def unseen() -> None:
         if found:
             z = np.abs(np.concatenate([f[1] for f in found]))
             err = np.abs(np.concatenate([f[0] for f in found]))
-            print(f"{'':16s} {arm:6s} over {len(found)} seeds: |err| ≤ 1 % "
+            print(f"{label:16s} {arm:6s} over {len(found)} seeds: |err| ≤ 1 % "
                   f"{np.mean(err <= 0.01):.0%}, within 2σ {np.mean(z <= 2):.0%}, "
                   f"within 3σ {np.mean(z <= 3):.0%} of {z.size} gains")
     print("current offset left out of friction= (a named error expected):")
