@@ -268,17 +268,21 @@ def _check_informed(model: RobotModel, r: np.ndarray, cov: np.ndarray, gains: np
 
 
 #: A joint's residual whose mean is this many standard errors from zero, with no offset
-#: column, is a current offset the model leaves out (:func:`_check_offset`).
+#: column, is a current offset the model leaves out (:func:`_check_offset`) …
 OFFSET_Z = 5.0
+#: … when the mean is also this fraction of the residual's standard deviation or more.
+OFFSET_SIZE = 0.2
 
 
 def _check_offset(model: RobotModel, spec: RegressorSpec, blocks: list, runs: list[Dataset],
                   kept: np.ndarray, x: np.ndarray) -> None:
     """Raise :class:`OptionError` when a joint without an ``offset`` column has a residual
     whose mean is :data:`OFFSET_Z` standard errors (``σ √(τ/N)``, ``τ`` its autocorrelation
-    time) from zero: a current sensor's constant bias ``b`` adds ``Gᵀ(κ ⊙ b)`` to every row,
-    which no other column carries; unmodelled, it biased the gains or made them look
-    uninformed (UR5, 0.02 A on every motor: the wrist's σ 8 % and the load blamed)."""
+    time) from zero and :data:`OFFSET_SIZE` σ or more: a current sensor's constant bias ``b``
+    adds ``Gᵀ(κ ⊙ b)`` to every row, which no other column carries; unmodelled, it biased the
+    gains or made them look uninformed (UR5, 0.01–0.02 A on every motor: the wrist's σ 8 % and
+    the load blamed). The size bound keeps other misfit with a small non-zero mean from being
+    named an offset (a UR10 whose wrist did not track: 0.075 σ, 7 standard errors)."""
     missing = ~spec.mask("offset")
     if not missing.any():
         return
@@ -288,7 +292,7 @@ def _check_offset(model: RobotModel, spec: RegressorSpec, blocks: list, runs: li
     sd = np.sqrt(np.sum(((e - mean) * kept) ** 2, axis=0) / n)
     tau = np.maximum(autocorrelation_time(Dataset.concatenate(runs), e), 1.0)
     z = mean / np.maximum(sd * np.sqrt(tau / n), 1e-300)
-    bad = np.flatnonzero(missing & (np.abs(z) > OFFSET_Z))
+    bad = np.flatnonzero(missing & (np.abs(z) > OFFSET_Z) & (np.abs(mean) >= OFFSET_SIZE * sd))
     if bad.size:
         gains = x[-model.nv:]                  # the rows hold −κ i: the mean is −κ b
         shown = ", ".join(f"{model.joint_names[j]!r} (≈ {-mean[j] / gains[j]:.3g} A, "
