@@ -215,4 +215,5 @@ class ModelWarning(UserWarning):
 class BoundActiveWarning(UserWarning):
     """A bound the user gave (a payload's ``mass_range`` or ``com_bounds``, an ellipsoid)
     decides the estimate: the data alone would put it outside, beyond their uncertainty. Names
-    the bound, the unbounded estimate and the χ² it costs."""
+    the bound, the unbounded estimate and the χ² it costs. Also: consistency constraints that
+    move drive gains beyond their σ (:func:`consistid.identify_drive_gains`)."""

@@ -170,8 +170,9 @@ def _demo(args: argparse.Namespace, model: "ci.RobotModel", folder: Path | None)
 
 def identify(args: argparse.Namespace) -> int:
     """Identify from the recordings of a TOML configuration (:mod:`consistid.cli.config`)."""
-    from consistid.cli.config import (config_identify, config_inputs, config_model,
-                                      config_recordings, estimates_tilt, load_config)
+    from consistid.cli.config import (config_drive_gains, config_identify, config_inputs,
+                                      config_model, config_recordings, estimates_tilt,
+                                      load_config)
     from consistid.identification.scoring import score, scores_table
 
     config = load_config(args.config)
@@ -183,6 +184,11 @@ def identify(args: argparse.Namespace) -> int:
                                    force=args.force, what="--output") if args.output else None)
         train, held = config_recordings(config, model)
         inputs = check_inputs(inputs)          # recordable (bag folders too), before the fit
+        gains = config_drive_gains(config)
+        if gains is not None and estimates_tilt(config):
+            raise ConfigError(f'{config.path.name}: [drives] gains = "identify" logs currents, '
+                              "on which the base tilt cannot be estimated: remove [model] "
+                              "tilt, and give gravity = [...] if the base is tilted")
         _log(str(train))
         if held is not None:
             _log(str(held))
@@ -196,7 +202,10 @@ def identify(args: argparse.Namespace) -> int:
         _log(f"identifying {model.name} on {train.dataset.n_samples} samples "
              f"({', '.join(_toml_pair(k, v) for k, v in options.items()) or 'defaults'})")
         t0 = time.perf_counter()
-        res = ci.identify(model, train.dataset, **options)
+        if gains is None:
+            res = ci.identify(model, train.dataset, **options)
+        else:
+            train, held, res = _identify_gains(config, model, train, held, gains, options)
         _log(f"      done in {time.perf_counter() - t0:.2f} s")
         scored = [score(res, train.dataset, "train")]    # its warnings (extrapolation) too
         if held is not None:
@@ -213,6 +222,32 @@ def identify(args: argparse.Namespace) -> int:
             _write_identification(res, folder, train.dataset,
                                   None if held is None else held.dataset)
     return 0
+
+
+def _identify_gains(config, model: "ci.RobotModel", train, held, gains: dict,
+                    options: dict) -> tuple:
+    """``[drives] gains = "identify"``: the drive gains from the ``[data] train`` logs
+    (unloaded) and the ``[drives] loaded`` logs (:func:`consistid.identify_drive_gains`, the
+    ``[identify]`` keywords passed on); returns the train and held-out recordings converted to
+    joint torques with them, and the identification."""
+    from consistid.cli.config import config_drives, config_recordings
+
+    loaded_config = dataclasses.replace(config, tables={
+        **config.tables, "data": {**config.table("data"), "train": gains["loaded"],
+                                  "held_out": []}})
+    loaded, _ = config_recordings(loaded_config, model)
+    _log(str(loaded))
+    try:
+        found = ci.identify_drive_gains(
+            model, train.dataset, loaded.dataset, payload_mass=gains["payload_mass"],
+            payload_body=gains["payload_body"], transmission=config_drives(config), **options)
+    except ci.OptionError as exc:
+        raise ConfigError(f"{config.path.name}: [drives]/[identify] {exc}") from exc
+    print(cli_text(found.summary().split("\n\n")[0]) + "\n")
+    train = dataclasses.replace(train, dataset=found.to_torque(train.dataset))
+    if held is not None:
+        held = dataclasses.replace(held, dataset=found.to_torque(held.dataset))
+    return train, held, found.result
 
 
 @contextlib.contextmanager

@@ -85,8 +85,11 @@ DATA_KEYS = ("dir", "keys", "joint_names", "trim_start", "trim_end", "duplicates
              "held_out", "joints", "columns", "topic", "stamp", "delimiter", "time_unit",
              "timestamp", "derivatives", "signals", "angle_unit", "velocities")
 #: Keys of ``[drives]``: a motor-side log (motor angles, motor currents) and its transmission
-#: (:class:`consistid.drives.transmission.Transmission`).
-DRIVES_KEYS = ("ratios", "torque_constants", "coupling")
+#: (:class:`consistid.drives.transmission.Transmission`); ``gains = "identify"`` with
+#: ``loaded`` logs and their ``payload_mass`` in place of ``torque_constants``
+#: (:func:`consistid.identify_drive_gains`).
+DRIVES_KEYS = ("ratios", "torque_constants", "coupling", "gains", "loaded", "payload_mass",
+               "payload_body")
 #: Keys of ``[data.signals]``: the signal chain's options (the fields of
 #: :class:`consistid.data.chain.PreprocessOptions`, one schema for the API and the TOML) for
 #: logs without logged velocities and accelerations; ``duplicates``, ``timestamp`` and
@@ -383,7 +386,8 @@ def config_drives(config: RunConfig) -> Transmission | None:
     if not t:
         return None
     name = config.path.name
-    for key in ("ratios", "torque_constants"):
+    identified = config_drive_gains(config) is not None
+    for key in ("ratios",) if identified else ("ratios", "torque_constants"):
         if key not in t:
             raise ConfigError(f"{name}: [drives] needs {key} = [...] (one per motor, in the "
                               "joints' order; torque constants in N·m/A at the motor)")
@@ -396,9 +400,41 @@ def config_drives(config: RunConfig) -> Transmission | None:
                           f"(e.g. coupling = [[1, 0], [1, 1]]), got coupling = {_toml(coupling)}")
     try:
         return Transmission(t["ratios"], coupling=coupling,
-                            torque_constants=t["torque_constants"])
+                            torque_constants=None if identified else t["torque_constants"])
     except OptionError as exc:
         raise ConfigError(f"{name}: [drives] {exc}") from exc
+
+
+def config_drive_gains(config: RunConfig) -> dict[str, Any] | None:
+    """With ``[drives] gains = "identify"``, the keywords of
+    :func:`consistid.identify_drive_gains` the table gives (``loaded``: its logs, read as
+    ``[data] train`` is; ``payload_mass``; ``payload_body``); otherwise ``None``. Errors name
+    the TOML key."""
+    t = config.table("drives", DRIVES_KEYS, required=False)
+    if not t or "gains" not in t:
+        return None
+    name = config.path.name
+    if t["gains"] != "identify":
+        raise ConfigError(f"{name}: [drives] gains = {_toml(t['gains'])}: the one value is "
+                          'gains = "identify" (unknown gains, from an unloaded and a loaded '
+                          "run); datasheet gains go in torque_constants = [...]")
+    if "torque_constants" in t:
+        raise ConfigError(f'{name}: [drives] gains = "identify" and torque_constants both '
+                          "given: keep torque_constants (datasheet gains) or gains = "
+                          '"identify" (unknown ones), not both')
+    if not t.get("loaded"):
+        raise ConfigError(f'{name}: [drives] gains = "identify" needs loaded = ["file.npz", '
+                          "...]: the same kind of excitation run with a load of known mass "
+                          "(currents alone fix the gains only up to one common scale)")
+    config.expect("drives", "loaded", t["loaded"], "string or array of strings")
+    if "payload_mass" not in t:
+        raise ConfigError(f'{name}: [drives] gains = "identify" needs payload_mass = <kg>: '
+                          "the weighed mass of the load in the loaded logs")
+    config.expect("drives", "payload_mass", t["payload_mass"], "number")
+    if "payload_body" in t:
+        config.expect("drives", "payload_body", t["payload_body"], "string")
+    return {"loaded": t["loaded"], "payload_mass": t["payload_mass"],
+            "payload_body": t.get("payload_body")}
 
 
 def _distinct_logs(config: RunConfig, what: str, files: list[str], under: str | None

@@ -227,7 +227,9 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
         log's ``q`` are then motor angles and its ``tau`` motor currents (A), one column per
         motor in the joints' order, converted after trimming (and before the checks against
         ``model``) to joint angles ``q = G⁻¹(q_m / r)`` (and their derivatives) and joint
-        torques ``τ = Gᵀ(r ⊙ k_t ⊙ i)``, recorded in the steps.
+        torques ``τ = Gᵀ(r ⊙ k_t ⊙ i)``, recorded in the steps. Without torque constants
+        only the angles are converted and ``tau`` stays in A, for
+        :func:`consistid.identify_drive_gains` (the steps say so).
     velocities : ``"auto"`` (``dq`` and ``ddq`` both given, or neither) or ``"logged"``:
         ``dq`` given without ``ddq`` is the logged velocity — run through the same signal
         chain as ``q`` (resampling, zero-phase low-pass at the positions' cut-off) and
@@ -354,8 +356,8 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
         dataset = joint_side(dataset, drives, steps)
     if angle_unit is None:
         _check_degrees(dataset, model, revolute, source, steps)
-    if model is not None:
-        _check_against_model(dataset, model, source, steps)
+    if model is not None and (drives is None or drives.torque_constants is not None):
+        _check_against_model(dataset, model, source, steps)    # currents: no torque units
     return Recording(dataset, tuple(steps), source, t0)
 
 
@@ -366,19 +368,21 @@ def joint_side(dataset: Dataset, drives: Transmission, steps: list[str]) -> Data
     with the ratio's); through a coupling it is not the filtered sign of a joint's speed, and
     is dropped (the regressor then uses ``sign(q̇)``), which the step says."""
     drives.check_joints(dataset.nv, dataset.joint_names)
-    gains = drives.gains
-    tau = drives.current_torque(dataset.require_torque())
+    known = drives.torque_constants is not None          # else the currents stay currents
+    tau = drives.current_torque(dataset.require_torque()) if known else dataset.tau
     coupled = bool(drives.coupled_motors.size)
     dq_sign = None if dataset.dq_sign is None or coupled else \
         dataset.dq_sign * np.sign(drives.ratios)
     out = replace(dataset, q=drives.joint_positions(dataset.q),
                   dq=drives.joint_positions(dataset.dq), ddq=drives.joint_positions(dataset.ddq),
                   tau=tau, dq_sign=dq_sign)
-    shown = ", ".join(f"{g:.4g}" for g in gains)
+    torque = (f"τ = Gᵀ(κ ⊙ i), drive gains κ = r ⊙ k_t = "
+              f"[{', '.join(f'{g:.4g}' for g in drives.gains)}] N·m/A" if known else
+              "tau kept as motor currents (A): no torque constants, the drive gains are to "
+              "be identified (consistid.identify_drive_gains)")
     steps.append(f"motor side to joint side (drives=): q = G⁻¹(q_m / r) with ratios "
                  f"{', '.join(f'{r:g}' for r in drives.ratios)}"
-                 f"{' and a coupling G' if coupled else ''}; τ = Gᵀ(κ ⊙ i), drive gains "
-                 f"κ = r ⊙ k_t = [{shown}] N·m/A" + (
+                 f"{' and a coupling G' if coupled else ''}; {torque}" + (
                      "; the filtered Coulomb signal is dropped (coupled motors)"
                      if coupled and dataset.dq_sign is not None else ""))
     return out

@@ -10,8 +10,9 @@ the truth that :mod:`consistid.drives.motor_terms` models (MuJoCo documentation,
 Todorov et al. 2012).
 
 The controller's joint torque ``u`` is what the motors deliver; the logger turns it into motor
-torques ``τ_m = G^{-\top} u / r`` and currents ``i = τ_m / k_t`` (plus current noise), and the
-joint angles into motor angles ``q_m = r ⊙ (G q)`` (plus encoder rounding).
+torques ``τ_m = G^{-\top} u / r`` and currents ``i = τ_m / k_t`` (plus the current sensor's
+offset and noise, rounded to its resolution: ``i_log = step · round((i + b + ε) / step)``), and
+the joint angles into motor angles ``q_m = r ⊙ (G q)`` (plus encoder rounding).
 """
 
 from __future__ import annotations
@@ -49,6 +50,9 @@ class SimulatedDrives:
     rotor_inertia, viscous, coulomb : per motor, motor side (kg·m², N·m·s/rad, N·m); a scalar
         for all.
     current_noise : standard deviation of the current measurement (A).
+    current_offset : the current sensor's constant bias per motor (A, signed); a scalar for all.
+    current_step : the current sensor's resolution (A; the logged current is rounded to it), 0
+        for none.
     encoder_counts : counts per motor revolution (the motor angle is rounded to them); 0 for
         exact angles.
     """
@@ -59,6 +63,8 @@ class SimulatedDrives:
     coulomb: float | Sequence[float] = 0.0
     current_noise: float = 0.0
     encoder_counts: int = 0
+    current_offset: float | Sequence[float] = 0.0
+    current_step: float = 0.0
 
     def __post_init__(self) -> None:
         if self.transmission.torque_constants is None:
@@ -69,6 +75,13 @@ class SimulatedDrives:
             object.__setattr__(self, name, _per_motor(name, getattr(self, name), n))
         check_number("current_noise", self.current_noise, 0)
         check_number("encoder_counts", self.encoder_counts, 0)
+        check_number("current_step", self.current_step, 0)
+        offset = np.asarray(self.current_offset, dtype=float)
+        offset = np.broadcast_to(offset, (n,)).copy() if offset.ndim == 0 else offset
+        if offset.shape != (n,) or not np.isfinite(offset).all():
+            raise OptionError(f"current_offset must be one number or one per motor ({n}), got "
+                              f"{self.current_offset!r}")
+        object.__setattr__(self, "current_offset", offset)
 
     def tendons(self, model: RobotModel, timestep: float) -> list[str]:
         """One MJCF ``<fixed>`` tendon per motor with a motor-side term (module docstring)."""
@@ -137,7 +150,10 @@ def record_drives(model: RobotModel, trajectory: DesiredMotion, drives: Simulate
     tr = drives.transmission
     rng = np.random.default_rng([seed, 28])
     currents = tr.motor_torque(rec.tau) / tr.torque_constants
-    currents = currents + drives.current_noise * rng.standard_normal(currents.shape)
+    currents = currents + drives.current_offset \
+        + drives.current_noise * rng.standard_normal(currents.shape)
+    if drives.current_step:
+        currents = np.round(currents / drives.current_step) * drives.current_step
     motor_q = tr.motor_positions(rec.true_q)
     if drives.encoder_counts:
         step = 2 * np.pi / drives.encoder_counts
