@@ -145,6 +145,26 @@ def test_held_out_above_the_floor_is_flagged_or_undetermined(planar_2r):
     assert wider.flagged == () and wider.joints[0].held_ratio == pytest.approx(1.25)
 
 
+def test_a_joint_without_a_judged_sample_is_undetermined_not_explained(planar_2r):
+    """Every sample of joint 2 within a low-pass's settling time of its recording's ends (a
+    short held-out run; Kinova example, 2.2 s at 100 Hz, an effect seen through 1 Hz): nothing
+    there can be judged, so the joint is undetermined with why, its RMS NaN, not 0 × the floor
+    read as explained."""
+    train = _log(planar_2r, 5.0, 0)
+    data = GapData(planar_2r, train, planar_2r.prior_parameters)
+    noise = NOISE * np.random.default_rng(5).standard_normal((N, 2))
+    unknown = np.zeros((N, 2), dtype=bool)
+    unknown[:, 1] = True
+    held = np.array([1.0 * NOISE, np.nan])
+    out = analyse_remainder(data, noise, np.full(2, NOISE), np.ones(2),
+                            np.array([0.0, 1.0, 10.0, 100.0]), unknown=unknown, held_out=held)
+    assert out.undetermined == ("joint2",) and out.flagged == ()
+    assert not out.joints[1].judged and np.isnan(out.joints[1].rms)
+    assert "no sample of joint2 can be judged" in out.verdict
+    assert "no sample can be judged" in str(out.joints[1])
+    assert out.joints[0].judged and out.joints[0].ratio == pytest.approx(1.0, rel=0.1)
+
+
 @pytest.mark.slow
 def test_mixed_mismatch_reaches_identify_and_names_every_joint_above_the_floor():
     """UR5 in MuJoCo, every body's inertia scaled by 0.88–1.12, Coulomb 0.8–2 N·m and viscous

@@ -1546,10 +1546,12 @@ def noise_gain_ratio(train: Dataset, held: Dataset) -> float:
 
 
 def _known_rms(left: np.ndarray, unknown: np.ndarray) -> np.ndarray:
-    """(nv,) RMS of ``left`` (N, nv) over the samples not ``unknown``."""
+    """(nv,) RMS of ``left`` (N, nv) over the samples not ``unknown``; ``nan`` on a joint
+    without any (nothing there can be judged: :attr:`JointRemainder.judged`)."""
     known = ~unknown
-    return np.sqrt(np.sum(np.where(known, left, 0.0) ** 2, axis=0)
-                   / np.maximum(known.sum(axis=0), 1))
+    n = known.sum(axis=0)
+    return np.where(n > 0, np.sqrt(np.sum(np.where(known, left, 0.0) ** 2, axis=0)
+                                   / np.maximum(n, 1)), np.nan)
 
 
 def _refused_by_min_gain(steps: Sequence[Step]) -> str:

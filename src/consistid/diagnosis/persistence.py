@@ -168,8 +168,11 @@ def _check_diagnosis(out: Any, cls: type, where: str) -> None:
         if a.dtype.kind not in "biuf" or a.shape != (nv,):
             raise ResultFileError(f"{where}: field {name!r} must hold one number per joint "
                                   f"({nv}), got {a.dtype} of shape {a.shape}")
-        if not np.all(a >= 0):                  # an RMS or a floor: NaN and < 0 refused
-            j = int(np.flatnonzero(~(a >= 0))[0])
+        ok = a >= 0                             # an RMS or a floor: NaN and < 0 refused,
+        if name == "rms_left":                  # but an RMS over no judged sample is NaN
+            ok |= np.isnan(a)
+        if not np.all(ok):
+            j = int(np.flatnonzero(~ok)[0])
             raise ResultFileError(f"{where}: field {name!r}[{j}] is {a[j]:g}; an RMS or noise "
                                   "floor is a number ≥ 0")
 

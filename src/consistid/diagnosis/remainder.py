@@ -143,6 +143,9 @@ class JointRemainder:
         joint.
     held_floor : the noise floor on the held-out recordings (N·m; their own low-pass may let
         more noise through than the training recordings').
+    judged : False when no sample of the joint can be judged (every one within a delay or a
+        low-pass's settling time of its recording's ends, where the model cannot form the
+        prediction): ``rms`` and ``held_rms`` are ``nan`` and the joint is undetermined.
     pointers : the patterns that account for most of the remainder's mean square, largest
         first, as text.
     """
@@ -170,6 +173,7 @@ class JointRemainder:
     tolerated: str = ""
     held_rms: float = float("nan")
     held_floor: float = float("nan")
+    judged: bool = True
 
     @property
     def held_ratio(self) -> float:
@@ -184,6 +188,10 @@ class JointRemainder:
             head += f" (at rest: judged against the dry-friction cone ±{self.cone:.3g} N·m)"
         if np.isfinite(self.held_rms):
             head += f"; held-out {self.held_rms:.3g} N·m = {self.held_ratio:.2f} ×"
+        if not self.judged:
+            return (f"{self.joint}: no sample can be judged — UNDETERMINED (every one lies "
+                    "within a delay, or a low-pass's settling time, from its recording's start "
+                    "or end: record longer runs)")
         if not self.determined:
             return head + " — UNDETERMINED (the noise floor cannot be seen: pass sigma)"
         if not self.flagged and self.tolerated:
@@ -218,7 +226,7 @@ class Remainder:
         """Joints with no verdict: the noise floor could not be seen there, or what is left
         lies above the flag's ratio but within tolerance (:attr:`JointRemainder.tolerated`)."""
         return tuple(j.joint for j in self.joints
-                     if not j.determined or (j.tolerated and not j.flagged))
+                     if not (j.determined and j.judged) or (j.tolerated and not j.flagged))
 
     @property
     def verdict(self) -> str:
@@ -230,9 +238,15 @@ class Remainder:
                             "what the selected effects leave is at the noise floor")
 
     def _why_undetermined(self) -> str:
-        unseen = [j.joint for j in self.joints if not j.determined]
-        within = [j.joint for j in self.joints if j.determined and j.tolerated and not j.flagged]
+        blind = [j.joint for j in self.joints if not j.judged]
+        unseen = [j.joint for j in self.joints if not j.determined and j.judged]
+        within = [j.joint for j in self.joints
+                  if j.determined and j.judged and j.tolerated and not j.flagged]
         why = []
+        if blind:
+            why.append(f"no sample of {', '.join(blind)} can be judged (each lies within a "
+                       "delay, or the settling time of the low-pass an effect was seen through, "
+                       "from its recording's start or end): record longer runs")
         if unseen:
             why.append(f"the noise floor cannot be seen on {', '.join(unseen)} (torques "
                        "filtered below the motion band and an excitation that does not "
@@ -612,14 +626,15 @@ def analyse_remainder(data: GapData, remainder: np.ndarray, floor: np.ndarray,
     for j in range(data.nv):
         known = np.ones(data.n, dtype=bool) if unknown is None else ~unknown[:, j]
         e = np.where(known, remainder[:, j], 0.0)
+        judged = bool(known.any())
         n_known = max(int(known.sum()), 1)
-        rms = float(np.sqrt(np.sum(e ** 2) / n_known))
+        rms = float(np.sqrt(np.sum(e ** 2) / n_known)) if judged else float("nan")
         sig = float(floor[j])
         n_eff = max(n_known / max(float(tau_corr[j]), 1.0), 1.0)
         p = float(scipy.stats.chi2.sf(n_eff * rms ** 2 / sig ** 2, n_eff))
         excess = float(np.sqrt(max(rms ** 2 - sig ** 2, 0.0)))
         scale = float(np.sqrt(np.mean(tau[:, j] ** 2)))
-        determined = True if reliable is None else bool(reliable[j])
+        determined = (True if reliable is None else bool(reliable[j])) and judged
         flagged = bool(determined and rms > REMAINDER_RATIO * sig and p < alpha
                        and excess >= relevance * scale)
         held = float("nan") if held_out is None else float(held_out[j])
@@ -717,5 +732,5 @@ def analyse_remainder(data: GapData, remainder: np.ndarray, floor: np.ndarray,
                                   spread, hysteresis, best, bands, band_edges, drift,
                                   tuple(pointers), determined, growth, shift, shift_share,
                                   0.0 if cone is None else float(cone[j]), tolerated, held,
-                                  sig_ho))
+                                  sig_ho, judged))
     return Remainder(tuple(out), source, tried, refused)
