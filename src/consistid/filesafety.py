@@ -38,7 +38,7 @@ from typing import Iterator
 from .errors import OutputPathError
 
 __all__ = ["JOURNAL", "Terminated", "lock_output", "lock_output_file", "release_output_locks",
-           "interrupted_files",
+           "interrupted_files", "check_regular",
            "commit_folder", "replacing", "signals_deferred", "sigterm_interrupts"]
 
 #: The file an output folder holds while a set of files is renamed into it (one name a line).
@@ -240,6 +240,20 @@ def commit_folder(staging: Path, out: Path) -> list[str]:
     return names
 
 
+def check_regular(out: Path, what: str = "output") -> None:
+    """:class:`OutputPathError` unless ``out`` is new or a regular file (symlinks followed):
+    replacing a folder, a device (``/dev/null``, a disk), a FIFO or a socket by a file would
+    destroy it (run as root, ``rename(2)`` over ``/dev/null`` succeeds)."""
+    try:
+        if not out.exists() or out.is_file():
+            return
+        kind = "a folder" if out.is_dir() else "a device, FIFO or socket, not a regular file"
+    except OSError as exc:                      # a name too long, a loop of symlinks …
+        raise OutputPathError(f"{what} {str(out)!r}: {exc.strerror}") from None
+    raise OutputPathError(f"{what} {str(out)!r} is {kind}; consistid writes only regular "
+                          "files: choose a file path")
+
+
 @contextlib.contextmanager
 def replacing(path: str | os.PathLike) -> Iterator[Path]:
     """A fresh temporary path beside ``path`` (same suffix, so writers that choose the format
@@ -247,6 +261,7 @@ def replacing(path: str | os.PathLike) -> Iterator[Path]:
     without an exception (``os.replace``: atomic within one filesystem), removed otherwise, so
     ``path`` is never half-written."""
     out = Path(path).expanduser().resolve()
+    check_regular(out)
     tmp = out.parent / f".{out.stem}.{uuid.uuid4().hex[:12]}.part{out.suffix}"
     try:
         yield tmp

@@ -32,7 +32,7 @@ import numpy as np
 
 import consistid as ci
 from consistid.errors import (ConfigError, ConsistidError, OutputPathError, check_number,
-                             check_option)
+                             check_option, check_seed)
 from consistid.robot.export import MERGED
 from consistid.robot.model import EXAMPLE_ROBOTS
 
@@ -88,6 +88,7 @@ def demo(args: argparse.Namespace) -> int:
                                          ("--rate", args.rate, 0, True),
                                          ("--noise", args.noise, 0, False)):
         check_number(name, value, minimum, strict=strict)   # before any folder is made
+    check_seed("--seed", args.seed)
     model = _cli_model(args)
     _check_demo_bodies(model, args.urdf)                 # before any folder is made
     inputs = [args.urdf] if args.urdf else []
@@ -317,6 +318,7 @@ def simulate(args: argparse.Namespace) -> int:
         raise OutputPathError(f"--plot {args.plot!r}: {Path(args.plot).suffix or 'no suffix'} "
                               "is not an image format; name a .png file (or "
                               f"{', '.join(s for s in PLOT_SUFFIXES if s != '.png')})")
+    check_seed("--seed", args.seed)
     plot = (check_output(args.plot, force=args.force, what="--plot") if args.plot else None)
     demo_run = run(_cli_model(args), args.effect or DEFAULT_EFFECTS, duration=args.duration,
                    torque_noise=args.noise, seed=args.seed, progress=_log)

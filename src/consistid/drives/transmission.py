@@ -29,7 +29,10 @@ MAX_COUPLING_CONDITION = 1e8
 
 
 def _vector(name: str, values: Sequence[float] | np.ndarray, nonzero: bool) -> np.ndarray:
-    a = np.atleast_1d(np.asarray(values, dtype=float))
+    try:
+        a = np.atleast_1d(np.asarray(values, dtype=float))
+    except (TypeError, ValueError):
+        a = np.empty((0, 0))
     if a.ndim != 1 or a.size == 0:
         raise OptionError(f"{name} must be a list of numbers, one per motor, got {values!r}")
     bad = np.flatnonzero(~np.isfinite(a) | ((a == 0) if nonzero else False))
