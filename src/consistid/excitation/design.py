@@ -510,7 +510,6 @@ def make_parameterisation(nv: int, trajectory: str = "fourier", harmonics: int =
     return BSplineParameterisation(nv, via_points, period, degree, boundary)
 
 
-@single_blas_thread
 def _check_grid_size(model: RobotModel, spec: RegressorSpec, n_grid: int, n_check: int) -> None:
     """:class:`OptionError` (before allocating) when the regressor on the ``n_grid`` or
     ``n_check`` grid, ``(n · nv) × columns`` float64, would exceed :data:`MAX_SAMPLE_BYTES`."""
@@ -524,6 +523,7 @@ def _check_grid_size(model: RobotModel, spec: RegressorSpec, n_grid: int, n_chec
                               "period suffice (default n_grid = 150, n_check = 2000)")
 
 
+@single_blas_thread
 def design_excitation(model: RobotModel, harmonics: int = 5, period: float = 10.0,
                       criterion: str = "cond", seed: int = 0, *,
                       trajectory: str = "fourier", via_points: int | Sequence[float] = 10,
