@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import dataclasses
+import errno
 import importlib.metadata
 import os
 import platform
@@ -45,6 +46,9 @@ from .hints import cli_text, toml_hints, toml_value
 from ..data.npzfile import open_npz
 from ..filesafety import Terminated, release_output_locks, sigterm_interrupts
 from ..progress import silenced
+
+#: ``errno`` of a write that the filesystem refused (:func:`main` names it, exit 2).
+WRITE_FAILURES = frozenset({errno.ENOSPC, errno.EFBIG, errno.EDQUOT, errno.EROFS, errno.EIO})
 
 #: Set by ``-q``: no progress bars, no step messages on stderr (errors are still printed).
 QUIET = False
@@ -717,6 +721,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         # docs, "Note on SIGPIPE").
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 1
+    except OSError as exc:
+        if exc.errno not in WRITE_FAILURES:
+            raise
+        # a full disk, a file-size limit, a read-only or failing filesystem: the writers'
+        # temporaries are gone (``finally``), the outputs untouched (consistid.filesafety)
+        where = f" {exc.filename}" if exc.filename else ""
+        print(f"consistid {args.command}: error: could not write{where}: {exc.strerror}; no "
+              "output was left half-written: free space (or raise the limit) or choose an "
+              "output on another filesystem", file=sys.stderr, flush=True)
+        return 2
     finally:
         warnings.formatwarning = previous
         release_output_locks()
