@@ -24,7 +24,7 @@ import pytest
 import consistid as ci
 from consistid.cli import main
 from consistid.cli.files import check_output, check_output_dir
-from consistid.errors import (DataQualityWarning, DatasetError, ExcitationError,
+from consistid.errors import (DataQualityWarning, DatasetError,
                               IdentificationError, JointCountError, ModelMisfitWarning,
                               OptionError, OutputPathError)
 from consistid.filesafety import (Terminated, lock_output, release_output_locks, replacing)
@@ -237,10 +237,3 @@ def test_drive_entries_name_what_is_wrong(planar_2r, replay_log):
         with pytest.raises(IdentificationError, match="payload_mass"):
             identify_drive_gains(planar_2r, replay_log, replay_log, payload_mass=1e300)
 
-
-def test_sample_budget_is_the_excitation_one(planar_2r):
-    """The simulators share the trajectory's budget (one rule, one message)."""
-    from consistid.simulate.mujoco_logs import pd_log
-
-    with pytest.raises(ExcitationError, match="GiB"):
-        pd_log(planar_2r, planar_2r.prior_parameters, [], duration=1e9, seed=0)
