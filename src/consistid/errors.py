@@ -139,6 +139,14 @@ def check_number(name: str, value: object, minimum: float | None = None, *,
     return int(value) if integer else float(value)
 
 
+def check_seed(name: str, seed: object) -> object:
+    """A random seed numpy accepts: an integer ≥ 0 (or ``None``, or a ``numpy`` Generator),
+    else :class:`OptionError` naming ``name`` (numpy's own message names no option)."""
+    if seed is None or isinstance(seed, np.random.Generator):
+        return seed
+    return check_number(name, seed, 0, integer=True)
+
+
 def check_bounds(name: str, value: object) -> tuple[float | None, float | None]:
     """A ``(lower, upper)`` pair of numbers or ``None`` (no bound), else :class:`OptionError`."""
     if isinstance(value, (str, bytes)) or not isinstance(value, (Sequence, np.ndarray)) \

@@ -12,7 +12,9 @@ identify --output DIR``) is useful only whole: a new ``parameters.csv`` beside a
    holds the folder alone, and a run that writes one file (:func:`lock_output_file`) holds
    that file alone and *shares* the folder that receives it (``LOCK_SH`` on the folder's
    lock), so that no file of another run lands among a set while it is written, and two runs
-   that write different files into one folder do not stop each other.
+   that write different files into one folder do not stop each other. The temporaries a
+   killed writer (SIGKILL) left beside its output are removed by the next run that holds the
+   output's lock (:func:`remove_stale`).
 2. **All or nothing.** The files are written into a staging folder; a new output folder is
    that staging folder renamed once (``rename(2)`` is atomic). Into an existing folder the files
    are renamed one by one under a journal (:data:`JOURNAL`, listing them) written before the
@@ -29,6 +31,8 @@ from __future__ import annotations
 import atexit
 import contextlib
 import os
+import re
+import shutil
 import signal
 import threading
 import uuid
@@ -38,9 +42,8 @@ from typing import Iterator
 from .errors import OutputPathError
 
 __all__ = ["JOURNAL", "Terminated", "lock_output", "lock_output_file", "release_output_locks",
-           "interrupted_files",
-           "check_destination", "commit_folder", "replacing", "signals_deferred",
-           "sigterm_interrupts"]
+           "interrupted_files", "check_destination", "check_regular", "remove_stale",
+           "commit_folder", "replacing", "signals_deferred", "sigterm_interrupts"]
 
 #: The file an output folder holds while a set of files is renamed into it (one name a line).
 JOURNAL = ".consistid-incomplete"
@@ -104,10 +107,36 @@ def lock_output(path: str | os.PathLike, what: str = "output", *,
     if not shared:                              # shared holders leave the first one's pid
         os.ftruncate(fd, 0)
         os.write(fd, f"{os.getpid()}\n".encode())
+        remove_stale(out)
     elif os.fstat(fd).st_size == 0:
         os.write(fd, f"{os.getpid()}\n".encode())
     _HELD[lock] = fd
     return lock
+
+
+def remove_stale(out: Path) -> list[str]:
+    """Remove the temporaries that a killed writer of ``out`` left beside it (SIGKILL, a power
+    cut: no ``finally`` ran): the staging folders of :func:`commit_folder` callers
+    (``.NAME.part-XXXXXXXX``) and the files of :func:`replacing`
+    (``.STEM.<12 hex>.partSUFFIX``). Called by :func:`lock_output` once it holds ``out``
+    alone, so no live writer owns them. Returns their names."""
+    stem, suffix = out.stem, out.suffix
+    pattern = re.compile(rf"\.{re.escape(out.name)}\.part-[a-z0-9_]{{8}}|"
+                         rf"\.{re.escape(stem)}\.[0-9a-f]{{12}}\.part{re.escape(suffix)}")
+    removed = []
+    try:
+        entries = list(os.scandir(out.parent))
+    except OSError:
+        return removed
+    for entry in entries:
+        if pattern.fullmatch(entry.name):
+            if entry.is_dir(follow_symlinks=False):
+                shutil.rmtree(entry.path, ignore_errors=True)
+            else:
+                with contextlib.suppress(OSError):
+                    os.unlink(entry.path)
+            removed.append(entry.name)
+    return removed
 
 
 def lock_output_file(path: str | os.PathLike, what: str = "output") -> Path:
@@ -243,15 +272,15 @@ def commit_folder(staging: Path, out: Path) -> list[str]:
 
 def check_destination(path: str | os.PathLike) -> Path:
     """``path`` (absolute) if a file can be written there, else
-    :class:`~consistid.errors.OutputPathError` naming it: a NUL character, an existing folder,
-    a folder that does not exist or is not writable."""
+    :class:`~consistid.errors.OutputPathError` naming it: a NUL character, an existing folder
+    or anything else not a regular file (:func:`check_regular`), a folder that does not exist or
+    is not writable."""
     text = os.fspath(path)
     if not text or "\0" in str(text):
         raise OutputPathError(f"output path {str(text)[:120]!r} is empty or holds a NUL "
                               "character; give a file path")
     out = Path(text).expanduser().resolve()
-    if out.is_dir():
-        raise OutputPathError(f"output {str(out)!r} is an existing folder; name a file")
+    check_regular(out)                          # a folder, a device, a name too long
     if not out.parent.is_dir():
         raise OutputPathError(f"output {str(out)!r}: folder {str(out.parent)!r} does not "
                               "exist; create it first or choose another path")
@@ -259,6 +288,20 @@ def check_destination(path: str | os.PathLike) -> Path:
         raise OutputPathError(f"output {str(out)!r}: folder {str(out.parent)!r} is not "
                               "writable")
     return out
+
+
+def check_regular(out: Path, what: str = "output") -> None:
+    """:class:`OutputPathError` unless ``out`` is new or a regular file (symlinks followed):
+    replacing a folder, a device (``/dev/null``, a disk), a FIFO or a socket by a file would
+    destroy it (run as root, ``rename(2)`` over ``/dev/null`` succeeds)."""
+    try:
+        if not out.exists() or out.is_file():
+            return
+        kind = "an existing folder" if out.is_dir() else "a device, FIFO or socket, not a regular file"
+    except OSError as exc:                      # a name too long, a loop of symlinks …
+        raise OutputPathError(f"{what} {str(out)!r}: {exc.strerror}") from None
+    raise OutputPathError(f"{what} {str(out)!r} is {kind}; consistid writes only regular "
+                          "files: choose a file path")
 
 
 @contextlib.contextmanager

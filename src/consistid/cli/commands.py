@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import dataclasses
+import errno
 import importlib.metadata
 import os
 import platform
@@ -32,7 +33,7 @@ import numpy as np
 
 import consistid as ci
 from consistid.errors import (ConfigError, ConsistidError, OutputPathError, check_number,
-                             check_option)
+                             check_option, check_seed)
 from consistid.robot.export import MERGED
 from consistid.robot.model import EXAMPLE_ROBOTS
 
@@ -45,6 +46,9 @@ from .hints import cli_text, toml_hints, toml_value
 from ..data.npzfile import open_npz
 from ..filesafety import Terminated, release_output_locks, sigterm_interrupts
 from ..progress import silenced
+
+#: ``errno`` of a write that the filesystem refused (:func:`main` names it, exit 2).
+WRITE_FAILURES = frozenset({errno.ENOSPC, errno.EFBIG, errno.EDQUOT, errno.EROFS, errno.EIO})
 
 #: Set by ``-q``: no progress bars, no step messages on stderr (errors are still printed).
 QUIET = False
@@ -88,6 +92,7 @@ def demo(args: argparse.Namespace) -> int:
                                          ("--rate", args.rate, 0, True),
                                          ("--noise", args.noise, 0, False)):
         check_number(name, value, minimum, strict=strict)   # before any folder is made
+    check_seed("--seed", args.seed)
     model = _cli_model(args)
     _check_demo_bodies(model, args.urdf)                 # before any folder is made
     inputs = [args.urdf] if args.urdf else []
@@ -357,6 +362,7 @@ def simulate(args: argparse.Namespace) -> int:
         raise OutputPathError(f"--plot {args.plot!r}: {Path(args.plot).suffix or 'no suffix'} "
                               "is not an image format; name a .png file (or "
                               f"{', '.join(s for s in PLOT_SUFFIXES if s != '.png')})")
+    check_seed("--seed", args.seed)
     plot = (check_output(args.plot, force=args.force, what="--plot") if args.plot else None)
     demo_run = run(_cli_model(args), args.effect or DEFAULT_EFFECTS, duration=args.duration,
                    torque_noise=args.noise, seed=args.seed, progress=_log)
@@ -755,6 +761,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         # docs, "Note on SIGPIPE").
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 1
+    except OSError as exc:
+        if exc.errno not in WRITE_FAILURES:
+            raise
+        # a full disk, a file-size limit, a read-only or failing filesystem: the writers'
+        # temporaries are gone (``finally``), the outputs untouched (consistid.filesafety)
+        where = f" {exc.filename}" if exc.filename else ""
+        print(f"consistid {args.command}: error: could not write{where}: {exc.strerror}; no "
+              "output was left half-written: free space (or raise the limit) or choose an "
+              "output on another filesystem", file=sys.stderr, flush=True)
+        return 2
     finally:
         warnings.formatwarning = previous
         release_output_locks()

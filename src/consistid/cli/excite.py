@@ -55,6 +55,9 @@ BOUNDARY_KEYS = {"q_start", "q_end", "dq_start", "dq_end", "ddq_start", "ddq_end
 PASSED_ON = ("trajectory", "harmonics", "period", "criterion", "armature", "seed", "n_starts",
              "max_iter", "method", "via_points", "degree", "column_scale", "torque_weight",
              "noise_std", "n_grid", "n_check", "safety")
+#: ``[excite]`` keys of one trajectory kind only (given with the other, they are refused).
+BSPLINE_ONLY = ("via_points", "degree")
+FOURIER_ONLY = ("harmonics",)
 SHAPES: dict[str, tuple[type, set[str]]] = {
     "workspace": (CartesianBox, {"lower", "upper", "frames"}),
     "floor": (FloorPlane, {"z_min", "frames"}),
@@ -98,6 +101,12 @@ def load_excitation_config(path: str | Path) -> ExcitationConfig:
                   if k in lim},
         **{k: _shape(config, k, lim[k]) for k in SHAPES if k in lim})
     options: dict[str, Any] = {k: ex[k] for k in PASSED_ON if k in ex}
+    kind = ex.get("trajectory", "fourier")
+    unused = [k for k in (BSPLINE_ONLY if kind == "fourier" else FOURIER_ONLY) if k in ex]
+    if unused:
+        raise ConfigError(f"{config.path.name}: [excite] {', '.join(unused)} set, but they "
+                          f"do not apply to trajectory = {kind!r} (they would be ignored); "
+                          "remove them or choose the other trajectory")
     if "friction" in ex:
         friction = ex["friction"]
         options["friction"] = ((friction,) if isinstance(friction, str)   # one term

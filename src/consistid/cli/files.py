@@ -45,8 +45,8 @@ from typing import Iterable, Iterator
 
 from ..errors import ConfigError, OutputPathError, ResultFileError
 from ..identification.persistence import check_input
-from ..filesafety import (commit_folder, lock_output, lock_output_file, replacing,
-                          signals_deferred)
+from ..filesafety import (check_regular, commit_folder, lock_output, lock_output_file,
+                          replacing, signals_deferred)
 
 __all__ = ["check_output", "check_output_dir", "check_inputs", "atomic_path", "atomic_dir",
            "same_file"]
@@ -91,6 +91,17 @@ def _check_not_input(path: Path, inputs: Iterable[str | os.PathLike], what: str)
                 "never writes over its inputs, even with --force; choose another output path")
 
 
+def _check_not_inside_input(out: Path, inputs: Iterable[str | os.PathLike], what: str) -> None:
+    """An output folder is no input folder (a ROS 2 bag folder) nor inside one: its files
+    would change what the input holds."""
+    for source in inputs:
+        src = _resolved(source)
+        if src.is_dir() and (out == src or src in out.parents):
+            raise OutputPathError(
+                f"{what} {str(out)!r} is inside the input folder {str(source)!r}: consistid "
+                "never writes into its inputs; choose an output folder elsewhere")
+
+
 def _check_folder(folder: Path, what: str, path: Path) -> None:
     if not folder.is_dir():
         raise OutputPathError(f"{what} {str(path)!r}: folder {str(folder)!r} does not exist; "
@@ -106,6 +117,7 @@ def _check_target(target: Path, inputs: Iterable[str | os.PathLike], force: bool
     _check_not_input(target, inputs, what.rstrip(":"))
     if target.is_dir():
         raise OutputPathError(f"{what} {str(target)!r} is an existing folder, not a file")
+    check_regular(target, what.rstrip(":"))
     if target.exists() and not force:
         raise OutputPathError(f"{what} {str(target)!r} exists; pass --force to replace it (or "
                               f"choose another {other})")
@@ -129,11 +141,23 @@ def check_output(path: str | os.PathLike, *, inputs: Iterable[str | os.PathLike]
     """
     if path is None or str(path) == "":
         raise OutputPathError(f"{what} is empty: give a file path")
-    out = _resolved(path)
-    _check_target(out, inputs, force, what, "path")
-    _check_folder(out.parent, what, out)
+    with _os_errors(what, path):
+        out = _resolved(path)
+        _check_target(out, inputs, force, what, "path")
+        _check_folder(out.parent, what, out)
     lock_output_file(out, what)
     return out
+
+
+@contextlib.contextmanager
+def _os_errors(what: str, path: str | os.PathLike) -> Iterator[None]:
+    """An ``OSError`` of a path check (a name longer than the filesystem allows, a loop of
+    symlinks) as :class:`OutputPathError` naming the option and the path."""
+    try:
+        yield
+    except OSError as exc:
+        raise OutputPathError(f"{what} {str(path)!r}: {exc.strerror or exc}; choose another "
+                              "path") from None
 
 
 def check_output_dir(path: str | os.PathLike, names: Iterable[str], *,
@@ -144,13 +168,15 @@ def check_output_dir(path: str | os.PathLike, names: Iterable[str], *,
     exist); each of ``names`` that exists needs ``force``; none may be an input."""
     if path is None or str(path) == "":
         raise OutputPathError(f"{what} is empty: give a folder path")
-    out = _resolved(path)
-    if out.exists() and not out.is_dir():
-        raise OutputPathError(f"{what} {str(out)!r} is an existing file, not a folder")
     inputs = list(inputs)
-    for name in names:
-        _check_target(out / name, inputs, force, f"{what}:", "folder")
-    _check_folder(out if out.is_dir() else out.parent, what, out)
+    with _os_errors(what, path):
+        out = _resolved(path)
+        if out.exists() and not out.is_dir():
+            raise OutputPathError(f"{what} {str(out)!r} is an existing file, not a folder")
+        _check_not_inside_input(out, inputs, what)
+        for name in names:
+            _check_target(out / name, inputs, force, f"{what}:", "folder")
+        _check_folder(out if out.is_dir() else out.parent, what, out)
     lock_output(out, what)
     return out
 

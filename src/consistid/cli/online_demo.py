@@ -16,7 +16,8 @@ import time
 import numpy as np
 
 import consistid as ci
-from consistid.errors import OptionError, check_number
+from consistid.errors import OptionError, check_number, check_seed
+from consistid.excitation.trajectory import sample_count
 from consistid.robot.model import EXAMPLE_ROBOTS
 
 
@@ -43,6 +44,8 @@ def run(args: argparse.Namespace) -> int:
                           f"{', '.join(EXAMPLE_ROBOTS)}")
     model = ci.RobotModel.example(args.robot)
     check_number("--periods", args.periods, 1, integer=True)       # every option before the work
+    check_seed("--seed", args.seed)
+    sample_count(1000.0, 4.0 * args.periods, model.nv)  # the adaptive run: 4 s periods at 1 kHz
     est = ci.RecursiveEstimator(model, forgetting=args.forgetting)
     check_number("--duration", args.duration, 0, strict=True)
     if args.change is None:

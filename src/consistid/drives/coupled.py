@@ -96,6 +96,9 @@ def identify_coupled(model: RobotModel, dataset: Dataset, transmission: Transmis
     the data cannot separate the coupled terms from the rest.
     """
     require_model(model)
+    if not isinstance(transmission, Transmission):
+        raise OptionError(f"identify_coupled: transmission must be a Transmission(ratios=..., "
+                          f"coupling=...), got {type(transmission).__name__}")
     transmission.check_joints(model.nv, model.joint_names)
     if not transmission.coupled_motors.size:
         raise OptionError("transmission couples no joints (coupling is diagonal): its motor "

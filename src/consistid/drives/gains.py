@@ -56,8 +56,9 @@ import scipy.linalg
 
 from ..data.checks import check_for_identification
 from ..data.dataset import Dataset, as_dataset
-from ..errors import (BoundActiveWarning, InaccurateSolutionWarning, InfeasibleError,
-                      OptionError, PoorExcitationError, PoorExcitationWarning, UninformedGainError,
+from ..errors import (BoundActiveWarning, IdentificationError, InaccurateSolutionWarning,
+                      InfeasibleError, OptionError, PoorExcitationError, PoorExcitationWarning,
+                      UninformedGainError,
                       check_number, check_option)
 from ..identification.base import RANK_RTOL, BaseParameters
 from ..identification.identify import base_parameters_of, identify
@@ -412,7 +413,16 @@ def identify_drive_gains(model: RobotModel, unloaded: Dataset, loaded: Dataset |
     _check_offset(model, spec, blocks, runs, kept, x0)
     _check_informed(model, r0, cov0, x0[n_theta:], cond0, n_theta, body_name, mass,
                     max_relative_std)
-    fit = _maximum_likelihood(blocks, runs, g, x0, n_theta, kept)
+    with np.errstate(all="ignore"):
+        try:
+            fit = _maximum_likelihood(blocks, runs, g, x0, n_theta, kept)
+        except np.linalg.LinAlgError:
+            fit = None
+    if fit is None or not np.all(np.isfinite(fit.x)):
+        raise IdentificationError(
+            f"identify_drive_gains: the maximum-likelihood fit of the gains left the finite "
+            f"numbers (payload_mass={payload_mass!r} kg): check payload_mass= (kg, the weighed "
+            "load) and that the runs' tau hold motor currents in A")
     x = fit.x
     gains = x[n_theta:]
     _check_informed(model, fit.r, fit.covariance, gains, fit.condition, n_theta, body_name,

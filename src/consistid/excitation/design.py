@@ -42,6 +42,7 @@ from ..errors import (
     OptionError,
     PoorExcitationWarning,
     check_number,
+    check_seed,
     check_option,
 )
 from ..report.html import Page
@@ -53,7 +54,8 @@ from ..identification.regressor import FrictionArg, RegressorSpec, prior_vector,
 from .criteria import CRITERIA, criteria_values, criterion_and_gradient, prior_column_scale
 from .criteria import regressor_sensitivity
 from .limits import ConstraintBlock, ConstraintReport, ConstraintSet, ExcitationLimits
-from .trajectory import (BoundaryConditions, BSplineParameterisation, FourierPolynomial,
+from .trajectory import (MAX_SAMPLE_BYTES, BoundaryConditions, BSplineParameterisation,
+                         FourierPolynomial,
                          Parameterisation, Trajectory, position_range)
 
 logger = logging.getLogger(__name__)
@@ -508,6 +510,19 @@ def make_parameterisation(nv: int, trajectory: str = "fourier", harmonics: int =
     return BSplineParameterisation(nv, via_points, period, degree, boundary)
 
 
+def _check_grid_size(model: RobotModel, spec: RegressorSpec, n_grid: int, n_check: int) -> None:
+    """:class:`OptionError` (before allocating) when the regressor on the ``n_grid`` or
+    ``n_check`` grid, ``(n · nv) × columns`` float64, would exceed :data:`MAX_SAMPLE_BYTES`."""
+    columns = model.n_inertial + spec.n_joint_columns
+    for name, n in (("n_grid", n_grid), ("n_check", n_check)):
+        size = float(n) * model.nv * columns * 8
+        if size > MAX_SAMPLE_BYTES:
+            raise OptionError(f"{name} = {n}: the regressor on that grid takes "
+                              f"{size / 2**30:.3g} GiB, more than "
+                              f"{MAX_SAMPLE_BYTES / 2**30:g} GiB; a few hundred samples per "
+                              "period suffice (default n_grid = 150, n_check = 2000)")
+
+
 @single_blas_thread
 def design_excitation(model: RobotModel, harmonics: int = 5, period: float = 10.0,
                       criterion: str = "cond", seed: int = 0, *,
@@ -575,6 +590,12 @@ def design_excitation(model: RobotModel, harmonics: int = 5, period: float = 10.
             ("n_starts", n_starts), ("max_iter", max_iter), ("n_grid", n_grid),
             ("n_check", n_check), ("harmonics", harmonics), ("seed", seed)))
     period = check_number("period", period)
+    check_seed("seed", seed)
+    if trajectory == "fourier" and 2 * harmonics >= n_grid:
+        raise OptionError(f"harmonics = {harmonics} needs n_grid > {2 * harmonics} samples per "
+                          f"period (Nyquist: the optimiser could not see the higher "
+                          f"harmonics), n_grid = {n_grid}; lower harmonics (5 to 10 is usual) "
+                          "or raise n_grid")
     if n_starts < 1 or max_iter < 0 or n_grid < 2 or n_check < 2:
         raise OptionError(f"need n_starts ≥ 1, max_iter ≥ 0, n_grid ≥ 2, n_check ≥ 2; got "
                           f"{n_starts}, {max_iter}, {n_grid}, {n_check}")
@@ -594,6 +615,7 @@ def design_excitation(model: RobotModel, harmonics: int = 5, period: float = 10.
     param = make_parameterisation(model.nv, trajectory, harmonics, period, via_points, degree,
                                   boundary)
     spec = RegressorSpec.make(model, friction, armature)
+    _check_grid_size(model, spec, n_grid, n_check)
     base = compute_base_parameters(model, spec)
     row_w, col_s = _weights(model, base, spec, noise_std, column_scale)
     problem = _DesignProblem(model, param, spec, base, constraints, criterion, row_w, col_s,

@@ -57,7 +57,11 @@ def joint_vector(name: str, value: float | Sequence[float] | np.ndarray, nv: int
     Raises :class:`JointCountError` for another shape and :class:`ExcitationError` for NaN, or
     for ``±inf`` unless ``allow_infinite`` (limits, where ``inf`` means unbounded).
     """
-    a = np.asarray(value, dtype=float)
+    try:
+        a = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ExcitationError(f"{name} must be a number or one number per joint ({nv}), got "
+                              f"{value!r}") from None
     if a.ndim == 0:
         a = np.full(nv, float(a))
     elif a.shape != (nv,):

@@ -25,7 +25,8 @@ from typing import Callable
 import numpy as np
 import pinocchio as pin
 
-from ..errors import ModelError, OptionError, check_number
+from ..errors import ModelError, OptionError, check_number, check_seed
+from ..excitation.trajectory import sample_count
 from ..excitation import FourierTrajectory
 from ..identification.regressor import FrictionArg, RegressorSpec, prior_vector, regressor
 from ..robot.inertia import from_mass_com_inertia, to_mass_com_inertia
@@ -207,7 +208,8 @@ def adaptive_run(model: RobotModel, *, periods: int = 8, period: float = 4.0,
     period = check_number("period", period, 0, strict=True)
     rate = check_number("rate", rate, 0, strict=True)
     snapshot = check_number("snapshot", snapshot, 0, strict=True)
-    rng = np.random.default_rng(seed)
+    sample_count(rate, periods * period, model.nv)   # refused before allocating
+    rng = np.random.default_rng(check_seed("seed", seed))
     truth = (model.prior_parameters.copy() if true_parameters is None
              else np.asarray(true_parameters, dtype=float))
     if trajectory is None:

@@ -25,8 +25,9 @@ import numpy as np
 
 from ..data.dataset import Dataset
 from .effects import Effects, MountedPayload, measure_position, measure_torque
-from ..errors import ModelError, TrackingWarning, check_number
+from ..errors import ModelError, TrackingWarning, check_number, check_seed
 from ..excitation import FourierTrajectory
+from ..excitation.trajectory import sample_count
 from ..robot.model import RobotModel
 from ..identification.regressor import FrictionArg, RegressorSpec, regressor
 
@@ -79,6 +80,7 @@ def excitation_run(model: RobotModel, parameters: np.ndarray | None = None,
     """
     torque_noise = check_number("torque_noise", torque_noise, 0)
     position_noise = check_number("position_noise", position_noise, 0)
+    check_seed("seed", seed)
     spec = RegressorSpec.make(model, friction, armature)
     p = model.n_inertial + spec.n_joint_columns
     truth = (np.concatenate([model.prior_parameters, np.zeros(spec.n_joint_columns)])
@@ -305,6 +307,8 @@ def record(model: RobotModel, trajectory: DesiredMotion, effects: Effects | None
     if np.max(eff.delay) > settle:
         raise ModelError(f"effects.delay up to {np.max(eff.delay)} s needs settle ≥ that; "
                          f"settle = {settle} s")
+    check_seed("seed", seed)
+    sample_count(physics_rate, duration + settle, model.nv)   # refused before allocating
     every = int(round(ratio))
     n_settle = int(np.ceil(settle * physics_rate - 1e-9))
     n_log = int(round(duration * rate))

@@ -23,6 +23,7 @@ import numpy as np
 from ..data.dataset import Dataset
 from ..errors import TrackingWarning
 from ..excitation import FourierTrajectory
+from ..excitation.trajectory import sample_count
 from ..robot.inertia import perturb
 from ..robot.model import RobotModel
 from .effects import Effects
@@ -45,6 +46,7 @@ def pd_log(model: RobotModel, parameters: np.ndarray, names: list[str], duration
     from ..robot.mjcf import mjcf_spec
 
     h = PD_STEP
+    sample_count(1.0 / h, duration, model.nv)       # refused before allocating
     spec = mjcf_spec(model, parameters, names)
     spec.option.timestep = h
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST

@@ -51,8 +51,8 @@ import numpy as np
 
 from ..data.dataset import Dataset
 from ..filesafety import replacing
-from ..errors import (ModelMisfitWarning, OptionError, PoorExcitationWarning, ResultFileError,
-                      check_number)
+from ..errors import (DatasetError, ModelMisfitWarning, OptionError, PoorExcitationWarning,
+                      ResultFileError, check_number)
 from ..identification.resultschema import read_document
 from ..identification.statistics import autocorrelation_time
 from ..report.html import Page
@@ -489,6 +489,11 @@ def calibrate_simulator(result: Any, data: Dataset, mjcf: str | Path | None = No
         raise OptionError(f"terms={terms!r}: gain and delay act on the logged torque and are "
                           "calibrated under the PD replay; give controller=PDGains(...) or "
                           "leave them out of terms")
+    if not isinstance(data, Dataset) or data.nv != result.model.nv:
+        raise DatasetError(f"calibrate_simulator: data must be a Dataset of the result's "
+                           f"{result.model.nv} joints (one recording with torques), got "
+                           f"{type(data).__name__}"
+                           + (f" of {data.nv} joints" if isinstance(data, Dataset) else ""))
     started = time.perf_counter()
     sim = build_simulator(result.model, result.parameters, result.parameter_names, mjcf=mjcf,
                           timestep=options.timestep, integrator=options.integrator)

@@ -27,6 +27,8 @@ from ..errors import OptionError, check_number, check_option
 
 #: MuJoCo's integrators by their MJCF names.
 INTEGRATORS = ("Euler", "implicit", "implicitfast", "RK4")
+#: The most threads a replay asks ``mujoco.rollout`` for (each holds one ``MjData``).
+MAX_THREADS = 256
 
 
 @dataclass(frozen=True)
@@ -114,7 +116,11 @@ def _check_gains(owner: str, kp: object, kd: object) -> None:
         raise OptionError(f"{owner}: give both kp and kd, or neither (then the bandwidth "
                           "sets them)")
     if kp is not None:
-        p, d = np.ravel(kp).astype(float), np.ravel(kd).astype(float)
+        try:
+            p, d = np.ravel(kp).astype(float), np.ravel(kd).astype(float)
+        except (TypeError, ValueError):
+            raise OptionError(f"{owner}: kp and kd must be numbers (a scalar or one per "
+                              f"joint), got kp={kp!r}, kd={kd!r}") from None
         if not (np.all(np.isfinite(p)) and np.all(p > 0) and np.all(np.isfinite(d))
                 and np.all(d >= 0)):
             raise OptionError(f"{owner}: kp must be > 0 and kd ≥ 0 (finite), got "
@@ -144,7 +150,7 @@ class RolloutOptions:
         and the drift ``q − q_log`` is reported per window; > 0.
     controller : the closed-loop replay's controller: :class:`PDGains` (joint PD around the
         log, the logged torque fed forward) or :class:`ComputedTorque`.
-    threads : threads of ``mujoco.rollout``, ≥ 1.
+    threads : threads of ``mujoco.rollout``, 1 … :data:`MAX_THREADS`.
     """
 
     timestep: float | None = 0.002
@@ -160,6 +166,10 @@ class RolloutOptions:
             check_option("RolloutOptions.integrator", self.integrator, INTEGRATORS)
         check_number("RolloutOptions.window", self.window, 0, strict=True)
         check_number("RolloutOptions.threads", self.threads, 1, integer=True)
+        if self.threads > MAX_THREADS:
+            raise OptionError(f"RolloutOptions.threads={self.threads} is more than "
+                              f"{MAX_THREADS} (each thread holds a MuJoCo data copy); give at "
+                              "most the machine's cores")
         if not isinstance(self.controller, (PDGains, ComputedTorque)):
             raise OptionError(f"RolloutOptions.controller must be a PDGains or a "
                               f"ComputedTorque, got {type(self.controller).__name__}")

@@ -54,6 +54,9 @@ from .options import ComputedTorque, Controller
 
 #: A tracking error beyond this (rad) marks a closed-loop rollout as diverged.
 DIVERGED = 1.0
+#: The most simulator steps a replayed log may span (10⁷: 5.5 h at 2 ms; each step holds
+#: the state of every model compared), checked before any array is allocated.
+MAX_STEPS = 10_000_000
 
 
 @dataclass(frozen=True, eq=False)
@@ -73,8 +76,13 @@ class LogGrid:
         if data.segment is not None and np.unique(data.segment).size > 1:
             raise DatasetError("a replay runs one continuous recording; select one segment "
                                "(Dataset.select(data.segment == k))")
-        t = data.t[0] + timestep * np.arange(int(np.floor((data.t[-1] - data.t[0]) / timestep
-                                                           + 1e-9)) + 1)
+        span = float(data.t[-1] - data.t[0])
+        if not span / timestep <= MAX_STEPS:
+            raise DatasetError(f"the log lasts {span:.6g} s: {span / timestep:.3g} simulator "
+                               f"steps of timestep={timestep:g} s, more than {MAX_STEPS:.0e}; "
+                               "give a larger timestep or replay a shorter part of the log "
+                               "(Dataset.select)")
+        t = data.t[0] + timestep * np.arange(int(np.floor(span / timestep + 1e-9)) + 1)
         if t.size < 3:
             raise DatasetError(f"the log lasts {data.t[-1] - data.t[0]:.3g} s, less than three "
                                f"simulator steps of {timestep:g} s")
@@ -103,6 +111,15 @@ def _rollout(models: Sequence[Any], sim: Simulator, states: np.ndarray, controls
     out, _ = mujoco.rollout.rollout(list(models), datas, states, controls,
                                     control_spec=int(CONTROLS))
     return out
+
+
+def was_reset(start: np.ndarray, states: np.ndarray, timestep: float) -> np.ndarray:
+    """(batch,) whether MuJoCo reset a rollout on the way (a ``BADQACC`` warning: an
+    unstable step, e.g. gains too stiff for the step or torques beyond any physics): its
+    time, the first coordinate of each state, stops following ``t_0 + (k + 1) h``."""
+    expected = start[:, None, 0] + timestep * np.arange(1, states.shape[1] + 1)
+    with np.errstate(invalid="ignore"):
+        return np.any(~(np.abs(states[..., 0] - expected) <= 0.5 * timestep), axis=1)
 
 
 def _positions(sim: Simulator, states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -146,7 +163,8 @@ def closed_loop(sim: Simulator, models: Sequence[Any], log: LogGrid, kp: np.ndar
     controls = np.stack([_controls(sim, ref, actuated(log.tau, h, g, d)[:-1])
                          for g, d in actuation])
     start = sim.initial_state(log.q[0], log.dq[0])
-    states = _rollout(models, sim, np.tile(start, (len(models), 1)), controls, threads)
+    starts = np.tile(start, (len(models), 1))
+    states = _rollout(models, sim, starts, controls, threads)
     q, dq = _positions(sim, states)
     q0 = np.broadcast_to(log.q[0], (len(models), 1, sim.nv))
     dq0 = np.broadcast_to(log.dq[0], (len(models), 1, sim.nv))
@@ -156,7 +174,7 @@ def closed_loop(sim: Simulator, models: Sequence[Any], log: LogGrid, kp: np.ndar
         correction = kp * (log.q[:-1] - q[:, :-1]) + kd * (log.dq[a:steps + a]
                                                             - dq[:, a:steps + a])
         diverged = ~np.all(np.isfinite(error), axis=(1, 2)) | (
-            np.nanmax(np.abs(error), axis=(1, 2)) > DIVERGED)
+            np.nanmax(np.abs(error), axis=(1, 2)) > DIVERGED) | was_reset(starts, states, h)
     return ClosedLoop(error, correction, diverged)
 
 
@@ -250,6 +268,7 @@ def open_loop(sim: Simulator, log: LogGrid, window: float, threads: int = 1) -> 
     drift = q - log.q[idx]
     with np.errstate(invalid="ignore"):
         bad = ~np.all(np.isfinite(drift), axis=(1, 2)) | (np.nanmax(np.abs(drift), axis=(1, 2))
-                                                          > 10 * DIVERGED)
+                                                          > 10 * DIVERGED) | was_reset(
+            states, out, float(sim.mj_model.opt.timestep))
     drift[bad] = np.nan
     return drift

@@ -17,6 +17,7 @@ shrinks in the user's simulator.
 from __future__ import annotations
 
 import json
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping
@@ -24,7 +25,8 @@ from typing import Any, Mapping
 import numpy as np
 
 from ..data.dataset import Dataset
-from ..errors import OptionError, ResultFileError
+from ..errors import (DataQualityWarning, DatasetError, JointCountError, ModelMisfitWarning,
+                      OptionError, ResultFileError)
 from ..filesafety import replacing
 from ..identification.persistence import decode, encode
 from ..identification.resultschema import read_document
@@ -54,6 +56,15 @@ class Replay:
         return {"model": self.label, "q_error_mrad": 1e3 * _rms(self.q_error),
                 "tau_error_Nm": _rms(self.tau_error), "open_loop_mrad": 1e3 * _rms(self.drift),
                 "diverged": self.diverged}
+
+
+def _check_window(window: float, timestep: float) -> None:
+    """:class:`OptionError` for an open-loop window shorter than two simulator steps: the
+    replay would reset the state before it could drift, and report a drift of about 0."""
+    if window < 2.0 * timestep:
+        raise OptionError(f"RolloutOptions.window={window:g} s is shorter than two simulator "
+                          f"steps (timestep {timestep:g} s): the open-loop replay would reset "
+                          "before it drifts; give a window of a fraction of a second or more")
 
 
 def _rms(per_joint: np.ndarray) -> float:
@@ -259,13 +270,23 @@ def replay_one(sim: Simulator, label: str, log: LogGrid, kp: np.ndarray, kd: np.
     closed = closed_loop_under(options.controller, sim, [sim.mj_model], log, kp, kd,
                                options.threads)
     drift = open_loop(sim, log, options.window, options.threads)
-    per_window = np.sqrt(np.nanmean(drift ** 2, axis=1))
     diverged = bool(closed.diverged[0])
     nan = np.full(sim.nv, np.nan)
+    with warnings.catch_warnings():             # every window diverged: NaN, said below
+        warnings.simplefilter("ignore", RuntimeWarning)
+        per_window = np.sqrt(np.nanmean(drift ** 2, axis=1))
+        mean, worst = (np.sqrt(np.nanmean(per_window ** 2, axis=0)),
+                       np.nanmax(per_window, axis=0))
+    if diverged or not np.all(np.isfinite(mean)):
+        what = "closed loop" if diverged else "open loop (every window)"
+        warnings.warn(f"validate_rollout: the {what} replay of {label!r} diverged (a non-finite "
+                      f"state, MuJoCo reset an unstable step, or a tracking error beyond "
+                      "1 rad): its figures are NaN. Check the log's torques and units, the "
+                      "controller gains for the timestep (a smaller bandwidth= or timestep=), "
+                      "and the model", ModelMisfitWarning, stacklevel=3)
     return Replay(label, nan if diverged else np.sqrt(np.mean(closed.error[0] ** 2, axis=0)),
                   nan if diverged else np.sqrt(np.mean(closed.correction[0] ** 2, axis=0)),
-                  np.sqrt(np.nanmean(per_window ** 2, axis=0)), np.nanmax(per_window, axis=0),
-                  diverged)
+                  mean, worst, diverged)
 
 
 def validate_rollout(data: Dataset, models: Mapping[str, Any], *,
@@ -288,13 +309,32 @@ def validate_rollout(data: Dataset, models: Mapping[str, Any], *,
     RolloutValidation
     """
     options = options or RolloutOptions()
+    if not isinstance(options, RolloutOptions):
+        raise OptionError(f"validate_rollout: options must be a RolloutOptions, got "
+                          f"{type(options).__name__}")
+    if not isinstance(data, Dataset):
+        raise DatasetError(f"validate_rollout: data must be a Dataset (one recording with "
+                           f"torques), got {type(data).__name__}")
+    if not isinstance(models, Mapping):
+        raise OptionError(f"validate_rollout: models must be a mapping {{label: model}}, got "
+                          f"{type(models).__name__}")
     if not models:
         raise OptionError("validate_rollout: models is empty; give {label: model}")
     sims = {label: simulator_of(src, mjcf=mjcf, options=options)
             for label, src in models.items()}
     first = next(iter(sims.values()))
+    for label, sim in sims.items():
+        if sim.nv != data.nv:
+            raise JointCountError(f"validate_rollout: models[{label!r}] has {sim.nv} joints, "
+                                  f"the data {data.nv}: replay a log of that robot")
     timestep = float(first.mj_model.opt.timestep)
+    _check_window(options.window, timestep)
     log = LogGrid.from_dataset(data, timestep)
+    if log.t[-1] - log.t[0] < options.window:
+        warnings.warn(f"validate_rollout: the log lasts {log.t[-1] - log.t[0]:.3g} s, less "
+                      f"than one open-loop window (window={options.window:g} s): the figures "
+                      "rest on one short replay; replay a longer log", DataQualityWarning,
+                      stacklevel=2)
     stride = max(1, log.t.size // 50)
     kp, kd = options.controller.resolve(first.mass_diagonal(log.q[::stride]))
     replays = tuple(replay_one(sim, label, log, kp, kd, options) for label, sim in sims.items())
