@@ -297,7 +297,8 @@ def check_regular(out: Path, what: str = "output") -> None:
     try:
         if not out.exists() or out.is_file():
             return
-        kind = "an existing folder" if out.is_dir() else "a device, FIFO or socket, not a regular file"
+        kind = ("an existing folder" if out.is_dir()
+                else "a device, FIFO or socket, not a regular file")
     except OSError as exc:                      # a name too long, a loop of symlinks …
         raise OutputPathError(f"{what} {str(out)!r}: {exc.strerror}") from None
     raise OutputPathError(f"{what} {str(out)!r} is {kind}; consistid writes only regular "
