@@ -131,8 +131,11 @@ def test_drive_gains_from_currents_and_a_known_load(ur5, current_runs, method, t
     assert "drive gains" in found.summary() and "wrist_3_joint" in found._repr_html_()
     saved = ci.IdentificationResult.load(found.result.save(tmp_path / "result.json"))
     np.testing.assert_allclose(saved.details["drive_gain_values"], found.gains)
-    lo, hi = found.conf_int().T
+    frame = found.conf_int()                  # labelled by joint, as res.conf_int() is
+    assert list(frame.index) == list(found.joint_names)
+    lo, hi = frame["lower"].to_numpy(), frame["upper"].to_numpy()
     assert np.all(lo < found.gains) and np.all(found.gains < hi)
+    np.testing.assert_allclose(found.conf_int(labelled=False), frame.to_numpy())
     if method == "sdp":     # the report: its first box names the least certain gain
         page = found.report(tmp_path / "gains.html", held_out=held_out).read_text()
         box = page.split('<div class="verdict ', 1)[1].split("</div>", 1)[0]

@@ -62,6 +62,7 @@ from ..errors import (BoundActiveWarning, IdentificationError, InaccurateSolutio
                       check_number, check_option)
 from ..identification.base import RANK_RTOL, BaseParameters
 from ..identification.identify import base_parameters_of, identify
+from ..identification.intervals import interval_frame, normal_intervals
 from ..identification.report import identification_page
 from ..identification.regressor import DEFAULT_FRICTION, FrictionArg, RegressorSpec, regressor
 from ..identification.result import IdentificationResult
@@ -120,12 +121,14 @@ class DriveGains:
         tau = (dataset.require_torque() * self.gains) @ self.coupling
         return dataset.with_torque(tau, keep_filter=True)
 
-    def conf_int(self, alpha: float = 0.05) -> np.ndarray:
-        """(n, 2) normal confidence intervals of the gains at level ``1 − alpha``."""
-        from scipy.stats import norm
-
-        z = norm.ppf(1.0 - alpha / 2.0)
-        return np.column_stack([self.gains - z * self.std, self.gains + z * self.std])
+    def conf_int(self, alpha: float = 0.05, *, labelled: bool = True) -> Any:
+        """Normal confidence intervals of the gains at level ``1 − alpha``, as
+        :meth:`IdentificationResult.conf_int` gives them: a pandas ``DataFrame`` indexed by
+        joint name, columns ``lower`` and ``upper``; ``labelled=False``: the bare (n, 2)
+        array."""
+        if not labelled:
+            return normal_intervals(self.gains, self.std, alpha)
+        return interval_frame(self.gains, self.std, list(self.joint_names), alpha)
 
     def summary(self) -> str:
         """The gains with their σ, then the identification's summary."""
