@@ -302,9 +302,15 @@ def _check_base(b: Mapping[str, Any], where: str, p: int) -> None:
     _check_covariance(np.array([[_number(v) for v in row] for row in b["covariance"]]), where)
 
 
+#: Relative tolerance of a saved covariance's symmetry and correlations (of ``√(C_ii C_jj)``).
+COVARIANCE_RTOL = 1e-6
+
+
 def _check_covariance(cov: np.ndarray, where: str) -> None:
-    """A covariance: symmetric (to rounding), non-negative variances, and no correlation beyond
-    ±1 (``|C_ij| ≤ √(C_ii C_jj)``, a necessary condition of positive semi-definiteness)."""
+    """A covariance: symmetric, non-negative variances, and no correlation beyond ±1
+    (``|C_ij| ≤ √(C_ii C_jj)``, a necessary condition of positive semi-definiteness), each to
+    :data:`COVARIANCE_RTOL` of ``√(C_ii C_jj)`` (a sandwich or a nonlinear search's covariance
+    is symmetric only to its rounding: 1e-9 relative refused a Panda Stribeck fit's own file)."""
     with np.errstate(invalid="ignore", over="ignore"):
         var = np.diag(cov)
         bad = np.flatnonzero(var < 0)
@@ -313,8 +319,10 @@ def _check_covariance(cov: np.ndarray, where: str) -> None:
                                   f"{var[bad[0]]:g}: a variance must be ≥ 0")
         finite = np.isfinite(cov)
         scale = np.sqrt(np.outer(var, var))
-        asym = finite & finite.T & (np.abs(cov - cov.T) > 1e-9 * np.maximum(scale, 1e-300))
-        corr = finite & np.isfinite(scale) & (np.abs(cov) > (1 + 1e-9) * scale + 1e-300)
+        asym = finite & finite.T & (np.abs(cov - cov.T)
+                                    > COVARIANCE_RTOL * np.maximum(scale, 1e-300))
+        corr = finite & np.isfinite(scale) & (np.abs(cov) > (1 + COVARIANCE_RTOL) * scale
+                                                + 1e-300)
     for what, mask in (("is not symmetric", asym), ("holds a correlation beyond ±1 (not a "
                                                     "covariance)", corr)):
         if mask.any():
