@@ -132,12 +132,15 @@ def test_identify_on_degrees_is_loud(ur5_run):
     assert "angle unit" not in good.details
 
 
-@pytest.mark.parametrize("arm", ["ur5", "ur10", "panda", "kinova"])
+@pytest.mark.parametrize("arm", ["ur5", "ur10", "panda", "xarm7"])
 def test_small_motions_in_degrees_are_caught_by_the_torque(arm):
     """A ±1–2° motion logged in degrees stays inside a UR's ±2π limits and below every speed
     bound, so the position checks miss it; the URDF's torque does not: read as degrees it
     explains the logged torque (MuJoCo, inertias ±20 % off the URDF, friction the URDF lacks,
-    noise), read as radians it does not. The same run in radians is never flagged."""
+    noise), read as radians it does not. The same run in radians is never flagged, nor with
+    its gravity subtracted. (Not the Kinova: near its zero pose gravity is about 0, so the
+    degrees reading explains little of a torque that is mostly friction; 1 of 9 runs caught by
+    the torque in ``benchmarks/angle_units.py``, 9 of 9 by its positions.)"""
     from consistid.data.units import degree_torque_evidence
     from consistid.robot.inertia import perturb
     from consistid.simulate import Effects, record
@@ -149,6 +152,11 @@ def test_small_motions_in_degrees_are_caught_by_the_torque(arm):
                  true_parameters=truth, duration=4.0, rate=100.0, seed=5)
     rad = ci.Dataset.from_recording(rec.t, rec.q, rec.tau)
     assert degree_torque_evidence(model, rad.q, rad.dq, rad.ddq, rad.tau) is None
+    # a radians log whose torque is gravity compensated (a commanded or tau_J_d-style log) is
+    # no RNEA torque: the degrees reading's collapsed pose fits it better, yet explains little
+    # of it (flagged on 9/9 Panda runs before the torque's own RMS was a bound too; the review)
+    compensated = rad.tau - model.rnea(rad.q, 0 * rad.dq, 0 * rad.ddq)
+    assert degree_torque_evidence(model, rad.q, rad.dq, rad.ddq, compensated) is None
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         deg = from_arrays(rec.t, rec.q * DEG, rec.tau, joint_names=model.joint_names,

@@ -213,6 +213,26 @@ def test_load_recording_converts_a_motor_side_log(ur5, tmp_path, coupling):
     assert np.abs(data.dq - truth.true_dq[at]).max() < 0.02
 
 
+def test_currents_kept_in_amperes_are_not_read_for_degrees(tmp_path):
+    """Without torque constants the currents stay in A: the degrees check by the URDF's torque
+    does not read them as N·m (it warned "read as degrees" on radians motor logs; the review),
+    and the steps say the currents were kept."""
+    panda = ci.RobotModel.example("panda")
+    ratios = [100.0, 100, 100, -100, 80, 80, 50]
+    tr = ci.Transmission(ratios)
+    traj = FourierTrajectory.random(panda, 4, 8.0, np.random.default_rng(6))
+    drives = SimulatedDrives(ci.Transmission(ratios, torque_constants=[0.1] * 7), viscous=1e-4)
+    rec = record_drives(panda, traj, drives, seed=6, duration=4.0, rate=500.0)
+    path = tmp_path / "motor_log.npz"
+    np.savez(path, time=rec.t, motor_angle=rec.motor_q, current=rec.currents)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        loaded = ci.load_recording(path, keys={"t": "time", "q": "motor_angle", "tau": "current"},
+                                   model=panda, drives=tr)
+    assert not [w for w in caught if "degrees" in str(w.message)]
+    assert any("motor currents (A)" in s for s in loaded.steps)
+
+
 # ----------------------------------------------------------------------------- TOML [drives]
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "ur5_drives"
 

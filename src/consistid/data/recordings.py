@@ -354,9 +354,10 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
         steps.append("no trim_start/trim_end requested")
     if drives is not None:
         dataset = joint_side(dataset, drives, steps)
-    if angle_unit is None:
-        _check_degrees(dataset, model, revolute, source, steps)
-    if model is not None and (drives is None or drives.torque_constants is not None):
+    in_newton_metres = drives is None or drives.torque_constants is not None
+    if angle_unit is None:          # currents (A) are not the model's torque: positions only
+        _check_degrees(dataset, model if in_newton_metres else None, revolute, source, steps)
+    if model is not None and in_newton_metres:
         _check_against_model(dataset, model, source, steps)    # currents: no torque units
     return Recording(dataset, tuple(steps), source, t0)
 

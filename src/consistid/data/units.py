@@ -23,7 +23,10 @@ logs degrees then gives positions 57.3 × too large, and identification fits tho
   the URDF's RNEA torque ``τ̂(q, q̇, q̈)`` is compared with the logged ``τ`` twice, the angles
   read as radians and as degrees (``q, q̇, q̈`` of the revolute joints × π/180). Gravity alone
   makes the two readings differ by the pose: a log whose torque the degrees reading explains
-  with less than :data:`DEGREE_FIT` of the residual RMS of the radians reading is in degrees.
+  with less than :data:`DEGREE_FIT` of the residual RMS of the radians reading, and of the
+  torque's own RMS, is in degrees (the second: a gravity-compensated or commanded torque is no
+  RNEA torque, and the collapsed pose of the degrees reading, with less gravity, fits it
+  better than the radians reading does).
   A radians log is not flagged: read as degrees its pose collapses to about zero, whose gravity
   torque differs from the logged one unless the arm stays near zero — and there the two
   readings give about the same residual (ratio ≈ 1). Tested both ways on the example arms,
@@ -144,7 +147,9 @@ def degree_torque_evidence(model: RobotModel, q: np.ndarray, dq: np.ndarray, ddq
                            tau: np.ndarray) -> str | None:
     """A sentence when the logged torque ``tau`` (N, nv) is the model's RNEA torque of the
     angles read as degrees rather than as radians (module docstring: the residual RMS over all
-    joints ``‖τ − τ̂(q·π/180, …)‖ < DEGREE_FIT · ‖τ − τ̂(q, …)‖``); ``None`` otherwise."""
+    joints ``‖τ − τ̂(q·π/180, …)‖ < DEGREE_FIT · min(‖τ − τ̂(q, …)‖, ‖τ‖)``: the degrees reading
+    must also explain the torque itself, else a log whose torque is no RNEA torque — gravity
+    compensated, commanded, currents — would read as degrees); ``None`` otherwise."""
     n = q.shape[0]
     if n < 10 or q.shape[1] != model.nv or tau.shape != q.shape:
         return None
@@ -155,7 +160,8 @@ def degree_torque_evidence(model: RobotModel, q: np.ndarray, dq: np.ndarray, ddq
     y = np.asarray(tau, dtype=float)[pick]
     rad = float(np.sqrt(np.mean((y - model.rnea(arrays["q"], arrays["dq"], arrays["ddq"])) ** 2)))
     deg = float(np.sqrt(np.mean((y - model.rnea(as_deg["q"], as_deg["dq"], as_deg["ddq"])) ** 2)))
-    if not (np.isfinite(rad) and np.isfinite(deg)) or deg >= DEGREE_FIT * rad:
+    size = float(np.sqrt(np.mean(y ** 2)))
+    if not (np.isfinite(rad) and np.isfinite(deg)) or deg >= DEGREE_FIT * min(rad, size):
         return None
     return (f"the logged torque is {model.name}'s RNEA torque of these angles read as degrees "
             f"(residual RMS {deg:.3g} N·m, against {rad:.3g} N·m read as radians)")
