@@ -316,6 +316,27 @@ def test_drive_gains_through_a_coupled_wrist(ur5):
     assert found.coupled is not None and found.coupled.result is found.result
 
 
+def test_the_gains_warnings_are_kept_with_the_result(ur5, tmp_path):
+    """Random gains and reversed sensors (UR5, seed from the review): the consistency
+    constraints move the elbow's gain 2.5 σ, which is warned, and that warning is in the
+    result's details, its summary and the report's first box ("warn"), not only on stderr."""
+    rng = np.random.default_rng(105)
+    ratios = rng.choice([-1, 1], 6) * rng.uniform(50, 120, 6)
+    kappa = rng.choice([-1, 1], 6) * np.exp(rng.uniform(np.log(0.1), np.log(10), 6))
+    drives = SimulatedDrives(ci.Transmission(ratios, torque_constants=kappa / ratios),
+                             viscous=2e-4, current_noise=0.01)
+    unloaded, loaded = run(ur5, drives, 51), run(ur5, drives, 52, payload=LOAD)
+    with pytest.warns(ci.BoundActiveWarning, match="consistency constraints move") as caught:
+        found = ci.identify_drive_gains(ur5, unloaded, loaded, payload_mass=LOAD.mass)
+    said = str(next(w.message for w in caught if w.category is ci.BoundActiveWarning))
+    kept = [v for k, v in found.result.details.items() if k.startswith("warning")]
+    assert any(said in v for v in kept) and said in found.summary()
+    assert found.findings()[0][0] == "warn"
+    page = found.report(tmp_path / "gains.html").read_text()
+    box = page.split('<div class="verdict ', 1)[1].split("</div>", 1)[0]
+    assert box.startswith("warn") and "consistency constraints move" in box
+
+
 # ----------------------------------------------------------------------------- what real logs do
 def test_gains_across_magnitudes_signs_offsets_and_quantisation(ur5):
     """Gains from 0.08 to 13 N·m/A on one arm, two reversed current sensors (negative torque

@@ -67,7 +67,7 @@ from ..identification.report import identification_page
 from ..identification.regressor import DEFAULT_FRICTION, FrictionArg, RegressorSpec, regressor
 from ..identification.result import IdentificationResult
 from ..identification.statistics import autocorrelation_time
-from ..report.html import Page
+from ..report.html import Page, unique
 from ..robot.joint_terms import STANDSTILL_SPEED
 from ..robot.model import RobotModel, require_model
 from .coupled import CoupledResult, identify_coupled
@@ -145,7 +145,8 @@ class DriveGains:
         """The gains' line of the report's first box: the least certain gain."""
         rel = self.std / np.abs(self.gains)
         j = int(np.nanargmax(rel)) if np.isfinite(rel).any() else 0
-        return [("warn" if not np.isfinite(rel[j]) else "ok",
+        warned = bool(self.details.get("warnings")) or not np.isfinite(rel[j])
+        return [("warn" if warned else "ok",
                  f"Least certain gain: {self.joint_names[j]}, {self.gains[j]:.5g} ± "
                  f"{self.std[j]:.2g} N·m/A (σ/|gain| {rel[j]:.2%}); every gain's σ is in the "
                  "table below.")]
@@ -416,38 +417,43 @@ def identify_drive_gains(model: RobotModel, unloaded: Dataset, loaded: Dataset |
     _check_offset(model, spec, blocks, runs, kept, x0)
     _check_informed(model, r0, cov0, x0[n_theta:], cond0, n_theta, body_name, mass,
                     max_relative_std)
-    with np.errstate(all="ignore"):
-        try:
-            fit = _maximum_likelihood(blocks, runs, g, x0, n_theta, kept)
-        except np.linalg.LinAlgError:
-            fit = None
-    if fit is None or not np.all(np.isfinite(fit.x)):
-        raise IdentificationError(
-            f"identify_drive_gains: the maximum-likelihood fit of the gains left the finite "
-            f"numbers (payload_mass={payload_mass!r} kg): check payload_mass= (kg, the weighed "
-            "load) and that the runs' tau hold motor currents in A")
-    x = fit.x
-    gains = x[n_theta:]
-    _check_informed(model, fit.r, fit.covariance, gains, fit.condition, n_theta, body_name,
-                    mass, max_relative_std)            # again, at the maximum-likelihood fit
-    std = np.sqrt(np.diag(fit.covariance)[n_theta:])
-    start = problem.base.n_base + problem.n_motor
-    load = np.concatenate([[mass], problem.basis @ x[start:n_theta]])
-    details: dict[str, Any] = {"current_sigma": fit.sigma, "autocorrelation_time": fit.tau,
-                               "condition_number": fit.condition,
-                               "gauss_newton_iterations": fit.iterations,
-                               "wls_gains": gains.copy()}
-    if problem.n_motor:
-        details["motor_terms"] = dict(zip(motor_column_names(transmission),
-                                          x[problem.base.n_base:start]))
-    if fit.condition > 1e8:
-        warnings.warn(f"the drive-gain problem has condition number {fit.condition:.3g}: some "
-                      "directions are barely excited; check the gains' std",
-                      PoorExcitationWarning, stacklevel=2)
-    if method == "sdp":
-        gains, load, status = _consistent(model, problem, spec, fit, g, body)
-        details["solver_status"] = status
-        std = _constrained_std(gains, fit.x[n_theta:], std, model.joint_names)
+    with warnings.catch_warnings(record=True) as caught:   # kept with the result too
+        warnings.simplefilter("always")
+        with np.errstate(all="ignore"):
+            try:
+                fit = _maximum_likelihood(blocks, runs, g, x0, n_theta, kept)
+            except np.linalg.LinAlgError:
+                fit = None
+        if fit is None or not np.all(np.isfinite(fit.x)):
+            raise IdentificationError(
+                f"identify_drive_gains: the maximum-likelihood fit of the gains left the finite "
+                f"numbers (payload_mass={payload_mass!r} kg): check payload_mass= (kg, the weighed "
+                "load) and that the runs' tau hold motor currents in A")
+        x = fit.x
+        gains = x[n_theta:]
+        _check_informed(model, fit.r, fit.covariance, gains, fit.condition, n_theta, body_name,
+                        mass, max_relative_std)            # again, at the maximum-likelihood fit
+        std = np.sqrt(np.diag(fit.covariance)[n_theta:])
+        start = problem.base.n_base + problem.n_motor
+        load = np.concatenate([[mass], problem.basis @ x[start:n_theta]])
+        details: dict[str, Any] = {"current_sigma": fit.sigma, "autocorrelation_time": fit.tau,
+                                   "condition_number": fit.condition,
+                                   "gauss_newton_iterations": fit.iterations,
+                                   "wls_gains": gains.copy()}
+        if problem.n_motor:
+            details["motor_terms"] = dict(zip(motor_column_names(transmission),
+                                              x[problem.base.n_base:start]))
+        if fit.condition > 1e8:
+            warnings.warn(f"the drive-gain problem has condition number {fit.condition:.3g}: some "
+                          "directions are barely excited; check the gains' std",
+                          PoorExcitationWarning, stacklevel=2)
+        if method == "sdp":
+            gains, load, status = _consistent(model, problem, spec, fit, g, body)
+            details["solver_status"] = status
+            std = _constrained_std(gains, fit.x[n_theta:], std, model.joint_names)
+    for w in caught:
+        warnings.warn(w.message, w.category, stacklevel=2)
+    details["warnings"] = unique([str(w.message) for w in caught])
     torque = runs[0].with_torque((runs[0].require_torque() * gains) @ g, keep_filter=True)
     coupled = None
     if problem.n_motor:
@@ -457,7 +463,8 @@ def identify_drive_gains(model: RobotModel, unloaded: Dataset, loaded: Dataset |
     else:
         result = identify(model, torque, method=method, friction=friction, armature=armature,
                           **identify_options)
-    result = _with_gains(result, gains, std, model.joint_names, body_name, mass)
+    result = _with_gains(result, gains, std, model.joint_names, body_name, mass,
+                         details["warnings"])
     if coupled is not None:
         coupled = dataclasses.replace(coupled, result=result)
     return DriveGains(gains, std, tuple(model.joint_names), result, load, body_name, method, g,
@@ -494,12 +501,16 @@ def _constrained_std(gains: np.ndarray, ml_gains: np.ndarray, std: np.ndarray,
 
 
 def _with_gains(result: IdentificationResult, gains: np.ndarray, std: np.ndarray,
-                joint_names: Sequence[str], body: str, mass: float) -> IdentificationResult:
+                joint_names: Sequence[str], body: str, mass: float,
+                warned: Sequence[str] = ()) -> IdentificationResult:
     """``result`` with the gains in its details, so that its summary, report and saved file
-    say which gains its torques came from."""
+    say which gains its torques came from, and what the gains' estimate warned
+    (``details['warning k']``, as the summary and the report's first box show them)."""
     shown = "; ".join(f"{n} {g:.6g} ± {s:.2g}" for n, g, s in zip(joint_names, gains, std))
+    first = sum(str(k).startswith("warning") for k in result.details)
     return dataclasses.replace(result, details={
         **result.details,
+        **{f"warning {first + k + 1}": f"drive gains: {text}" for k, text in enumerate(warned)},
         "drive_gains": f"torques = currents × gains (N·m/A, identified with a {mass:g} kg load "
                        f"on {body!r}): {shown}",
         "drive_gain_values": np.asarray(gains, dtype=float),
