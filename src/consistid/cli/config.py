@@ -232,8 +232,8 @@ def load_config(path: str | Path) -> RunConfig:
 
 
 def config_inputs(config: RunConfig, model: RobotModel | None = None) -> list[Path]:
-    """Every file the configuration reads: itself, ``[model] urdf``, the ``[data]`` and
-    ``[payload] loaded`` logs, ``[recover] coefficients``, ``[diagnose] nominal_urdf`` (and
+    """Every file the configuration reads: itself, ``[model] urdf``, the ``[data]``,
+    ``[payload] loaded`` and ``[drives] loaded`` logs, ``[recover] coefficients``, ``[diagnose] nominal_urdf`` (and
     ``model.source`` when given). Outputs must never be one of these
     (:mod:`consistid.cli.files`). Values of the wrong type are skipped here (their own readers
     name them)."""
@@ -259,6 +259,7 @@ def config_inputs(config: RunConfig, model: RobotModel | None = None) -> list[Pa
     add(tables.get("data", {}).get("train"), data_dir)
     add(tables.get("data", {}).get("held_out"), data_dir)
     add(tables.get("payload", {}).get("loaded"), data_dir)
+    add(tables.get("drives", {}).get("loaded"), data_dir)
     add(tables.get("recover", {}).get("coefficients"))
     add(tables.get("diagnose", {}).get("nominal_urdf"))
     return out
