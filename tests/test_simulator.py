@@ -713,3 +713,19 @@ def test_rollout_report_opens_with_its_worst_finding(case):
         assert level == "warn" and "worse than nominal on j2" in headline
     else:
         assert level == "bad" and headline.startswith("identified diverged")
+
+
+def test_a_rollout_whose_open_loop_diverged_is_not_ok():
+    """The last model's open loop diverged in every window (drift NaN) while its closed loop
+    held: its first-box line is "bad", with the joints named, not "ok" read off NaN ratios
+    (the review)."""
+    from consistid.simulator.rollout import Replay, RolloutValidation
+
+    nan = np.full(2, np.nan)
+    urdf = Replay("URDF", np.array([0.01, 0.02]), np.array([1.0, 1.0]),
+                  np.array([0.01, 0.01]), np.array([0.02, 0.02]), False)
+    found = Replay("identified", np.array([0.005, 0.01]), np.array([0.5, 0.5]), nan, nan, False)
+    v = RolloutValidation((urdf, found), ("j1", "j2"), 0.001, "implicitfast", 0.5,
+                          np.ones(2), np.ones(2), 10.0)
+    level, text = v.findings()[0]
+    assert level == "bad" and "worse than URDF on j1, j2" in text

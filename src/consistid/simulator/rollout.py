@@ -145,9 +145,10 @@ class RolloutValidation(Reported):
         if len(self.replays) > 1 and not (first.diverged or last.diverged):
             s = self.shrink
             worse = [j for k, j in enumerate(self.joint_names)
-                     if last.q_error[k] > first.q_error[k] or last.drift[k] > first.drift[k]]
-            level = "bad" if s["q_error_mrad"] > 1 or s["open_loop_mrad"] > 1 else \
-                "warn" if worse else "ok"
+                     if last.q_error[k] > first.q_error[k] or last.drift[k] > first.drift[k]
+                     or np.isnan(last.drift[k]) > np.isnan(first.drift[k])]
+            ratios = (s["q_error_mrad"], s["open_loop_mrad"])  # NaN: an open loop diverged
+            level = "bad" if any(not r <= 1 for r in ratios) else "warn" if worse else "ok"
             found.append((level, f"{last.label} vs {first.label}: closed-loop q error "
                                  f"×{s['q_error_mrad']:.3g}, open-loop drift "
                                  f"×{s['open_loop_mrad']:.3g}, correction torque "
