@@ -234,9 +234,9 @@ def load_config(path: str | Path) -> RunConfig:
 def config_inputs(config: RunConfig, model: RobotModel | None = None) -> list[Path]:
     """Every file the configuration reads: itself, ``[model] urdf``, the ``[data]``,
     ``[payload] loaded`` and ``[drives] loaded`` logs, ``[recover] coefficients``,
-    ``[diagnose] nominal_urdf`` (and ``model.source`` when given). Outputs must never be one of these
-    (:mod:`consistid.cli.files`). Values of the wrong type are skipped here (their own readers
-    name them)."""
+    ``[diagnose] nominal_urdf`` (and ``model.source`` when given). Outputs must never be one
+    of these (:mod:`consistid.cli.files`). Values of the wrong type are skipped here (their own
+    readers name them)."""
     out = [config.path]
     if model is not None and model.source is not None:
         out.append(Path(model.source))
