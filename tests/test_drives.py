@@ -216,11 +216,12 @@ def test_load_recording_converts_a_motor_side_log(ur5, tmp_path, coupling):
 def test_currents_kept_in_amperes_are_not_read_for_degrees(tmp_path):
     """Without torque constants the currents stay in A: the degrees check by the URDF's torque
     does not read them as N·m (it warned "read as degrees" on radians motor logs; the review),
-    and the steps say the currents were kept."""
+    the steps say the currents were kept, and angles in degrees are still caught by the
+    joint limits (the second review: skipping the whole check had lost them)."""
     panda = ci.RobotModel.example("panda")
     ratios = [100.0, 100, 100, -100, 80, 80, 50]
     tr = ci.Transmission(ratios)
-    traj = FourierTrajectory.random(panda, 4, 8.0, np.random.default_rng(6))
+    traj = FourierTrajectory.random(panda, 4, 8.0, np.random.default_rng(6), amplitude=0.02)
     drives = SimulatedDrives(ci.Transmission(ratios, torque_constants=[0.1] * 7), viscous=1e-4)
     rec = record_drives(panda, traj, drives, seed=6, duration=4.0, rate=500.0)
     path = tmp_path / "motor_log.npz"
@@ -231,6 +232,11 @@ def test_currents_kept_in_amperes_are_not_read_for_degrees(tmp_path):
                                    model=panda, drives=tr)
     assert not [w for w in caught if "degrees" in str(w.message)]
     assert any("motor currents (A)" in s for s in loaded.steps)
+    # the same log with its motor angles in degrees is still caught, by the joint limits
+    np.savez(path, time=rec.t, motor_angle=np.degrees(rec.motor_q), current=rec.currents)
+    with pytest.warns(ci.DataQualityWarning, match="look like degrees"):
+        ci.load_recording(path, keys={"t": "time", "q": "motor_angle", "tau": "current"},
+                          model=panda, drives=tr)
 
 
 # ----------------------------------------------------------------------------- TOML [drives]

@@ -356,7 +356,7 @@ def from_arrays(t: np.ndarray, q: np.ndarray, tau: np.ndarray, dq: np.ndarray | 
         dataset = joint_side(dataset, drives, steps)
     in_newton_metres = drives is None or drives.torque_constants is not None
     if angle_unit is None:          # currents (A) are not the model's torque: positions only
-        _check_degrees(dataset, model if in_newton_metres else None, revolute, source, steps)
+        _check_degrees(dataset, model, revolute, source, steps, by_torque=in_newton_metres)
     if model is not None and in_newton_metres:
         _check_against_model(dataset, model, source, steps)    # currents: no torque units
     return Recording(dataset, tuple(steps), source, t0)
@@ -408,14 +408,15 @@ def _logged_velocities(t: np.ndarray, arrays: Mapping[str, np.ndarray],
 
 
 def _check_degrees(dataset: Dataset, model: RobotModel | None, revolute: np.ndarray,
-                   source: str, steps: list[str]) -> None:
+                   source: str, steps: list[str], by_torque: bool = True) -> None:
     """Warn (:class:`DataQualityWarning`) and record the joints whose positions look like
     degrees read as radians (:func:`consistid.data.units.degree_suspects`), or whose torque
-    the model explains as degrees (:func:`consistid.data.units.degree_torque_evidence`)."""
+    the model explains as degrees (:func:`consistid.data.units.degree_torque_evidence`; not
+    ``by_torque``: ``tau`` holds no N·m, e.g. motor currents)."""
     found = degree_suspects(dataset.q, dataset.dq, dataset.joint_names, revolute,
                             model_limits(model) if model is not None else None)
     torque = (degree_torque_evidence(model, dataset.q, dataset.dq, dataset.ddq, dataset.tau)
-              if model is not None and dataset.tau is not None else None)
+              if by_torque and model is not None and dataset.tau is not None else None)
     found += [torque] if torque else []
     if found:
         text = degree_message(found, source)
