@@ -729,3 +729,10 @@ def test_a_rollout_whose_open_loop_diverged_is_not_ok():
                           np.ones(2), np.ones(2), 10.0)
     level, text = v.findings()[0]
     assert level == "bad" and "worse than URDF on j1, j2" in text
+    # the other way round (the URDF's open loop diverged, the identified model's did not) is
+    # an improvement, not "bad" (the second review)
+    urdf_lost = dataclasses.replace(urdf, drift=nan)
+    held = dataclasses.replace(found, drift=np.array([0.01, 0.01]))
+    back = RolloutValidation((urdf_lost, held), ("j1", "j2"), 0.001, "implicitfast", 0.5,
+                             np.ones(2), np.ones(2), 10.0)
+    assert back.findings()[0][0] == "ok"

@@ -147,8 +147,10 @@ class RolloutValidation(Reported):
             worse = [j for k, j in enumerate(self.joint_names)
                      if last.q_error[k] > first.q_error[k] or last.drift[k] > first.drift[k]
                      or np.isnan(last.drift[k]) > np.isnan(first.drift[k])]
-            ratios = (s["q_error_mrad"], s["open_loop_mrad"])  # NaN: an open loop diverged
-            level = "bad" if any(not r <= 1 for r in ratios) else "warn" if worse else "ok"
+            # the last model's open loop diverged (NaN) where the first's did not: worse
+            lost = bool(np.any(np.isnan(last.drift) & ~np.isnan(first.drift)))
+            grew = any(s[k] > 1 for k in ("q_error_mrad", "open_loop_mrad"))  # NaN: not grown
+            level = "bad" if lost or grew else "warn" if worse else "ok"
             found.append((level, f"{last.label} vs {first.label}: closed-loop q error "
                                  f"×{s['q_error_mrad']:.3g}, open-loop drift "
                                  f"×{s['open_loop_mrad']:.3g}, correction torque "
