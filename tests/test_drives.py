@@ -343,6 +343,23 @@ def test_the_gains_warnings_are_kept_with_the_result(ur5, tmp_path):
     assert box.startswith("warn") and "consistency constraints move" in box
 
 
+def test_the_gains_warnings_reach_the_caller_when_the_estimate_fails(ur5, current_runs,
+                                                                    monkeypatch):
+    """A warning raised before the consistent program fails reaches the caller with the
+    error (the second review: recording the warnings for the result had swallowed it)."""
+    from consistid.errors import InfeasibleError, PoorExcitationWarning
+
+    def failing(*args, **kwargs):
+        warnings.warn("barely excited", PoorExcitationWarning, stacklevel=2)
+        raise InfeasibleError("the consistent program failed")
+
+    monkeypatch.setattr("consistid.drives.gains._consistent", failing)
+    _, unloaded, loaded, _, _ = current_runs
+    with pytest.warns(PoorExcitationWarning, match="barely excited"):
+        with pytest.raises(InfeasibleError):
+            ci.identify_drive_gains(ur5, unloaded, loaded, payload_mass=LOAD.mass)
+
+
 # ----------------------------------------------------------------------------- what real logs do
 def test_gains_across_magnitudes_signs_offsets_and_quantisation(ur5):
     """Gains from 0.08 to 13 N·m/A on one arm, two reversed current sensors (negative torque

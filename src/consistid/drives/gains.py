@@ -417,42 +417,45 @@ def identify_drive_gains(model: RobotModel, unloaded: Dataset, loaded: Dataset |
     _check_offset(model, spec, blocks, runs, kept, x0)
     _check_informed(model, r0, cov0, x0[n_theta:], cond0, n_theta, body_name, mass,
                     max_relative_std)
-    with warnings.catch_warnings(record=True) as caught:   # kept with the result too
-        warnings.simplefilter("always")
-        with np.errstate(all="ignore"):
-            try:
-                fit = _maximum_likelihood(blocks, runs, g, x0, n_theta, kept)
-            except np.linalg.LinAlgError:
-                fit = None
-        if fit is None or not np.all(np.isfinite(fit.x)):
-            raise IdentificationError(
-                f"identify_drive_gains: the maximum-likelihood fit of the gains left the finite "
-                f"numbers (payload_mass={payload_mass!r} kg): check payload_mass= (kg, the weighed "
-                "load) and that the runs' tau hold motor currents in A")
-        x = fit.x
-        gains = x[n_theta:]
-        _check_informed(model, fit.r, fit.covariance, gains, fit.condition, n_theta, body_name,
-                        mass, max_relative_std)            # again, at the maximum-likelihood fit
-        std = np.sqrt(np.diag(fit.covariance)[n_theta:])
-        start = problem.base.n_base + problem.n_motor
-        load = np.concatenate([[mass], problem.basis @ x[start:n_theta]])
-        details: dict[str, Any] = {"current_sigma": fit.sigma, "autocorrelation_time": fit.tau,
-                                   "condition_number": fit.condition,
-                                   "gauss_newton_iterations": fit.iterations,
-                                   "wls_gains": gains.copy()}
-        if problem.n_motor:
-            details["motor_terms"] = dict(zip(motor_column_names(transmission),
-                                              x[problem.base.n_base:start]))
-        if fit.condition > 1e8:
-            warnings.warn(f"the drive-gain problem has condition number {fit.condition:.3g}: some "
-                          "directions are barely excited; check the gains' std",
-                          PoorExcitationWarning, stacklevel=2)
-        if method == "sdp":
-            gains, load, status = _consistent(model, problem, spec, fit, g, body)
-            details["solver_status"] = status
-            std = _constrained_std(gains, fit.x[n_theta:], std, model.joint_names)
-    for w in caught:
-        warnings.warn(w.message, w.category, stacklevel=2)
+    caught: list[warnings.WarningMessage] = []
+    try:
+        with warnings.catch_warnings(record=True) as caught:   # kept with the result too
+            warnings.simplefilter("always")
+            with np.errstate(all="ignore"):
+                try:
+                    fit = _maximum_likelihood(blocks, runs, g, x0, n_theta, kept)
+                except np.linalg.LinAlgError:
+                    fit = None
+            if fit is None or not np.all(np.isfinite(fit.x)):
+                raise IdentificationError(
+                    "identify_drive_gains: the maximum-likelihood fit of the gains left the "
+                    f"finite numbers (payload_mass={payload_mass!r} kg): check payload_mass= "
+                    "(kg, the weighed load) and that the runs' tau hold motor currents in A")
+            x = fit.x
+            gains = x[n_theta:]
+            _check_informed(model, fit.r, fit.covariance, gains, fit.condition, n_theta,
+                            body_name, mass, max_relative_std)  # again, at the ML fit
+            std = np.sqrt(np.diag(fit.covariance)[n_theta:])
+            start = problem.base.n_base + problem.n_motor
+            load = np.concatenate([[mass], problem.basis @ x[start:n_theta]])
+            details: dict[str, Any] = {"current_sigma": fit.sigma, "autocorrelation_time": fit.tau,
+                                       "condition_number": fit.condition,
+                                       "gauss_newton_iterations": fit.iterations,
+                                       "wls_gains": gains.copy()}
+            if problem.n_motor:
+                details["motor_terms"] = dict(zip(motor_column_names(transmission),
+                                                  x[problem.base.n_base:start]))
+            if fit.condition > 1e8:
+                warnings.warn(f"the drive-gain problem has condition number {fit.condition:.3g}: "
+                              "some directions are barely excited; check the gains' std",
+                              PoorExcitationWarning, stacklevel=2)
+            if method == "sdp":
+                gains, load, status = _consistent(model, problem, spec, fit, g, body)
+                details["solver_status"] = status
+                std = _constrained_std(gains, fit.x[n_theta:], std, model.joint_names)
+    finally:                            # passed on, even when the estimate raises
+        for w in caught:
+            warnings.warn(w.message, w.category, stacklevel=2)
     details["warnings"] = unique([str(w.message) for w in caught])
     torque = runs[0].with_torque((runs[0].require_torque() * gains) @ g, keep_filter=True)
     coupled = None
