@@ -165,6 +165,25 @@ def test_a_joint_without_a_judged_sample_is_undetermined_not_explained(planar_2r
     assert out.joints[0].judged and out.joints[0].ratio == pytest.approx(1.0, rel=0.1)
 
 
+def test_held_out_recordings_shorter_than_the_filters_settling(planar_2r):
+    """Held-out recordings of 2 s through a 1 Hz chain (settling ≈ 1.2 s each side): one
+    recording shorter than the window ran (a ValueError of mismatched shapes before), and with
+    three, where no sample can be judged, no friction is reported as 0 ± 0 from a refit on no
+    sample: the point-valued fit is (truth 1 N·m; the second review)."""
+    train = _log(planar_2r, 1.0, 0)
+    held = [_log(planar_2r, 1.0, s).select(slice(0, int(2 * RATE))) for s in (1, 2, 3)]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        one = ci.diagnose(planar_2r, train, held_out=held[0], sigma=NOISE,
+                          effects=["coulomb", "viscous", "offset"], progress=False)
+        three = ci.diagnose(planar_2r, train, held_out=held, sigma=NOISE,
+                            effects=["coulomb", "viscous", "offset"], progress=False)
+    assert one.remainder.joints[0].judged
+    assert three.remainder.undetermined == ("joint1",) and np.isnan(three.rms_left[0])
+    dry = [p for e in three.effects for p in e.parameters if "Coulomb" in p.wording]
+    assert dry and all(abs(p.value - FC) < 0.05 and p.std > 0 for p in dry), dry
+
+
 @pytest.mark.slow
 def test_mixed_mismatch_reaches_identify_and_names_every_joint_above_the_floor():
     """UR5 in MuJoCo, every body's inertia scaled by 0.88–1.12, Coulomb 0.8–2 N·m and viscous

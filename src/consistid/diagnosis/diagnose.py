@@ -81,6 +81,7 @@ from pathlib import Path
 from typing import Any, Callable, Sequence
 
 import numpy as np
+import scipy.ndimage
 import scipy.optimize
 import scipy.stats
 
@@ -1688,9 +1689,12 @@ def _near_rest(data: GapData, joint: int, cutoff: float, rate: float) -> np.ndar
     """(N,) samples within the zero-phase low-pass's settling time (99.9 % of its impulse
     response's energy, :func:`~consistid.data.filters.settling_time`) of a sample where
     ``joint`` is at rest (:func:`~consistid.diagnosis.remainder.standstill_mask`)."""
-    rest = standstill_mask(data.dataset.dq)[:, joint].astype(float)
+    rest = standstill_mask(data.dataset.dq)[:, joint]
     half = int(np.ceil(settling_time(cutoff, rate, energy=0.999) * rate))
-    return np.convolve(rest, np.ones(2 * half + 1), mode="same") > 0
+    # a running maximum keeps the data's length (np.convolve's "same" takes the longer of the
+    # two: a record shorter than the window came back the window's length)
+    return scipy.ndimage.maximum_filter1d(rest.astype(np.uint8), 2 * half + 1,
+                                          mode="constant") > 0
 
 
 def _prune_nested(prob: _Problem, chosen: list[int], alts: list, bics: list, pvals: list,

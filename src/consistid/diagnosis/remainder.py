@@ -473,8 +473,9 @@ def set_valued_refit(data: GapData, joint: int, remainder: np.ndarray,
     r"""The remainder on joint ``joint`` (N,) with its dry friction taken as set-valued where the
     torques went through the signal chain's zero-phase low-pass ``L`` at ``cutoff`` Hz, and the
     cone half-width it was judged against; ``None`` (not judged so) where a segment holding
-    samples at rest is not uniformly sampled, or the held torques' columns would exceed
-    :data:`MAX_HELD_ENTRIES` entries (a long, slowly filtered log).
+    samples at rest is not uniformly sampled, the held torques' columns would exceed
+    :data:`MAX_HELD_ENTRIES` entries (a long, slowly filtered log), or no more samples can be
+    judged (``known``) than there are amplitudes to fit.
 
     ``remainder`` (N,) is the residual after every selected effect, ``dry`` (N,) the selected
     friction's correction as fitted (its dry atoms and its ``viscous`` ones), ``laws`` the dry
@@ -522,6 +523,8 @@ def set_valued_refit(data: GapData, joint: int, remainder: np.ndarray,
     rest = standstill_mask(data.dataset.dq)[:, joint]
     if not all(seg.uniform for seg in data.segments if rest[seg.index].any()):
         return None            # the held torque's filter placed by sample, not by time
+    if np.count_nonzero(known) <= len(laws) + len(viscous):
+        return None            # fewer samples to judge on than amplitudes to fit
     if rest.sum() * impulse_length(cutoff, data.segments) > MAX_HELD_ENTRIES:
         return None
     moving = lowpass_segments(data.dataset, np.column_stack(laws) * ~rest[:, None], cutoff,
