@@ -305,6 +305,7 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
     """
     check_option("method", method, METHODS)
     check_option("covariance", covariance, COVARIANCE_OPTIONS)
+    chosen = covariance == "auto"           # not the caller's: said when it cannot hold
     if covariance == "auto":
         covariance = ("iid" if options.get("loss") == "huber" or is_one_pass(dataset)
                       else "coloured")
@@ -388,7 +389,8 @@ def identify(model: RobotModel, dataset: Dataset | Sequence[Dataset] | Iterable 
                               dataset=dataset if isinstance(dataset, Dataset) else None)
     result = dataclasses.replace(result, details={**result.details,
                                                   "parallel_filter": parallel_note(dataset)})
-    result = flag_degrees(with_covariance(result, problem, dataset, covariance, kept), dataset)
+    result = flag_degrees(with_covariance(result, problem, dataset, covariance, kept,
+                                          chosen), dataset)
     result = with_sample_noise(with_weak_directions(result, problem, dataset, kept))
     return with_excluded(result, excluded, kept, friction, armature) if excluded else result
 
@@ -496,13 +498,15 @@ def with_weak_directions(result: IdentificationResult, problem: CompressedProble
 
 def with_covariance(result: IdentificationResult, problem: CompressedProblem,
                     dataset: Dataset | DataStream, covariance: str,
-                    kept: np.ndarray | None = None) -> IdentificationResult:
+                    kept: np.ndarray | None = None, chosen: bool = False
+                    ) -> IdentificationResult:
     """``result`` with its base covariance counted as ``covariance`` says (module docstring)
     and ``details["covariance"]``, ``details["autocorrelation_time"]`` recorded.
 
     ``problem`` is the (unweighted) compressed ``dataset`` the result was fitted on; its weights
     are ``w_j = 1/σ_j²`` from ``result.sigma`` (OLS: one ``σ`` for all joints). ``kept``: the
-    joints whose rows ``problem`` holds (default all).
+    joints whose rows ``problem`` holds (default all). ``chosen``: the covariance was chosen
+    for the caller (``"auto"``), so an iid count on a one-pass stream is warned.
     """
     kept = np.arange(result.model.nv) if kept is None else np.asarray(kept)
     check_option("covariance", covariance, COVARIANCES)
@@ -516,7 +520,7 @@ def with_covariance(result: IdentificationResult, problem: CompressedProblem,
                           "read twice: a Dataset, a list, or a re-readable DataStream), or "
                           "parallel_filter=False", DataQualityWarning, stacklevel=3)
         once = isinstance(dataset, DataStream) and not dataset.rereadable
-        if once and not problem.filtered:
+        if once and chosen and not problem.filtered:
             warnings.warn("a one-pass stream (an iterator or generator) cannot be read again for "
                           "the residual's correlation, so σ count every row as an independent "
                           "sample: rows through a signal chain (derivatives, low-passes) or with "
