@@ -180,6 +180,7 @@ def test_held_out_recordings_shorter_than_the_filters_settling(planar_2r):
                             effects=["coulomb", "viscous", "offset"], progress=False)
     assert one.remainder.joints[0].judged
     assert three.remainder.undetermined == ("joint1",) and np.isnan(three.rms_left[0])
+    assert "not judged" in three.summary()            # the table says it, not a bare "nan"
     dry = [p for e in three.effects for p in e.parameters if "Coulomb" in p.wording]
     assert dry and all(abs(p.value - FC) < 0.05 and p.std > 0 for p in dry), dry
 

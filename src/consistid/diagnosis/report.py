@@ -37,7 +37,14 @@ JUDGED_NOTE = ("judged / noise: the held-out RMS as the verdict judges it (dry f
                "set-valued at rest: a held joint's torque within its friction cone is no error; "
                "samples the model cannot predict left out), over the floor the held-out "
                "recordings' own low-pass leaves (no less than the noise floor); above "
-               f"{REMAINDER_RATIO:g} the joint is flagged or undetermined.")
+               f"{REMAINDER_RATIO:g} the joint is flagged or undetermined; \"not judged\": no "
+               "sample of the joint could be (each within a delay or the low-pass's settling "
+               "time of its recording's ends).")
+
+
+def _judged(ratio: float) -> float | str:
+    """A cell of the judged / noise column: the ratio, or "not judged" (NaN: no sample)."""
+    return "not judged" if np.isnan(ratio) else ratio
 
 
 def _pct(x: float) -> str:
@@ -80,7 +87,7 @@ def diagnosis_text(diag: "Diagnosis") -> str:
     lines.append(_verdict(diag)[1])
     lines += ["", table(["joint", "nominal RMS", "final RMS", "library floor", "noise floor",
                          "final / noise", "judged / noise"],
-                        [(n, a, b, lf, s, r, k) for n, a, b, lf, s, r, k in
+                        [(n, a, b, lf, s, r, _judged(k)) for n, a, b, lf, s, r, k in
                          zip(names, diag.rms_nominal, diag.rms_final, diag.library_floor,
                              diag.noise_floor, diag.gap_to_noise, diag.left_to_noise)]),
               JUDGED_NOTE, ""]
@@ -236,7 +243,7 @@ def diagnosis_page(diag: "Diagnosis", figures: bool = True) -> Page:
     page.heading("Held-out RMS per joint", anchor="joints")
     page.table(["joint", "nominal RMS [N·m]", "final RMS [N·m]", "library floor [N·m]",
                 "noise floor [N·m]", "final / noise", "judged / noise"],
-               [[n, a, b, lf, s, r, k] for n, a, b, lf, s, r, k in
+               [[n, a, b, lf, s, r, _judged(k)] for n, a, b, lf, s, r, k in
                 zip(names, diag.rms_nominal, diag.rms_final, diag.library_floor,
                     diag.noise_floor, diag.gap_to_noise, diag.left_to_noise)])
     page.paragraph(JUDGED_NOTE)
