@@ -80,3 +80,6 @@ def test_cli_identify_shows_each_warning_once_before_the_summary(capsys, tmp_pat
     assert [w.category.__name__ for w in shown].count("ExtrapolationWarning") == 1
     assert out.count("ExtrapolationWarning") == 1
     assert out.index("ExtrapolationWarning") < out.index("base parameter")
+    # in the CLI's terms: the trained ranges are in result.json, not a Python attribute
+    said = str(next(w.message for w in shown if w.category.__name__ == "ExtrapolationWarning"))
+    assert "res.envelope" not in said + out and "result.json's \"envelope\"" in said

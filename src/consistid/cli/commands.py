@@ -277,11 +277,12 @@ def _kept_warnings(already: Sequence[str] = ()) -> Iterator[list[str]]:
         with warnings.catch_warnings(record=True) as shown:     # the filters in force decide
             for w in caught:
                 warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-        for w in shown:
-            text = f"{w.category.__name__}: {w.message}"
+        for w in shown:                 # in the CLI's terms (cli_text: no Python calls)
+            text = cli_text(f"{w.category.__name__}: {w.message}")
             if text not in found and text not in already:
                 found.append(text)
-                warnings.showwarning(w.message, w.category, w.filename, w.lineno)
+                warnings.showwarning(cli_text(str(w.message)), w.category, w.filename,
+                                     w.lineno)
 
 
 def _toml_pair(key: str, value: object) -> str:

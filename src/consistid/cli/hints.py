@@ -113,7 +113,8 @@ def _allowed(m: re.Match) -> str:
 
 
 #: Python calls quoted by the library's text, and the ``consistid`` option that does the same.
-CLI_SPELLINGS = {"summary(max_rows=None)": "--all"}
+CLI_SPELLINGS = {"summary(max_rows=None)": "--all",
+                 "res.envelope": "result.json's \"envelope\""}
 
 
 def cli_text(text: str) -> str:
