@@ -191,14 +191,14 @@ class DriveGains:
 class GainProblem:
     """The stacked linear system of the module docstring, as per-joint R factors.
 
-    ``factors[j]`` is the R factor of joint ``j``'s rows ``[A_j | y_j]`` (both runs, without
-    its rows at rest, :func:`moving_rows`), ``n_rows[j]`` their number; the columns of ``A``
+    ``factors[j]`` is the R factor of joint ``j``'s rows ``[A_j | y_j]`` (both runs, the
+    rows ``kept[:, j]``: all but those at rest, :func:`moving_rows`); the columns of ``A``
     are ``[β (b) | ζ (c) | ψ (r) | κ (n)]`` with ``ζ`` the coupled motors' terms and
     ``ψ = Vᵀφ`` the identifiable part of the load (``basis`` = ``V``, (9, r)).
     """
 
     factors: np.ndarray
-    n_rows: np.ndarray
+    kept: np.ndarray
     base: BaseParameters
     basis: np.ndarray
     mass: float
@@ -207,6 +207,11 @@ class GainProblem:
     @property
     def n_columns(self) -> int:
         return self.factors.shape[2] - 1
+
+    @property
+    def n_rows(self) -> np.ndarray:
+        """(nv,) the rows each joint's factor holds."""
+        return self.kept.sum(axis=0)
 
 
 def _blocks(model: RobotModel, data: Dataset, spec: RegressorSpec, base: BaseParameters,
@@ -247,7 +252,7 @@ def gain_problem(model: RobotModel, unloaded: Dataset, loaded: Dataset, spec: Re
     kept = np.concatenate([moving_rows(d, spec, transmission) for d in (unloaded, loaded)])
     factors = np.stack([np.linalg.qr(np.column_stack([a[kept[:, j], j], y[kept[:, j], j]]),
                                      mode="r") for j in range(model.nv)])
-    return GainProblem(factors, kept.sum(axis=0), base, basis, mass,
+    return GainProblem(factors, kept, base, basis, mass,
                        3 * int(transmission.coupled_motors.size)), runs
 
 
@@ -413,7 +418,7 @@ def identify_drive_gains(model: RobotModel, unloaded: Dataset, loaded: Dataset |
     problem, blocks = gain_problem(model, runs[0], runs[1], spec, body, mass, transmission)
     n_theta = problem.n_columns - model.nv
     x0, cov0, r0, cond0 = _linear_start(problem, model.nv)
-    kept = np.concatenate([moving_rows(d, spec, transmission) for d in runs])
+    kept = problem.kept
     _check_offset(model, spec, blocks, runs, kept, x0)
     _check_informed(model, r0, cov0, x0[n_theta:], cond0, n_theta, body_name, mass,
                     max_relative_std)
@@ -576,28 +581,30 @@ def _maximum_likelihood(blocks: list, runs: list[Dataset], coupling: np.ndarray,
     theta, c = x0[:n_theta].copy(), 1.0 / x0[n_theta:]
     sigma = np.ones(n)
 
-    def weighted(th: np.ndarray, cc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def residual(th: np.ndarray, cc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``p`` and the current residual ``c ⊙ p − i`` (0 on the samples not ``used``)."""
         p = am @ th - ym
-        return p, np.where(used, (cc * p - currents) / sigma, 0.0)
+        return p, np.where(used, cc * p - currents, 0.0)
 
     for iteration in range(1, max_iterations + 1):
-        p, resid = weighted(theta, c)
-        sigma = sigma * np.sqrt(np.sum(resid ** 2, axis=0) / dof)
+        p, raw = residual(theta, c)
+        sigma = np.sqrt(np.sum(raw ** 2, axis=0) / dof)
         sigma = np.where(sigma > 0, sigma, 1.0)
-        p, resid = weighted(theta, c)
+        resid = raw / sigma
         jac = _jacobian(am, p, c, sigma, used)
         step = np.linalg.lstsq(jac.reshape(n_samples * n, -1), -resid.reshape(-1),
                                rcond=None)[0]
         before, shrink = float(np.sum(resid ** 2)), 1.0
-        while shrink > 1e-6 and np.sum(weighted(theta + shrink * step[:n_theta],
-                                                c + shrink * step[n_theta:])[1] ** 2) > before:
+        while shrink > 1e-6 and np.sum((residual(theta + shrink * step[:n_theta],
+                                                 c + shrink * step[n_theta:])[1]
+                                        / sigma) ** 2) > before:
             shrink /= 2.0                      # backtracking: the cost never rises
         step = shrink * step
         theta, c = theta + step[:n_theta], c + step[n_theta:]
         if np.linalg.norm(step) <= tol * (1.0 + np.linalg.norm(np.concatenate([theta, c]))):
             break
-    p, resid = weighted(theta, c)
-    tau = autocorrelation_time(Dataset.concatenate(runs), resid * sigma)
+    p, raw = residual(theta, c)
+    tau = autocorrelation_time(Dataset.concatenate(runs), raw)
     jac = _jacobian(am, p, c, sigma, used)
     r = np.linalg.qr(jac.reshape(n_samples * n, -1), mode="r")
     sv = np.linalg.svd(r, compute_uv=False)
