@@ -115,9 +115,7 @@ def _check_target(target: Path, inputs: Iterable[str | os.PathLike], force: bool
     """An output file ``target`` is no input, no folder, and new unless ``force``; the
     message names it after ``what`` and says to choose another ``other`` (path, folder)."""
     _check_not_input(target, inputs, what.rstrip(":"))
-    if target.is_dir():
-        raise OutputPathError(f"{what} {str(target)!r} is an existing folder, not a file")
-    check_regular(target, what.rstrip(":"))
+    check_regular(target, what.rstrip(":"))         # a folder, a device, a FIFO
     if target.exists() and not force:
         raise OutputPathError(f"{what} {str(target)!r} exists; pass --force to replace it (or "
                               f"choose another {other})")
