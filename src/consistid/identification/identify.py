@@ -673,10 +673,7 @@ def dry_friction_at_rest(spec: RegressorSpec, stats: ResidualStatistics, kept: n
     suspected whatever the residual shows. Hausman's per-parameter test alone lacks power when
     the noise is large beside the friction (MuJoCo ``frictionloss``, noise 3 N·m, 10 s: the
     term closed in 8 of 12 runs, Coulomb terms 6–9 σ off, Panda friction coverage 0.83)."""
-    coulomb = np.zeros(stats.rest_count.size, dtype=bool)
-    for term, j, _ in spec.columns:
-        coulomb[j] |= term == "coulomb"
-    return bool(np.any((coulomb & (stats.rest_count > 0))[kept]))
+    return bool(np.any((spec.mask("coulomb") & (stats.rest_count > 0))[kept]))
 
 
 def with_rest_error(result: IdentificationResult, problem: CompressedProblem | None,
