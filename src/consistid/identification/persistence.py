@@ -487,7 +487,7 @@ def _check_agreement(doc: Mapping[str, Any], where: str, robot: RobotModel,
     pi = np.array([float(decode(v)) for v in doc["parameters"]])
     beta = np.array([float(decode(v)) for v in doc["base"]["values"]])
     with np.errstate(over="ignore", invalid="ignore"):
-        mapped = pi[base.independent] + base.K @ pi[base.dependent]
+        mapped = base.project(pi)
         gap = np.abs(mapped - beta)
         tol = 1e-6 * max(1.0, float(np.max(np.abs(beta), initial=0.0)))
     bad = np.flatnonzero(~(gap <= tol))
