@@ -212,8 +212,6 @@ COMPILED = ("body_pos", "body_quat", "body_ipos", "body_iquat", "body_mass", "bo
 
 def _check_finite(mj: Any, source: str) -> None:
     """:class:`ModelError` naming the array and body/joint of a non-finite compiled number."""
-    import mujoco
-
     for name in COMPILED:
         a = np.asarray(getattr(mj, name), dtype=float)
         if a.size == 0:
@@ -221,8 +219,7 @@ def _check_finite(mj: Any, source: str) -> None:
         bad = np.argwhere(~np.isfinite(a.reshape(a.shape[0], -1)))
         if bad.size:
             k = int(bad[0][0])
-            kind = mujoco.mjtObj.mjOBJ_BODY if name.startswith("body") else None
-            who = (f"body {body_label(mj, k)!r}" if kind is not None
+            who = (f"body {body_label(mj, k)!r}" if name.startswith("body")
                    else f"{name.split('_')[0]} {k}")
             raise ModelError(f"{source}: {who} compiles to a non-finite {name} "
                              f"({a.reshape(a.shape[0], -1)[k].tolist()}); fix the NaN or inf "
