@@ -144,13 +144,13 @@ class RolloutValidation(Reported):
         first, last = self.replays[0], self.replays[-1]
         if len(self.replays) > 1 and not (first.diverged or last.diverged):
             s = self.shrink
+            # the last model's open loop diverged (NaN) where the first's did not: worse
+            lost = np.isnan(last.drift) & ~np.isnan(first.drift)
             worse = [j for k, j in enumerate(self.joint_names)
                      if last.q_error[k] > first.q_error[k] or last.drift[k] > first.drift[k]
-                     or np.isnan(last.drift[k]) > np.isnan(first.drift[k])]
-            # the last model's open loop diverged (NaN) where the first's did not: worse
-            lost = bool(np.any(np.isnan(last.drift) & ~np.isnan(first.drift)))
+                     or lost[k]]
             grew = any(s[k] > 1 for k in ("q_error_mrad", "open_loop_mrad"))  # NaN: not grown
-            level = "bad" if lost or grew else "warn" if worse else "ok"
+            level = "bad" if lost.any() or grew else "warn" if worse else "ok"
             found.append((level, f"{last.label} vs {first.label}: closed-loop q error "
                                  f"×{s['q_error_mrad']:.3g}, open-loop drift "
                                  f"×{s['open_loop_mrad']:.3g}, correction torque "
