@@ -55,14 +55,15 @@ def sniff_delimiter(sample: str, source: str) -> str:
                            "pass delimiter=") from None
 
 
-def _locate(path: Path, start: int, delimiter: str, names: list[str], decimal_comma: bool,
+def _locate(text: str, start: int, delimiter: str, names: list[str], decimal_comma: bool,
             source: str, read: Sequence[int]) -> None:
-    """Re-read ``path`` line by line from line ``start`` (0-based) and raise a DatasetError
+    """Read the file's ``text`` (as :func:`read_text` gave it) line by line from line ``start``
+    (0-based) and raise a DatasetError
     naming the first bad line/column among the columns ``read``; an empty cell is counted down
     its column (a column empty in every row is a signal the logger did not record)."""
     empty: tuple[int, int] | None = None              # (line, column) of the first empty cell
     rows = blanks = 0
-    with io.StringIO(decode_text(path.read_bytes(), source)[0], newline="") as fh:
+    with io.StringIO(text, newline="") as fh:
         for lineno, line in enumerate(fh):
             if lineno < start or not line.strip() or line.lstrip().startswith("#"):
                 continue
@@ -169,7 +170,7 @@ def read_csv(path: str | Path, *, joints: Sequence[str] | None = None,
                            skiprows=k + 1, comments="#", ndmin=2, dtype=float, usecols=usecols,
                            quotechar='"')
     except ValueError as exc:
-        _locate(path, k + 1, delimiter, names, decimal_comma, source, usecols)
+        _locate(raw_text, k + 1, delimiter, names, decimal_comma, source, usecols)
         raise DatasetError(f"{source}: not readable as numbers after the header ({exc})") from None
     if table.shape[0] == 0:
         raise DatasetError(f"{source}: a header ({len(names)} columns) but no data rows")
@@ -213,7 +214,7 @@ def read_table(path: str | Path, delimiter: str | None = None
                            delimiter=None if delimiter == " " else delimiter, skiprows=k + 1,
                            comments="#", ndmin=2, dtype=float)
     except ValueError:
-        _locate(path, k + 1, delimiter, names, comma, source, range(len(names)))
+        _locate(text, k + 1, delimiter, names, comma, source, range(len(names)))
         raise DatasetError(f"{source}: not readable as numbers after the header") from None
     if table.shape[0] == 0 or table.shape[1] != len(names):
         raise DatasetError(f"{source}: {table.shape[0]} rows of {table.shape[1]} numbers under "
@@ -233,17 +234,10 @@ def read_text(path: Path, source: str) -> str:
     comment, written by an older Windows tool) is read as Latin-1 with a
     :class:`~consistid.errors.DataQualityWarning` naming the line; one with NUL bytes (UTF-16,
     binary) is refused (:class:`DatasetError`)."""
-    text, latin1 = decode_text(path.read_bytes(), source)
-    if latin1:
-        warnings.warn(latin1, DataQualityWarning, stacklevel=3)
-    return text
-
-
-def decode_text(raw: bytes, source: str) -> tuple[str, str | None]:
-    """``raw`` as text (:func:`read_text`) and, when it was read as Latin-1, what to say."""
+    raw = path.read_bytes()
     body = raw[3:] if raw.startswith(b"\xef\xbb\xbf") else raw
     try:
-        return body.decode("utf-8"), None
+        return body.decode("utf-8")
     except UnicodeDecodeError as exc:
         line = body[:exc.start].count(b"\n") + 1
         start = body.rfind(b"\n", 0, exc.start) + 1
@@ -254,9 +248,10 @@ def decode_text(raw: bytes, source: str) -> tuple[str, str | None]:
             raise DatasetError(f"{source}, line {line}: byte {byte!r} is not UTF-8 text and the "
                                "file holds NUL bytes (UTF-16 or binary?); save the log as "
                                "UTF-8 text") from None
-        return body.decode("latin-1"), (
-            f"{source}, line {line}: byte {byte!r} is not UTF-8; the file was read as Latin-1 "
-            f"(ISO 8859-1), which gives {shown!r}; save it as UTF-8 if that is not what it says")
+        warnings.warn(f"{source}, line {line}: byte {byte!r} is not UTF-8; the file was read "
+                      f"as Latin-1 (ISO 8859-1), which gives {shown!r}; save it as UTF-8 if that "
+                      "is not what it says", DataQualityWarning, stacklevel=3)
+        return body.decode("latin-1")
 
 
 def _drop_cut_last_line(text: str, header: int, delimiter: str, n_names: int,
