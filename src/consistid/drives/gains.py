@@ -67,6 +67,7 @@ from ..identification.report import identification_page
 from ..identification.regressor import DEFAULT_FRICTION, FrictionArg, RegressorSpec, regressor
 from ..identification.result import IdentificationResult
 from ..identification.statistics import autocorrelation_time
+from ..identification.summary import recorded_warnings
 from ..report.html import Page, unique
 from ..robot.joint_terms import STANDSTILL_SPEED
 from ..robot.model import RobotModel, require_model
@@ -515,7 +516,7 @@ def _with_gains(result: IdentificationResult, gains: np.ndarray, std: np.ndarray
     say which gains its torques came from, and what the gains' estimate warned
     (``details['warning k']``, as the summary and the report's first box show them)."""
     shown = "; ".join(f"{n} {g:.6g} ± {s:.2g}" for n, g, s in zip(joint_names, gains, std))
-    first = sum(str(k).startswith("warning") for k in result.details)
+    first = len(recorded_warnings(result.details))
     return dataclasses.replace(result, details={
         **result.details,
         **{f"warning {first + k + 1}": f"drive gains: {text}" for k, text in enumerate(warned)},

@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING, Any, Sequence
 import numpy as np
 
 from .base import COND_WARN
+from .summary import recorded_warnings
 from ..data.dataset import Dataset
 from ..report import plots
 from ..report.html import LEVELS, Page, esc, findings_html, unique
@@ -304,7 +305,7 @@ def identification_page(res: "IdentificationResult", data: Dataset | None = None
         warnings.warn(text.split(": ", 1)[1], _category(caught, text), stacklevel=3)
     facts = verdict_findings(res)
     # those recorded with the result (details['warning k']: the command line's, at load time)
-    recorded = [str(v) for k, v in res.details.items() if str(k).startswith("warning")]
+    recorded = recorded_warnings(res.details)
     # the solver failing outranks everything; then the fit, the warnings, the other facts
     findings = (facts[:1] + findings + [("warn", text) for text in unique([*recorded, *raised])]
                 + facts[1:] + list(extra))

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Sequence
+from typing import TYPE_CHECKING, Mapping, Sequence
 
 import numpy as np
 
@@ -40,6 +40,12 @@ def _relative_cell(res: "IdentificationResult", i: int) -> str:
     return f"{rel:.1f}" if np.isfinite(rel) else "inf"
 
 
+def recorded_warnings(details: Mapping[str, object]) -> list[str]:
+    """The warnings recorded with a result (``details['warning k']``: the command line's at load
+    time, the drive gains' estimate), in their order."""
+    return [str(v) for k, v in details.items() if str(k).startswith("warning")]
+
+
 def warning_lines(texts: Sequence[str], numbered: bool = True) -> list[str]:
     """A text summary's warnings block, as the HTML report's first box has them: each text
     once (:func:`consistid.report.html.unique`), right under the summary's header, as
@@ -54,7 +60,7 @@ def identification_summary(res: "IdentificationResult", max_rows: int | None = N
     """Base parameters (prior, estimate, ±σ, %σ), per-joint fit, consistency and notes; the
     warnings recorded with the result (``details['warning …']``, e.g. by the command line)
     each once under the header."""
-    warned = [str(v) for k, v in res.details.items() if str(k).startswith("warning")]
+    warned = recorded_warnings(res.details)
     prior_beta = res.base.project(res.prior)
     rows = [(res.base.names[i], prior_beta[i], res.base_parameters[i], res.base_std[i],
              _relative_cell(res, i)) for i in range(res.base.n_base)]
